@@ -1,0 +1,76 @@
+"""Input checking shared by the whole toolkit.
+
+Every public entry point funnels user data through these helpers so that bad
+input fails early with an exception that names the problem and the fix.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["DataError", "as_signal", "check_horizon"]
+
+
+class DataError(ValueError):
+    """Invalid input data (shape, length, NaN/inf, too few samples, ...)."""
+
+
+def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -> np.ndarray:
+    """Return ``x`` as a float array of shape ``(n, k)`` (time along axis 0).
+
+    Parameters
+    ----------
+    x : array_like, shape (n,) or (n, k)
+        A sampled signal; a 1-D array is one channel.
+    name : str
+        Name used in error messages (``"u"``, ``"y"``, ...).
+    n : int, optional
+        Required number of samples.
+    width : int, optional
+        Required number of channels.
+
+    Raises
+    ------
+    DataError
+        If ``x`` is not 1-D or 2-D, is empty, contains NaN/inf, or has the wrong
+        length or number of channels.
+    """
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{name} must be a numeric array, got {type(x).__name__}") from exc
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise DataError(
+            f"{name} must have shape (n,) or (n, channels) with time along axis 0; "
+            f"got an array with {arr.ndim} dimensions"
+        )
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise DataError(f"{name} is empty (shape {arr.shape})")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.count_nonzero(~np.isfinite(arr)))
+        raise DataError(f"{name} contains {bad} NaN or infinite value(s); clean or interpolate the data first")
+    if n is not None and arr.shape[0] != n:
+        raise DataError(
+            f"{name} has {arr.shape[0]} samples but {n} were expected (all signals must have the same length)"
+        )
+    if width is not None and arr.shape[1] != width:
+        raise DataError(f"{name} has {arr.shape[1]} channel(s) but {width} were expected")
+    return arr
+
+
+def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1) -> int:
+    """Validate the prediction horizon ``i`` (and, given ``n``, that ``j = n - 2i + 1 >= min_columns``)."""
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
+        raise DataError(f"horizon must be an integer >= 1, got {horizon!r}")
+    i = int(horizon)
+    if i < 1:
+        raise DataError(f"horizon must be >= 1, got {i}")
+    if n_samples is not None:
+        j = n_samples - 2 * i + 1
+        if j < min_columns:
+            raise DataError(
+                f"too few samples for horizon i={i}: n={n_samples} gives j = n - 2i + 1 = {j} columns, "
+                f"need at least {min_columns}; collect at least {2 * i - 1 + min_columns} samples or reduce the horizon"
+            )
+    return i
