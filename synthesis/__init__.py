@@ -6,6 +6,10 @@ comparators.
 """
 from ._validation import DataError
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
+from .weights import WeightError, as_weight, markov_toeplitz, observability, tustin
+from .minimax import InfeasibleGammaError, MinimaxSolution, NearGammaMinWarning, minimax_gamma_min, solve_minimax
+from .controller import RecedingHorizonController, WeightState, lti_controller
+from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
 
 __all__ = [
     "DataError",
@@ -13,4 +17,25 @@ __all__ = [
     "Predictor",
     "block_hankel",
     "fit_predictor",
+    # weights, minimax engine, H∞ laws, controller implementations (Ch. 3, 5)
+    "WeightError",
+    "as_weight",
+    "markov_toeplitz",
+    "observability",
+    "tustin",
+    "InfeasibleGammaError",
+    "MinimaxSolution",
+    "NearGammaMinWarning",
+    "minimax_gamma_min",
+    "solve_minimax",
+    "RecedingHorizonController",
+    "WeightState",
+    "lti_controller",
+    "Additive",
+    "HinfDesign",
+    "Multiplicative",
+    "PerformanceMap",
+    "gamma_min",
+    "hinf_design",
+    "performance_map",
 ]

@@ -1,0 +1,316 @@
+"""Model-free subspace based finite-horizon H∞ laws (thesis Ch. 3), each written as a performance map.
+
+Every law is the saddle point of ``min_u sup_d ‖z‖² − γ²‖d‖²`` with ``z = M_d d + M_u u + M_x x``
+solved by the one engine :mod:`synthesis.minimax`.  Notation (per horizon ``i``):
+``H_k`` = block Toeplitz of Markov parameters of ``W_k`` (3.10), ``Γ_k`` = extended
+observability matrix (3.12), ``ŷ = L_w w_p + L_u u`` (3.20).
+
+================  ==================  =====================================  ==========================================
+law               d                   z                                      gain columns (x)
+================  ==================  =====================================  ==========================================
+Thm 3.1 (3.21)    r                   [H1(r − L_u u − L_w w_p) + Γ1 x_w1;     [w_p; x_w1; x_w2]
+                                       H2 u + Γ2 x_w2]
+Thm 3.2 (causal)  r_{k+1..k+i-1}      same, with r_k moved from d into x     [r_k; w_p; x_w1; x_w2]   (3.38)
+Thm 3.4 (3.49)    [r; s]              z1 −= H1(H4 s + Γ4 x_w4);               [w_p; x_w1; x_w2; x_w3; x_w4]
+                                       z3 = H3(L_u u + L_w w_p) + Γ3 x_w3
+Thm 3.7           [r; s]              z1 as Thm 3.4; z3 = H3 u + Γ3 x_w3      [w_p; x_w1; x_w2; x_w3; x_w4]
+================  ==================  =====================================  ==========================================
+
+Multiplicative: ``W3`` (inputs ``l``) acts on the output, ``W4`` (outputs ``l``) feeds ``s``
+into it.  Additive: ``W3`` (inputs ``m``) acts on ``u``, ``W4`` (outputs ``l``).  The
+closed forms (3.6)–(3.8), (3.38)–(3.41), (3.45)–(3.46), (3.63)–(3.64) are checked against
+this engine in the tests.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from ._validation import DataError
+from .controller import WeightState, lti_controller
+from .minimax import minimax_gamma_min, solve_minimax
+from .weights import WeightError, as_weight, common_dt, markov_toeplitz, observability
+
+__all__ = [
+    "Additive",
+    "HinfDesign",
+    "Multiplicative",
+    "PerformanceMap",
+    "gamma_min",
+    "hinf_design",
+    "performance_map",
+]
+
+
+@dataclass(frozen=True)
+class Multiplicative:
+    """Output multiplicative uncertainty ``y = (I + W4 Δ W3)(L_w w_p + L_u u)`` (Fig. 3.4, Thm 3.4).
+
+    ``W3``: ``l`` inputs (driven by the output); ``W4``: ``l`` outputs.  Either may be 0 (Thm 3.6).
+    """
+
+    W3: object
+    W4: object
+
+
+@dataclass(frozen=True)
+class Additive:
+    """Additive uncertainty ``y = L_w w_p + L_u u + W4 Δ W3 u`` (Fig. 3.5, Thm 3.7).
+
+    ``W3``: ``m`` inputs (driven by the control); ``W4``: ``l`` outputs.  Either may be 0.
+    """
+
+    W3: object
+    W4: object
+
+
+@dataclass(frozen=True, eq=False)
+class PerformanceMap:
+    """``z = M_d d + M_u u + M_x x`` for one law, with the block layout of ``d`` and ``x``."""
+
+    Md: np.ndarray
+    Mu: np.ndarray
+    Mx: np.ndarray
+    disturbances: tuple  # ((name, size), ...) for d
+    columns: tuple  # ((name, size), ...) for x
+
+
+@dataclass(frozen=True, eq=False)
+class HinfDesign:
+    """A finite-horizon subspace H∞ design (Ch. 3) and its LTI controller (5.3)–(5.4).
+
+    Attributes
+    ----------
+    gamma, gamma_min : float
+        Level used and the exact threshold (3.8)/(3.41)/(3.46)/(3.64).
+    gain : ndarray, shape (i·m, n_x)
+        ``u_opt = gain @ v`` over the horizon (3.9), with ``v`` stacked as in :attr:`columns`:
+        ``[w_p; x_w1; x_w2]`` (Thm 3.1), ``[r_k; w_p; x_w1; x_w2]`` (causal, (3.38)),
+        ``[w_p; x_w1; x_w2; x_w3; x_w4]`` (robust), ``[r_k; w_p; …]`` for causal robust.
+    disturbance_gain : ndarray, shape (n_d, n_x)
+        Worst-case disturbance ``d_wc = disturbance_gain @ v``, ``d`` laid out as in :attr:`disturbances`.
+    controller : control.StateSpace
+        The LTI controller (5.3)–(5.4): inputs ``[r; y]``, output ``u``, state
+        ``[u_p; y_p; x_w1; x_w2; (x_w3)]``, sample time :attr:`dt`.
+    columns, disturbances : tuple of (name, size)
+    weight_states : tuple of WeightState
+        The weight states the controller runs (``x_w4`` is not one: it is driven by the
+        fictitious ``s`` = 0 in operation).
+    predictor, W1, W2, uncertainty, horizon, m, l, causal, dt
+        The inputs of the design (weights as discrete ``StateSpace``).
+    """
+
+    predictor: object
+    W1: control.StateSpace
+    W2: control.StateSpace
+    uncertainty: object
+    horizon: int
+    m: int
+    l: int
+    causal: bool
+    dt: float
+    gamma: float
+    gamma_min: float
+    gain: np.ndarray
+    disturbance_gain: np.ndarray
+    columns: tuple
+    disturbances: tuple
+    weight_states: tuple
+    controller: control.StateSpace | None = None
+
+    @property
+    def first_gain(self) -> np.ndarray:
+        """First ``m`` rows of :attr:`gain` (the applied control, ``k1 … k4`` of §5.2)."""
+        return self.gain[: self.m]
+
+    def block(self, name: str) -> np.ndarray:
+        """Columns of :attr:`gain` for one block of ``v`` (e.g. ``"w_p"``, ``"x_w1"``)."""
+        start = 0
+        for n, size in self.columns:
+            if n == name:
+                return self.gain[:, start:start + size]
+            start += size
+        raise KeyError(f"no column block {name!r}; blocks are {[c for c, _ in self.columns]}")
+
+
+# ---------------------------------------------------------------------------------------------
+def _predictor_parts(pred):
+    try:
+        Lw = np.asarray(pred.Lw, dtype=float)
+        Lu = np.asarray(pred.Lu, dtype=float)
+        i, m, l = int(pred.horizon), int(pred.m), int(pred.l)
+    except AttributeError as exc:
+        raise DataError("pred must be a Predictor (attributes Lw, Lu, horizon, m, l); use fit_predictor") from exc
+    if i < 1 or m < 1 or l < 1:
+        raise DataError(f"predictor has horizon={i}, m={m}, l={l}; all must be >= 1")
+    if Lw.shape != (i * l, i * (m + l)) or Lu.shape != (i * l, i * m):
+        raise DataError(
+            f"predictor matrices have shapes Lw {Lw.shape}, Lu {Lu.shape}; expected {(i * l, i * (m + l))} and "
+            f"{(i * l, i * m)} for i={i}, m={m}, l={l}")
+    if not (np.all(np.isfinite(Lw)) and np.all(np.isfinite(Lu))):
+        raise DataError("predictor contains NaN or infinite values; refit it from clean data")
+    return Lw, Lu, i, m, l
+
+
+def _weights(pred_m, pred_l, W1, W2, uncertainty):
+    W1 = as_weight(W1, "W1", inputs=pred_l)
+    W2 = as_weight(W2, "W2", inputs=pred_m)
+    unc = None
+    if uncertainty is not None:
+        if not isinstance(uncertainty, (Multiplicative, Additive)):
+            raise WeightError("uncertainty must be Multiplicative(W3, W4), Additive(W3, W4) or None")
+        w3_in = pred_l if isinstance(uncertainty, Multiplicative) else pred_m
+        W3 = as_weight(uncertainty.W3, "W3", inputs=w3_in, allow_zero=True)
+        W4 = as_weight(uncertainty.W4, "W4", outputs=pred_l, allow_zero=True, square_rank=True)
+        unc = (W3, W4)
+    dt = common_dt(W1, W2, *(unc or ()))
+    # give static weights the common sample time so every system returned is discrete with one dt
+    fix = lambda W: W if W.nstates else control.ss(W.A, W.B, W.C, W.D, dt)  # noqa: E731
+    W1, W2 = fix(W1), fix(W2)
+    if unc is not None:
+        unc = (fix(unc[0]), fix(unc[1]))
+    return W1, W2, unc, dt
+
+
+def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
+    H1, G1 = markov_toeplitz(W1, i), observability(W1, i)
+    H2, G2 = markov_toeplitz(W2, i), observability(W2, i)
+    p1, p2 = H1.shape[0], H2.shape[0]
+    n1, n2 = G1.shape[1], G2.shape[1]
+    z = lambda r, c: np.zeros((r, c))  # noqa: E731
+    # (3.21): rows z1, z2; d = r
+    Md_r = np.vstack([H1, z(p2, i * l)])
+    Mu = np.vstack([-H1 @ Lu, H2])
+    Mx_blocks = {
+        "w_p": np.vstack([-H1 @ Lw, z(p2, Lw.shape[1])]),
+        "x_w1": np.vstack([G1, z(p2, n1)]),
+        "x_w2": np.vstack([z(p1, n2), G2]),
+    }
+    disturbances = [("r", i * l)]
+    Md_blocks = [Md_r]
+    names = ["w_p", "x_w1", "x_w2"]
+    if unc is not None:
+        W3, W4 = unc
+        H3, G3 = markov_toeplitz(W3, i), observability(W3, i)
+        H4, G4 = markov_toeplitz(W4, i), observability(W4, i)
+        p3, n3, n4, ms = H3.shape[0], G3.shape[1], G4.shape[1], H4.shape[1]
+        # z1 gets −H1(H4 s + Γ4 x_w4) (3.49); add the z3 row block
+        Md_r = np.vstack([Md_r, z(p3, i * l)])
+        Md_s = np.vstack([-H1 @ H4, z(p2, ms), z(p3, ms)])
+        Md_blocks = [Md_r, Md_s]
+        disturbances.append(("s", ms))
+        if unc_kind is Multiplicative:
+            z3_u, z3_wp = H3 @ Lu, H3 @ Lw
+        else:
+            z3_u, z3_wp = H3, z(p3, Lw.shape[1])
+        Mu = np.vstack([Mu, z3_u])
+        Mx_blocks = {
+            "w_p": np.vstack([Mx_blocks["w_p"], z3_wp]),
+            "x_w1": np.vstack([Mx_blocks["x_w1"], z(p3, n1)]),
+            "x_w2": np.vstack([Mx_blocks["x_w2"], z(p3, n2)]),
+            "x_w3": np.vstack([z(p1 + p2, n3), G3]),
+            "x_w4": np.vstack([-H1 @ G4, z(p2 + p3, n4)]),
+        }
+        names += ["x_w3", "x_w4"]
+    Md = np.hstack(Md_blocks)
+    columns = [(n, Mx_blocks[n].shape[1]) for n in names]
+    Mx = np.hstack([Mx_blocks[n] for n in names])
+    if causal:
+        # Thm 3.2: r_k is known, so its l columns move from d into x (first), (3.37)–(3.38)
+        Mx = np.hstack([Md[:, :l], Mx])
+        Md = Md[:, l:]
+        disturbances[0] = ("r", (i - 1) * l)
+        columns = [("r_k", l)] + columns
+    return PerformanceMap(Md, Mu, Mx, tuple(disturbances), tuple(columns))
+
+
+def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None) -> PerformanceMap:
+    """Performance map ``z = M_d d + M_u u + M_x x`` of a law ((3.21), Thm 3.2, (3.49), Thm 3.7).
+
+    Parameters are those of :func:`hinf_design`.
+    """
+    Lw, Lu, i, m, l = _predictor_parts(pred)
+    W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty)
+    return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc, bool(causal))
+
+
+def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None) -> float:
+    """Best achievable level ``γ_min`` (3.8), causal (3.41), multiplicative (3.46), additive (3.64).
+
+    Computed exactly as ``‖(I − P_u) M_d‖₂`` by :func:`synthesis.minimax.minimax_gamma_min`.
+    """
+    pm = performance_map(pred, W1, W2, causal=causal, uncertainty=uncertainty)
+    return minimax_gamma_min(pm.Md, pm.Mu)
+
+
+def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float = 1.1,
+                causal: bool = False, uncertainty=None) -> HinfDesign:
+    """Finite-horizon model-free subspace based central H∞ design (Thms 3.1, 3.2, 3.4, 3.7).
+
+    Parameters
+    ----------
+    pred : Predictor
+        Subspace predictor ``(L_w, L_u)`` from :func:`synthesis.fit_predictor` (any object with
+        ``Lw, Lu, horizon, m, l`` works).
+    W1, W2 : control.StateSpace, control.TransferFunction, scalar or matrix
+        Discrete weights on the tracking error ``r − y`` (``l`` inputs) and on ``u`` (``m``
+        inputs), relative degree 0, one common sample time (the data's).
+    gamma : float, optional
+        Level; must exceed ``γ_min``.  Default ``gamma_ratio * γ_min`` (∞ if ``γ_min = 0``,
+        i.e. no disturbance channel, e.g. the causal law with ``i = 1``).
+    gamma_ratio : float
+        Used when ``gamma`` is None; 1.1 is the thesis's rule of thumb (§5.1 comment 4).
+    causal : bool
+        ``r_k`` is known when ``u_k`` is computed (Thm 3.2); the controller then has a
+        feedthrough from ``r``.
+    uncertainty : Multiplicative or Additive, optional
+        Robust design (Thm 3.4 / Thm 3.7).
+
+    Returns
+    -------
+    HinfDesign
+
+    Raises
+    ------
+    InfeasibleGammaError
+        If ``gamma <= γ_min``.
+    WeightError, DataError
+        Improper / continuous / NaN weights, mismatched sample times or dimensions.
+
+    Warns
+    -----
+    NearGammaMinWarning
+        If ``gamma < 1.03 γ_min``.
+    """
+    Lw, Lu, i, m, l = _predictor_parts(pred)
+    W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty)
+    kind = type(uncertainty) if unc else None
+    pm = _build_map(Lw, Lu, i, m, l, W1s, W2s, kind, unc, bool(causal))
+    if gamma is None:
+        if not (np.isfinite(gamma_ratio) and gamma_ratio > 0):
+            raise DataError(f"gamma_ratio must be a positive number, got {gamma_ratio!r}")
+        g0 = minimax_gamma_min(pm.Md, pm.Mu)
+        gamma = gamma_ratio * g0 if g0 > 0 else np.inf
+    sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
+    ws = [WeightState("x_w1", _A(W1s), _B(W1s), "e"), WeightState("x_w2", _A(W2s), _B(W2s), "u")]
+    if unc is not None:
+        ws.append(WeightState("x_w3", _A(unc[0]), _B(unc[0]), "y" if kind is Multiplicative else "u"))
+    design = HinfDesign(
+        predictor=pred, W1=W1s, W2=W2s,
+        uncertainty=None if unc is None else kind(unc[0], unc[1]),
+        horizon=i, m=m, l=l, causal=bool(causal), dt=dt,
+        gamma=sol.gamma, gamma_min=sol.gamma_min, gain=sol.u_gain, disturbance_gain=sol.d_gain,
+        columns=pm.columns, disturbances=pm.disturbances, weight_states=tuple(ws),
+    )
+    return dataclasses.replace(design, controller=lti_controller(design))
+
+
+def _A(W):
+    return np.asarray(W.A, float).reshape(W.nstates, W.nstates)
+
+
+def _B(W):
+    return np.asarray(W.B, float).reshape(W.nstates, W.ninputs)

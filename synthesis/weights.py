@@ -1,0 +1,226 @@
+"""Discrete weighting filters for the mixed-sensitivity cost (thesis §3.1, (3.10)–(3.12)).
+
+A weight is a python-control discrete LTI system with relative McMillan degree 0,
+i.e. a full-rank direct feedthrough ``D`` (§3.1, §5.1 comment 3).  This module
+
+* checks and normalises weights (:func:`as_weight`): a scalar or a numpy matrix is a
+  static weight, a ``TransferFunction`` is converted to a ``StateSpace``;
+* builds discrete weights from continuous designs with the Tustin transform
+  (:func:`tustin`), as in §5.4;
+* forms the finite-horizon matrices of the control laws: the block lower-triangular
+  Toeplitz matrix of Markov parameters ``H`` (3.10)/(3.11) (:func:`markov_toeplitz`)
+  and the extended observability matrix ``Γ`` (3.12) (:func:`observability`).
+
+Markov parameters are computed directly from ``(A, B, C, D)``: python-control's
+discrete ``impulse_response`` scales by ``1/dt`` and ``control.markov`` assumes a
+stable system.
+"""
+from __future__ import annotations
+
+import numbers
+
+import control
+import numpy as np
+
+from ._validation import DataError
+
+__all__ = [
+    "WeightError",
+    "as_weight",
+    "common_dt",
+    "is_zero_weight",
+    "markov_toeplitz",
+    "observability",
+    "tustin",
+]
+
+
+class WeightError(DataError):
+    """A weighting filter is unusable (improper, continuous, wrong size, wrong dt, NaN)."""
+
+
+def tustin(sys_continuous, dt: float) -> control.StateSpace:
+    """Discretise a continuous-time weight with the Tustin (bilinear) transform (§5.4).
+
+    Parameters
+    ----------
+    sys_continuous : control.TransferFunction or control.StateSpace
+        Continuous-time weight (``dt = 0``).
+    dt : float
+        Sample time of the data, > 0.
+
+    Returns
+    -------
+    control.StateSpace
+        Discrete weight with sample time ``dt``.
+    """
+    if not isinstance(sys_continuous, (control.TransferFunction, control.StateSpace)):
+        raise WeightError(f"tustin needs a python-control TransferFunction or StateSpace, got {type(sys_continuous).__name__}")
+    if not control.isctime(sys_continuous, strict=True):
+        raise WeightError("tustin needs a continuous-time system (dt = 0); the weight is already discrete")
+    if not (isinstance(dt, numbers.Real) and np.isfinite(dt) and dt > 0):
+        raise WeightError(f"dt must be a positive finite sample time, got {dt!r}")
+    sysd = control.sample_system(sys_continuous, float(dt), method="bilinear")
+    return control.ss(sysd)
+
+
+def _ss_parts(W) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    return (np.atleast_2d(np.asarray(W.A, float)).reshape(W.nstates, W.nstates),
+            np.asarray(W.B, float).reshape(W.nstates, W.ninputs),
+            np.asarray(W.C, float).reshape(W.noutputs, W.nstates),
+            np.asarray(W.D, float).reshape(W.noutputs, W.ninputs))
+
+
+def is_zero_weight(W: control.StateSpace) -> bool:
+    """True when the weight's transfer function is identically zero (D = 0 and all C Aᵏ B = 0)."""
+    A, B, C, D = _ss_parts(W)
+    if np.any(D != 0):
+        return False
+    M = B
+    for _ in range(A.shape[0]):
+        if np.any(C @ M != 0):
+            return False
+        M = A @ M
+    return True
+
+
+def _static(D: np.ndarray, dt) -> control.StateSpace:
+    q, p = D.shape
+    return control.ss(np.zeros((0, 0)), np.zeros((0, p)), np.zeros((q, 0)), D, dt)
+
+
+def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = None,
+              dt=None, allow_zero: bool = False, square_rank: bool = False) -> control.StateSpace:
+    """Check a weighting filter and return it as a discrete ``StateSpace``.
+
+    Parameters
+    ----------
+    W : scalar, array_like, control.StateSpace or control.TransferFunction
+        The weight.  A scalar or a 2-D array is a static weight (its matrix is ``D``).
+    name : str
+        Name used in error messages (``"W1"``, …).
+    inputs, outputs : int, optional
+        Required number of input / output channels.
+    dt : float or True, optional
+        Sample time given to a static weight (dynamic weights keep theirs; use
+        :func:`common_dt` to check that they agree).
+    allow_zero : bool
+        Accept an identically zero weight (Theorem 3.6's ``W3 = W4 = 0``).
+    square_rank : bool
+        Require ``rank D = min(shape D)`` instead of full column rank (used for ``W4``,
+        whose ``Q4,outer = H4 H4ᵀ`` need only be semidefinite).
+
+    Raises
+    ------
+    WeightError
+        Continuous-time dynamics, NaN/inf entries, wrong dimensions, or a feedthrough
+        ``D`` without full column rank (relative degree > 0 makes ``Q = HᵀH``
+        singular, §3.1).
+    """
+    if isinstance(W, control.TransferFunction):
+        W = control.ss(W)
+    if isinstance(W, control.StateSpace):
+        A, B, C, D = _ss_parts(W)
+        if W.nstates == 0:
+            sys = _static(D, dt if dt is not None else (W.dt if W.dt else True))
+        else:
+            if not control.isdtime(W, strict=True):
+                raise WeightError(
+                    f"{name} is a continuous-time system (dt = {W.dt}); discretise it with "
+                    "synthesis.tustin(W, dt) at the data's sample time")
+            sys = W
+    elif isinstance(W, (numbers.Real, np.ndarray, list, tuple)):
+        try:
+            D = np.atleast_2d(np.asarray(W, dtype=float))
+        except (TypeError, ValueError) as exc:
+            raise WeightError(f"{name} must be numeric, got {W!r}") from exc
+        if D.ndim != 2:
+            raise WeightError(f"{name}: a static weight must be a scalar or a 2-D matrix, got shape {D.shape}")
+        A, B, C = np.zeros((0, 0)), np.zeros((0, D.shape[1])), np.zeros((D.shape[0], 0))
+        sys = None
+    else:
+        raise WeightError(f"{name} must be a python-control system, a scalar or a matrix; got {type(W).__name__}")
+    for part, val in (("A", A), ("B", B), ("C", C), ("D", D)):
+        if not np.all(np.isfinite(val)):
+            raise WeightError(f"{name}.{part} contains NaN or infinite values")
+    if sys is None:
+        sys = _static(D, dt if dt is not None else True)
+    if inputs is not None and sys.ninputs != inputs:
+        raise WeightError(f"{name} has {sys.ninputs} input(s) but must have {inputs} to match the predictor")
+    if outputs is not None and sys.noutputs != outputs:
+        raise WeightError(f"{name} has {sys.noutputs} output(s) but must have {outputs} to match the predictor")
+    if allow_zero and is_zero_weight(sys):
+        return sys
+    need = min(D.shape) if square_rank else D.shape[1]
+    rank = np.linalg.matrix_rank(D) if D.size else 0
+    if D.shape[0] < D.shape[1] and not square_rank:
+        raise WeightError(
+            f"{name} has {D.shape[0]} output(s) and {D.shape[1]} input(s): a weight needs at least as many "
+            "outputs as inputs (§3.1)")
+    if rank < need or need == 0:
+        raise WeightError(
+            f"{name} must have relative degree 0, i.e. a full-rank feedthrough D (§3.1); its D = {D.tolist()} "
+            f"has rank {rank} < {need}. Add a small direct term (e.g. a far-away zero) to make it biproper")
+    return sys
+
+
+def common_dt(*weights) -> float | bool:
+    """The one sample time shared by the dynamic weights; ``True`` if all are static.
+
+    Raises
+    ------
+    WeightError
+        If two dynamic weights have different sample times.
+    """
+    dts = []
+    for W in weights:
+        if W is None or W.nstates == 0:
+            continue
+        if W.dt is not True:
+            dts.append(float(W.dt))
+    if not dts:
+        return True
+    if any(not np.isclose(d, dts[0], rtol=1e-9, atol=0) for d in dts):
+        raise WeightError(
+            f"weights have different sample times {sorted(set(dts))}; discretise all of them at the data's "
+            "sample time")
+    return dts[0]
+
+
+def markov_toeplitz(sys, i: int) -> np.ndarray:
+    """Block lower-triangular Toeplitz matrix of Markov parameters (3.10)/(3.11).
+
+    ``H[r, c] = D`` for ``r = c``, ``C A^{r-c-1} B`` for ``r > c``, 0 above the diagonal;
+    blocks are ``(outputs × inputs)``; the result has shape ``(i·p, i·q)``.
+    """
+    i = _horizon(i)
+    A, B, C, D = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
+    p, q = D.shape
+    blocks = [D]
+    AkB = B
+    for _ in range(1, i):
+        blocks.append(C @ AkB)
+        AkB = A @ AkB
+    H = np.zeros((i * p, i * q))
+    for r in range(i):
+        for c in range(r + 1):
+            H[r * p:(r + 1) * p, c * q:(c + 1) * q] = blocks[r - c]
+    return H
+
+
+def observability(sys, i: int) -> np.ndarray:
+    """Extended observability matrix ``Γ = [C; CA; …; CA^{i-1}]`` (3.12), shape ``(i·p, n)``."""
+    i = _horizon(i)
+    A, _, C, _ = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
+    rows = []
+    CA = C
+    for _ in range(i):
+        rows.append(CA)
+        CA = CA @ A
+    return np.vstack(rows) if rows else np.zeros((0, A.shape[0]))
+
+
+def _horizon(i) -> int:
+    if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 1:
+        raise DataError(f"horizon must be an integer >= 1, got {i!r}")
+    return int(i)
