@@ -1,3 +1,28 @@
 """Plants, signals, simulations and the thesis experiments (Ch. 5–7)."""
+from .plants import THREE_DISK, ThreeDiskParameters, servo, three_disk
+from .signals import prbs, step, step_sequence, white_noise
+from .simulate import (
+    AlgebraicLoopError,
+    ClosedLoopResult,
+    OpenLoopData,
+    closed_loop,
+    closed_loop_adaptive,
+    collect_data,
+)
 
-__all__: list[str] = []
+__all__: list[str] = [
+    "THREE_DISK",
+    "ThreeDiskParameters",
+    "servo",
+    "three_disk",
+    "prbs",
+    "step",
+    "step_sequence",
+    "white_noise",
+    "AlgebraicLoopError",
+    "ClosedLoopResult",
+    "OpenLoopData",
+    "closed_loop",
+    "closed_loop_adaptive",
+    "collect_data",
+]

@@ -1,0 +1,191 @@
+"""Plants used in the thesis experiments, as python-control state-space systems.
+
+* :func:`servo` — the servo actuator (5.5) ``P(s) = 1/(s(s+1))``, sampled at 10 Hz
+  with a zero-order hold, which gives (5.6)
+  ``P_d(z) = (0.004837 z + 0.004679)/(z² − 1.905 z + 0.9048)``.
+* :func:`three_disk` — the three-disk torsional plant of §6.1 (``P_{y1,u}``,
+  ``P_{y2,u}``, ``P_{y3,u}``, or the one-input three-output model), sampled at
+  64 Hz with a zero-order hold.
+
+Both are built in a real *modal* realisation: one state per real pole and a
+``[[σ, −ω_d], [ω_d, σ]]`` block per complex pair, each block scaled so that its
+input and output gains have equal size.  The lightly damped modes of the
+three-disk plant then discretise into scaled rotations (``expm`` of a normal
+block), which keeps the sampled model numerically sane, unlike a companion
+(controllable canonical) form whose coefficients span ten decades.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+__all__ = [
+    "servo",
+    "three_disk",
+    "ThreeDiskParameters",
+    "THREE_DISK",
+    "SERVO_DT",
+    "THREE_DISK_DT",
+]
+
+SERVO_DT = 0.1
+"""Sample time of the §5.4 design example (10 Hz)."""
+
+THREE_DISK_DT = 1.0 / 64.0
+"""Sample time of the Chapter 6 experiments (64 Hz)."""
+
+
+@dataclass(frozen=True)
+class ThreeDiskParameters:
+    """Parameters of the §6.1 three-disk models (rad/s, radians per volt)."""
+
+    k: float = 24.26
+    alpha: float = 0.35
+    zeta_z1: float = 0.026
+    omega_z1: float = 10.65
+    zeta_z2: float = 0.011
+    omega_z2: float = 42.00
+    zeta_p1: float = 0.024
+    omega_p1: float = 15.85
+    zeta_p2: float = 0.010
+    omega_p2: float = 43.50
+
+    def poles(self) -> np.ndarray:
+        """Continuous-time poles ``0, −α`` and the two lightly damped pairs."""
+        return np.concatenate(
+            [[0.0, -self.alpha], _pair(self.zeta_p1, self.omega_p1), _pair(self.zeta_p2, self.omega_p2)]
+        )
+
+    def numerators(self) -> dict[str, np.ndarray]:
+        """Numerator polynomials (highest power first) of ``P_{y1,u}``, ``P_{y2,u}``, ``P_{y3,u}``."""
+        q1 = _quad(self.zeta_z1, self.omega_z1)
+        q2 = _quad(self.zeta_z2, self.omega_z2)
+        return {
+            "y1": self.k * np.polymul(q1, q2),
+            "y2": self.k * self.omega_z2**2 * q1,
+            "y3": np.array([self.k * self.omega_z1**2 * self.omega_z2**2]),
+        }
+
+    def denominator(self) -> np.ndarray:
+        """Common denominator ``s (s+α)(s² + 2ζ_{p1}ω_{p1}s + ω_{p1}²)(s² + 2ζ_{p2}ω_{p2}s + ω_{p2}²)``."""
+        d = np.polymul([1.0, self.alpha, 0.0], _quad(self.zeta_p1, self.omega_p1))
+        return np.polymul(d, _quad(self.zeta_p2, self.omega_p2))
+
+
+THREE_DISK = ThreeDiskParameters()
+"""The §6.1 parameter values (see NOTES.md)."""
+
+
+def servo(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
+    """Servo actuator (5.5) ``P(s) = 1/(s(s+1))``, optionally ZOH-sampled.
+
+    Parameters
+    ----------
+    dt : float
+        Sample time in seconds (10 Hz in §5.4, which gives (5.6)).
+    continuous : bool
+        Return the continuous-time model instead of the sampled one.
+
+    Returns
+    -------
+    control.StateSpace
+        Two-state modal realisation (integrator and the pole at −1), one input
+        ``u`` and one output ``y``; ``dt`` is the sample time (0 when continuous).
+    """
+    sys = _modal_ss({"y": np.array([1.0])}, np.array([0.0, -1.0]), name="servo")
+    return sys if continuous else _zoh(sys, dt)
+
+
+def three_disk(
+    output: str = "y3",
+    dt: float = THREE_DISK_DT,
+    continuous: bool = False,
+    params: ThreeDiskParameters = THREE_DISK,
+) -> ct.StateSpace:
+    """Three-disk torsional plant of §6.1, optionally ZOH-sampled at 64 Hz.
+
+    Parameters
+    ----------
+    output : {"y1", "y2", "y3", "all"}
+        Which disk angle is measured: ``"y1"`` is the collocated plant (§6.3),
+        ``"y3"`` the non-collocated one (§6.2); ``"all"`` gives the one-input,
+        three-output model ``[y1; y2; y3]`` (one shared 6-state realisation).
+    dt : float
+        Sample time in seconds.
+    continuous : bool
+        Return the continuous-time model instead of the sampled one.
+    params : ThreeDiskParameters
+        Model parameters (defaults: thesis §6.1 values).
+
+    Returns
+    -------
+    control.StateSpace
+        Six-state modal realisation (integrator, pole at −α, two lightly damped
+        pairs), strictly proper.
+    """
+    nums = params.numerators()
+    if output == "all":
+        chosen = nums
+    elif output in nums:
+        chosen = {output: nums[output]}
+    else:
+        raise ValueError(f"output must be one of 'y1', 'y2', 'y3', 'all'; got {output!r}")
+    sys = _modal_ss(chosen, params.poles(), name=f"three_disk_{output}")
+    return sys if continuous else _zoh(sys, dt)
+
+
+# ---------------------------------------------------------------------------
+def _quad(zeta: float, omega: float) -> np.ndarray:
+    return np.array([1.0, 2.0 * zeta * omega, omega * omega])
+
+
+def _pair(zeta: float, omega: float) -> np.ndarray:
+    re = -zeta * omega
+    im = omega * np.sqrt(1.0 - zeta * zeta)
+    return np.array([re + 1j * im, re - 1j * im])
+
+
+def _zoh(sys: ct.StateSpace, dt: float) -> ct.StateSpace:
+    if not np.isscalar(dt) or not np.isfinite(dt) or dt <= 0:
+        raise ValueError(f"dt must be a positive sample time in seconds, got {dt!r}")
+    return ct.c2d(sys, float(dt), method="zoh", name=sys.name + "_zoh")
+
+
+def _modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) -> ct.StateSpace:
+    """Real modal realisation of ``N_o(s)/Π(s − p)`` for each output ``o``.
+
+    The poles must be distinct; complex poles come in conjugate pairs (the one
+    with positive imaginary part is used).  Residues are computed from the
+    factored denominator, ``ρ = N(p)/Π_{q≠p}(p − q)``.
+    """
+    poles = np.asarray(poles, dtype=complex)
+    outputs = list(numerators)
+    blocks_a, blocks_b, blocks_c = [], [], []
+    for idx, p in enumerate(poles):
+        if p.imag < 0:
+            continue
+        others = np.delete(poles, idx)
+        dprime = np.prod(p - others)
+        res = np.array([np.polyval(numerators[o], p) / dprime for o in outputs])
+        if p.imag == 0:
+            a = np.array([[p.real]])
+            b = np.array([[1.0]])
+            c = res.real[:, None]
+        else:
+            # z' = p z + u, y = 2 Re(ρ z): real coordinates [Re z; Im z].
+            a = np.array([[p.real, -p.imag], [p.imag, p.real]])
+            b = np.array([[1.0], [0.0]])
+            c = np.column_stack([2.0 * res.real, -2.0 * res.imag])
+        scale = np.sqrt(np.linalg.norm(c) / np.linalg.norm(b))
+        blocks_a.append(a)
+        blocks_b.append(b * scale)
+        blocks_c.append(c / scale)
+    from scipy.linalg import block_diag
+
+    A = block_diag(*blocks_a)
+    B = np.vstack(blocks_b)
+    C = np.hstack(blocks_c)
+    D = np.zeros((len(outputs), 1))
+    return ct.ss(A, B, C, D, inputs=["u"], outputs=outputs if len(outputs) > 1 else outputs, name=name)

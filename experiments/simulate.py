@@ -1,0 +1,364 @@
+"""Open- and closed-loop simulation of discrete plants (thesis §5.4, Ch. 6, §7.4).
+
+* :func:`collect_data` — open-loop experiment: the plant is driven by ``u`` plus
+  process noise (injected at the plant input), and the measured output carries
+  sensor noise (§5.4: σ = 0.05 each).
+* :func:`closed_loop` — a plant under a controller, by an explicit time loop on the
+  state-space matrices.  The controller is either
+
+  - a discrete LTI python-control system with inputs ``[r; y]`` and output ``u``
+    (the contract of ``synthesis.lti_controller`` / ``hinf_design(...).controller``),
+    or with inputs ``e = r − y`` (a standard error-feedback ``u = K(r − y)``, e.g.
+    ``synthesis.discrete_mixsyn(...).controller``); the two are told apart by the
+    number of inputs (``2l`` or ``l``);
+  - a step-by-step controller object with ``control(r_k) -> u_k`` and
+    ``observe(u_k, y_k, r_k)`` (``synthesis.RecedingHorizonController``,
+    ``synthesis.AdaptiveHinf``).
+
+  An additive plant perturbation ``Δ`` (a second LTI system in parallel with the
+  plant, Ch. 7) and process / sensor noise are optional.
+* :func:`closed_loop_adaptive` — :func:`closed_loop` with an adaptive controller,
+  also returning its ``γ_min(t)`` and ``γ(t)`` histories.
+
+Timing at sample ``k``: ``y_k = C x_k + D u_k`` is measured (plus sensor noise),
+the controller computes ``u_k`` from its state and ``[r_k; y_k]`` (strictly proper
+plants; a controller feedthrough from ``y`` with a non-strictly-proper plant is an
+algebraic loop and is refused), then every state advances.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import control as ct
+import numpy as np
+
+__all__ = [
+    "AlgebraicLoopError",
+    "OpenLoopData",
+    "ClosedLoopResult",
+    "collect_data",
+    "closed_loop",
+    "closed_loop_adaptive",
+]
+
+
+class AlgebraicLoopError(ValueError):
+    """Plant feedthrough ``D ≠ 0`` and controller feedthrough from ``y`` ``≠ 0``."""
+
+
+@dataclass(frozen=True)
+class OpenLoopData:
+    """Open-loop experiment data (time along axis 0).
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Sample times ``k·dt``.
+    u : ndarray, shape (n, m)
+        Commanded input (what the experimenter records; the plant saw ``u + w``).
+    y : ndarray, shape (n, l)
+        Measured output (with sensor noise).
+    y_clean : ndarray, shape (n, l)
+        Plant output without sensor noise.
+    dt : float
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    y_clean: np.ndarray
+    dt: float
+
+
+@dataclass(frozen=True)
+class ClosedLoopResult:
+    """Closed-loop simulation result (time along axis 0; plots as ``plt.plot(res.t, res.y)``).
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+    r : ndarray, shape (n, l)
+        Reference.
+    y : ndarray, shape (n, l)
+        Plant output (without sensor noise).
+    u : ndarray, shape (n, m)
+        Control applied (before process noise).
+    y_measured : ndarray, shape (n, l)
+        Output fed back to the controller (``y`` plus sensor noise).
+    dt : float
+    gamma_min, gamma : ndarray, shape (n,), optional
+        Adaptive runs: ``γ_min`` and ``γ`` of the design in force at each sample.
+    update_steps : ndarray of int, optional
+        Adaptive runs: samples at which a new design was swapped in.
+    update_seconds : ndarray, optional
+        Adaptive runs: wall-clock seconds each update took.
+    """
+
+    t: np.ndarray
+    r: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    y_measured: np.ndarray
+    dt: float
+    gamma_min: np.ndarray | None = None
+    gamma: np.ndarray | None = None
+    update_steps: np.ndarray | None = field(default=None)
+    update_seconds: np.ndarray | None = field(default=None)
+
+    @property
+    def e(self) -> np.ndarray:
+        """Tracking error ``r − y``."""
+        return self.r - self.y
+
+
+# ---------------------------------------------------------------------------
+def _as_discrete_ss(sys, name: str) -> ct.StateSpace:
+    if isinstance(sys, ct.TransferFunction):
+        sys = ct.ss(sys)
+    if not isinstance(sys, ct.StateSpace):
+        raise ValueError(f"{name} must be a python-control StateSpace or TransferFunction, got {type(sys).__name__}")
+    if not ct.isdtime(sys, strict=True):
+        raise ValueError(
+            f"{name} is continuous-time (dt = 0); discretise it first (e.g. control.c2d(sys, dt, 'zoh'))")
+    for mat in (sys.A, sys.B, sys.C, sys.D):
+        if not np.all(np.isfinite(mat)):
+            raise ValueError(f"{name} has NaN or infinite entries")
+    return sys
+
+
+def _dt(sys) -> float:
+    return 1.0 if sys.dt is True else float(sys.dt)
+
+
+def _check_same_dt(a, b, what: str) -> None:
+    if a.dt is True or b.dt is True:
+        return
+    if not np.isclose(float(a.dt), float(b.dt), rtol=1e-9, atol=0.0):
+        raise ValueError(f"{what}: sample times differ ({a.dt} vs {b.dt}); use one sample time")
+
+
+def _signal(x, name: str, width: int, n: int | None = None) -> np.ndarray:
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape[0] == 0:
+        raise ValueError(f"{name} must have shape (n,) or (n, {width}) with time along axis 0, got {np.shape(x)}")
+    if arr.shape[1] != width:
+        raise ValueError(f"{name} has {arr.shape[1]} channel(s), the system needs {width}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} has {arr.shape[0]} samples, expected {n}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return arr
+
+
+def _noise(rng, sigma, n: int, width: int, name: str) -> np.ndarray:
+    sigma = float(sigma)
+    if not np.isfinite(sigma) or sigma < 0:
+        raise ValueError(f"{name} standard deviation must be >= 0, got {sigma!r}")
+    if sigma == 0:
+        return np.zeros((n, width))
+    return sigma * rng.standard_normal((n, width))
+
+
+def _plant_matrices(plant, perturbation):
+    """``(A, B, C, D)`` of ``plant + perturbation`` (parallel connection, shared input)."""
+    P = _as_discrete_ss(plant, "plant")
+    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
+    if perturbation is not None:
+        Dl = _as_discrete_ss(perturbation, "perturbation")
+        _check_same_dt(P, Dl, "plant and perturbation")
+        if (Dl.ninputs, Dl.noutputs) != (P.ninputs, P.noutputs):
+            raise ValueError(
+                f"perturbation must have the plant's size ({P.noutputs}x{P.ninputs}), got {Dl.noutputs}x{Dl.ninputs}")
+        n1, n2 = A.shape[0], Dl.nstates
+        A = np.block([[A, np.zeros((n1, n2))], [np.zeros((n2, n1)), np.asarray(Dl.A, float)]])
+        B = np.vstack([B, np.asarray(Dl.B, float)])
+        C = np.hstack([C, np.asarray(Dl.C, float)])
+        D = D + np.asarray(Dl.D, float)
+    return P, A, B, C, D
+
+
+def _initial_state(x0, n: int, name: str) -> np.ndarray:
+    if x0 is None:
+        return np.zeros(n)
+    x = np.asarray(x0, dtype=float).reshape(-1)
+    if x.size != n or not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} must be {n} finite values, got shape {np.shape(x0)}")
+    return x.copy()
+
+
+# ---------------------------------------------------------------------------
+def collect_data(plant, u, *, process_noise: float = 0.0, sensor_noise: float = 0.0,
+                 seed=None, x0=None) -> OpenLoopData:
+    """Open-loop experiment: ``y = P (u + w) + v`` (§5.4).
+
+    Parameters
+    ----------
+    plant : control.StateSpace or TransferFunction
+        Discrete plant.
+    u : array_like, shape (n,) or (n, m)
+        Excitation (e.g. :func:`experiments.signals.prbs`).
+    process_noise, sensor_noise : float
+        Standard deviations of the white Gaussian noises ``w`` (added to the plant
+        input) and ``v`` (added to the measured output).
+    seed : int or numpy Generator, optional
+        Seeds the noises (process noise is drawn first, then sensor noise).
+    x0 : array_like, optional
+        Initial plant state (default 0).
+
+    Returns
+    -------
+    OpenLoopData
+    """
+    P, A, B, C, D = _plant_matrices(plant, None)
+    u = _signal(u, "u", P.ninputs)
+    n = u.shape[0]
+    rng = np.random.default_rng(seed)
+    w = _noise(rng, process_noise, n, P.ninputs, "process_noise")
+    v = _noise(rng, sensor_noise, n, P.noutputs, "sensor_noise")
+    x = _initial_state(x0, A.shape[0], "x0")
+    uw = u + w
+    y = np.empty((n, P.noutputs))
+    for k in range(n):
+        y[k] = C @ x + D @ uw[k]
+        x = A @ x + B @ uw[k]
+    dt = _dt(P)
+    return OpenLoopData(t=np.arange(n) * dt, u=u, y=y + v, y_clean=y, dt=dt)
+
+
+def closed_loop(plant, controller, r, *, perturbation=None, process_noise: float = 0.0,
+                sensor_noise: float = 0.0, seed=None, x0=None, xc0=None) -> ClosedLoopResult:
+    """Simulate ``plant`` (plus an optional additive ``perturbation``) under ``controller``.
+
+    Parameters
+    ----------
+    plant : control.StateSpace or TransferFunction
+        Discrete plant ``P`` (``m`` inputs, ``l`` outputs).
+    controller : control.StateSpace / TransferFunction, or object
+        Discrete LTI controller with inputs ``[r; y]`` (``2l``) or ``e = r − y``
+        (``l``) and ``m`` outputs, same sample time as the plant; or an object with
+        ``control(r_k) -> u_k`` and ``observe(u_k, y_k, r_k)`` (e.g.
+        ``synthesis.RecedingHorizonController`` or ``synthesis.AdaptiveHinf``), which
+        is advanced in place.
+    r : array_like, shape (n,) or (n, l)
+        Reference.
+    perturbation : control.StateSpace, optional
+        Additive uncertainty ``Δ``: the true plant is ``P + Δ`` (Ch. 7 robustness check).
+    process_noise, sensor_noise : float
+        Standard deviations of white Gaussian noise added to the plant input and to the
+        measured output.
+    seed : int or numpy Generator, optional
+        Seeds the noises.
+    x0 : array_like, optional
+        Initial state of the plant (followed by that of ``Δ``), default 0.
+    xc0 : array_like, optional
+        Initial state of an LTI controller, default 0.
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Raises
+    ------
+    AlgebraicLoopError
+        If ``P + Δ`` has a feedthrough and the LTI controller a feedthrough from ``y``.
+    ValueError
+        On continuous-time systems, mismatched sizes or sample times, NaN input.
+    """
+    P, A, B, C, D = _plant_matrices(plant, perturbation)
+    m, l = P.ninputs, P.noutputs
+    r = _signal(r, "r", l)
+    n = r.shape[0]
+    rng = np.random.default_rng(seed)
+    w = _noise(rng, process_noise, n, m, "process_noise")
+    v = _noise(rng, sensor_noise, n, l, "sensor_noise")
+    x = _initial_state(x0, A.shape[0], "x0")
+    y = np.empty((n, l))
+    ym = np.empty((n, l))
+    u = np.empty((n, m))
+    plant_ft = bool(np.any(D != 0))
+
+    if hasattr(controller, "control") and hasattr(controller, "observe"):
+        for k in range(n):
+            u[k] = np.asarray(controller.control(r[k]), float).reshape(m)
+            y[k] = C @ x + D @ (u[k] + w[k])
+            ym[k] = y[k] + v[k]
+            controller.observe(u[k], ym[k], r[k])
+            x = A @ x + B @ (u[k] + w[k])
+    else:
+        K = _as_discrete_ss(controller, "controller")
+        _check_same_dt(P, K, "plant and controller")
+        if K.noutputs != m:
+            raise ValueError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")
+        Ac, Bc, Cc, Dc = (np.asarray(M, float) for M in (K.A, K.B, K.C, K.D))
+        if K.ninputs == 2 * l:
+            Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
+        elif K.ninputs == l:  # error feedback u = K (r − y)
+            Br, By, Dr, Dy = Bc, -Bc, Dc, -Dc
+        else:
+            raise ValueError(
+                f"controller must have inputs [r; y] ({2 * l}) or e = r - y ({l}); it has {K.ninputs}")
+        if plant_ft and np.any(Dy != 0):
+            raise AlgebraicLoopError(
+                "algebraic loop: the plant (plus perturbation) has a feedthrough D != 0 and the controller a "
+                "feedthrough from y; use a strictly proper plant or a strictly proper controller")
+        xc = _initial_state(xc0, Ac.shape[0], "xc0")
+        for k in range(n):
+            if plant_ft:  # controller has no feedthrough from y: u first
+                u[k] = Cc @ xc + Dr @ r[k]
+                y[k] = C @ x + D @ (u[k] + w[k])
+                ym[k] = y[k] + v[k]
+            else:
+                y[k] = C @ x
+                ym[k] = y[k] + v[k]
+                u[k] = Cc @ xc + Dr @ r[k] + Dy @ ym[k]
+            xc = Ac @ xc + Br @ r[k] + By @ ym[k]
+            x = A @ x + B @ (u[k] + w[k])
+    dt = _dt(P)
+    return ClosedLoopResult(t=np.arange(n) * dt, r=r, y=y, u=u, y_measured=ym, dt=dt)
+
+
+def closed_loop_adaptive(plant, adaptive, r, **kwargs) -> ClosedLoopResult:
+    """Closed loop with an adaptive controller (§5.3, §6.3), keeping its ``γ`` history.
+
+    The measured plant output feeds both the controller state and the predictor
+    update (``adaptive.observe``).  Takes the keyword arguments of :func:`closed_loop`.
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+    adaptive : synthesis.AdaptiveHinf
+        Advanced in place; its history is read after the run.
+    r : array_like, shape (n,) or (n, l)
+
+    Returns
+    -------
+    ClosedLoopResult
+        With ``gamma_min``, ``gamma`` (design in force at each sample of this run),
+        ``update_steps`` (samples of this run at which a new design was swapped in) and
+        ``update_seconds``.
+    """
+    for attr in ("control", "observe", "history"):
+        if not hasattr(adaptive, attr):
+            raise ValueError(f"adaptive controller needs a {attr!r} attribute (use synthesis.AdaptiveHinf)")
+    start = adaptive.samples_seen
+    n_updates_before = len(adaptive.history)
+    res = closed_loop(plant, adaptive, r, **kwargs)
+    n = res.t.shape[0]
+    hist = adaptive.history
+    gmin = np.empty(n)
+    gam = np.empty(n)
+    # design in force at each sample: the last update recorded at or before it
+    steps = np.array([h.step for h in hist])
+    for k in range(n):
+        idx = np.searchsorted(steps, start + k, side="right") - 1
+        gmin[k] = hist[idx].gamma_min if idx >= 0 else np.nan
+        gam[k] = hist[idx].gamma if idx >= 0 else np.nan
+    new = hist[n_updates_before:]
+    return ClosedLoopResult(
+        t=res.t, r=res.r, y=res.y, u=res.u, y_measured=res.y_measured, dt=res.dt,
+        gamma_min=gmin, gamma=gam,
+        update_steps=np.array([h.step - start for h in new], dtype=int),
+        update_seconds=np.array([h.seconds for h in new]),
+    )
