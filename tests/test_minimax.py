@@ -1,0 +1,112 @@
+"""The minimax engine against independent routes: normal-equation Schur complement, full KKT solve,
+Hessian inertia and the saddle inequalities themselves."""
+import warnings
+
+import numpy as np
+import pytest
+
+from synthesis import DataError, InfeasibleGammaError, NearGammaMinWarning, minimax_gamma_min, solve_minimax
+
+
+def _maps(seed, nz=30, nd=8, nu=6, nx=5):
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((nz, nd)), rng.standard_normal((nz, nu)), rng.standard_normal((nz, nx))
+
+
+def _hessian(Md, Mu, gamma):
+    M = np.hstack([Md, Mu])
+    Hs = M.T @ M
+    nd = Md.shape[1]
+    Hs[:nd, :nd] -= gamma**2 * np.eye(nd)
+    return Hs
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gamma_min_equals_schur_complement_eigenvalue(seed):
+    Md, Mu, _ = _maps(seed)
+    # (3.29)-(3.30): largest eigenvalue of Md'Md - Md'Mu (Mu'Mu)^-1 Mu'Md
+    S = Md.T @ Md - Md.T @ Mu @ np.linalg.solve(Mu.T @ Mu, Mu.T @ Md)
+    ref = np.sqrt(np.linalg.eigvalsh(S).max())
+    assert np.isclose(minimax_gamma_min(Md, Mu), ref, rtol=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_gains_equal_full_kkt_solve(seed):
+    Md, Mu, Mx = _maps(seed)
+    g = 1.3 * minimax_gamma_min(Md, Mu)
+    sol = solve_minimax(Md, Mu, Mx, g)
+    # (3.31): [d; u] = -Hess^-1 [Md Mu]' Mx
+    ref = -np.linalg.solve(_hessian(Md, Mu, g), np.hstack([Md, Mu]).T @ Mx)
+    assert np.allclose(sol.d_gain, ref[: Md.shape[1]], rtol=1e-9, atol=1e-11)
+    assert np.allclose(sol.u_gain, ref[Md.shape[1]:], rtol=1e-9, atol=1e-11)
+    assert sol.gamma == g and np.isclose(sol.gamma_min, minimax_gamma_min(Md, Mu))
+
+
+def test_saddle_inertia_switches_at_gamma_min():
+    Md, Mu, _ = _maps(7)
+    gm = minimax_gamma_min(Md, Mu)
+    for ratio, ok in [(1.001, True), (0.999, False)]:
+        ev = np.linalg.eigvalsh(_hessian(Md, Mu, ratio * gm))
+        n_pos, n_neg = int(np.sum(ev > 0)), int(np.sum(ev < 0))
+        assert ((n_pos, n_neg) == (Mu.shape[1], Md.shape[1])) is ok
+
+
+def test_saddle_point_inequalities():
+    Md, Mu, Mx = _maps(11)
+    g = 1.2 * minimax_gamma_min(Md, Mu)
+    sol = solve_minimax(Md, Mu, Mx, g)
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(Mx.shape[1])
+    d0, u0 = sol.d_gain @ x, sol.u_gain @ x
+
+    def J(d, u):
+        z = Md @ d + Mu @ u + Mx @ x
+        return z @ z - g**2 * d @ d
+
+    J0 = J(d0, u0)
+    for _ in range(20):
+        assert J(d0, u0 + rng.standard_normal(u0.size)) > J0  # u is a minimiser
+        assert J(d0 + rng.standard_normal(d0.size), u0) < J0  # d is a maximiser
+
+
+def test_infeasible_gamma_and_near_warning():
+    Md, Mu, Mx = _maps(4)
+    gm = minimax_gamma_min(Md, Mu)
+    with pytest.raises(InfeasibleGammaError, match=f"{gm:.6g}") as err:
+        solve_minimax(Md, Mu, Mx, gm)
+    assert err.value.gamma_min == pytest.approx(gm)
+    assert isinstance(err.value, ValueError)
+    with pytest.raises(InfeasibleGammaError):
+        solve_minimax(Md, Mu, Mx, 0.5 * gm)
+    with pytest.warns(NearGammaMinWarning):
+        solve_minimax(Md, Mu, Mx, 1.02 * gm)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        solve_minimax(Md, Mu, Mx, 1.04 * gm)
+
+
+def test_infinite_gamma_is_least_squares():
+    Md, Mu, Mx = _maps(5)
+    sol = solve_minimax(Md, Mu, Mx, np.inf)
+    assert np.all(sol.d_gain == 0)
+    assert np.allclose(sol.u_gain, -np.linalg.lstsq(Mu, Mx, rcond=None)[0])
+
+
+def test_no_disturbance_channel():
+    _, Mu, Mx = _maps(6)
+    Md = np.zeros((Mu.shape[0], 0))
+    assert minimax_gamma_min(Md, Mu) == 0.0
+    sol = solve_minimax(Md, Mu, Mx, 1.0)
+    assert np.allclose(sol.u_gain, -np.linalg.lstsq(Mu, Mx, rcond=None)[0])
+
+
+def test_bad_maps():
+    Md, Mu, Mx = _maps(8)
+    Mu_def = Mu.copy()
+    Mu_def[:, 1] = Mu_def[:, 0]
+    with pytest.raises(DataError, match="full column rank"):
+        minimax_gamma_min(Md, Mu_def)
+    Mx_nan = Mx.copy()
+    Mx_nan[0, 0] = np.nan
+    with pytest.raises(DataError, match="NaN"):
+        solve_minimax(Md, Mu, Mx_nan, 10.0)
