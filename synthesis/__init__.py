@@ -6,6 +6,10 @@ comparators.
 """
 from ._validation import DataError
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
+from .predictor import default_rcond
+from .hankel import hankel_gram
+from .cholesky import DowndateError, choldowndate, cholupdate
+from .recursive import RecursivePredictor, RefactorWarning
 from .weights import WeightError, as_weight, markov_toeplitz, observability, tustin
 from .minimax import InfeasibleGammaError, MinimaxSolution, NearGammaMinWarning, minimax_gamma_min, solve_minimax
 from .controller import RecedingHorizonController, WeightState, lti_controller
@@ -17,6 +21,13 @@ __all__ = [
     "Predictor",
     "block_hankel",
     "fit_predictor",
+    "default_rcond",
+    "hankel_gram",
+    "cholupdate",
+    "choldowndate",
+    "DowndateError",
+    "RecursivePredictor",
+    "RefactorWarning",
     # weights, minimax engine, H∞ laws, controller implementations (Ch. 3, 5)
     "WeightError",
     "as_weight",

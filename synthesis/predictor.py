@@ -16,8 +16,9 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ._validation import DataError, as_signal, check_horizon
+from .hankel import hankel_gram
 
-__all__ = ["Predictor", "fit_predictor", "block_hankel", "PersistenceWarning"]
+__all__ = ["Predictor", "fit_predictor", "block_hankel", "PersistenceWarning", "default_rcond"]
 
 
 class PersistenceWarning(UserWarning):
@@ -46,6 +47,11 @@ class Predictor:
         Numerical rank ``q`` kept in the pseudo-inverse.
     method : str
         How it was computed (``"cholesky"``, ``"qr"``, ``"lstsq"``, ``"recursive"``).
+    input_rank : int or None
+        Numerical rank of the input part ``[U_p; U_f]`` (full when it equals ``2mi``, i.e. the
+        input is persistently exciting of order ``2mi``); ``None`` when not computed.
+    rcond : float or None
+        Relative tolerance that decided ``rank`` (singular values ``<= rcond * σ₁`` discarded).
     """
 
     Lw: np.ndarray
@@ -57,11 +63,18 @@ class Predictor:
     singular_values: np.ndarray
     rank: int
     method: str
+    input_rank: int | None = None
+    rcond: float | None = None
 
     @property
     def n_regressors(self) -> int:
         """Number of regressor rows, ``i(2m + l)``."""
         return self.horizon * (2 * self.m + self.l)
+
+    @property
+    def persistently_exciting(self) -> bool | None:
+        """True when ``[U_p; U_f]`` had full row rank ``2mi`` (``None`` if unknown)."""
+        return None if self.input_rank is None else self.input_rank == 2 * self.m * self.horizon
 
     @property
     def full_rank(self) -> bool:
@@ -123,19 +136,91 @@ def _data_matrices(u: np.ndarray, y: np.ndarray, i: int):
     return Up, Uf, Yp, Yf, j
 
 
-def _default_rcond(n_reg: int, j: int) -> float:
-    return max(n_reg, j) * np.finfo(float).eps
+_EPS = np.finfo(float).eps
+#: methods that factor the Gram matrix AAᵀ (and therefore square the singular values)
+_GRAM_METHODS = ("cholesky", "recursive")
 
 
-def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float | None, j: int):
-    """Given lower-triangular ``L`` with ``A = L Qᵀ`` (2.7), return ``[Lw Lu]``, singular values, rank."""
-    R11 = R[:n_reg, :n_reg]
-    R31 = R[n_reg:, :n_reg]
-    U, s, Vt = np.linalg.svd(R11)
-    tol = (rcond if rcond is not None else _default_rcond(n_reg, j)) * (s[0] if s.size and s[0] > 0 else 1.0)
-    q = int(np.count_nonzero(s > tol))
-    L = (R31 @ Vt[:q].T) / s[:q] @ U[:, :q].T
+def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
+    """Default relative tolerance of the pseudo-inverse of §2.2 (singular values ``<= rcond·σ₁`` dropped).
+
+    ``"qr"`` and ``"lstsq"`` work on the data itself and resolve singular values down to
+    ``max(i(2m+l), j)·eps·σ₁``.  ``"cholesky"`` and ``"recursive"`` work on the Gram matrix
+    ``AAᵀ``, whose rounding errors (``≈ eps·‖AAᵀ‖``) put a floor of ``≈ √eps·σ₁`` under the
+    singular values of its factor; their default is ``10·√(max(i(2m+l), j)·eps)`` (≈ 1e-6 for
+    the thesis's sizes), i.e. a regressor whose condition number exceeds ~10⁶ is treated as
+    rank deficient.  Data that are that ill-conditioned (noise-free outputs of a low-order
+    plant) have a gap of many decades there, so the decision is robust.
+    """
+    base = max(int(n_regressors), int(n_columns)) * _EPS
+    if method in _GRAM_METHODS:
+        return 10.0 * float(np.sqrt(base))
+    return float(base)
+
+
+def _resolve_rcond(rcond, method: str, n_reg: int, j: int) -> float:
+    if rcond is None:
+        return default_rcond(method, n_reg, j)
+    try:
+        r = float(rcond)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"rcond must be a non-negative float or None, got {rcond!r}") from exc
+    if not (np.isfinite(r) and 0.0 <= r < 1.0):
+        raise DataError(f"rcond must lie in [0, 1), got {rcond!r}")
+    return r
+
+
+def _rank(s: np.ndarray, rcond: float) -> int:
+    if s.size == 0 or not s[0] > 0:
+        return 0
+    return int(np.count_nonzero(s > rcond * s[0]))
+
+
+def _square_factor(R: np.ndarray) -> np.ndarray:
+    """Pad a wide QR factor (fewer columns j than rows) with zero columns to a square one."""
+    N = R.shape[0]
+    if R.shape[1] < N:
+        R = np.hstack([R, np.zeros((N, N - R.shape[1]))])
+    return R
+
+
+def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float):
+    """Given lower-triangular ``L`` with ``A = L Qᵀ`` (2.7), return ``[Lw Lu]``, singular values, rank.
+
+    ``[Lw Lu] = [R31 R32] V_q Σ_q⁻¹ U_qᵀ`` with the SVD of ``[R11 0; R21 R22]`` (§2.2).
+    """
+    R1 = R[:n_reg, :n_reg]
+    R3 = R[n_reg:, :n_reg]
+    U, s, Vt = np.linalg.svd(R1)
+    q = _rank(s, rcond)
+    L = ((R3 @ Vt[:q].T) / s[:q]) @ U[:, :q].T
     return L, s, q
+
+
+def _input_rows(i: int, m: int, l: int) -> np.ndarray:
+    """Rows of ``A = [U_p; Y_p; U_f; Y_f]`` holding the input part ``[U_p; U_f]``."""
+    return np.r_[0 : i * m, i * (m + l) : i * (2 * m + l)]
+
+
+def _input_rank_from_factor(R: np.ndarray, i: int, m: int, l: int, rcond: float) -> int:
+    """Rank of ``[U_p; U_f]``: its rows of ``A = R Qᵀ`` are the selected rows of ``R``."""
+    s = np.linalg.svd(R[_input_rows(i, m, l)], compute_uv=False)
+    return _rank(s, rcond)
+
+
+def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3) -> Predictor:
+    n_reg = i * (2 * m + l)
+    L, s, q = _solve_from_r(R, n_reg, rcond)
+    r_in = _input_rank_from_factor(R, i, m, l, rcond)
+    _warn_rank(q, r_in, i, m, l, j, stacklevel=stacklevel + 1)
+    Lw, Lu = _split(L, i, m, l)
+    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond))
+
+
+def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3) -> Predictor:
+    """Predictor from the Gram matrix ``AAᵀ`` (A-row order): ``R = chol(AAᵀ)`` then §2.2."""
+    R = _psd_cholesky(G)
+    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1)
 
 
 def _split(L: np.ndarray, i: int, m: int, l: int):
@@ -154,28 +239,51 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     horizon : int
         Prediction horizon ``i``; the number of prediction problems is ``j = n - 2i + 1``.
     method : {"cholesky", "qr", "lstsq"}
-        ``"qr"``: QR of ``[W_p; U_f; Y_f]`` (2.7) and the SVD pseudo-inverse of §2.2.
-        ``"cholesky"``: Cholesky factor of ``AAᵀ`` built by the Hankel recursions (2.8)–(2.9),
-        never forming the Hankel matrices (§2.3).  ``"lstsq"``: ``numpy.linalg.lstsq`` on the
-        explicit Hankel matrices (a plain reference).
+        ``"cholesky"`` (default): ``R = chol(AAᵀ)`` with ``AAᵀ`` built by the Hankel recursions
+        (2.8)–(2.9) in ``O(ij + i²)`` time and ``O(i² + j)`` memory, never forming the Hankel
+        matrices (§2.3), then the SVD pseudo-inverse of §2.2.  A semidefinite ``AAᵀ``
+        (rank-deficient data) is factored through its clipped eigendecomposition instead.
+        ``"qr"``: QR of ``A = [W_p; U_f; Y_f]`` (2.7) and the SVD pseudo-inverse of §2.2
+        (``O(i²j)`` time, ``O(ij)`` memory).
+        ``"lstsq"``: ``numpy.linalg.lstsq`` on the explicit Hankel matrices (a plain reference).
     rcond : float, optional
-        Relative tolerance for the pseudo-inverse: singular values below ``rcond * σ₁`` are
-        discarded (§2.2).  Default ``max(i(2m+l), j) * eps``.
+        Relative tolerance for the pseudo-inverse: singular values ``<= rcond * σ₁`` are
+        discarded (§2.2).  Default :func:`default_rcond` (``max(i(2m+l), j)·eps`` for
+        ``"qr"``/``"lstsq"``, ``10·√(max(i(2m+l), j)·eps)`` for ``"cholesky"``).
 
     Returns
     -------
     Predictor
+        With ``singular_values`` of ``[R11 0; R21 R22]``, the numerical ``rank`` kept and the
+        numerical ``input_rank`` of ``[U_p; U_f]``.
 
     Raises
     ------
     DataError
-        On NaN/inf, length mismatch, too few samples for the horizon, or a bad horizon.
+        On NaN/inf, length mismatch, wrong dimensions, too few samples for the horizon, a bad
+        horizon or a bad ``rcond``.
+    ValueError
+        On an unknown ``method``.
 
     Warns
     -----
     PersistenceWarning
-        When the regressor is rank deficient (input not persistently exciting of order 2mi).
+        When ``[U_p; U_f]`` has rank ``< 2mi`` (input not persistently exciting of order
+        ``2mi``), or the whole regressor ``[W_p; U_f]`` is rank deficient (noise-free outputs,
+        or ``j < i(2m+l)``).  The minimum-norm predictor is returned in both cases.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(500)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:500] + 0.01 * rng.standard_normal(500)
+    >>> pred = fit_predictor(u, y, 4)
+    >>> pred.Lw.shape, pred.Lu.shape, pred.rank
+    ((4, 8), (4, 4), 12)
     """
+    if method not in ("cholesky", "qr", "lstsq"):
+        raise ValueError(f"unknown method {method!r}; use 'cholesky', 'qr' or 'lstsq'")
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
     n, m = u.shape
@@ -183,53 +291,65 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     i = check_horizon(horizon, n)
     n_reg = i * (2 * m + l)
     j = n - 2 * i + 1
+    tol = _resolve_rcond(rcond, method, n_reg, j)
     if method == "cholesky":
-        from .hankel import hankel_gram  # local import keeps the module graph simple
-
-        G = hankel_gram(u, y, i)
-        R = _psd_cholesky(G)
-        L, s, q = _solve_from_r(R, n_reg, rcond, j)
-    elif method == "qr":
-        Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
+        return _predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method)
+    Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
+    if method == "qr":
         A = np.vstack([Up, Yp, Uf, Yf])
-        R = np.linalg.qr(A.T, mode="r").T
-        L, s, q = _solve_from_r(R, n_reg, rcond, j)
-    elif method == "lstsq":
-        Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
-        Phi = np.vstack([Up, Yp, Uf])
-        sol, _, q, s = np.linalg.lstsq(Phi.T, Yf.T, rcond=rcond if rcond is not None else _default_rcond(n_reg, j))
-        L = sol.T
-        s = np.asarray(s)
-    else:
-        raise ValueError(f"unknown method {method!r}; use 'cholesky', 'qr' or 'lstsq'")
-    _warn_rank(q, n_reg, i, m)
-    Lw, Lu = _split(L, i, m, l)
-    return Predictor(Lw, Lu, i, m, l, j, np.asarray(s), int(q), method)
+        R = _square_factor(np.linalg.qr(A.T, mode="r").T)
+        return _predictor_from_factor(R, i, m, l, j, tol, method)
+    # method == "lstsq"
+    Phi = np.vstack([Up, Yp, Uf])
+    sol, _, q, s = np.linalg.lstsq(Phi.T, Yf.T, rcond=tol)
+    s = np.concatenate([np.asarray(s), np.zeros(n_reg - len(s))])
+    r_in = _rank(np.linalg.svd(np.vstack([Up, Uf]), compute_uv=False), tol)
+    _warn_rank(int(q), r_in, i, m, l, j, stacklevel=3)
+    Lw, Lu = _split(sol.T, i, m, l)
+    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol))
 
 
-def _warn_rank(q: int, n_reg: int, i: int, m: int) -> None:
-    if q < n_reg:
+def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, *, stacklevel: int = 3) -> None:
+    n_reg = i * (2 * m + l)
+    if r_in < 2 * m * i:
         warnings.warn(
-            f"regressor [W_p; U_f] has numerical rank {q} < {n_reg}: the data are not persistently "
-            f"exciting of order 2mi = {2 * m * i} (or the outputs are noise free); the minimum-norm "
-            "predictor is returned",
+            f"the input part [U_p; U_f] has numerical rank {r_in} < 2mi = {2 * m * i}: the input is not "
+            f"persistently exciting of order 2mi (regressor rank {q} of {n_reg}); the minimum-norm "
+            "predictor is returned and Lu is not determined by the data — use a richer input "
+            "(white noise, PRBS) or more samples",
             PersistenceWarning,
-            stacklevel=3,
+            stacklevel=stacklevel,
+        )
+    elif q < n_reg:
+        why = (
+            f"only j = {j} columns for {n_reg} regressors: collect at least {n_reg + 2 * i - 1} samples"
+            if j < n_reg
+            else "the outputs are (nearly) noise free, i.e. an exact function of the past data "
+            "(plant order < i·l)"
+        )
+        warnings.warn(
+            f"regressor [W_p; U_f] has numerical rank {q} < {n_reg} although the input is persistently "
+            f"exciting ({why}); the minimum-norm predictor is returned",
+            PersistenceWarning,
+            stacklevel=stacklevel,
         )
 
 
 def _psd_cholesky(G: np.ndarray) -> np.ndarray:
     """Lower-triangular ``L`` with ``L Lᵀ = G`` for symmetric positive *semi*-definite ``G``.
 
-    Tries LAPACK Cholesky first; if ``G`` is only semidefinite (rank-deficient data),
-    falls back to a symmetric eigendecomposition, clipping eigenvalues below
-    ``n * eps * λ_max`` to zero, followed by a QR to restore triangular form.
+    Tries LAPACK Cholesky first (when it succeeds it is backward stable, and the
+    rounding-level pivots of a singular ``G`` stay below the default tolerance of
+    :func:`default_rcond`).  If ``G`` is only semidefinite and LAPACK breaks down, it falls
+    back to a symmetric eigendecomposition, clipping eigenvalues ``<= N·eps·λ_max`` (and
+    negative rounding noise) to zero, followed by a QR of ``F = V √Λ`` to restore triangular
+    form (``G ≈ F Fᵀ = L Lᵀ``).  An all-zero ``G`` gives ``L = 0``.
     """
     try:
         return np.linalg.cholesky(G)
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(G)
-        tol = G.shape[0] * np.finfo(float).eps * max(w.max(), 0.0)
+        tol = G.shape[0] * _EPS * max(w.max(initial=0.0), 0.0)
         w = np.where(w > tol, w, 0.0)
         F = V * np.sqrt(w)  # G ≈ F Fᵀ
         return np.linalg.qr(F.T, mode="r").T
