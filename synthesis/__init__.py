@@ -14,6 +14,7 @@ from .weights import WeightError, as_weight, markov_toeplitz, observability, tus
 from .minimax import InfeasibleGammaError, MinimaxSolution, NearGammaMinWarning, minimax_gamma_min, solve_minimax
 from .controller import RecedingHorizonController, WeightState, lti_controller
 from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
+from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 
 __all__ = [
     "DataError",
@@ -49,4 +50,11 @@ __all__ = [
     "gamma_min",
     "hinf_design",
     "performance_map",
+    # model-based comparators (§4.2)
+    "GeneralizedPlant",
+    "RiccatiLaw",
+    "StageSaddleError",
+    "generalized_plant",
+    "hinf_riccati",
+    "lqr_riccati",
 ]

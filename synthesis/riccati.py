@@ -1,0 +1,333 @@
+"""Model-based finite-horizon H∞ and LQR laws by Riccati recursions (thesis §4.2).
+
+* :func:`generalized_plant` — the full-information generalized plant of §4.2.1,
+  state ``x = [x_p; x_w1; x_w2]``, inputs ``[r; u]``, outputs ``z = [z_w1; z_w2]``.
+* :func:`hinf_riccati` — the backward recursion (4.16)–(4.17) and the forward
+  recursion (4.18)–(4.19) for the worst-case references and the minimax controls.
+* :func:`lqr_riccati` — the finite-horizon LQR (4.21)–(4.24).
+
+Theorems 4.3 and 4.4: on noise-free data from an LTI plant, the subspace laws
+(3.6) and (4.2) equal these recursions acting on the true state; the tests check it.
+
+Erratum (4.21): with the cost ``Σ_{t=k}^{k+i-1} y_tᵀQy_t + u_tᵀRu_t`` of (4.3) the
+matrix used at the last stage is the cost-to-go *after* it, ``P_{k+i-1} = 0``
+(as in (4.16) and in the substitution list of the proof of Thm 4.3), not
+``C_pᵀQC_p``; the literal (4.21) adds a terminal term ``y_{k+i}ᵀQy_{k+i}`` and does
+not reproduce the batch law (4.20).  :func:`lqr_riccati` uses 0 by default and
+accepts ``terminal=`` for the literal form.
+Sign (4.29): the stationarity condition gives ``w = −(HᵀH − R_γd)⁻¹HᵀΓx``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from ._validation import DataError
+from .minimax import InfeasibleGammaError
+from .weights import as_weight, common_dt
+
+__all__ = ["GeneralizedPlant", "RiccatiLaw", "StageSaddleError", "generalized_plant", "hinf_riccati", "lqr_riccati"]
+
+
+class StageSaddleError(InfeasibleGammaError):
+    """A stage of the H∞ Riccati recursion (4.17) has no saddle point: γ is too small."""
+
+    def __init__(self, gamma: float, message: str):
+        self.gamma = float(gamma)
+        self.gamma_min = float("nan")
+        ValueError.__init__(self, message)
+
+
+@dataclass(frozen=True, eq=False)
+class GeneralizedPlant:
+    """Full-information generalized plant of §4.2.1.
+
+    ``x⁺ = A x + B [r; u]``, ``z = C x + D [r; u]`` with ``x = [x_p; x_w1; x_w2]``::
+
+        A = [[A_p, 0, 0], [−B_1C_p, A_1, 0], [0, 0, A_2]]     B = [[0, B_p], [B_1, −B_1D_p], [0, B_2]]
+        C = [[−D_1C_p, C_1, 0], [0, 0, C_2]]                  D = [[D_1, −D_1D_p], [0, D_2]]
+
+    Attributes
+    ----------
+    A, B, C, D : ndarray
+    n_p, n_w1, n_w2 : int
+        State partition.
+    l, m : int
+        Number of references (= plant outputs) and controls (= plant inputs).
+    dt : float or True
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    n_p: int
+    n_w1: int
+    n_w2: int
+    l: int
+    m: int
+    dt: float
+
+    @property
+    def system(self) -> control.StateSpace:
+        """The plant as a discrete ``StateSpace`` (inputs ``[r; u]``, outputs ``[z_w1; z_w2]``)."""
+        return control.ss(self.A, self.B, self.C, self.D, self.dt,
+                          inputs=[f"r[{c}]" for c in range(self.l)] + [f"u[{c}]" for c in range(self.m)])
+
+    def state(self, x_p, x_w1, x_w2) -> np.ndarray:
+        """Stack ``[x_p; x_w1; x_w2]`` (checking sizes)."""
+        parts = []
+        for v, n, name in ((x_p, self.n_p, "x_p"), (x_w1, self.n_w1, "x_w1"), (x_w2, self.n_w2, "x_w2")):
+            a = np.asarray(v, dtype=float).reshape(-1)
+            if a.size != n:
+                raise DataError(f"{name} must have {n} entries, got {a.size}")
+            parts.append(a)
+        return np.concatenate(parts)
+
+
+@dataclass(frozen=True, eq=False)
+class RiccatiLaw:
+    """A finite-horizon law from a Riccati recursion.
+
+    Attributes
+    ----------
+    X : ndarray, shape (i, n, n)
+        ``X[t]`` is the matrix used at stage ``k + t`` ((4.17)/(4.22): ``X_{k+t}``),
+        ``X[i-1]`` the terminal one.
+    value : ndarray, shape (n, n)
+        ``X_{k-1}``: the optimal (saddle) cost from ``x_k`` is ``x_kᵀ value x_k``.
+    gains : ndarray, shape (i, p, n)
+        Stage feedback: ``w_t = gains[t] @ x_t`` with ``w_t = [r_t; u_t]`` (H∞, (4.18))
+        or ``u_t`` (LQR, (4.23)).
+    A, B : ndarray
+        Dynamics used by :meth:`rollout`.
+    gamma : float or None
+        Level (None for LQR).
+    n_disturbances : int
+        Leading entries of ``w_t`` that are disturbances (``l`` for H∞, 0 for LQR).
+    """
+
+    X: np.ndarray
+    value: np.ndarray
+    gains: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    gamma: float | None
+    n_disturbances: int
+
+    @property
+    def horizon(self) -> int:
+        return self.gains.shape[0]
+
+    def rollout(self, x0) -> tuple[np.ndarray, np.ndarray]:
+        """Forward recursion (4.18)–(4.19) / (4.23)–(4.24) from ``x_k = x0``.
+
+        Returns
+        -------
+        w : ndarray, shape (i, p)
+            ``[r_t; u_t]`` (H∞) or ``u_t`` (LQR) for ``t = k … k+i-1``.
+        x : ndarray, shape (i + 1, n)
+            States ``x_k … x_{k+i}``.
+        """
+        x = np.asarray(x0, dtype=float).reshape(-1)
+        if x.size != self.A.shape[0] or not np.all(np.isfinite(x)):
+            raise DataError(f"x0 must be {self.A.shape[0]} finite values")
+        ws, xs = [], [x]
+        for F in self.gains:
+            w = F @ x
+            x = self.A @ x + self.B @ w
+            ws.append(w)
+            xs.append(x)
+        return np.array(ws), np.array(xs)
+
+    def controls(self, x0) -> np.ndarray:
+        """The control part of :meth:`rollout`, stacked as ``u_opt`` (3.9), shape ``(i·m,)``."""
+        w, _ = self.rollout(x0)
+        return w[:, self.n_disturbances:].reshape(-1)
+
+
+# ---------------------------------------------------------------------------------------------
+def _parts(sys):
+    n = sys.nstates
+    return (np.asarray(sys.A, float).reshape(n, n), np.asarray(sys.B, float).reshape(n, sys.ninputs),
+            np.asarray(sys.C, float).reshape(sys.noutputs, n),
+            np.asarray(sys.D, float).reshape(sys.noutputs, sys.ninputs))
+
+
+def generalized_plant(P, W1, W2) -> GeneralizedPlant:
+    """Build the §4.2.1 generalized plant from a discrete plant and weights.
+
+    Parameters
+    ----------
+    P : control.StateSpace or TransferFunction
+        Discrete plant (``m`` inputs, ``l`` outputs), state ``x_p`` in its realisation.
+    W1, W2 : control.StateSpace, TransferFunction, scalar or matrix
+        Discrete weights on ``e = r − y`` (``l`` inputs) and on ``u`` (``m`` inputs),
+        relative degree 0, same sample time as ``P``.
+
+    Returns
+    -------
+    GeneralizedPlant
+    """
+    if isinstance(P, control.TransferFunction):
+        P = control.ss(P)
+    if not isinstance(P, control.StateSpace):
+        raise DataError(f"P must be a python-control StateSpace or TransferFunction, got {type(P).__name__}")
+    if not control.isdtime(P, strict=True):
+        raise DataError("P is continuous-time; discretise it (e.g. control.c2d(P, dt, 'zoh')) first")
+    m, l = P.ninputs, P.noutputs
+    W1 = as_weight(W1, "W1", inputs=l, dt=P.dt)
+    W2 = as_weight(W2, "W2", inputs=m, dt=P.dt)
+    dt = common_dt(P, W1, W2)
+    Ap, Bp, Cp, Dp = _parts(P)
+    A1, B1, C1, D1 = _parts(W1)
+    A2, B2, C2, D2 = _parts(W2)
+    npl, n1, n2 = Ap.shape[0], A1.shape[0], A2.shape[0]
+    q1, q2 = C1.shape[0], C2.shape[0]
+    Z = np.zeros
+    A = np.block([[Ap, Z((npl, n1)), Z((npl, n2))],
+                  [-B1 @ Cp, A1, Z((n1, n2))],
+                  [Z((n2, npl)), Z((n2, n1)), A2]])
+    B = np.block([[Z((npl, l)), Bp],
+                  [B1, -B1 @ Dp],
+                  [Z((n2, l)), B2]])
+    C = np.block([[-D1 @ Cp, C1, Z((q1, n2))],
+                  [Z((q2, npl)), Z((q2, n1)), C2]])
+    D = np.block([[D1, -D1 @ Dp],
+                  [Z((q2, l)), D2]])
+    return GeneralizedPlant(A, B, C, D, npl, n1, n2, l, m, dt)
+
+
+def _matrices(A, B, C, D):
+    A, B, C, D = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, B, C, D))
+    n = A.shape[0]
+    if A.shape != (n, n) or B.shape[0] != n or C.shape[1] != n or D.shape != (C.shape[0], B.shape[1]):
+        raise DataError(f"inconsistent state-space shapes A {A.shape}, B {B.shape}, C {C.shape}, D {D.shape}")
+    for name, M in (("A", A), ("B", B), ("C", C), ("D", D)):
+        if not np.all(np.isfinite(M)):
+            raise DataError(f"{name} contains NaN or infinite values")
+    return A, B, C, D
+
+
+def _check_horizon(horizon) -> int:
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
+        raise DataError(f"horizon must be an integer >= 1, got {horizon!r}")
+    return int(horizon)
+
+
+def _recursion(A, B, CtC, CtD, DtD_plus, horizon, terminal, check=None):
+    n = A.shape[0]
+    X = np.empty((horizon, n, n))
+    gains = np.empty((horizon, B.shape[1], n))
+    Xt = terminal
+    for t in range(horizon - 1, -1, -1):
+        X[t] = Xt
+        M = B.T @ Xt @ B + DtD_plus
+        N = A.T @ Xt @ B + CtD
+        if check is not None:
+            check(M, t)
+        F = -np.linalg.solve(M, N.T)
+        gains[t] = F
+        Xt = A.T @ Xt @ A + CtC + N @ F
+        Xt = 0.5 * (Xt + Xt.T)
+    return X, Xt, gains
+
+
+def hinf_riccati(A, B, C, D, *, gamma: float, horizon: int, n_disturbances: int) -> RiccatiLaw:
+    """Model-based finite-horizon full-information H∞ law (4.15)–(4.19).
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        Generalized plant with inputs ``w = [r; u]`` (first ``n_disturbances`` entries are
+        ``r``), e.g. from :func:`generalized_plant` (``gp.A, gp.B, gp.C, gp.D``, ``gp.l``).
+    gamma : float
+        Level, ``R_γ = diag(γ²I_l, 0)`` (4.15).
+    horizon : int
+        ``i``; ``X_{k+i-1} = 0`` (4.16).
+    n_disturbances : int
+        ``l``.
+
+    Returns
+    -------
+    RiccatiLaw
+
+    Raises
+    ------
+    StageSaddleError
+        (an ``InfeasibleGammaError``) If at some stage ``M_t = BᵀX_tB + DᵀD − R_γ`` is not a saddle, i.e. its ``u`` block is
+        not positive definite or the Schur complement in ``r`` is not negative definite
+        (γ at or below the finite-horizon γ_min).
+    """
+    A, B, C, D = _matrices(A, B, C, D)
+    i = _check_horizon(horizon)
+    l = int(n_disturbances)
+    if not 0 < l < B.shape[1]:
+        raise DataError(f"n_disturbances must be in [1, {B.shape[1] - 1}], got {n_disturbances!r}")
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise DataError(f"gamma must be a positive number, got {gamma!r}")
+    p = B.shape[1]
+    Rg = np.zeros((p, p))
+    Rg[:l, :l] = gamma**2 * np.eye(l)
+
+    def check(M, t):
+        Muu, Mur, Mrr = M[l:, l:], M[l:, :l], M[:l, :l]
+        scale = max(1.0, np.abs(M).max())
+        eu = np.linalg.eigvalsh(0.5 * (Muu + Muu.T))
+        if eu.min() <= 1e-12 * scale:
+            raise StageSaddleError(
+                gamma, f"stage {t}: control block of B'XB + D'D - R_gamma is not positive definite "
+                f"(min eigenvalue {eu.min():.3g}); gamma = {gamma:.6g} is too small, increase it")
+        S = Mrr - Mur.T @ np.linalg.solve(Muu, Mur)
+        es = np.linalg.eigvalsh(0.5 * (S + S.T))
+        if es.max() >= -1e-12 * scale:
+            raise StageSaddleError(
+                gamma, f"stage {t}: no saddle point (Schur complement in r has eigenvalue {es.max():.3g} >= 0); "
+                f"gamma = {gamma:.6g} is at or below the finite-horizon gamma_min, increase it")
+
+    X, value, gains = _recursion(A, B, C.T @ C, C.T @ D, D.T @ D - Rg, i, np.zeros((A.shape[0],) * 2), check)
+    return RiccatiLaw(X=X, value=value, gains=gains, A=A, B=B, gamma=float(gamma), n_disturbances=l)
+
+
+def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
+    """Model-based finite-horizon LQR (4.21)–(4.24) for ``Σ_{t=k}^{k+i-1} y_tᵀQy_t + u_tᵀRu_t``.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        Plant ``x⁺ = Ax + Bu``, ``y = Cx + Du``.
+    Q, R : scalar or array_like
+        Output and input weights (``R`` may be indefinite as long as every stage matrix
+        ``BᵀP_tB + DᵀQD + R`` is invertible; Thm 4.3 uses ``R = −R_γ``).
+    horizon : int
+    terminal : array_like, optional
+        ``P_{k+i-1}``; default 0, which matches the cost (4.3) and the batch law (4.20)
+        (the thesis's (4.21) prints ``C_pᵀQC_p``: see the module note).
+
+    Returns
+    -------
+    RiccatiLaw
+    """
+    A, B, C, D = _matrices(A, B, C, D)
+    i = _check_horizon(horizon)
+    l, m, n = C.shape[0], B.shape[1], A.shape[0]
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    R = np.atleast_2d(np.asarray(R, dtype=float))
+    if Q.shape == (1, 1) and l > 1:
+        Q = Q[0, 0] * np.eye(l)
+    if R.shape == (1, 1) and m > 1:
+        R = R[0, 0] * np.eye(m)
+    if Q.shape != (l, l) or R.shape != (m, m):
+        raise DataError(f"Q must be {l}x{l} and R {m}x{m}; got {Q.shape} and {R.shape}")
+    P0 = np.zeros((n, n)) if terminal is None else np.asarray(terminal, dtype=float)
+    if P0.shape != (n, n):
+        raise DataError(f"terminal must be {n}x{n}")
+
+    def check(M, t):
+        if np.linalg.cond(M) > 1e14:
+            raise DataError(f"stage {t}: B'PB + D'QD + R is singular; check R")
+
+    X, value, gains = _recursion(A, B, C.T @ Q @ C, C.T @ Q @ D, D.T @ Q @ D + R, i, P0, check)
+    return RiccatiLaw(X=X, value=value, gains=gains, A=A, B=B, gamma=None, n_disturbances=0)
