@@ -1,0 +1,339 @@
+"""The four H∞ laws (Ch. 3) from the engine, against the thesis's closed forms written out here,
+the full saddle system (3.31), and Theorems 3.3, 3.5, 3.6 as identities."""
+import warnings
+
+import control
+import numpy as np
+import pytest
+from scipy import signal
+
+from synthesis import (
+    Additive,
+    DataError,
+    InfeasibleGammaError,
+    Multiplicative,
+    NearGammaMinWarning,
+    WeightError,
+    fit_predictor,
+    gamma_min,
+    hinf_design,
+    markov_toeplitz,
+    observability,
+    tustin,
+)
+
+DT = 0.1
+inv = np.linalg.inv
+
+
+def lam_max(M):
+    return float(np.max(np.real(np.linalg.eigvals(M))))
+
+
+# ------------------------------------------------------------------------------------------ fixtures
+def _servo_predictor(i=6, n=500, seed=0):
+    rng = np.random.default_rng(seed)
+    Pd = control.c2d(control.tf([1], [1, 1, 0]), DT)
+    den = np.ravel(Pd.den[0][0])
+    num = np.ravel(Pd.num[0][0])
+    num = np.r_[np.zeros(len(den) - len(num)), num]
+    u = rng.choice([-1.0, 1.0], n)
+    y = signal.lfilter(num, den, u + 0.05 * rng.standard_normal(n)) + 0.05 * rng.standard_normal(n)
+    return fit_predictor(u, y, i)
+
+
+def _mimo_predictor(i=4, n=400, seed=1):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((3, 3))
+    A *= 0.8 / max(abs(np.linalg.eigvals(A)))
+    B, C = rng.standard_normal((3, 2)), rng.standard_normal((2, 3))
+    u = rng.choice([-1.0, 1.0], (n, 2))
+    _, y, _ = signal.dlsim((A, B, C, np.zeros((2, 2)), DT), u)
+    y = y + 0.02 * rng.standard_normal(y.shape)
+    return fit_predictor(u, y, i)
+
+
+def _siso_weights():
+    s = control.tf("s")
+    W1 = tustin(100 * (0.01 / 5) * (s + 5) / (s + 0.01), DT)
+    W2 = tustin(0.05 * (10 / 0.5) * (s + 0.5) / (s + 10), DT)
+    return W1, W2
+
+
+def _mimo_weights():
+    s = control.tf("s")
+    a = control.ss(tustin(2 * (s + 2) / (s + 0.1), DT))
+    b = control.ss(tustin(0.5 * (s + 1) / (s + 5), DT))
+    W1 = control.append(a, control.ss(tustin(3 * (s + 1) / (s + 0.2), DT)))
+    W1 = control.ss(W1.A, W1.B, W1.C, W1.D + np.array([[0, 0.3], [0, 0]]), DT)  # couple the channels
+    W2 = control.append(b, b)
+    return W1, W2
+
+
+@pytest.fixture(scope="module", params=["siso", "mimo"])
+def case(request):
+    if request.param == "siso":
+        pred = _servo_predictor()
+        W1, W2 = _siso_weights()
+        s = control.tf("s")
+        W3 = tustin(0.3 * (s + 1) / (s + 10), DT)
+        W4 = tustin(0.5 * (s + 2) / (s + 4), DT)
+        W3a = tustin(0.2 * (s + 3) / (s + 6), DT)
+    else:
+        pred = _mimo_predictor()
+        W1, W2 = _mimo_weights()
+        W3 = np.array([[0.3, 0.1], [0.0, 0.2]])
+        s = control.tf("s")
+        W4 = control.append(control.ss(tustin(0.5 * (s + 2) / (s + 4), DT)), control.ss(tustin(0.4 * (s + 1) / (s + 3), DT)))
+        W3a = 0.2 * np.eye(2)
+    return pred, W1, W2, W3, W4, W3a
+
+
+def _mats(pred, W):
+    i = pred.horizon
+    Ws = [w if isinstance(w, control.StateSpace) else control.ss([], [], [], np.atleast_2d(w), DT) for w in W]
+    return [(markov_toeplitz(w, i), observability(w, i)) for w in Ws]
+
+
+# ------------------------------------------------------------------------------------------ Thm 3.1
+def test_strictly_causal_closed_form(case):
+    pred, W1, W2, *_ = case
+    (H1, G1), (H2, G2) = _mats(pred, [W1, W2])
+    Lw, Lu = pred.Lw, pred.Lu
+    Q1, Q2 = H1.T @ H1, H2.T @ H2
+    gm_ref = np.sqrt(lam_max(inv(inv(Q1) + Lu @ inv(Q2) @ Lu.T)))  # (3.8)
+    d = hinf_design(pred, W1, W2)
+    assert d.gamma_min == pytest.approx(gm_ref, rel=1e-9)
+    assert gamma_min(pred, W1, W2) == pytest.approx(gm_ref, rel=1e-9)
+    assert d.gamma == pytest.approx(1.1 * gm_ref)
+    g = d.gamma
+    Qt = inv(inv(Q1) - g**-2 * np.eye(len(Q1)))  # (3.7)
+    G = -inv(Lu.T @ Qt @ Lu + Q2) @ np.hstack(
+        [Lu.T @ Qt @ Lw, -Lu.T @ (g**-2 * Qt + np.eye(len(Q1))) @ H1.T @ G1, H2.T @ G2])  # (3.6)
+    assert [c for c, _ in d.columns] == ["w_p", "x_w1", "x_w2"]
+    assert d.gain.shape == (pred.horizon * pred.m, Lw.shape[1] + G1.shape[1] + G2.shape[1])
+    assert np.allclose(d.gain, G, rtol=1e-7, atol=1e-9 * np.abs(G).max())
+
+
+def test_gain_equals_full_saddle_system(case):
+    pred, W1, W2, *_ = case
+    (H1, G1), (H2, G2) = _mats(pred, [W1, W2])
+    Lw, Lu = pred.Lw, pred.Lu
+    Q1, Q2 = H1.T @ H1, H2.T @ H2
+    d = hinf_design(pred, W1, W2, gamma_ratio=1.5)
+    g2 = d.gamma**2
+    KKT = np.block([[Q1 - g2 * np.eye(len(Q1)), -Q1 @ Lu], [-Lu.T @ Q1, Lu.T @ Q1 @ Lu + Q2]])
+    rhs = np.block([[Q1 @ Lw, -H1.T @ G1, np.zeros((len(Q1), G2.shape[1]))],
+                    [-Lu.T @ Q1 @ Lw, Lu.T @ H1.T @ G1, -H2.T @ G2]])  # (3.31)
+    sol = np.linalg.solve(KKT, rhs)
+    il = len(Q1)
+    scale = np.abs(sol).max()
+    assert np.allclose(d.disturbance_gain, sol[:il], atol=1e-8 * scale)
+    assert np.allclose(d.gain, sol[il:], atol=1e-8 * scale)
+
+
+@pytest.mark.parametrize("ratio,ok", [(1.0005, True), (0.9995, False)])
+def test_saddle_inertia_nominal(case, ratio, ok):
+    pred, W1, W2, *_ = case
+    (H1, _), (H2, _) = _mats(pred, [W1, W2])
+    Lu = pred.Lu
+    Q1, Q2 = H1.T @ H1, H2.T @ H2
+    g = ratio * gamma_min(pred, W1, W2)
+    Hs = np.block([[Q1 - g**2 * np.eye(len(Q1)), -Q1 @ Lu], [-Lu.T @ Q1, Lu.T @ Q1 @ Lu + Q2]])
+    ev = np.linalg.eigvalsh(Hs)
+    i, m, l = pred.horizon, pred.m, pred.l
+    assert ((np.sum(ev > 0), np.sum(ev < 0)) == (i * m, i * l)) is ok
+
+
+# ------------------------------------------------------------------------------------------ Thm 3.2
+def test_causal_closed_form(case):
+    pred, W1, W2, *_ = case
+    (H1, G1), (H2, G2) = _mats(pred, [W1, W2])
+    Lw, Lu = pred.Lw, pred.Lu
+    l = pred.l
+    H11, H12 = H1[:, :l], H1[:, l:]  # (3.37)
+    Q1, Q2, Q12 = H1.T @ H1, H2.T @ H2, H12.T @ H12
+    gmc_ref = np.sqrt(lam_max(H12.T @ inv(np.eye(len(H1)) + H1 @ Lu @ inv(Q2) @ Lu.T @ H1.T) @ H12))  # (3.41)
+    d = hinf_design(pred, W1, W2, causal=True)
+    assert d.gamma_min == pytest.approx(gmc_ref, rel=1e-9)
+    g = d.gamma
+    Qbar = inv(Q12 - g**2 * np.eye(len(Q12)))  # (3.40)
+    # (3.39) as printed multiplies Q12 (size (i-1)l) into Q1 (size il); the derivation gives
+    # Q~12 = Q1 - H1' H12 Qbar12 H12' H1 (consistent with the w_p block of (3.38)).
+    Qt = Q1 - H1.T @ H12 @ Qbar @ H12.T @ H1
+    P = np.eye(len(H1)) - H12 @ Qbar @ H12.T
+    G = inv(Lu.T @ Qt @ Lu + Q2) @ np.hstack(
+        [Lu.T @ H1.T @ P @ H11, -Lu.T @ Qt @ Lw, Lu.T @ H1.T @ P @ G1, -H2.T @ G2])  # (3.38)
+    assert [c for c, _ in d.columns] == ["r_k", "w_p", "x_w1", "x_w2"]
+    assert np.allclose(d.gain, G, rtol=1e-7, atol=1e-9 * np.abs(G).max())
+    # the LTI controller has a feedthrough from r_k only
+    D = np.asarray(d.controller.D)
+    assert np.allclose(D[:, :l], G[: pred.m, :l]) and np.all(D[:, l:] == 0)
+
+
+def test_theorem_3_3_causal_not_worse(case):
+    pred, W1, W2, *_ = case
+    assert gamma_min(pred, W1, W2) >= gamma_min(pred, W1, W2, causal=True)
+
+
+# ------------------------------------------------------------------------------------------ Thm 3.4
+def test_multiplicative_closed_form(case):
+    pred, W1, W2, W3, W4, _ = case
+    (H1, G1), (H2, G2), (H3, G3), (H4, G4) = _mats(pred, [W1, W2, W3, W4])
+    Lw, Lu = pred.Lw, pred.Lu
+    Q1, Q2, Q3 = H1.T @ H1, H2.T @ H2, H3.T @ H3
+    Q4o = H4 @ H4.T
+    X = inv(inv(Q1) + Lu @ inv(Q2 + Lu.T @ Q3 @ Lu) @ Lu.T)
+    gm_ref = np.sqrt(lam_max((np.eye(len(Q4o)) + Q4o) @ X))  # (3.46)
+    d = hinf_design(pred, W1, W2, uncertainty=Multiplicative(W3, W4), gamma_ratio=1.2)
+    assert d.gamma_min == pytest.approx(gm_ref, rel=1e-9)
+    g2 = d.gamma**2
+    n_r, n_s = len(Q1), H4.shape[1]
+    Hs = np.block([
+        [Q1 - g2 * np.eye(n_r), -Q1 @ H4, -Q1 @ Lu],
+        [-H4.T @ Q1, H4.T @ Q1 @ H4 - g2 * np.eye(n_s), H4.T @ Q1 @ Lu],
+        [-Lu.T @ Q1, Lu.T @ Q1 @ H4, Lu.T @ (Q1 + Q3) @ Lu + Q2]])
+    Z = lambda a, b: np.zeros((a, b))  # noqa: E731
+    n2, n3 = G2.shape[1], G3.shape[1]
+    rhs = np.block([
+        [Q1 @ Lw, -H1.T @ G1, Z(n_r, n2), Z(n_r, n3), Q1 @ G4],
+        [-H4.T @ Q1 @ Lw, H4.T @ H1.T @ G1, Z(n_s, n2), Z(n_s, n3), -H4.T @ Q1 @ G4],
+        [-Lu.T @ (Q1 + Q3) @ Lw, Lu.T @ H1.T @ G1, -H2.T @ G2, -Lu.T @ H3.T @ G3, -Lu.T @ Q1 @ G4]])  # (3.45)
+    sol = np.linalg.solve(Hs, rhs)
+    scale = np.abs(sol).max()
+    assert [c for c, _ in d.columns] == ["w_p", "x_w1", "x_w2", "x_w3", "x_w4"]
+    assert np.allclose(d.gain, sol[n_r + n_s:], atol=1e-8 * scale)
+    assert np.allclose(d.disturbance_gain, sol[: n_r + n_s], atol=1e-8 * scale)
+    # saddle inertia: im positive, i(l + m_w4) negative eigenvalues just above gamma_min, not below
+    i, m = pred.horizon, pred.m
+    for ratio, ok in [(1.0005, True), (0.9995, False)]:
+        gg = (ratio * d.gamma_min) ** 2
+        Hr = Hs.copy()
+        Hr[: n_r + n_s, : n_r + n_s] += (g2 - gg) * np.eye(n_r + n_s)
+        ev = np.linalg.eigvalsh(Hr)
+        assert ((np.sum(ev > 0), np.sum(ev < 0)) == (i * m, n_r + n_s)) is ok
+
+
+# ------------------------------------------------------------------------------------------ Thm 3.7
+def test_additive_closed_form(case):
+    pred, W1, W2, _, W4, W3 = case
+    (H1, G1), (H2, G2), (H3, G3), (H4, G4) = _mats(pred, [W1, W2, W3, W4])
+    Lw, Lu = pred.Lw, pred.Lu
+    Q1, Q2, Q3 = H1.T @ H1, H2.T @ H2, H3.T @ H3
+    Q4o = H4 @ H4.T
+    X = inv(inv(Q1) + Lu @ inv(Q2 + Q3) @ Lu.T)
+    gm_ref = np.sqrt(lam_max((np.eye(len(Q4o)) + Q4o) @ X))  # (3.64)
+    d = hinf_design(pred, W1, W2, uncertainty=Additive(W3, W4), gamma_ratio=1.2)
+    assert d.gamma_min == pytest.approx(gm_ref, rel=1e-9)
+    g2 = d.gamma**2
+    n_r, n_s = len(Q1), H4.shape[1]
+    Hs = np.block([
+        [Q1 - g2 * np.eye(n_r), -Q1 @ H4, -Q1 @ Lu],
+        [-H4.T @ Q1, H4.T @ Q1 @ H4 - g2 * np.eye(n_s), H4.T @ Q1 @ Lu],
+        [-Lu.T @ Q1, Lu.T @ Q1 @ H4, Lu.T @ Q1 @ Lu + Q2 + Q3]])  # (3.63)
+    Z = lambda a, b: np.zeros((a, b))  # noqa: E731
+    n2, n3 = G2.shape[1], G3.shape[1]
+    # (3.63) drops the right-hand matrix; from z3 = H3 u + Γ3 x_w3 (proof of Thm 3.7) it is:
+    rhs = np.block([
+        [Q1 @ Lw, -H1.T @ G1, Z(n_r, n2), Z(n_r, n3), Q1 @ G4],
+        [-H4.T @ Q1 @ Lw, H4.T @ H1.T @ G1, Z(n_s, n2), Z(n_s, n3), -H4.T @ Q1 @ G4],
+        [-Lu.T @ Q1 @ Lw, Lu.T @ H1.T @ G1, -H2.T @ G2, -H3.T @ G3, -Lu.T @ Q1 @ G4]])
+    sol = np.linalg.solve(Hs, rhs)
+    scale = np.abs(sol).max()
+    assert np.allclose(d.gain, sol[n_r + n_s:], atol=1e-8 * scale)
+    assert np.allclose(d.disturbance_gain, sol[: n_r + n_s], atol=1e-8 * scale)
+
+
+# ------------------------------------------------------------------------------------------ Thms 3.5, 3.6
+def test_theorem_3_5_robust_is_worse(case):
+    pred, W1, W2, W3, W4, W3a = case
+    g = gamma_min(pred, W1, W2)
+    assert gamma_min(pred, W1, W2, uncertainty=Multiplicative(W3, W4)) > g * (1 + 1e-6)
+    assert gamma_min(pred, W1, W2, uncertainty=Additive(W3a, W4)) > g * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("kind", [Multiplicative, Additive])
+def test_theorem_3_6_zero_uncertainty_weights_reduce_to_nominal(case, kind):
+    pred, W1, W2, *_ = case
+    ms = 2  # the fictitious s may have any width; W4 = 0 maps it to l outputs
+    W3 = np.zeros((1, pred.l if kind is Multiplicative else pred.m))
+    W4 = np.zeros((pred.l, ms))
+    nom = hinf_design(pred, W1, W2, gamma=2.0 * gamma_min(pred, W1, W2))
+    rob = hinf_design(pred, W1, W2, gamma=nom.gamma, uncertainty=kind(W3, W4))
+    assert rob.gamma_min == pytest.approx(nom.gamma_min, rel=1e-10)
+    n = nom.gain.shape[1]
+    assert rob.gain.shape[1] == n  # static zero W3, W4: no x_w3, x_w4 columns
+    assert np.allclose(rob.gain, nom.gain, rtol=1e-9, atol=1e-12)
+    il = pred.horizon * pred.l
+    assert np.allclose(rob.disturbance_gain[:il], nom.disturbance_gain, rtol=1e-9, atol=1e-12)
+    assert np.allclose(rob.disturbance_gain[il:], 0.0)  # s_wc = 0
+
+
+def test_robust_controller_order_and_drives(case):
+    pred, W1, W2, W3, W4, W3a = case
+    i, m, l = pred.horizon, pred.m, pred.l
+    n1, n2 = control.ss(W1).nstates, control.ss(W2).nstates
+    for unc, w3 in [(Multiplicative(W3, W4), W3), (Additive(W3a, W4), W3a)]:
+        d = hinf_design(pred, W1, W2, uncertainty=unc)
+        n3 = control.ss(w3).nstates if isinstance(w3, control.StateSpace) else 0
+        assert d.controller.nstates == i * (m + l) + n1 + n2 + n3
+        drives = {ws.name: ws.drive for ws in d.weight_states}
+        assert drives == {"x_w1": "e", "x_w2": "u", "x_w3": "y" if isinstance(unc, Multiplicative) else "u"}
+
+
+# ------------------------------------------------------------------------------------------ API / errors
+def test_design_api(case):
+    pred, W1, W2, *_ = case
+    d = hinf_design(pred, W1, W2)
+    i, m, l = pred.horizon, pred.m, pred.l
+    K = d.controller
+    assert K.dt == DT and K.ninputs == 2 * l and K.noutputs == m
+    assert K.nstates == i * (m + l) + control.ss(W1).nstates + control.ss(W2).nstates
+    assert np.allclose(hinf_design(pred, W1, W2, gamma=d.gamma).gain, d.gain)
+    assert np.allclose(d.block("w_p"), d.gain[:, : i * (m + l)])
+    assert d.disturbance_gain.shape == (i * l, d.gain.shape[1])
+
+
+def test_gamma_errors_and_warning():
+    pred = _servo_predictor()
+    W1, W2 = _siso_weights()
+    gm = gamma_min(pred, W1, W2)
+    with pytest.raises(InfeasibleGammaError, match=f"gamma_min = {gm:.6g}"):
+        hinf_design(pred, W1, W2, gamma=gm)
+    with pytest.raises(InfeasibleGammaError):
+        hinf_design(pred, W1, W2, gamma=0.9 * gm)
+    with pytest.raises(ValueError):
+        hinf_design(pred, W1, W2, gamma_ratio=1.0)
+    with pytest.warns(NearGammaMinWarning):
+        hinf_design(pred, W1, W2, gamma_ratio=1.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        hinf_design(pred, W1, W2, gamma_ratio=1.1)
+
+
+def test_bad_weights_and_predictor():
+    pred = _servo_predictor()
+    W1, W2 = _siso_weights()
+    s = control.tf("s")
+    with pytest.raises(WeightError, match="sample times"):
+        hinf_design(pred, W1, tustin(0.05 * 20 * (s + 0.5) / (s + 10), 0.2))
+    with pytest.raises(WeightError, match="continuous"):
+        hinf_design(pred, 100 * (0.01 / 5) * (s + 5) / (s + 0.01), W2)
+    with pytest.raises(WeightError, match="relative degree 0"):
+        hinf_design(pred, W1, control.tf([1], [1, -0.5], DT))  # strictly proper
+    with pytest.raises(WeightError, match="input"):
+        hinf_design(pred, np.eye(2), W2)  # W1 must have l = 1 input
+    with pytest.raises(WeightError, match="input"):
+        hinf_design(pred, W1, W2, uncertainty=Additive(np.eye(2), 1.0))
+    with pytest.raises(WeightError, match="NaN"):
+        hinf_design(pred, W1, control.ss([[0.5]], [[1.0]], [[np.nan]], [[1.0]], DT))
+    with pytest.raises(WeightError):
+        hinf_design(pred, W1, W2, uncertainty=(0.1, 0.1))
+    bad = type("P", (), dict(Lw=pred.Lw[:, :-1], Lu=pred.Lu, horizon=pred.horizon, m=1, l=1))()
+    with pytest.raises(DataError, match="shapes"):
+        hinf_design(bad, W1, W2)
+    nan = type("P", (), dict(Lw=pred.Lw * np.nan, Lu=pred.Lu, horizon=pred.horizon, m=1, l=1))()
+    with pytest.raises(DataError, match="NaN"):
+        gamma_min(nan, W1, W2)
+    with pytest.raises(DataError):
+        gamma_min(object(), W1, W2)
