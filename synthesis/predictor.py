@@ -212,7 +212,7 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3) -> Pre
     n_reg = i * (2 * m + l)
     L, s, q = _solve_from_r(R, n_reg, rcond)
     r_in = _input_rank_from_factor(R, i, m, l, rcond)
-    _warn_rank(q, r_in, i, m, l, j, stacklevel=stacklevel + 1)
+    _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
     Lw, Lu = _split(L, i, m, l)
     return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond))
 
@@ -304,12 +304,12 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     sol, _, q, s = np.linalg.lstsq(Phi.T, Yf.T, rcond=tol)
     s = np.concatenate([np.asarray(s), np.zeros(n_reg - len(s))])
     r_in = _rank(np.linalg.svd(np.vstack([Up, Uf]), compute_uv=False), tol)
-    _warn_rank(int(q), r_in, i, m, l, j, stacklevel=3)
+    _warn_rank(int(q), r_in, i, m, l, j, tol, stacklevel=3)
     Lw, Lu = _split(sol.T, i, m, l)
     return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol))
 
 
-def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, *, stacklevel: int = 3) -> None:
+def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, rcond: float, *, stacklevel: int = 3) -> None:
     n_reg = i * (2 * m + l)
     if r_in < 2 * m * i:
         warnings.warn(
@@ -325,7 +325,7 @@ def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, *, stacklevel:
             f"only j = {j} columns for {n_reg} regressors: collect at least {n_reg + 2 * i - 1} samples"
             if j < n_reg
             else "the outputs are (nearly) noise free, i.e. an exact function of the past data "
-            "(plant order < i·l)"
+            f"(plant order < i·l), or rcond = {rcond:.3g} is too large"
         )
         warnings.warn(
             f"regressor [W_p; U_f] has numerical rank {q} < {n_reg} although the input is persistently "

@@ -212,8 +212,8 @@ class RecursivePredictor:
         i, m, l, j = self.horizon, self.m, self.l, self._j
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
-            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=2)
-        return _predictor_from_factor(self._S, i, m, l, j, tol, "recursive", stacklevel=2)
+            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
+        return _predictor_from_factor(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:

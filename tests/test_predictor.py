@@ -1,0 +1,295 @@
+"""Subspace predictor (thesis §2.1–2.3): methods vs numpy lstsq, noise-free LTI limits (2.10)/(2.12),
+Hankel Gram recursion (2.8)–(2.9) vs the explicit product, rank deficiency, bad input, benchmark smoke test.
+
+Reference quantities (Hankel matrices, Markov Toeplitz H_p, observability Γ_p) are built here with
+plain loops, independently of the package.  Seeds are fixed per test.
+"""
+import tracemalloc
+import warnings
+
+import numpy as np
+import pytest
+
+import synthesis
+from synthesis import DataError, PersistenceWarning, fit_predictor, hankel_gram
+
+METHODS = ("cholesky", "qr", "lstsq")
+
+
+# ----------------------------------------------------------------------------- independent references
+def hankel_loops(x, rows, cols, start):
+    """Block Hankel (2.1)–(2.4) with explicit loops: block (r, c) = x[start + r + c] (a column)."""
+    x = np.asarray(x, float).reshape(len(x), -1)
+    k = x.shape[1]
+    H = np.zeros((rows * k, cols))
+    for r in range(rows):
+        for c in range(cols):
+            H[r * k : (r + 1) * k, c] = x[start + r + c]
+    return H
+
+
+def data_matrices(u, y, i):
+    j = len(u) - 2 * i + 1
+    return (hankel_loops(u, i, j, 0), hankel_loops(y, i, j, 0), hankel_loops(u, i, j, i), hankel_loops(y, i, j, i))
+
+
+def random_plant(rng, nx, m, l, rho=0.8):
+    A = rng.standard_normal((nx, nx))
+    A *= rho / max(abs(np.linalg.eigvals(A)))
+    return A, rng.standard_normal((nx, m)), rng.standard_normal((l, nx)), rng.standard_normal((l, m))
+
+
+def simulate(plant, u, x0, w=None):
+    """x_{k+1} = A x_k + B (u_k + w_k), y_k = C x_k + D u_k; returns y (n, l) and states x (n, nx)."""
+    A, B, C, D = plant
+    w = np.zeros_like(u) if w is None else w
+    x = np.array(x0, float)
+    X, Y = [], []
+    for uk, wk in zip(u, w):
+        X.append(x)
+        Y.append(C @ x + D @ uk)
+        x = A @ x + B @ (uk + wk)
+    return np.array(Y), np.array(X)
+
+
+def markov_toeplitz_ref(plant, i):
+    """H_p of (2.10) from (A, B, C, D)."""
+    A, B, C, D = plant
+    l, m = D.shape
+    h = [D] + [C @ np.linalg.matrix_power(A, k) @ B for k in range(i - 1)]
+    H = np.zeros((i * l, i * m))
+    for r in range(i):
+        for c in range(r + 1):
+            H[r * l : (r + 1) * l, c * m : (c + 1) * m] = h[r - c]
+    return H
+
+
+def gamma_ref(plant, i):
+    """Extended observability matrix Γ_p of (2.12)."""
+    A, _, C, _ = plant
+    return np.vstack([C @ np.linalg.matrix_power(A, k) for k in range(i)])
+
+
+def w_past(u, y, k, i):
+    """w_p = [u_{k-i}; …; u_{k-1}; y_{k-i}; …; y_{k-1}] (3.13), stacked by hand."""
+    return np.concatenate([np.concatenate([u[t] for t in range(k - i, k)]), np.concatenate([y[t] for t in range(k - i, k)])])
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+def noisy_mimo(seed=0, n=900, m=2, l=2, nx=4, sigma=0.1):
+    rng = np.random.default_rng(seed)
+    plant = random_plant(rng, nx, m, l)
+    u = rng.standard_normal((n, m))
+    y, _ = simulate(plant, u, rng.standard_normal(nx), w=0.2 * rng.standard_normal((n, m)))
+    return u, y + sigma * rng.standard_normal((n, l))
+
+
+# ----------------------------------------------------------------------------- Hankel Gram (2.8)–(2.9)
+@pytest.mark.parametrize(
+    "m, l, i, j",
+    [(1, 1, 1, 1), (1, 1, 1, 30), (1, 1, 4, 3), (2, 2, 5, 40), (1, 2, 3, 17), (2, 1, 6, 2), (3, 2, 2, 11)],
+)
+def test_hankel_gram_equals_explicit_product(m, l, i, j):
+    rng = np.random.default_rng(10 * i + j)
+    n = j + 2 * i - 1
+    u, y = rng.standard_normal((n, m)), rng.standard_normal((n, l))
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    A = np.vstack([Up, Yp, Uf, Yf])  # row order of (2.7)
+    G = hankel_gram(u, y, i)
+    assert G.shape == (2 * i * (m + l),) * 2
+    np.testing.assert_allclose(G, A @ A.T, rtol=0, atol=1e-12 * np.abs(A @ A.T).max())
+    np.testing.assert_array_equal(G, G.T)
+
+
+def test_hankel_gram_accepts_1d_signals():
+    rng = np.random.default_rng(1)
+    u, y = rng.standard_normal(50), rng.standard_normal(50)
+    np.testing.assert_allclose(hankel_gram(u, y, 3), hankel_gram(u[:, None], y[:, None], 3))
+
+
+def test_hankel_gram_memory_is_not_ij():
+    """O(i² + j) memory: far below the 2i(m+l)·j doubles of the Hankel matrices (12.8 MB here)."""
+    rng = np.random.default_rng(2)
+    i, j = 20, 20000
+    u, y = rng.standard_normal(j + 2 * i - 1), rng.standard_normal(j + 2 * i - 1)
+    tracemalloc.start()
+    hankel_gram(u, y, i)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    hankel_bytes = 2 * i * 2 * j * 8
+    assert peak < hankel_bytes / 8, (peak, hankel_bytes)
+
+
+# ----------------------------------------------------------------------------- methods vs numpy lstsq
+@pytest.mark.parametrize("method", METHODS)
+def test_methods_agree_with_numpy_lstsq_noisy_mimo(method):
+    u, y = noisy_mimo(seed=3)
+    i = 5
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    Phi = np.vstack([Up, Yp, Uf])
+    ref = np.linalg.lstsq(Phi.T, Yf.T, rcond=None)[0].T
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PersistenceWarning)  # noisy, PE data: no rank warning
+        p = fit_predictor(u, y, i, method=method)
+    assert p.Lw.shape == (i * 2, i * 4) and p.Lu.shape == (i * 2, i * 2)
+    assert rel(np.hstack([p.Lw, p.Lu]), ref) < 1e-9
+    assert p.rank == p.n_regressors == i * (2 * 2 + 2) and p.full_rank
+    assert p.input_rank == 2 * 2 * i and p.persistently_exciting
+    assert p.n_columns == len(u) - 2 * i + 1 and p.method == method
+    s_ref = np.linalg.svd(Phi, compute_uv=False)
+    np.testing.assert_allclose(p.singular_values, s_ref, rtol=1e-8)
+
+
+def test_default_method_is_cholesky_and_siso_shapes():
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.05 * rng.standard_normal(300)
+    p = fit_predictor(u, y, 7)
+    assert p.method == "cholesky"
+    assert (p.horizon, p.m, p.l) == (7, 1, 1)
+    assert p.Lw.shape == (7, 14) and p.Lu.shape == (7, 7)
+
+
+# ----------------------------------------------------------------------------- noise-free LTI limits
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("seed, m, l, nx, i", [(0, 2, 2, 3, 6), (1, 1, 1, 4, 8), (2, 2, 1, 2, 5)])
+def test_noise_free_lti_recovers_markov_toeplitz_and_state(method, seed, m, l, nx, i):
+    """(2.10) Lu = H_p and (2.12) Lw w_p = Γ_p x_k hold exactly for noise-free data of order < i."""
+    rng = np.random.default_rng(seed)
+    plant = random_plant(rng, nx, m, l)
+    n = 700
+    u = rng.standard_normal((n, m))
+    y, X = simulate(plant, u, rng.standard_normal(nx))
+    with pytest.warns(PersistenceWarning, match="noise free"):
+        p = fit_predictor(u, y, i, method=method)
+    # regressor rank: 2mi input rows plus nx state directions; the input part is full rank
+    assert p.rank == 2 * m * i + nx
+    assert p.input_rank == 2 * m * i
+    H = markov_toeplitz_ref(plant, i)
+    assert rel(p.Lu, H) < 1e-8
+    Gam = gamma_ref(plant, i)
+    for k in (i, n // 2, n - i):
+        wp = w_past(u, y, k, i)
+        np.testing.assert_allclose(p.past_vector(u[:k], y[:k]), wp)
+        assert rel(p.Lw @ wp, Gam @ X[k]) < 1e-8
+        # (2.6): the prediction equals the true future outputs
+        np.testing.assert_allclose(p.predict(wp, u[k : k + i]), y[k : k + i], atol=1e-8 * np.abs(y).max())
+
+
+# ----------------------------------------------------------------------------- rank deficiency
+@pytest.mark.parametrize("method", METHODS)
+def test_input_not_persistently_exciting_warns_and_returns_min_norm(method):
+    rng = np.random.default_rng(6)
+    n, i = 400, 4
+    t = np.arange(n)
+    u = np.sin(0.3 * t)  # persistently exciting of order 2 only
+    y = np.convolve(u, [0.0, 0.8, 0.3])[:n] + 0.1 * rng.standard_normal(n)
+    with pytest.warns(PersistenceWarning, match=r"rank 2 < 2mi = 8"):
+        p = fit_predictor(u, y, i, method=method)
+    assert p.input_rank == 2 and not p.persistently_exciting
+    assert p.rank == 2 + i  # two input directions plus i noisy output rows
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    ref = np.linalg.pinv(np.vstack([Up, Yp, Uf]).T, rcond=1e-6) @ Yf.T
+    assert rel(np.hstack([p.Lw, p.Lu]), ref.T) < 1e-6
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_too_few_columns_gives_min_norm_predictor(method):
+    rng = np.random.default_rng(7)
+    i, m, l = 5, 2, 1
+    n = 2 * i - 1 + 12  # j = 12 < i(2m+l) = 25
+    u, y = rng.standard_normal((n, m)), rng.standard_normal((n, l))
+    with pytest.warns(PersistenceWarning):
+        p = fit_predictor(u, y, i, method=method)
+    assert p.rank == 12 and p.singular_values.shape == (25,)
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    ref = np.linalg.pinv(np.vstack([Up, Yp, Uf]).T) @ Yf.T  # minimum-norm least squares
+    assert rel(np.hstack([p.Lw, p.Lu]), ref.T) < 1e-8
+
+
+def test_regressor_rank_warning_mentions_sample_count():
+    """2mi <= j < i(2m+l): the input is PE but the regressor cannot be full rank; say how much data is needed."""
+    rng = np.random.default_rng(8)
+    i = 12
+    n = 30 + 2 * i - 1  # j = 30: 24 = 2mi <= j < 36 = i(2m+l)
+    with pytest.warns(PersistenceWarning, match=r"rank 30 < 36 .*collect at least 59 samples") as rec:
+        p = fit_predictor(rng.standard_normal(n), rng.standard_normal(n), i)
+    assert rec[0].filename == __file__  # points at the caller
+    assert p.input_rank == 24 and p.rank == 30
+
+
+def test_default_rcond_gram_methods_are_looser():
+    assert synthesis.default_rcond("cholesky", 100, 1000) > 1e3 * synthesis.default_rcond("qr", 100, 1000)
+    assert synthesis.default_rcond("recursive", 100, 1000) == synthesis.default_rcond("cholesky", 100, 1000)
+
+
+def test_explicit_rcond_truncates():
+    u, y = noisy_mimo(seed=9, n=300)
+    with pytest.warns(PersistenceWarning, match="rcond = 0.5 is too large"):
+        p = fit_predictor(u, y, 3, rcond=0.5)
+    assert p.rank < p.n_regressors and p.rcond == 0.5
+    assert np.all(p.singular_values[: p.rank] > 0.5 * p.singular_values[0])
+
+
+# ----------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "u, y, horizon, match",
+    [
+        (np.ones(50), np.ones(49), 3, "samples but 50 were expected"),
+        (np.r_[np.ones(49), np.nan], np.ones(50), 3, "NaN or infinite"),
+        (np.ones(50), np.r_[np.ones(49), np.inf], 3, "NaN or infinite"),
+        (np.ones(10), np.ones(10), 6, "too few samples"),
+        (np.ones(50), np.ones(50), 0, "horizon must be >= 1"),
+        (np.ones(50), np.ones(50), -2, "horizon must be >= 1"),
+        (np.ones(50), np.ones(50), 2.5, "horizon must be an integer"),
+        (np.ones(50), np.ones(50), True, "horizon must be an integer"),
+        (np.ones((50, 2, 2)), np.ones(50), 3, "dimensions"),
+        (np.ones(0), np.ones(0), 1, "empty"),
+        ("abc", np.ones(3), 1, "numeric"),
+    ],
+)
+@pytest.mark.parametrize("method", METHODS)
+def test_bad_input_raises_value_error(u, y, horizon, match, method):
+    with pytest.raises(DataError, match=match) as exc:
+        fit_predictor(u, y, horizon, method=method)
+    assert isinstance(exc.value, ValueError)
+
+
+def test_bad_method_and_rcond():
+    u = np.random.default_rng(0).standard_normal(40)
+    with pytest.raises(ValueError, match="unknown method"):
+        fit_predictor(u, u, 2, method="svd")
+    with pytest.raises(DataError, match="rcond"):
+        fit_predictor(u, u, 2, rcond=-1.0)
+    with pytest.raises(DataError, match="hankel|too few"):
+        hankel_gram(u[:3], u[:3], 2)
+
+
+def test_predict_and_past_vector_check_sizes():
+    u, y = noisy_mimo(seed=10, n=200)
+    p = fit_predictor(u, y, 3)
+    with pytest.raises(DataError, match="w_p must have 12"):
+        p.predict(np.zeros(11), np.zeros((3, 2)))
+    with pytest.raises(DataError, match="u_f must have 6"):
+        p.predict(np.zeros(12), np.zeros(5))
+    with pytest.raises(DataError, match="at least i=3"):
+        p.past_vector(u[:2], y[:2])
+    with pytest.raises(DataError, match="channel"):
+        p.past_vector(u[:5, :1], y[:5])
+    assert p.predict(p.past_vector(u, y), np.zeros((3, 2))).shape == (3, 2)
+
+
+# ----------------------------------------------------------------------------- benchmark smoke test
+def test_bench_predictor_quick(tmp_path):
+    from experiments.bench_predictor import run
+    from experiments.cli import Options
+
+    summary = run(Options(quick=True, out=tmp_path))
+    assert (tmp_path / "bench_predictor.md").exists()
+    assert (tmp_path / "bench_predictor.json").exists()
+    assert summary["batch"] and summary["recursive"]
+    for row in summary["batch"]:
+        assert row["qr_s"] > 0 and row["cholesky_s"] > 0 and row["max_rel_diff"] < 1e-6
