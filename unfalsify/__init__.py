@@ -1,3 +1,35 @@
-"""Uncertainty-model unfalsification as cvxpy LMI models (thesis Ch. 7)."""
+"""Uncertainty-model unfalsification as cvxpy LMI models (thesis Ch. 7).
 
-__all__: list[str] = []
+* :func:`unfalsified_gain` -- Theorem 7.1 (smallest H∞ gain explaining SISO data);
+* :func:`arx_unfalsify` -- ARX uncertainty model, program (7.4);
+* :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5);
+* :func:`robust_design_from_data` -- §7.4 steps 1–5 (δ → additive-uncertainty H∞ design).
+"""
+from ._common import COND_WARN, Certificate, IllConditionedWarning, SolverWarning, UnfalsificationError
+from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from .arx import ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
+from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
+from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+
+__all__ = [
+    "COND_WARN",
+    "Certificate",
+    "IllConditionedWarning",
+    "SolverWarning",
+    "UnfalsificationError",
+    "deconvolve",
+    "toeplitz_cond",
+    "toeplitz_matrix",
+    "toeplitz_norm",
+    "ArxResult",
+    "arx_least_squares",
+    "arx_regressor",
+    "arx_unfalsify",
+    "GainResult",
+    "is_unfalsified",
+    "unfalsified_gain",
+    "unfalsified_gain_result",
+    "SubspaceResult",
+    "subspace_data",
+    "subspace_unfalsify",
+]
