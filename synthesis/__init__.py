@@ -14,6 +14,7 @@ from .weights import WeightError, as_weight, markov_toeplitz, observability, tus
 from .minimax import InfeasibleGammaError, MinimaxSolution, NearGammaMinWarning, minimax_gamma_min, solve_minimax
 from .controller import RecedingHorizonController, WeightState, lti_controller
 from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
+from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 
 __all__ = [
@@ -50,6 +51,8 @@ __all__ = [
     "gamma_min",
     "hinf_design",
     "performance_map",
+    "LqgDesign",
+    "lqg_design",
     # model-based comparators (§4.2)
     "GeneralizedPlant",
     "RiccatiLaw",
