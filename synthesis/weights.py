@@ -196,16 +196,15 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
     i = _horizon(i)
     A, B, C, D = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
     p, q = D.shape
-    blocks = [D]
+    blocks = np.zeros((i + 1, p, q))  # blocks[k] = k-th Markov parameter; blocks[i] = 0 (upper part)
+    blocks[0] = D
     AkB = B
-    for _ in range(1, i):
-        blocks.append(C @ AkB)
+    for k in range(1, i):
+        blocks[k] = C @ AkB
         AkB = A @ AkB
-    H = np.zeros((i * p, i * q))
-    for r in range(i):
-        for c in range(r + 1):
-            H[r * p:(r + 1) * p, c * q:(c + 1) * q] = blocks[r - c]
-    return H
+    lag = np.subtract.outer(np.arange(i), np.arange(i))  # r - c
+    lag = np.where(lag >= 0, lag, i)
+    return blocks[lag].transpose(0, 2, 1, 3).reshape(i * p, i * q)
 
 
 def observability(sys, i: int) -> np.ndarray:
