@@ -1,0 +1,155 @@
+"""Subspace uncertainty-model unfalsification (7.5): forms, elimination of L, certificates, errors."""
+import warnings
+
+import numpy as np
+import pytest
+import scipy.signal
+
+import synthesis
+import unfalsify as uf
+from synthesis import DataError
+
+A_SERVO = [1.0, -1.904837, 0.904837]
+B_SERVO = [0.0, 0.004837, 0.004679]
+
+
+def _servo(n, seed, noise=0.03):
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal(n))
+    y = scipy.signal.lfilter(B_SERVO, A_SERVO, u) + noise * rng.standard_normal(n)
+    return u, y
+
+
+def _ls_rms(u, y, i):
+    A, Uf, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    return np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size)
+
+
+def test_data_layout_matches_synthesis_predictor():
+    u, y = _servo(40, 0)
+    i = 4
+    A, Uf, Yf = uf.subspace_data(u, y, i)
+    j = 40 - 2 * i + 1
+    assert A.shape == (3 * i, j) and Uf.shape == (i, j) and Yf.shape == (i, j)
+    assert Uf[0, 5] == u[i + 5] and Yf[2, 7] == y[i + 2 + 7]
+    # least squares on (A, Y_f) is the synthesis predictor (same column order [U_p; Y_p; U_f])
+    pred = synthesis.fit_predictor(u, y, i, method="qr")
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    np.testing.assert_allclose(L, np.hstack([pred.Lw, pred.Lu]), atol=1e-8)
+
+
+def test_sigma_above_least_squares_residual_gives_zero_delta():
+    u, y = _servo(30, 1)
+    i = 3
+    rms = _ls_rms(u, y, i)
+    res = uf.subspace_unfalsify(u, y, i, 1.01 * rms)
+    assert res.status == "optimal"
+    assert abs(res.delta) < 1e-6
+    # the returned L is then (close to) a least-squares predictor
+    assert res.certificate.noise_rms <= 1.01 * rms * (1 + 1e-6)
+
+
+def test_noise_free_fir_plant_needs_no_uncertainty():
+    # FIR plant of length ≤ i: y_f = L_true [W_p; U_f] exactly, any σ > 0 gives δ = 0
+    rng = np.random.default_rng(2)
+    u = np.sign(rng.standard_normal(30))
+    y = scipy.signal.lfilter([0.0, 0.7, -0.3], [1.0], u)
+    res = uf.subspace_unfalsify(u, y, 4, 1e-3)
+    assert abs(res.delta) < 1e-6
+
+
+def test_delta_decreases_with_sigma_and_is_certified():
+    u, y = _servo(5 * 2 + 30 - 1, 3)
+    i = 5
+    rms = _ls_rms(u, y, i)
+    deltas = []
+    for frac in (0.3, 0.6, 0.9):
+        res = uf.subspace_unfalsify(u, y, i, frac * rms)
+        assert res.status == "optimal"
+        assert res.certificate.ok(1e-5), res.certificate
+        # independent re-check of the noise and every column's Toeplitz norm
+        A, Uf, Yf = uf.subspace_data(u, y, i)
+        Htil = np.column_stack([uf.toeplitz_matrix(Uf[:, k]) @ res.impulses[:, k] for k in range(Uf.shape[1])])
+        Xi = Yf - np.hstack([res.Lw, res.Lu]) @ A - Htil
+        np.testing.assert_allclose(res.noise, Xi, atol=1e-10)
+        assert np.linalg.norm(Xi) / np.sqrt(Xi.size) <= frac * rms * (1 + 1e-5)
+        norms = [np.linalg.norm(uf.toeplitz_matrix(res.impulses[:, k]), 2) for k in range(Uf.shape[1])]
+        assert max(norms) <= res.delta * (1 + 1e-5)
+        deltas.append(res.delta)
+    assert deltas[0] > deltas[1] > deltas[2] > 0
+
+
+def test_known_perturbation_bounds_delta():
+    # FIR plant + LTI Δ (‖Δ‖∞ = δ₀) + noise: (L_true, Ξ_true, h_Δ) is feasible with σ = rms(Ξ_true),
+    # so δ_unf ≤ max_k ‖T(h_Δ[:i])‖ ≤ δ₀
+    rng = np.random.default_rng(4)
+    i, j, delta0 = 4, 30, 0.2
+    n = 2 * i + j - 1
+    u = np.sign(rng.standard_normal(n))
+    noise = 0.02 * rng.standard_normal(n)
+    d_taps = delta0 * np.array([0.0, 0.0, 0.5, -0.5])  # ‖·‖∞ = δ₀ (at ω = π)
+    y = scipy.signal.lfilter([0.0, 1.0, 0.5], [1.0], u) + scipy.signal.lfilter(d_taps, [1.0], u) + noise
+    Nf = synthesis.block_hankel(noise, i, j, i)
+    sigma = np.linalg.norm(Nf) / np.sqrt(i * j)
+    res = uf.subspace_unfalsify(u, y, i, sigma)
+    assert res.status == "optimal"
+    assert res.delta <= delta0 * (1 + 1e-5)
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_forms_agree_on_tiny_problems(seed):
+    u, y = _servo(2 * 3 + 12 - 1, seed)
+    i = 3
+    sigma = 0.5 * _ls_rms(u, y, i)
+    rc = uf.subspace_unfalsify(u, y, i, sigma)
+    re = uf.subspace_unfalsify(u, y, i, sigma, eliminate_L=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.SolverWarning)
+        rt = uf.subspace_unfalsify(u, y, i, sigma, form="thesis")
+    assert rc.status == "optimal" and re.status == "optimal"
+    assert rt.status in ("optimal", "optimal_inaccurate")
+    assert re.delta == pytest.approx(rc.delta, rel=1e-5)
+    assert rt.delta == pytest.approx(rc.delta, rel=1e-4)
+    assert rt.certificate.delta_certified == pytest.approx(rc.delta, rel=1e-3)
+    assert re.certificate.ok(1e-5) and rc.certificate.ok(1e-5)
+
+
+def test_predictor_property_feeds_synthesis():
+    u, y = _servo(30, 7)
+    res = uf.subspace_unfalsify(u, y, 3, 0.02)
+    pred = res.predictor
+    assert isinstance(pred, synthesis.Predictor)
+    np.testing.assert_array_equal(pred.Lw, res.Lw)
+    np.testing.assert_array_equal(pred.Lu, res.Lu)
+    assert (pred.horizon, pred.m, pred.l, pred.n_columns) == (3, 1, 1, 30 - 5)
+    assert res.impulses.shape == (3, 25) and res.noise.shape == (3, 25)
+
+
+def test_zero_first_input_in_a_column_raises():
+    u, y = _servo(20, 8)
+    u[3 + 4] = 0.0  # (U_f)_{0,4} = u_{i+4}
+    with pytest.raises(DataError, match="U_f"):
+        uf.subspace_unfalsify(u, y, 3, 0.05)
+
+
+@pytest.mark.parametrize(
+    "u, y, i, sigma",
+    [
+        (np.r_[1.0, np.nan, np.ones(18)], np.ones(20), 3, 0.1),
+        (np.ones(20), np.ones(19), 3, 0.1),
+        (np.ones(20), np.ones(20), 11, 0.1),  # too few samples
+        (np.ones(20), np.ones(20), 0, 0.1),
+        (np.ones(20), np.ones(20), 3, 0.0),
+        (np.ones((20, 2)), np.ones(20), 3, 0.1),
+    ],
+)
+def test_bad_input_raises(u, y, i, sigma):
+    with pytest.raises(DataError):
+        uf.subspace_unfalsify(u, y, i, sigma)
+
+
+def test_eliminate_with_thesis_form_is_rejected():
+    u, y = _servo(20, 9)
+    with pytest.raises(ValueError):
+        uf.subspace_unfalsify(u, y, 3, 0.05, form="thesis", eliminate_L=True)
