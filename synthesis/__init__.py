@@ -16,6 +16,7 @@ from .controller import RecedingHorizonController, WeightState, lti_controller
 from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
 from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
+from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 
 __all__ = [
     "DataError",
@@ -60,4 +61,8 @@ __all__ = [
     "generalized_plant",
     "hinf_riccati",
     "lqr_riccati",
+    "MixsynResult",
+    "discrete_mixsyn",
+    "mixsyn_closed_loop",
+    "peak_gain",
 ]

@@ -1,0 +1,335 @@
+"""Model-based discrete infinite-horizon H∞ mixed-sensitivity design (comparator of §6.2–6.3).
+
+Problem (3.1): find a discrete LTI ``K`` (error feedback ``u = K e``, ``e = r − y``) that
+stabilises ``P`` and minimises ``‖[W1 S; W2 K S]‖∞`` with ``S = (I + P K)⁻¹``.
+
+python-control's ``hinfsyn`` (SLICOT SB10AD) is continuous-time only and silently wrong
+on discrete plants (NOTES.md).  Here the discrete generalized plant is mapped to
+continuous time by the bilinear transform ``z = (a + s)/(a − s)``, ``a = 2/dt``, which maps
+the unit circle onto the imaginary axis and therefore preserves the H∞ norm of every
+closed loop; SB10AD builds the central controller for a fixed level (``job=4``), the
+controller is mapped back, and the level is bisected on the *discrete* closed loop
+(stable and ``‖·‖∞ ≤ γ``, checked on the discrete system by :func:`peak_gain`).
+
+Plants with poles on the unit circle (the servo's and the three-disk's integrators)
+violate the Riccati solvability assumption (A4): the reference enters only through
+``e`` and cannot excite the plant modes.  A fictitious input disturbance of size ``ε``
+(``u_plant = u + ε d``) is then added to the exogenous inputs.  The augmented norm bounds
+the original one from above, so every controller returned still satisfies the original
+specification at its level; the reported ``gamma_opt`` is an upper bound that tends to the
+true infimum as ``ε → 0`` (the result records ``epsilon``).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from ._validation import DataError
+from .minimax import InfeasibleGammaError
+from .weights import as_weight, common_dt
+
+__all__ = ["MixsynResult", "discrete_mixsyn", "mixsyn_closed_loop", "peak_gain"]
+
+
+@dataclass(frozen=True, eq=False)
+class MixsynResult:
+    """Result of :func:`discrete_mixsyn`.
+
+    Attributes
+    ----------
+    controller : control.StateSpace
+        Discrete controller, input ``e = r − y`` (``l`` channels), output ``u`` (``m``),
+        the plant's sample time: a standard error-feedback ``u = K(r − y)``.
+        :meth:`controller_ry` gives the same law with inputs ``[r; y]``.
+    gamma : float
+        Level the controller was built for.
+    gamma_opt : float
+        Smallest feasible level found by bisection (within ``rtol``; an upper bound of the
+        infimum, see ``epsilon``).
+    norm : float
+        ``‖[W1 S; W2 K S]‖∞`` of the discrete closed loop with :attr:`controller` (≤ ``gamma``).
+    closed_loop : control.StateSpace
+        Discrete map ``r → [z_w1; z_w2]``.
+    epsilon : float
+        Size of the fictitious plant-input disturbance (0 when not needed).
+    bisection_steps : int
+    """
+
+    controller: control.StateSpace
+    gamma: float
+    gamma_opt: float
+    norm: float
+    closed_loop: control.StateSpace
+    epsilon: float
+    bisection_steps: int
+
+    def controller_ry(self) -> control.StateSpace:
+        """The controller with inputs ``[r; y]`` (``u = K r − K y``), for the common interface."""
+        K = self.controller
+        return control.ss(K.A, np.hstack([K.B, -K.B]), K.C, np.hstack([K.D, -K.D]), K.dt)
+
+
+def _parts(sys):
+    n = sys.nstates
+    return (np.asarray(sys.A, float).reshape(n, n), np.asarray(sys.B, float).reshape(n, sys.ninputs),
+            np.asarray(sys.C, float).reshape(sys.noutputs, n),
+            np.asarray(sys.D, float).reshape(sys.noutputs, sys.ninputs))
+
+
+def _d2c(A, B, C, D, a):
+    """Bilinear map ``z = (a + s)/(a − s)``: discrete (A, B, C, D) → continuous."""
+    n = A.shape[0]
+    M = np.linalg.inv(A + np.eye(n))
+    return a * M @ (A - np.eye(n)), np.sqrt(2 * a) * M @ B, np.sqrt(2 * a) * C @ M, D - C @ M @ B
+
+
+def _c2d(A, B, C, D, a):
+    """Inverse of :func:`_d2c`: continuous → discrete, ``s = a (z − 1)/(z + 1)``."""
+    n = A.shape[0]
+    M = np.linalg.inv(np.eye(n) - A / a)
+    return M @ (np.eye(n) + A / a), np.sqrt(2 / a) * M @ B, np.sqrt(2 / a) * C @ M, D + C @ M @ B / a
+
+
+def _lft(A, B1, B2, C1, C2, D11, D12, D21, D22, K):
+    """Lower LFT of the plant with ``K`` (u = K y); raises if ill-posed."""
+    Ak, Bk, Ck, Dk = K
+    m = B2.shape[1]
+    Z = np.eye(m) - Dk @ D22
+    if np.linalg.cond(Z) > 1e12:
+        raise DataError("closed loop is ill-posed (I - Dk D22 singular)")
+    Zi = np.linalg.inv(Z)
+    # u = Zi (Dk C2 x + Ck xk + Dk D21 w)
+    Ux, Uk, Uw = Zi @ Dk @ C2, Zi @ Ck, Zi @ Dk @ D21
+    Yx, Yk, Yw = C2 + D22 @ Ux, D22 @ Uk, D21 + D22 @ Uw
+    Acl = np.block([[A + B2 @ Ux, B2 @ Uk], [Bk @ Yx, Ak + Bk @ Yk]])
+    Bcl = np.vstack([B1 + B2 @ Uw, Bk @ Yw])
+    Ccl = np.hstack([C1 + D12 @ Ux, D12 @ Uk])
+    Dcl = D11 + D12 @ Uw
+    return Acl, Bcl, Ccl, Dcl
+
+
+def _problem(P, W1, W2):
+    """Discrete generalized plant ``[r; (d); u] → [z1; z2; e]``, state ``[x_p; x_w1; x_w2]``."""
+    Ap, Bp, Cp, Dp = _parts(P)
+    A1, B1, C1, D1 = _parts(W1)
+    A2, B2, C2, D2 = _parts(W2)
+    npl, n1, n2 = Ap.shape[0], A1.shape[0], A2.shape[0]
+    l, m = Cp.shape[0], Bp.shape[1]
+    q1, q2 = C1.shape[0], C2.shape[0]
+    Z = np.zeros
+    A = np.block([[Ap, Z((npl, n1)), Z((npl, n2))],
+                  [-B1 @ Cp, A1, Z((n1, n2))],
+                  [Z((n2, npl)), Z((n2, n1)), A2]])
+    Bu = np.vstack([Bp, -B1 @ Dp, B2])          # control u (also the disturbance d direction)
+    Br = np.vstack([Z((npl, l)), B1, Z((n2, l))])
+    Cz = np.block([[-D1 @ Cp, C1, Z((q1, n2))], [Z((q2, npl)), Z((q2, n1)), C2]])
+    Dzr = np.vstack([D1, Z((q2, l))])
+    Dzu = np.vstack([-D1 @ Dp, D2])
+    Ce = np.hstack([-Cp, Z((l, n1 + n2))])
+    return dict(A=A, Br=Br, Bu=Bu, Cz=Cz, Dzr=Dzr, Dzu=Dzu, Ce=Ce, Der=np.eye(l), Deu=-Dp, l=l, m=m)
+
+
+def mixsyn_closed_loop(P, W1, W2, K) -> control.StateSpace:
+    """Discrete closed loop ``r → [W1 S r; W2 K S r]`` for an error-feedback controller ``K``.
+
+    Parameters
+    ----------
+    P, W1, W2 : discrete systems (weights as accepted by :func:`synthesis.as_weight`)
+    K : control.StateSpace
+        Discrete controller ``u = K e`` (``l`` inputs, ``m`` outputs).
+    """
+    P, W1, W2, _ = _check(P, W1, W2)
+    pr = _problem(P, W1, W2)
+    Kd = _parts(control.ss(K))
+    A, B, C, D = _lft(pr["A"], pr["Br"], pr["Bu"], pr["Cz"], pr["Ce"], pr["Dzr"], pr["Dzu"], pr["Der"],
+                      pr["Deu"], Kd)
+    return control.ss(A, B, C, D, P.dt)
+
+
+def _check(P, W1, W2):
+    if isinstance(P, control.TransferFunction):
+        P = control.ss(P)
+    if not isinstance(P, control.StateSpace):
+        raise DataError(f"P must be a python-control StateSpace or TransferFunction, got {type(P).__name__}")
+    if not control.isdtime(P, strict=True):
+        raise DataError(
+            "P is continuous-time: discrete_mixsyn designs discrete controllers; discretise the plant "
+            "(control.c2d(P, dt, 'zoh')) or use control.mixsyn for continuous time")
+    W1 = as_weight(W1, "W1", inputs=P.noutputs, dt=P.dt)
+    W2 = as_weight(W2, "W2", inputs=P.ninputs, dt=P.dt)
+    dt = common_dt(P, W1, W2)
+    if dt is True:
+        raise DataError("P needs a numeric sample time (dt > 0) for the bilinear map")
+    fix = lambda W: W if W.nstates else control.ss(W.A, W.B, W.C, W.D, dt)  # noqa: E731
+    return P, fix(W1), fix(W2), float(dt)
+
+
+def _gains(A, B, C, D, w):
+    """Largest singular value of ``C (e^{jw} I − A)⁻¹ B + D`` at each frequency ``w`` (rad/sample)."""
+    z = np.exp(1j * np.asarray(w, float))
+    n = A.shape[0]
+    if n == 0:
+        return np.full(z.shape, np.linalg.norm(D, 2))
+    M = z[:, None, None] * np.eye(n)[None] - A[None]
+    H = C[None] @ np.linalg.solve(M, np.broadcast_to(B, (z.size,) + B.shape)) + D[None]
+    return np.linalg.svd(H, compute_uv=False)[:, 0]
+
+
+def peak_gain(sys, n_grid: int = 4000) -> float:
+    """H∞ norm of a stable discrete system by a dense frequency grid plus local refinement.
+
+    The grid is uniform and logarithmic on ``(0, π]`` rad/sample and contains the pole angles
+    (lightly damped modes); the five highest grid peaks are refined by a bounded scalar search.
+    Used instead of ``control.norm``, which returns ∞ when a (stable) closed-loop pole lies
+    within ~1e-5 of the unit circle.
+    """
+    from scipy.optimize import minimize_scalar
+
+    A, B, C, D = _parts(sys)
+    ang = np.abs(np.angle(np.linalg.eigvals(A))) if A.size else np.zeros(0)
+    w = np.unique(np.concatenate([np.linspace(1e-7, np.pi, n_grid), np.geomspace(1e-7, np.pi, n_grid),
+                                  ang[(ang > 0) & (ang <= np.pi)], [np.pi]]))
+    g = _gains(A, B, C, D, w)
+    best = float(g.max())
+    order = np.argsort(g)[::-1][:5]
+    for k in order:
+        lo, hi = w[max(k - 1, 0)], w[min(k + 1, w.size - 1)]
+        if hi <= lo:
+            continue
+        res = minimize_scalar(lambda x: -_gains(A, B, C, D, [x])[0], bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-12 * max(1.0, hi)})
+        best = max(best, float(-res.fun))
+    return best
+
+
+def _on_unit_circle(A, tol=1e-8) -> bool:
+    ev = np.linalg.eigvals(A) if A.size else np.zeros(0)
+    return bool(np.any(np.abs(np.abs(ev) - 1.0) < tol))
+
+
+def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float = 1.0 + 1e-3,
+                    rtol: float = 1e-4, epsilon: float | None = None) -> MixsynResult:
+    """Discrete ∞-horizon H∞ mixed-sensitivity design ``min ‖[W1 S; W2 K S]‖∞``.
+
+    Parameters
+    ----------
+    P : control.StateSpace or TransferFunction
+        Discrete plant (``m`` inputs, ``l`` outputs, numeric ``dt``).
+    W1, W2 : discrete weights
+        On ``e = r − y`` (``l`` inputs) and on ``u`` (``m`` inputs), relative degree 0.
+    gamma : float, optional
+        Level of the returned controller; must be feasible (> ``gamma_opt``).  Default
+        ``gamma_ratio * gamma_opt``.
+    gamma_ratio : float
+        Used when ``gamma`` is None (``1.35`` reproduces the §6.2 choice).
+    rtol : float
+        Relative width of the final bisection bracket.
+    epsilon : float, optional
+        Fictitious plant-input disturbance size; default ``1e-4`` when the plant has poles
+        on the unit circle, 0 otherwise.
+
+    Returns
+    -------
+    MixsynResult
+
+    Raises
+    ------
+    DataError (ValueError)
+        Continuous-time plant or weights, bad weights, unit-circle poles with ``epsilon = 0``,
+        poles at ``z = −1``.
+    InfeasibleGammaError
+        If ``gamma`` is given and not above ``gamma_opt``.
+    """
+    P, W1, W2, dt = _check(P, W1, W2)
+    pr = _problem(P, W1, W2)
+    A = pr["A"]
+    l, m = pr["l"], pr["m"]
+    if A.size and np.min(np.abs(np.linalg.eigvals(A) + 1.0)) < 1e-8:
+        raise DataError("the plant or a weight has a pole at z = -1: the bilinear map is singular there")
+    Ap = _parts(P)[0]
+    if epsilon is None:
+        epsilon = 1e-4 if _on_unit_circle(Ap) else 0.0
+    if epsilon < 0 or not np.isfinite(epsilon):
+        raise DataError(f"epsilon must be >= 0, got {epsilon!r}")
+    if epsilon == 0 and _on_unit_circle(Ap):
+        raise DataError("the plant has poles on the unit circle: pass epsilon > 0 (fictitious input disturbance)")
+    # exogenous inputs [r; d]
+    Bw, Dzw, Dew = pr["Br"], pr["Dzr"], pr["Der"]
+    if epsilon > 0:
+        Bw = np.hstack([Bw, epsilon * pr["Bu"]])
+        Dzw = np.hstack([Dzw, epsilon * pr["Dzu"]])
+        Dew = np.hstack([Dew, epsilon * pr["Deu"]])
+    Bg = np.hstack([Bw, pr["Bu"]])
+    Cg = np.vstack([pr["Cz"], pr["Ce"]])
+    Dg = np.block([[Dzw, pr["Dzu"]], [Dew, pr["Deu"]]])
+    a = 2.0 / dt
+    Ac, Bc, Cc, Dc = _d2c(A, Bg, Cg, Dg, a)
+
+    def attempt(g, n_grid=1000):
+        """Discrete controller for level g, or None if infeasible."""
+        import slycot
+
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out = slycot.sb10ad(A.shape[0], Bg.shape[1], Cg.shape[0], m, l, g, Ac, Bc, Cc, Dc, job=4)
+        except Exception:  # SLICOT reports infeasibility / rank failures as exceptions
+            return None
+        Kc = out[1:5]
+        if any(not np.all(np.isfinite(M)) for M in Kc):
+            return None
+        Kd = _c2d(*Kc, a)
+        try:
+            cl = _lft(A, pr["Br"], pr["Bu"], pr["Cz"], pr["Ce"], pr["Dzr"], pr["Dzu"], pr["Der"], pr["Deu"], Kd)
+        except DataError:
+            return None
+        if cl[0].size and np.max(np.abs(np.linalg.eigvals(cl[0]))) >= 1 - 1e-10:
+            return None
+        sys = control.ss(*cl, dt)
+        nrm = peak_gain(sys, n_grid=n_grid)
+        if not nrm <= g * (1 + 1e-8):
+            return None
+        return Kd, sys, nrm
+
+    hi = 1.0
+    best = attempt(hi)
+    steps = 1
+    while best is None:
+        hi *= 2.0
+        steps += 1
+        if hi > 1e12:
+            raise DataError("no stabilising controller found for gamma up to 1e12: check stabilisability/detectability")
+        best = attempt(hi)
+    lo = 0.0
+    if hi == 1.0:
+        lo = 0.5
+        while attempt(lo) is not None and lo > 1e-9:
+            hi, lo = lo, lo / 2.0
+            steps += 1
+    else:
+        lo = hi / 2.0
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        steps += 1
+        if attempt(mid) is not None:
+            hi = mid
+        else:
+            lo = mid
+    gamma_opt = hi
+    if gamma is None:
+        if not (np.isfinite(gamma_ratio) and gamma_ratio >= 1):
+            raise DataError(f"gamma_ratio must be >= 1, got {gamma_ratio!r}")
+        gamma = gamma_ratio * gamma_opt
+    elif not (np.isfinite(gamma) and gamma > 0):
+        raise DataError(f"gamma must be a positive number, got {gamma!r}")
+    res = attempt(float(gamma), n_grid=4000)
+    if res is None:
+        raise InfeasibleGammaError(float(gamma), gamma_opt)
+    Kd, cl, nrm = res
+    K = control.ss(*Kd, dt, inputs=[f"e[{c}]" for c in range(l)], outputs=[f"u[{c}]" for c in range(m)],
+                   name="discrete_mixsyn")
+    return MixsynResult(controller=K, gamma=float(gamma), gamma_opt=float(gamma_opt), norm=nrm,
+                        closed_loop=cl, epsilon=float(epsilon), bisection_steps=steps)
