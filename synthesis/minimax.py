@@ -67,7 +67,7 @@ class NearGammaMinWarning(UserWarning):
     """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MinimaxSolution:
     """Saddle point of ``min_u sup_d ‖M_d d + M_u u + M_x x‖² − γ²‖d‖²``.
 
