@@ -106,7 +106,7 @@ def _qr_u(Mu):
     """Thin QR of M_u with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues)."""
     Q, R = np.linalg.qr(Mu, mode="reduced")
     d = np.abs(np.diag(R))
-    scale = max(np.linalg.norm(Mu, 2), np.finfo(float).tiny)
+    scale = max(np.linalg.norm(Mu), np.finfo(float).tiny)  # Frobenius: cheap upper bound on ‖M_u‖₂
     if Mu.shape[0] < Mu.shape[1] or d.min() <= max(Mu.shape) * np.finfo(float).eps * scale:
         raise DataError(
             "M_u does not have full column rank, so M_uᵀM_u is singular and the minimisation over u has no "
