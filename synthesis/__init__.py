@@ -17,6 +17,7 @@ from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_mi
 from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
+from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 
 __all__ = [
     "DataError",
@@ -65,4 +66,7 @@ __all__ = [
     "discrete_mixsyn",
     "mixsyn_closed_loop",
     "peak_gain",
+    "AdaptiveHinf",
+    "AdaptiveUpdate",
+    "GammaPolicy",
 ]

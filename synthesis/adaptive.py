@@ -1,0 +1,207 @@
+"""Adaptive implementation of the subspace H∞ controller (thesis §5.3, Fig. 5.1, §6.3).
+
+The controller ``K`` is the receding-horizon law (5.3)–(5.4), whose state is past data plus
+weight-filter states; the ``Adapt`` block (:class:`AdaptiveHinf`) every ``period`` samples
+
+1. pushes the new ``(u, y)`` pairs into a :class:`~synthesis.RecursivePredictor` (growing or
+   sliding window, §2.3.1),
+2. computes ``γ_min`` (3.8) of the latest predictor,
+3. selects ``γ`` by a policy (:class:`GammaPolicy`: ``γ = (1 + α)γ_min`` or ``γ_min + α``),
+4. computes new gains ``k1 … k4`` (5.1)–(5.2) and swaps them into ``K`` without
+   transforming its state (:meth:`~synthesis.RecedingHorizonController.set_design`).
+
+``K`` is then a linear time-varying system.  It has the step-by-step interface
+``control(r_k) -> u_k`` / ``observe(u_k, y_k, r_k)`` used by
+``experiments.simulate.closed_loop`` (and ``closed_loop_adaptive``).
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validation import DataError, as_signal
+from .controller import RecedingHorizonController
+from .hinf import gamma_min, hinf_design
+from .recursive import RecursivePredictor
+
+__all__ = ["GammaPolicy", "AdaptiveUpdate", "AdaptiveHinf"]
+
+
+@dataclass(frozen=True)
+class GammaPolicy:
+    """Rule choosing ``γ`` from the latest ``γ_min`` (§5.3).
+
+    Attributes
+    ----------
+    kind : {"ratio", "offset"}
+        ``"ratio"``: ``γ = (1 + α) γ_min`` (§5.3.1 suggests α = 0.1);
+        ``"offset"``: ``γ = γ_min + α`` (§6.3 uses α = 0.6).
+    alpha : float
+        ``α > 0``.
+    """
+
+    kind: str = "ratio"
+    alpha: float = 0.1
+
+    def __post_init__(self):
+        if self.kind not in ("ratio", "offset"):
+            raise DataError(f"GammaPolicy kind must be 'ratio' or 'offset', got {self.kind!r}")
+        if not (isinstance(self.alpha, (int, float, np.floating)) and np.isfinite(self.alpha) and self.alpha > 0):
+            raise DataError(f"GammaPolicy alpha must be a positive number (gamma > gamma_min), got {self.alpha!r}")
+
+    def __call__(self, gmin: float) -> float:
+        gmin = float(gmin)
+        if not (np.isfinite(gmin) and gmin >= 0):
+            raise DataError(f"gamma_min must be finite and >= 0, got {gmin!r}")
+        return (1.0 + self.alpha) * gmin if self.kind == "ratio" else gmin + self.alpha
+
+
+@dataclass(frozen=True)
+class AdaptiveUpdate:
+    """One design swapped into the controller.
+
+    Attributes
+    ----------
+    step : int
+        Number of samples the controller had observed when the design took effect (it is
+        used from that sample on; 0 for the initial design).
+    gamma_min, gamma : float
+    seconds : float
+        Wall-clock time of the update (predictor push, ``γ_min``, gains).
+    n_columns : int
+        Columns ``j`` of the data window behind the design.
+    warnings : tuple of str
+        Warnings raised while computing it (e.g. a rank-deficient window).
+    """
+
+    step: int
+    gamma_min: float
+    gamma: float
+    seconds: float
+    n_columns: int
+    warnings: tuple = ()
+
+
+class AdaptiveHinf:
+    """Adaptive model-free subspace H∞ controller (Fig. 5.1).
+
+    Parameters
+    ----------
+    predictor : RecursivePredictor
+        Initialised with the experiment data (e.g. :meth:`RecursivePredictor.from_data`).
+    W1, W2 : weights
+        As for :func:`~synthesis.hinf_design` (discrete, relative degree 0).
+    period : int
+        Samples between updates (§6.3: 50).  A period longer than the run means no update.
+    policy : GammaPolicy
+        ``γ`` selection rule; default ``γ = 1.1 γ_min``.
+    u_past, y_past : array_like, optional
+        Data immediately before the first controlled sample (at least ``i`` samples), used
+        to initialise the controller's past-data window (§5.1 comment 6); zeros otherwise.
+    **design_kwargs
+        Passed to :func:`~synthesis.hinf_design` (``causal=``, ``uncertainty=``).
+
+    Attributes
+    ----------
+    controller : RecedingHorizonController
+        The LTV controller ``K``.
+    history : list of AdaptiveUpdate
+        The initial design and every update.
+    samples_seen : int
+        Samples observed so far.
+    """
+
+    def __init__(self, predictor: RecursivePredictor, W1, W2, *, period: int,
+                 policy: GammaPolicy = GammaPolicy(), u_past=None, y_past=None, **design_kwargs):
+        if not isinstance(predictor, RecursivePredictor):
+            raise DataError("predictor must be a synthesis.RecursivePredictor (use RecursivePredictor.from_data)")
+        if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
+            raise DataError(f"period must be a positive number of samples, got {period!r}")
+        if not isinstance(policy, GammaPolicy):
+            raise DataError("policy must be a synthesis.GammaPolicy")
+        self.recursive = predictor
+        self.W1, self.W2 = W1, W2
+        self.period = int(period)
+        self.policy = policy
+        self._design_kwargs = dict(design_kwargs)
+        self.samples_seen = 0
+        self.history: list[AdaptiveUpdate] = []
+        self._u_buf: list[np.ndarray] = []
+        self._y_buf: list[np.ndarray] = []
+        self._warned = False
+        design, record = self._design(step=0, t0=time.perf_counter())
+        self.controller = RecedingHorizonController(design)
+        self.controller.reset(u_past, y_past)
+        self.history.append(record)
+
+    @classmethod
+    def from_data(cls, u, y, horizon: int, W1, W2, *, period: int, window: int | None = None,
+                  policy: GammaPolicy = GammaPolicy(), **design_kwargs) -> "AdaptiveHinf":
+        """Initialise from an excitation record (§6.3: 6 s of white noise).
+
+        The predictor is built from ``(u, y)`` (sliding ``window`` columns if given) and the
+        controller's past-data window from the last ``i`` samples of the record.
+        """
+        u = as_signal(u, "u")
+        y = as_signal(y, "y", n=u.shape[0])
+        pred = RecursivePredictor.from_data(u, y, horizon, window=window)
+        return cls(pred, W1, W2, period=period, policy=policy, u_past=u, y_past=y, **design_kwargs)
+
+    # ------------------------------------------------------------------ adaptation
+    def _design(self, step: int, t0: float):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pred = self.recursive.predictor()
+            gmin = gamma_min(pred, self.W1, self.W2, **self._design_kwargs)
+            gamma = self.policy(gmin)
+            design = hinf_design(pred, self.W1, self.W2, gamma=gamma, **self._design_kwargs)
+        seconds = time.perf_counter() - t0
+        msgs = tuple(f"{w.category.__name__}: {w.message}" for w in caught)
+        if caught and not self._warned:
+            self._warned = True
+            warnings.warn(
+                f"adaptive update at step {step}: {msgs[0]} (further update warnings are only recorded in "
+                "AdaptiveHinf.history)", caught[0].category, stacklevel=3)
+        record = AdaptiveUpdate(step=step, gamma_min=float(design.gamma_min), gamma=float(design.gamma),
+                                seconds=seconds, n_columns=int(self.recursive.n_columns), warnings=msgs)
+        return design, record
+
+    def update(self) -> AdaptiveUpdate:
+        """Push the buffered samples into the predictor, recompute and swap in the gains now."""
+        t0 = time.perf_counter()
+        if self._u_buf:
+            self.recursive.push(np.vstack(self._u_buf), np.vstack(self._y_buf))
+            self._u_buf.clear()
+            self._y_buf.clear()
+        design, record = self._design(step=self.samples_seen, t0=t0)
+        self.controller.set_design(design)
+        self.history.append(record)
+        return record
+
+    # ------------------------------------------------------------------ operation
+    @property
+    def design(self):
+        """The design in force."""
+        return self.controller.design
+
+    def control(self, r_k=None) -> np.ndarray:
+        """The control ``u_k`` (shape ``(m,)``) from the current gains."""
+        return self.controller.control(r_k)
+
+    def observe(self, u_k, y_k, r_k=None) -> None:
+        """Record ``u_k``, measured ``y_k`` and ``r_k``; update the design every ``period`` samples."""
+        self.controller.observe(u_k, y_k, r_k)
+        d = self.controller.design
+        self._u_buf.append(np.asarray(u_k, dtype=float).reshape(1, d.m))
+        self._y_buf.append(np.asarray(y_k, dtype=float).reshape(1, d.l))
+        self.samples_seen += 1
+        if self.samples_seen % self.period == 0:
+            self.update()
+
+    @property
+    def gamma_min_history(self) -> np.ndarray:
+        """``(step, γ_min)`` of every design, shape ``(n_updates + 1, 2)``."""
+        return np.array([(h.step, h.gamma_min) for h in self.history])

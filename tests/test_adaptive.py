@@ -1,0 +1,101 @@
+"""Adaptive subspace H∞ controller (§5.3): policy, no-update equivalence, gains after updates."""
+import control as ct
+import numpy as np
+import pytest
+
+import synthesis
+from experiments.plants import servo
+from experiments.signals import prbs, step_sequence
+from experiments.simulate import closed_loop, closed_loop_adaptive, collect_data
+from synthesis.adaptive import AdaptiveHinf, GammaPolicy
+
+s = ct.tf("s")
+I_H = 8
+
+
+def _weights(dt=0.1):
+    W1 = synthesis.tustin(100 * (0.01 / 5) * (s + 5) / (s + 0.01), dt)
+    W2 = synthesis.tustin(0.05 * (10 / 0.5) * (s + 0.5) / (s + 10), dt)
+    return W1, W2
+
+
+def _init_data(n=200, seed=0):
+    d = collect_data(servo(), prbs(n, seed=seed), process_noise=0.05, sensor_noise=0.05, seed=seed + 100)
+    return d.u, d.y
+
+
+def test_gamma_policy_arithmetic():
+    assert GammaPolicy("ratio", 0.1)(2.0) == pytest.approx(2.2, rel=1e-15)
+    assert GammaPolicy("offset", 0.6)(2.25) == pytest.approx(2.85, rel=1e-15)
+    assert GammaPolicy()(1.0) == pytest.approx(1.1)
+    for bad in (("ratio", 0.0), ("offset", -1.0), ("scale", 0.1), ("ratio", float("nan"))):
+        with pytest.raises(ValueError):
+            GammaPolicy(*bad)
+    with pytest.raises(ValueError):
+        GammaPolicy()(float("nan"))
+
+
+def test_without_updates_equals_fixed_lti_controller():
+    u0, y0 = _init_data()
+    W1, W2 = _weights()
+    P = servo()
+    r = step_sequence(250, [1.0, -1.0], hold=80)
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=10**9, policy=GammaPolicy("ratio", 0.1))
+    pred = synthesis.fit_predictor(u0, y0, I_H, method="cholesky")
+    design = synthesis.hinf_design(pred, W1, W2, gamma=1.1 * synthesis.gamma_min(pred, W1, W2))
+    np.testing.assert_allclose(ad.design.gain, design.gain, rtol=1e-8, atol=1e-10 * np.abs(design.gain).max())
+    xc0 = np.concatenate([u0[-I_H:].ravel(), y0[-I_H:].ravel(), np.zeros(design.controller.nstates - 2 * I_H)])
+    kw = dict(process_noise=0.05, sensor_noise=0.05, seed=5)
+    fixed = closed_loop(P, design.controller, r, xc0=xc0, **kw)
+    adapt = closed_loop_adaptive(P, ad, r, **kw)
+    scale = np.abs(fixed.u).max()
+    np.testing.assert_allclose(adapt.u, fixed.u, atol=1e-7 * scale)
+    np.testing.assert_allclose(adapt.y, fixed.y, atol=1e-7 * np.abs(fixed.y).max())
+    assert adapt.update_steps.size == 0
+    np.testing.assert_allclose(adapt.gamma, design.gamma, rtol=1e-8)
+
+
+@pytest.mark.parametrize("window", [None, 150])
+def test_gains_after_updates_equal_fresh_design_on_same_window(window):
+    u0, y0 = _init_data(seed=1)
+    W1, W2 = _weights()
+    policy = GammaPolicy("offset", 0.3)
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=50, window=window, policy=policy)
+    r = step_sequence(230, [1.0, -1.0], hold=60)
+    res = closed_loop_adaptive(servo(), ad, r, process_noise=0.05, sensor_noise=0.05, seed=9)
+    np.testing.assert_array_equal(res.update_steps, [50, 100, 150, 200])
+    assert [h.step for h in ad.history] == [0, 50, 100, 150, 200]
+    assert all(h.seconds > 0 for h in ad.history)
+    # the data behind the last design: experiment + closed-loop (u, measured y) up to sample 200
+    u_all = np.vstack([u0, res.u[:200]])
+    y_all = np.vstack([y0, res.y_measured[:200]])
+    if window is not None:
+        keep = window + 2 * I_H - 1
+        u_all, y_all = u_all[-keep:], y_all[-keep:]
+    pred = synthesis.fit_predictor(u_all, y_all, I_H, method="cholesky")
+    gmin = synthesis.gamma_min(pred, W1, W2)
+    fresh = synthesis.hinf_design(pred, W1, W2, gamma=gmin + 0.3)
+    assert ad.history[-1].gamma_min == pytest.approx(gmin, rel=1e-8)
+    assert ad.history[-1].gamma == pytest.approx(gmin + 0.3, rel=1e-8)
+    assert ad.history[-1].n_columns == pred.n_columns
+    # growing window: ~2e-8 relative; sliding (Gram add/subtract): ~2e-7; a window off by one sample: > 3e-3
+    err = np.abs(ad.design.gain - fresh.gain).max() / np.abs(fresh.gain).max()
+    assert err < 1e-5
+    # gamma history: the design in force at each sample
+    np.testing.assert_allclose(res.gamma_min[199], ad.history[3].gamma_min)
+    np.testing.assert_allclose(res.gamma_min[200], ad.history[4].gamma_min)
+    np.testing.assert_allclose(res.gamma, res.gamma_min + 0.3)
+    # the controller state was not transformed: it is still the raw past data
+    np.testing.assert_allclose(ad.controller.u_p, res.u[-I_H:])
+    np.testing.assert_allclose(ad.controller.y_p, res.y_measured[-I_H:])
+
+
+def test_bad_arguments():
+    u0, y0 = _init_data()
+    W1, W2 = _weights()
+    with pytest.raises(ValueError):
+        AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=0)
+    with pytest.raises(ValueError):
+        AdaptiveHinf(synthesis.fit_predictor(u0, y0, I_H), W1, W2, period=10)
+    with pytest.raises(ValueError):
+        AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=10, policy=0.1)
