@@ -103,10 +103,17 @@ def _fit(data, i: int, j: int, *, clean: bool = False):
     n_reg = 3 * i  # i(2m + l), SISO
     if j < n_reg:
         return None, (f"not possible: underdetermined (j = {j} columns < i(2m+l) = {n_reg} regressors)")
-    n = 2 * i + j - 1
-    u = data.u[:n]
-    y = data.y_clean[:n] if clean else data.y[:n]
-    return fit_predictor(u, y, i), ""
+    key = (id(data), i, j, clean)
+    if key not in _PREDICTORS:
+        n = 2 * i + j - 1
+        u = data.u[:n]
+        y = data.y_clean[:n] if clean else data.y[:n]
+        _PREDICTORS[key] = fit_predictor(u, y, i)
+    return _PREDICTORS[key], ""
+
+
+#: predictors fitted during one run (the sweeps share i = 300, j = 1000 etc.); cleared by run()
+_PREDICTORS: dict = {}
 
 
 def _make_case(label, data, i, j, W1, W2, plant, n_steps, *, gamma=None, ratio=1.1, clean=False,
@@ -133,6 +140,7 @@ def _make_case(label, data, i, j, W1, W2, plant, n_steps, *, gamma=None, ratio=1
 def run(opts) -> dict:
     """Run the §5.4 design example; write the report under ``opts.out``; return a summary."""
     cfg = Config.quick() if opts.quick else Config()
+    _PREDICTORS.clear()
     out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -195,15 +203,14 @@ def run(opts) -> dict:
         i_cases: dict[str, dict[str, list[Case]]] = {}
         jobs = [(key, rule, i, j) for key, ij in sweeps.items() for rule in ("ratio", "gamma") for i, j in ij]
         for key, rule, i, j in tqdm(jobs, desc="i sweeps", leave=False):
-            sim = i not in cfg.step_horizon_omit
             case = _make_case(f"i = {i}", data, i, j, W1, W2, plant, cfg.n_steps,
-                              gamma=1.1 if rule == "gamma" else None, simulate=sim)
+                              gamma=1.1 if rule == "gamma" else None)
             i_cases.setdefault(key, {}).setdefault(rule, []).append(case)
         for key, table, fa, fb, what in (("j", "5.2", "5_5", "5_6", f"j = {NOMINAL_J} fixed"),
                                          ("n", "5.3", "5_7", "5_8", f"n = {n_fixed} fixed")):
             ratio_cases, gamma_cases = i_cases[key]["ratio"], i_cases[key]["gamma"]
             rows = [[c.label, c.j, c.n, _num(c.gamma_min), _num(c.gamma) if c.ok else c.note,
-                     _verdict(c), _verdict(g)]
+                     _verdict(c) if c.ok else "—", _verdict(g) if c.ok else "—"]
                     for c, g in zip(ratio_cases, gamma_cases)]
             rep.section(f"Table {table}: γ_min, γ for various i ({what})")
             rep.table(["i", "j", "n", "γ_min", "γ = 1.1 γ_min", "closed loop (γ = 1.1 γ_min)",
@@ -214,16 +221,17 @@ def run(opts) -> dict:
                       [[c.i, c.j, c.n, c.gamma_min, c.gamma, c.note] for c in ratio_cases])
             for cases, fnum, title in ((ratio_cases, fa, "constant γ/γ_min = 1.1"),
                                        (gamma_cases, fb, "constant γ = 1.1")):
-                steps = {c.label: c.step for c in cases if c.step is not None}
+                steps = {c.label: c.step for c in cases if c.step is not None and c.i not in cfg.step_horizon_omit}
                 all_steps.update({f"T{table} {c.label}, {title}": c.step for c in cases if c.step is not None})
                 fig, ax = plt.subplots(figsize=(7, 4))
                 plot_steps(ax, steps, f"Fig. {fnum.replace('_', '.')}: various i, {title}, {what}")
                 name = f"fig{fnum}_steps_i_{key}_{'ratio' if cases is ratio_cases else 'gamma'}.png"
                 figures.append(str(save_figure(fig, out / name)))
                 rep.figure(out / name, f"Fig. {fnum.replace('_', '.')}: step responses, various i, {title}, {what}")
-            omitted = [c.label for c in ratio_cases if c.ok and c.step is None]
+            omitted = [c.label for c in ratio_cases if c.ok and c.i in cfg.step_horizon_omit]
             if omitted:
-                rep.text(f"({', '.join(omitted)} omitted from the step figures, as in the thesis.)")
+                rep.text(f"({', '.join(omitted)} omitted from the step figures, as in the thesis; its metrics are in the "
+                         "step-metrics table.)")
 
         # ---- Figs 5.9, 5.10 (pole-zero loci) ---------------------------------------------
         pz_cases = [c for c in i_cases["j"]["ratio"] if c.ok]
@@ -299,6 +307,7 @@ def run(opts) -> dict:
     rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
     summary["report"] = str(rep.write(out / "design_example.md"))
     write_json(out / "design_example.json", summary)
+    _PREDICTORS.clear()
     return summary
 
 
