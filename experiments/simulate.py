@@ -61,6 +61,9 @@ class OpenLoopData:
     y_clean : ndarray, shape (n, l)
         Plant output without sensor noise.
     dt : float
+    x_final : ndarray
+        Plant state after the last sample (to continue the experiment in closed loop,
+        ``closed_loop(..., x0=data.x_final)``).
     """
 
     t: np.ndarray
@@ -68,6 +71,7 @@ class OpenLoopData:
     y: np.ndarray
     y_clean: np.ndarray
     dt: float
+    x_final: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -224,7 +228,7 @@ def collect_data(plant, u, *, process_noise: float = 0.0, sensor_noise: float = 
         y[k] = C @ x + D @ uw[k]
         x = A @ x + B @ uw[k]
     dt = _dt(P)
-    return OpenLoopData(t=np.arange(n) * dt, u=u, y=y + v, y_clean=y, dt=dt)
+    return OpenLoopData(t=np.arange(n) * dt, u=u, y=y + v, y_clean=y, dt=dt, x_final=x)
 
 
 def closed_loop(plant, controller, r, *, perturbation=None, process_noise: float = 0.0,

@@ -112,3 +112,15 @@ def test_algebraic_loop_and_bad_input_raise():
         closed_loop(P, ct.ss([], [], [], [[1.0, 1.0, 1.0]], 0.1), step(10))
     with pytest.raises(ValueError, match="continuous"):
         collect_data(servo(continuous=True), np.ones(5))
+
+
+def test_collect_data_continues_from_final_state():
+    P = three_disk("y1")
+    u = prbs(200, seed=2)
+    whole = collect_data(P, u)
+    a = collect_data(P, u[:120])
+    b = collect_data(P, u[120:], x0=a.x_final)
+    np.testing.assert_allclose(np.vstack([a.y, b.y]), whole.y, atol=1e-12)
+    # closed loop continues the same way (zero controller = open loop with u = 0)
+    c = closed_loop(P, ct.ss([], [], [], [[0.0, 0.0]], P.dt), np.zeros(10), x0=whole.x_final)
+    np.testing.assert_allclose(c.y, collect_data(P, np.zeros(10), x0=whole.x_final).y, atol=1e-12)
