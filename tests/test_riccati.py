@@ -173,3 +173,32 @@ def test_bad_input():
         lqr_riccati(A, B, C, D, np.eye(3), 1.0, horizon=3)
     with pytest.raises(ValueError):
         lqr_riccati(A, B, C, D, 1.0, 1.0, horizon=3).rollout([np.nan, 0, 0])
+
+
+@pytest.mark.filterwarnings("ignore::synthesis.PersistenceWarning")
+def test_theorem_4_3_mimo_three_disk():
+    # one input, three outputs (order 6 < i = 10), diagonal dynamic W1
+    from experiments.plants import three_disk
+
+    P, i, n, k = three_disk("all"), 10, 800, 600
+    u = prbs(n, seed=0)
+    d = collect_data(P, u)
+    x = np.zeros((n + 1, P.nstates))
+    for t in range(n):
+        x[t + 1] = P.A @ x[t] + P.B[:, 0] * u[t]
+    pred = synthesis.fit_predictor(d.u, d.y, i)
+    w1 = synthesis.tustin(ct.tf([0.5, 20.0], [1.0, 1.0]), 1 / 64)
+    W1a = ct.append(w1, w1, w1)
+    W1 = ct.ss(W1a.A, W1a.B, W1a.C, W1a.D, 1 / 64)
+    W2 = synthesis.tustin(ct.tf([0.05, 0.05], [1.0, 100.0]), 1 / 64)
+    gamma = 1.5 * synthesis.gamma_min(pred, W1, W2)
+    design = synthesis.hinf_design(pred, W1, W2, gamma=gamma)
+    gp = generalized_plant(P, W1, W2)
+    assert (gp.l, gp.m, gp.n_w1) == (3, 1, 3)
+    rng = np.random.default_rng(1)
+    xw1, xw2 = rng.standard_normal(gp.n_w1), rng.standard_normal(gp.n_w2)
+    w_p = np.concatenate([d.u[k - i:k].ravel(), d.y[k - i:k].ravel()])  # (3.13), y_t stacked per time
+    u_sub = design.gain @ np.concatenate([w_p, xw1, xw2])
+    law = hinf_riccati(gp.A, gp.B, gp.C, gp.D, gamma=gamma, horizon=i, n_disturbances=gp.l)
+    u_ric = law.controls(gp.state(x[k], xw1, xw2))
+    np.testing.assert_allclose(u_sub, u_ric, atol=1e-6 * np.abs(u_ric).max())
