@@ -18,6 +18,8 @@ rows, so the Python-level cost is ``N`` iterations of a few numpy operations.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import solve_triangular
 
@@ -73,8 +75,8 @@ def cholupdate(L, x, *, lower: bool = True, overwrite: bool = False) -> np.ndarr
     W, R, x = _prepare(L, x, lower, overwrite)
     N = R.shape[0]
     for k in range(N):
-        rkk, xk = R[k, k], x[k]
-        r = np.hypot(rkk, xk)
+        rkk, xk = float(R[k, k]), float(x[k])
+        r = math.hypot(rkk, xk)
         if r == 0.0:
             continue  # nothing to rotate in this row
         c, s = rkk / r, xk / r
@@ -83,8 +85,9 @@ def cholupdate(L, x, *, lower: bool = True, overwrite: bool = False) -> np.ndarr
             row = R[k, k + 1 :]
             tail = x[k + 1 :]
             new_row = c * row + s * tail
-            x[k + 1 :] = c * tail - s * row
-            R[k, k + 1 :] = new_row
+            tail *= c
+            tail -= s * row
+            row[...] = new_row
     return W
 
 
@@ -134,20 +137,24 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
         )
     alpha = np.sqrt(alpha2)
     # Rotations k = N-1 … 0 zero p_k against alpha.
-    cs = np.empty(N)
-    sn = np.empty(N)
-    for k in range(N - 1, -1, -1):
-        scale = np.hypot(alpha, p[k])
+    cs = [0.0] * N
+    sn = [0.0] * N
+    alpha = float(alpha)
+    for k, pk in zip(range(N - 1, -1, -1), p[::-1].tolist()):
+        scale = math.hypot(alpha, pk)
         cs[k] = alpha / scale
-        sn[k] = p[k] / scale
+        sn[k] = pk / scale
         alpha = scale
     # Apply them to the rows of R and a zero row, vectorised across columns.
     xx = np.zeros(N)
     for k in range(N - 1, -1, -1):
-        row = R[k, k:].copy()
-        t = cs[k] * xx[k:] + sn[k] * row
-        R[k, k:] = cs[k] * row - sn[k] * xx[k:]
-        xx[k:] = t
+        row = R[k, k:]
+        xk = xx[k:]
+        c, s = cs[k], sn[k]
+        t = c * xk + s * row
+        row *= c
+        row -= s * xk
+        xk[...] = t
     # Normalise to a non-negative diagonal.
     neg = np.diag(R) < 0
     if np.any(neg):
