@@ -327,7 +327,9 @@ def closed_loop_adaptive(plant, adaptive, r, **kwargs) -> ClosedLoopResult:
     """Closed loop with an adaptive controller (§5.3, §6.3), keeping its ``γ`` history.
 
     The measured plant output feeds both the controller state and the predictor
-    update (``adaptive.observe``).  Takes the keyword arguments of :func:`closed_loop`.
+    update (``adaptive.observe``).  Takes the keyword arguments of :func:`closed_loop`;
+    to continue right after the excitation experiment that initialised the controller
+    (§6.3), pass ``x0=data.x_final``.
 
     Parameters
     ----------

@@ -235,14 +235,16 @@ def _recursion(A, B, CtC, CtD, DtD_plus, horizon, terminal, check=None):
     return X, Xt, gains
 
 
-def hinf_riccati(A, B, C, D, *, gamma: float, horizon: int, n_disturbances: int) -> RiccatiLaw:
+def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
+                 n_disturbances: int | None = None) -> RiccatiLaw:
     """Model-based finite-horizon full-information H∞ law (4.15)–(4.19).
 
     Parameters
     ----------
     A, B, C, D : array_like
         Generalized plant with inputs ``w = [r; u]`` (first ``n_disturbances`` entries are
-        ``r``), e.g. from :func:`generalized_plant` (``gp.A, gp.B, gp.C, gp.D``, ``gp.l``).
+        ``r``); or pass a :class:`GeneralizedPlant` as ``A`` alone (then ``n_disturbances``
+        defaults to its ``l``).
     gamma : float
         Level, ``R_γ = diag(γ²I_l, 0)`` (4.15).
     horizon : int
@@ -261,6 +263,12 @@ def hinf_riccati(A, B, C, D, *, gamma: float, horizon: int, n_disturbances: int)
         not positive definite or the Schur complement in ``r`` is not negative definite
         (γ at or below the finite-horizon γ_min).
     """
+    if isinstance(A, GeneralizedPlant):
+        gp = A
+        A, B, C, D = gp.A, gp.B, gp.C, gp.D
+        n_disturbances = gp.l if n_disturbances is None else n_disturbances
+    if n_disturbances is None:
+        raise DataError("n_disturbances (the number of references l) is required with plain matrices")
     A, B, C, D = _matrices(A, B, C, D)
     i = _check_horizon(horizon)
     l = int(n_disturbances)

@@ -134,7 +134,7 @@ def test_theorem_4_3_subspace_hinf_equals_riccati(k):
     xw1, xw2 = rng.standard_normal(1), rng.standard_normal(1)
     u_sub = design.gain @ np.concatenate([_w_p(d, k, i), xw1, xw2])
     gp = generalized_plant(P, W1, W2)
-    law = hinf_riccati(gp.A, gp.B, gp.C, gp.D, gamma=gamma, horizon=i, n_disturbances=gp.l)
+    law = hinf_riccati(gp, gamma=gamma, horizon=i)
     u_ric = law.controls(gp.state(x[k], xw1, xw2))
     scale = np.abs(u_ric).max()
     np.testing.assert_allclose(u_sub, u_ric, atol=1e-6 * max(scale, 1.0))
