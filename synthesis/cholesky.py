@@ -121,7 +121,7 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
     Lin = np.asarray(L, dtype=float)
     N = Lin.shape[0] if Lin.ndim == 2 else 0
     tol = N * np.finfo(float).eps if rtol is None else float(rtol)
-    W, R, x = _prepare(L, x, lower, False)  # copy first: never modify on failure
+    W, R, x = _prepare(L, x, lower, overwrite)  # nothing is modified before the checks pass
     if N == 0:
         return W
     d = np.abs(np.diag(R))
@@ -159,7 +159,4 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
     neg = np.diag(R) < 0
     if np.any(neg):
         R[neg, :] *= -1.0
-    if overwrite and isinstance(L, np.ndarray) and L.dtype == float and L.flags.writeable:
-        L[...] = W
-        return L
     return W

@@ -93,7 +93,7 @@ class RecursivePredictor:
         self._buf = np.empty((max(64, 4 * (2 * i + (window or 0))), c))
         self._start = 0
         self._end = 0
-        self._S = np.zeros((self._N, self._N))  # Gram AAᵀ or its lower Cholesky factor
+        self._S = np.zeros((self._N, self._N))  # Gram AAᵀ, or its upper Cholesky factor R (AAᵀ = RᵀR)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -147,7 +147,7 @@ class RecursivePredictor:
         """Current ``AAᵀ`` in the row order of (2.7) (a copy)."""
         if self.track == "gram":
             return self._S.copy()
-        return self._S @ self._S.T
+        return self._S.T @ self._S
 
     # ------------------------------------------------------------------ operations
     def push(self, u_new, y_new) -> "RecursivePredictor":
@@ -185,11 +185,11 @@ class RecursivePredictor:
                 self._S -= old_cols.T @ old_cols
         else:
             for a in new_cols:
-                cholupdate(self._S, a, overwrite=True)
+                cholupdate(self._S, a, lower=False, overwrite=True)
             if drop:
                 try:
                     for a in old_cols:
-                        choldowndate(self._S, a, overwrite=True)
+                        choldowndate(self._S, a, lower=False, overwrite=True)
                 except DowndateError as exc:
                     warnings.warn(
                         f"Cholesky downdate failed ({exc}); refactoring from the {self._j}-column window",
@@ -213,7 +213,7 @@ class RecursivePredictor:
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
             return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
-        return _predictor_from_factor(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
+        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3)
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:
@@ -253,7 +253,9 @@ class RecursivePredictor:
         data = self._data()
         m = self.m
         G = hankel_gram(data[:, :m], data[:, m:], self.horizon)
-        self._S = G if self.track == "gram" else np.ascontiguousarray(_psd_cholesky(G))
+        # factor track: store the upper factor R = Lᵀ (G = Rᵀ R) so that the rotations of
+        # cholupdate/choldowndate sweep contiguous rows
+        self._S = G if self.track == "gram" else np.ascontiguousarray(_psd_cholesky(G).T)
         self._since_refresh = 0
 
     def __repr__(self) -> str:
