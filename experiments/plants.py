@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import control as ct
 import numpy as np
+from scipy.linalg import block_diag
 
 __all__ = [
     "servo",
@@ -182,10 +183,8 @@ def _modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) -
         blocks_a.append(a)
         blocks_b.append(b * scale)
         blocks_c.append(c / scale)
-    from scipy.linalg import block_diag
-
     A = block_diag(*blocks_a)
     B = np.vstack(blocks_b)
     C = np.hstack(blocks_c)
     D = np.zeros((len(outputs), 1))
-    return ct.ss(A, B, C, D, inputs=["u"], outputs=outputs if len(outputs) > 1 else outputs, name=name)
+    return ct.ss(A, B, C, D, inputs=["u"], outputs=outputs, name=name)
