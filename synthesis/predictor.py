@@ -262,8 +262,10 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     method : {"cholesky", "qr", "lstsq"}
         ``"cholesky"`` (default): ``R = chol(AAᵀ)`` with ``AAᵀ`` built by the Hankel recursions
         (2.8)–(2.9) in ``O(ij + i²)`` time and ``O(i² + j)`` memory, never forming the Hankel
-        matrices (§2.3), then the SVD pseudo-inverse of §2.2.  A semidefinite ``AAᵀ``
-        (rank-deficient data) is factored through its clipped eigendecomposition instead.
+        matrices (§2.3), then the pseudo-inverse of §2.2 (its ``U``, ``Σ`` taken from the
+        eigendecomposition of ``R1 R1ᵀ``, equivalent to the SVD of ``R1`` at the precision a
+        Gram matrix carries).  A semidefinite ``AAᵀ`` (rank-deficient data) is factored
+        through its clipped eigendecomposition when LAPACK's Cholesky breaks down.
         ``"qr"``: QR of ``A = [W_p; U_f; Y_f]`` (2.7) and the SVD pseudo-inverse of §2.2
         (``O(i²j)`` time, ``O(ij)`` memory).
         ``"lstsq"``: ``numpy.linalg.lstsq`` on the explicit Hankel matrices (a plain reference).

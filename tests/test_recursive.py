@@ -92,6 +92,21 @@ def test_window_grows_then_slides_from_rank_deficient_start():
     assert rp.n_columns == window and rp.predictor().full_rank
 
 
+def test_thesis_adaptive_start_i64():
+    """§6.3: R initialised from n = 384 samples at i = 64, then 50 new samples at a time."""
+    u, y = _data(6, 384 + 200, 1, 1)
+    i = 64
+    rp = RecursivePredictor.from_data(u[:384], y[:384], i)
+    assert rp.n_columns == 257
+    t = 384
+    for _ in range(4):
+        rp.push(u[t : t + 50], y[t : t + 50])
+        t += 50
+    ref, _ = _refit(u, y, i, t, rp)
+    _assert_same(rp.predictor(), ref)
+    assert rp.n_samples_kept == 2 * i - 1
+
+
 def test_factor_track_refactors_with_warning_when_downdate_loses_definiteness():
     u, y = _data(3, 200, 1, 1)
     i, window = 5, 8  # window < N = 20: the Gram is singular, downdates must fail
