@@ -119,13 +119,13 @@ def servo_data(n: int, *, seed: int = 0, sigma_process: float = SIGMA_PROCESS,
 
 
 def closed_loop_matrix(plant: control.StateSpace, controller: control.StateSpace) -> np.ndarray:
-    """State matrix of the loop ``u = K [r; y]``, ``y = P u`` (strictly proper SISO ``P``).
+    """State matrix of the loop ``u = K [r; y]``, ``y = P u`` (``P`` with ``l`` outputs).
 
-    Used for the stability verdict (spectral radius), independently of the time simulation.
+    With ``u = C_c x_c + D_y y (+ D_r r)`` and ``y = C_p x + D_p u``, ``u = F(D_y C_p x + C_c x_c)``,
+    ``F = (I − D_y D_p)⁻¹`` (well posed unless ``I − D_y D_p`` is singular).  Used for the
+    stability verdict (spectral radius), independently of the time simulation.
     """
     Ap, Bp, Cp, Dp = (np.atleast_2d(np.asarray(M, float)) for M in (plant.A, plant.B, plant.C, plant.D))
-    if np.any(Dp != 0):
-        raise ValueError("closed_loop_matrix needs a strictly proper plant")
     Ac, Bc, Cc, Dc = (np.asarray(M, float) for M in (controller.A, controller.B, controller.C, controller.D))
     Ac = Ac.reshape(controller.nstates, controller.nstates)
     Bc = Bc.reshape(controller.nstates, controller.ninputs)
@@ -133,7 +133,10 @@ def closed_loop_matrix(plant: control.StateSpace, controller: control.StateSpace
     Dc = Dc.reshape(controller.noutputs, controller.ninputs)
     l = Cp.shape[0]
     By, Dy = Bc[:, l:], Dc[:, l:]
-    return np.block([[Ap + Bp @ Dy @ Cp, Bp @ Cc], [By @ Cp, Ac]])
+    F = np.linalg.inv(np.eye(Dy.shape[0]) - Dy @ Dp)
+    Ux, Uc = F @ Dy @ Cp, F @ Cc  # u = Ux x + Uc xc
+    Yx, Yc = Cp + Dp @ Ux, Dp @ Uc  # y = Yx x + Yc xc
+    return np.block([[Ap + Bp @ Ux, Bp @ Uc], [By @ Yx, Ac + By @ Yc]])
 
 
 @dataclass(frozen=True)
@@ -211,8 +214,9 @@ def step_metrics_rows(results: dict[str, StepResult]) -> tuple[list[str], list[l
     rows = []
     for name, r in results.items():
         if r.stable:
-            rows.append([name, "stable", r.spectral_radius, r.rise_time, r.overshoot, r.settling_time,
-                         r.steady_state_error, r.max_abs_y])
+            rows.append([name, "stable", r.spectral_radius] + [
+                v if np.isfinite(v) else "—"
+                for v in (r.rise_time, r.overshoot, r.settling_time, r.steady_state_error, r.max_abs_y)])
         else:
             rows.append([name, "**unstable**", r.spectral_radius, "—", "—", "—", "—",
                          f"{r.max_abs_y:.3g}"])
