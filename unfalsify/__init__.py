@@ -10,6 +10,13 @@ from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .robust import (
+    AdditiveRobustness,
+    RobustDesignResult,
+    additive_robustness,
+    additive_weight_fixed_point,
+    robust_design_from_data,
+)
 
 __all__ = [
     "COND_WARN",
@@ -32,4 +39,9 @@ __all__ = [
     "SubspaceResult",
     "subspace_data",
     "subspace_unfalsify",
+    "AdditiveRobustness",
+    "RobustDesignResult",
+    "additive_robustness",
+    "additive_weight_fixed_point",
+    "robust_design_from_data",
 ]

@@ -151,6 +151,14 @@ def _column_toeplitz_operator(Uf: np.ndarray) -> sp.csr_matrix:
     return sp.block_diag([sp.csr_matrix(np.tril(toeplitz_matrix(Uf[:, k]))) for k in range(Uf.shape[1])], format="csr")
 
 
+def _l_value(L, L_fixed, Lscale, i) -> np.ndarray:
+    if L_fixed is not None:
+        return L_fixed.copy()
+    if L.value is None:
+        return np.full((i, 3 * i), np.nan)
+    return np.asarray(L.value, float) * Lscale
+
+
 def subspace_unfalsify(
     u,
     y,
@@ -159,6 +167,7 @@ def subspace_unfalsify(
     *,
     form: str = "conditioned",
     eliminate_L: bool = False,
+    predictor=None,
     solver: str = "CLARABEL",
     solver_options: dict | None = None,
 ) -> SubspaceResult:
@@ -177,6 +186,10 @@ def subspace_unfalsify(
     eliminate_L : bool
         Conditioned form only: eliminate ``[L_w L_u]`` analytically (fewer variables, a denser
         noise cone; see ``experiments/bench_unfalsify.py`` for which is faster).
+    predictor : synthesis.Predictor, optional
+        Fix ``[L_w L_u]`` to a given SISO predictor of horizon i (e.g. a least-squares fit on a
+        longer record) and compute the δ of that model: (7.5) with L a constant.  Default: L is
+        optimised jointly with Ξ and the impulses, as in the thesis.
     solver : str
         cvxpy solver, passed explicitly.
     solver_options : dict, optional
@@ -223,6 +236,16 @@ def subspace_unfalsify(
         )
     if form == "thesis" and eliminate_L:
         raise ValueError("eliminate_L applies to form='conditioned' only")
+    L_fixed = None
+    if predictor is not None:
+        if eliminate_L:
+            raise ValueError("eliminate_L and a fixed predictor exclude each other")
+        L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
+        if int(predictor.horizon) != i or L_fixed.shape != (i, 3 * i) or not np.all(np.isfinite(L_fixed)):
+            raise DataError(
+                f"predictor must be a finite SISO predictor of horizon {i} (Lw {i}×{2 * i}, Lu {i}×{i}); "
+                f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
+            )
 
     su, sy = _rms(u), _rms(y)
     As = A.copy()
@@ -233,7 +256,8 @@ def subspace_unfalsify(
     bound = sig_s * np.sqrt(i * j)
 
     delta = cp.Variable(name="delta")
-    L = None
+    Lscale = np.concatenate([np.full(i, sy / su), np.ones(i), np.full(i, sy / su)])  # L_orig = L_s * sy/s_col
+    L = None if L_fixed is None else cp.Constant(L_fixed / Lscale)
     if form == "conditioned":
         H = cp.Variable((i, j), name="H")
         Bop = _column_toeplitz_operator(Ufs)
@@ -243,12 +267,12 @@ def subspace_unfalsify(
             resid = (Yfs - Ht) @ N if N.shape[1] else None
             noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound] if resid is not None else []
         else:
-            L = cp.Variable((i, 3 * i), name="L")
+            L = cp.Variable((i, 3 * i), name="L") if L is None else L
             resid = Yfs - L @ As - Ht
             noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound]
         cons = noise_con + [toeplitz_norm_lmi(H[:, k], delta, i) for k in range(j)]
     else:
-        L = cp.Variable((i, 3 * i), name="L")
+        L = cp.Variable((i, 3 * i), name="L") if L is None else L
         Xi = cp.Variable((i, j), name="Xi")
         G = Yfs - L @ As - Xi
         xv = cp.reshape(cp.vec(Xi, order="F"), (i * j, 1), order="F") / np.sqrt(i * j)
@@ -262,18 +286,17 @@ def subspace_unfalsify(
     d_s = solved_value(status, delta.value)
 
     # --- back to original units and independent certificate --------------------------------
-    Lscale = np.concatenate([np.full(i, sy / su), np.ones(i), np.full(i, sy / su)])  # L_orig = L_s * sy/s_col
     if form == "conditioned":
         Hv = np.asarray(H.value, float) * (sy / su) if H.value is not None else np.full((i, j), np.nan)
         Htil = np.column_stack([toeplitz_matrix(Uf[:, k]) @ Hv[:, k] for k in range(j)])
         if eliminate_L:
             L_out = (Yf - Htil) @ np.linalg.pinv(A)
         else:
-            L_out = np.asarray(L.value, float) * Lscale if L.value is not None else np.full((i, 3 * i), np.nan)
+            L_out = _l_value(L, L_fixed, Lscale, i)
         Xi_out = Yf - L_out @ A - Htil
         impulses = Hv
     else:
-        L_out = np.asarray(L.value, float) * Lscale if L.value is not None else np.full((i, 3 * i), np.nan)
+        L_out = _l_value(L, L_fixed, Lscale, i)
         Xi_out = np.asarray(Xi.value, float) * sy if Xi.value is not None else np.full((i, j), np.nan)
         G_out = Yf - L_out @ A - Xi_out
         if np.all(np.isfinite(G_out)):
