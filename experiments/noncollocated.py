@@ -149,13 +149,13 @@ def closed_loop_system(plant: ct.StateSpace, controller: ct.StateSpace) -> ct.St
 def _weighted_norm_on_grid(plant, controller, W1, W2, omega) -> float:
     """``max_ω σ̄([W1 (1 − T_yr); W2 T_ur](e^{jωT}))``: the ∞-horizon level the loop achieves."""
     cl = closed_loop_system(plant, controller)
-    G = freq(cl, omega)  # (2, 1, nω): y/r, u/r
-    z1 = freq(W1, omega)[0, 0] * (1.0 - G[0, 0])
-    z2 = freq(W2, omega)[0, 0] * G[1, 0]
+    G = _freq_response(cl, omega)  # (2, 1, nω): y/r, u/r
+    z1 = _freq_response(W1, omega)[0, 0] * (1.0 - G[0, 0])
+    z2 = _freq_response(W2, omega)[0, 0] * G[1, 0]
     return float(np.max(np.sqrt(np.abs(z1) ** 2 + np.abs(z2) ** 2)))
 
 
-def freq(sys, omega) -> np.ndarray:
+def _freq_response(sys, omega) -> np.ndarray:
     """Frequency response of a discrete system at ``e^{jωT}``, shape ``(outputs, inputs, len(omega))``."""
     return np.asarray(ct.frequency_response(sys, omega, squeeze=False).frdata)
 
@@ -323,9 +323,9 @@ def _figures(out, c, omega):
     ax[1].set_xlabel("t (s)")
     figs["data"] = save_figure(fig, out / "fig6_2_data.png")
 
-    w1 = freq(c["W1"], omega)[0, 0]
-    w2 = freq(c["W2"], omega)[0, 0]
-    p = freq(c["P"], omega)[0, 0]
+    w1 = _freq_response(c["W1"], omega)[0, 0]
+    w2 = _freq_response(c["W2"], omega)[0, 0]
+    p = _freq_response(c["P"], omega)[0, 0]
     fig, ax = plt.subplots(figsize=(8, 5))
     ax.semilogx(omega, 20 * np.log10(1 / np.abs(w1)), label="1/|W1|")
     ax.semilogx(omega, 20 * np.log10(1 / np.abs(w2)), label="1/|W2|")
@@ -350,8 +350,8 @@ def _figures(out, c, omega):
     ax.grid(True, lw=0.3)
     figs["step"] = save_figure(fig, out / "fig6_5_step.png")
 
-    Ks = freq(c["sub"].controller, omega)
-    Km = freq(c["model"].controller, omega)
+    Ks = _freq_response(c["sub"].controller, omega)
+    Km = _freq_response(c["model"].controller, omega)
     curves = [("K_sub: u/r (y = 0)", Ks[0, 0]), ("K_sub: u/(−y) (r = 0)", -Ks[0, 1]),
               ("K_model: u/e", Km[0, 0])]
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
