@@ -1,0 +1,34 @@
+"""``python -m experiments demo``: the README's main job (defaults; seed 0)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from experiments._servo import THESIS_TABLE_5_1
+from experiments.cli import main
+
+
+def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert "demo.md" in printed and "Design 1" in printed and "δ" in printed
+    md = (tmp_path / "demo.md").read_text()
+    assert "Table 5.1" in md and "§7.4" in md
+    assert (tmp_path / "demo_table5_1_steps.png").exists()
+    assert (tmp_path / "chapter7" / "chapter7.md").exists()
+    for png in ("chapter7/chapter7_steps.png", "chapter7/chapter7_small_gain.png", "demo_table5_1_steps.png"):
+        assert png in md and (tmp_path / png).exists()
+    summary = json.loads((tmp_path / "demo.json").read_text())
+    for name, (g, gam) in THESIS_TABLE_5_1.items():
+        assert summary["table_5_1"][name]["gamma_min"] == pytest.approx(g, rel=0.03)
+        assert summary["table_5_1"][name]["gamma"] == pytest.approx(gam, rel=0.03)
+    assert summary["chapter7"]["delta"] > 0
+    assert summary["seconds"] < 120
+
+
+def test_demo_json_flag_prints_json_only(tmp_path, capsys):
+    assert main(["demo", "--json", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    data = json.loads(printed)
+    assert data["report"].endswith("demo.md")
