@@ -153,3 +153,27 @@ def test_eliminate_with_thesis_form_is_rejected():
     u, y = _servo(20, 9)
     with pytest.raises(ValueError):
         uf.subspace_unfalsify(u, y, 3, 0.05, form="thesis", eliminate_L=True)
+
+
+def test_fixed_predictor_delta_is_at_least_the_joint_delta():
+    # (7.5) optimises over L; fixing L to the least-squares predictor can only increase δ
+    u, y = _servo(2 * 4 + 30 - 1, 10)
+    i = 4
+    pred = synthesis.fit_predictor(u, y, i, method="qr")
+    rms_ls = _ls_rms(u, y, i)
+    sigma = 0.5 * rms_ls
+    joint = uf.subspace_unfalsify(u, y, i, sigma)
+    fixed = uf.subspace_unfalsify(u, y, i, sigma, predictor=pred)
+    assert fixed.delta >= joint.delta * (1 - 1e-6)
+    np.testing.assert_array_equal(fixed.Lw, pred.Lw)
+    assert fixed.certificate.ok(1e-5)
+    # σ above the fixed predictor's own residual rms: δ = 0
+    zero = uf.subspace_unfalsify(u, y, i, 1.01 * rms_ls, predictor=pred)
+    assert abs(zero.delta) < 1e-6
+
+
+def test_fixed_predictor_with_wrong_horizon_raises():
+    u, y = _servo(40, 11)
+    pred = synthesis.fit_predictor(u, y, 3, method="qr")
+    with pytest.raises(DataError, match="horizon"):
+        uf.subspace_unfalsify(u, y, 4, 0.05, predictor=pred)

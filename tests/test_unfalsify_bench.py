@@ -1,0 +1,28 @@
+"""Smoke test of ``python -m experiments bench-unfalsify --quick``."""
+import json
+
+from experiments.bench_unfalsify import run
+from experiments.cli import Options, main
+
+
+def test_bench_unfalsify_quick(tmp_path):
+    summary = run(Options(quick=True, out=tmp_path))
+    assert (tmp_path / "bench_unfalsify.md").exists()
+    data = json.loads((tmp_path / "bench_unfalsify.json").read_text())
+    assert data["quick"] is True
+    forms = {(s["kind"], s["form"], s["eliminate_L"]) for s in summary["series"]}
+    assert ("arx", "thesis", False) in forms and ("subspace", "conditioned", True) in forms
+    for s in summary["series"]:
+        assert s["largest_within_budget"] == s["rows"][-1]["size"]
+        for r in s["rows"]:
+            assert r["status"] in ("optimal", "optimal_inaccurate")
+            assert r["max_violation"] <= 1e-5 * max(r["delta"], 1e-3)  # certified (tiny sizes)
+    # both ARX forms agree on the same data
+    by = {s["series"]: s["rows"] for s in summary["series"]}
+    for rc, rt in zip(by["ARX conditioned"], by["ARX thesis"]):
+        assert abs(rc["delta"] - rt["delta"]) <= 1e-4 * rc["delta"]
+
+
+def test_cli_registers_bench(tmp_path):
+    assert main(["bench-unfalsify", "--quick", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "bench_unfalsify.json").exists()
