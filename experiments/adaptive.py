@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import time
 
-import control as ct
 import numpy as np
 
 from ._torsional import COLLOCATED, DT

@@ -102,13 +102,17 @@ def test_gamma_min_by_qr_predictor(run_dir, summary):
     assert summary["subspace"]["gamma"] == pytest.approx(1.35 * g, rel=1e-6)
 
 
-def test_ideal_step_response_by_python_control(run_dir, controllers):
-    _, K_model, _, _ = controllers
+def test_step_responses_by_python_control(run_dir, controllers):
+    K_sub, K_model, _, _ = controllers
     head, step = _read_csv(run_dir / "step.csv")
-    t, y_ideal = step[:, 0], step[:, head.index("y_ideal")]
-    T = ct.feedback(_thesis_y3_plant() * K_model, 1)
-    y = ct.forced_response(T, T=t, U=np.ones_like(t)).outputs
-    assert np.max(np.abs(y - y_ideal)) < 1e-6 * max(1.0, np.max(np.abs(y)))
+    t = step[:, 0]
+    P = _thesis_y3_plant()
+    T_ideal = ct.feedback(P * K_model, 1)
+    # y = P u, u = K_r r + K_y y  =>  y = (1 - P K_y)^-1 P K_r r
+    T_sub = ct.feedback(P, K_sub[0, 1], sign=+1) * K_sub[0, 0]
+    for T, col in ((T_ideal, "y_ideal"), (T_sub, "y_subspace")):
+        y = ct.forced_response(T, T=t, U=np.ones_like(t)).outputs
+        assert np.max(np.abs(y - step[:, head.index(col)])) < 1e-6 * max(1.0, np.max(np.abs(y)))
 
 
 def test_step_metrics_on_closed_forms():
@@ -124,3 +128,31 @@ def test_step_metrics_on_closed_forms():
     assert m["steady_state_error"] == pytest.approx(0.18, abs=1e-3)
     wrong_way = noncollocated.step_metrics(t, -(1 - np.exp(-t / tau)))
     assert np.isnan(wrong_way["rise_time_s"]) and wrong_way["steady_state_error"] == pytest.approx(2.0)
+
+
+def test_chosen_weights_match_their_documentation():
+    from experiments import _torsional
+
+    for spec, crossing in ((NONCOLLOCATED, 23.06), (_torsional.COLLOCATED, 64.59)):
+        W1c, W2c = spec.continuous()
+        W1d, W2d = spec.discrete(DT)
+        assert 20 * np.log10(abs(complex(ct.evalfr(W1c, 0)))) == pytest.approx(26.02, abs=0.01)
+        # Tustin maps s = 0 to z = 1 and s = ∞ to z = −1
+        assert complex(ct.evalfr(W1d, 1.0)) == pytest.approx(complex(ct.evalfr(W1c, 0)))
+        assert complex(ct.evalfr(W2d, -1.0)) == pytest.approx(spec.c, rel=1e-9)
+        w = np.linspace(0.8 * crossing, 1.2 * crossing, 4001)
+        mag = np.abs([complex(ct.evalfr(W1c, 1j * x)) for x in w])
+        assert w[np.argmin(np.abs(mag - 1))] == pytest.approx(crossing, rel=1e-3)
+        assert np.linalg.matrix_rank(np.atleast_2d(W1d.D)) == 1 and np.linalg.matrix_rank(np.atleast_2d(W2d.D)) == 1
+    with pytest.raises(ValueError, match="unknown weight set"):
+        _torsional.weights("colocated")
+
+
+def test_bad_input_raises():
+    with pytest.raises(ValueError, match="same length"):
+        noncollocated.step_metrics(np.arange(10.0), np.arange(9.0))
+    P = _thesis_y3_plant()
+    with pytest.raises(ValueError, match="inputs"):
+        noncollocated.closed_loop_system(P, ct.ss([[0.5]], [[1, 1, 1]], [[1]], [[0, 0, 0]], DT))
+    with pytest.raises(ValueError, match="strictly proper"):
+        noncollocated.closed_loop_system(ct.ss([[0.5]], [[1]], [[1]], [[1]], DT), ct.ss([[0.5]], [[1]], [[1]], [[0]], DT))
