@@ -224,14 +224,20 @@ def _figures(out, t, res, ideal, diff, gmin, gam, gamma_opt):
         a.grid(True, lw=0.3)
     figs["sim"] = save_figure(fig, out / "fig6_9_adaptive.png")
 
-    fig, ax = plt.subplots(figsize=(9, 3.5))
-    ax.plot(t, diff, lw=0.9, label="y − y_ideal")
-    ax.plot(t, res.r[:, 0] / 4, "k--", lw=0.7, label="r/4")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("rad")
-    ax.set_title("Fig 6.10: adaptive simulation error (reference scaled by 1/4)")
-    ax.legend(loc="upper right")
-    ax.grid(True, lw=0.3)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for ax, zoom in zip(axes, (False, True)):
+        ax.plot(t, diff, lw=0.9, label="y − y_ideal")
+        ax.plot(t, res.r[:, 0] / 4, "k--", lw=0.7, label="r/4")
+        ax.set_ylabel("rad")
+        ax.grid(True, lw=0.3)
+        if zoom:
+            tail = diff[t >= t[0] + 0.5 * (t[-1] - t[0])]
+            lim = 1.5 * max(np.max(np.abs(tail)), 1e-3)
+            ax.set_ylim(-max(lim, 0.3), max(lim, 0.3))
+            ax.set_title("zoom", fontsize=9)
+    axes[0].set_title("Fig 6.10: adaptive simulation error (reference scaled by 1/4)")
+    axes[0].legend(loc="upper right")
+    axes[1].set_xlabel("t (s)")
     figs["err"] = save_figure(fig, out / "fig6_10_error.png")
 
     fig, ax = plt.subplots(figsize=(9, 3.5))
