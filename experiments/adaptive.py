@@ -49,7 +49,7 @@ STEP_HOLD_S = 3.0
 
 def _model_based(plant, W1, W2, offset: float):
     """∞-horizon model-based discrete H∞ mixed-sensitivity design at ``γ = γ_opt + offset``."""
-    from synthesis.infinite_horizon import discrete_mixsyn
+    from synthesis import discrete_mixsyn
 
     first = discrete_mixsyn(plant, W1, W2)
     design = discrete_mixsyn(plant, W1, W2, gamma=first.gamma_opt + offset)
@@ -58,7 +58,7 @@ def _model_based(plant, W1, W2, offset: float):
 
 def _make_adaptive(u0, y0, i, W1, W2):
     """The adaptive controller of §5.3 (growing window), initialised from the open-loop data ``(u0, y0)``."""
-    from synthesis.adaptive import AdaptiveHinf, GammaPolicy
+    from synthesis import AdaptiveHinf, GammaPolicy
 
     return AdaptiveHinf.from_data(u0, y0, i, W1, W2, period=UPDATE_EVERY, window=None,
                                   policy=GammaPolicy("offset", GAMMA_OFFSET))

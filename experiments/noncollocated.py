@@ -163,7 +163,7 @@ def _freq_response(sys, omega) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 def _model_based(plant, W1, W2, ratio: float):
     """∞-horizon model-based discrete H∞ mixed-sensitivity design (helper of ``synthesis``)."""
-    from synthesis.infinite_horizon import discrete_mixsyn
+    from synthesis import discrete_mixsyn
 
     design = discrete_mixsyn(plant, W1, W2, gamma_ratio=ratio)
     return design.gamma_opt, design
