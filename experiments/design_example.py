@@ -252,8 +252,11 @@ def run(opts) -> dict:
                    f"Fig. 5.10: i = {i_nf}, noisy vs noise-free data (γ_min {noisy.gamma_min:.4g} vs "
                    f"{clean.gamma_min:.4g})")
         summary["pole_zero"] = {c.label: _pz_stats(c.design) for c in pz_cases + [clean] if c.ok}
-        rep.table(["design", "controller order", "max \\|pole\\|", "median pole-zero distance"],
-                  [[k, v["order"], v["max_abs_pole"], v["median_pz_distance"]]
+        rep.text("Distance of each pole to its nearest zero (small = nearly cancelling, removable by order "
+                 "reduction):\n")
+        rep.table(["design", "controller order", "max \\|pole\\|", "median pole-zero distance",
+                   "poles with a zero within 0.01"],
+                  [[k, v["order"], v["max_abs_pole"], v["median_pz_distance"], f"{100 * v['share_within_0.01']:.0f} %"]
                    for k, v in summary["pole_zero"].items()])
 
         # ---- Table 5.4, Fig 5.11 ---------------------------------------------------------
@@ -378,8 +381,10 @@ def _pz_stats(design) -> dict:
     p, z = _poles_zeros(design)
     zf = z[np.isfinite(z)]
     dist = [float(np.min(np.abs(zf - pk))) for pk in p] if zf.size else []
+    dist = np.asarray(dist)
     return {"order": int(p.size), "max_abs_pole": float(np.max(np.abs(p))),
-            "median_pz_distance": float(np.median(dist)) if dist else float("nan"),
+            "median_pz_distance": float(np.median(dist)) if dist.size else float("nan"),
+            "share_within_0.01": float(np.mean(dist < 0.01)) if dist.size else float("nan"),
             "n_zeros": int(zf.size)}
 
 
@@ -393,8 +398,9 @@ def _fig_pz(cases, path: Path, title: str) -> str:
         p, z = _poles_zeros(c.design)
         z = z[np.isfinite(z) & (np.abs(z) < 3)]
         ax.plot(np.cos(th), np.sin(th), color="0.6", lw=0.8)
-        ax.plot(p.real, p.imag, "x", ms=4, label="poles")
-        ax.plot(z.real, z.imag, "o", ms=4, mfc="none", label="zeros")
+        ms = 4 if p.size < 100 else 2
+        ax.plot(p.real, p.imag, "x", ms=ms, label="poles")
+        ax.plot(z.real, z.imag, "o", ms=ms, mfc="none", mew=0.6, label="zeros")
         ax.set_aspect("equal")
         ax.set_xlim(-1.6, 1.6)
         ax.set_ylim(-1.6, 1.6)
