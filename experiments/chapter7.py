@@ -286,6 +286,15 @@ def run(opts) -> dict:
               [[f"{r['factor']:g}", r["delta"], r["w3_gain"], r["gamma_min_a"], r["gamma"], r["covered"],
                 r["peak_KS"], r["radius"], "yes" if r["certifies"] else "**no**",
                 "stable" if r["stable"] else "**unstable**", r["overshoot"]] for r in sweep])
+    short = [r for r in sweep if r["radius"] < r["covered"]]
+    if short:
+        rep.text(
+            f"\n**Finding:** for {len(short)} of {len(sweep)} scaled designs the small-gain radius of the implemented "
+            "LTI loop is smaller than the c/γ the finite-horizon design covers (e.g. "
+            f"{short[-1]['radius']:.3g} vs {short[-1]['covered']:.3g} at {short[-1]['factor']:g}·δ). Theorem 3.7 "
+            "bounds the gain over one horizon for a Δ acting from rest on the future inputs; the receding-horizon "
+            "controller (5.3)–(5.4) inherits no infinite-horizon guarantee, and Δ's effect on the past data "
+            "w_p is not modelled. The certificate has to be checked on the implemented loop, as done here.")
 
     rep.section("Closed loops with additive perturbations (noise-free unit steps)")
     rep.text("The worst-phase all-pass P_Δ = ±s(1 − az)/(z − a) has ‖P_Δ‖∞ = s and its phase at the peak "
