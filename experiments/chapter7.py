@@ -20,7 +20,6 @@ Writes ``chapter7.md``, figures, ``chapter7.json`` and CSV tables under ``--out`
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 

@@ -13,7 +13,7 @@ reported "unstable", from the closed-loop eigenvalues, and clipped in the plots)
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import control
@@ -61,7 +61,6 @@ class Config:
     noise_free_horizon: int = 300  # Fig. 5.10
     step_horizon_omit: tuple = (300,)  # the thesis omits i = 300 from Figs 5.5-5.8
     n_steps: int = 300  # 30 s step responses
-    extra: dict = field(default_factory=dict)
 
     @classmethod
     def quick(cls) -> "Config":
@@ -252,11 +251,14 @@ def run(opts) -> dict:
                    f"Fig. 5.10: i = {i_nf}, noisy vs noise-free data (γ_min {noisy.gamma_min:.4g} vs "
                    f"{clean.gamma_min:.4g})")
         summary["pole_zero"] = {c.label: _pz_stats(c.design) for c in pz_cases + [clean] if c.ok}
-        rep.text("Distance of each pole to its nearest zero (small = nearly cancelling, removable by order "
-                 "reduction):\n")
-        rep.table(["design", "controller order", "max \\|pole\\|", "median pole-zero distance",
-                   "poles with a zero within 0.01"],
-                  [[k, v["order"], v["max_abs_pole"], v["median_pz_distance"], f"{100 * v['share_within_0.01']:.0f} %"]
+        rep.text("Poles at the origin are the y_p delay line of (5.3) (an FIR action on y). For the other poles: "
+                 "their median radius and the distance to the nearest zero (small = a nearly cancelling pair, "
+                 "removable by order reduction). The roots of these high-degree controllers are numerically "
+                 "sensitive (clusters of roots of a degree-600 polynomial), so read the loci qualitatively.\n")
+        rep.table(["design", "controller order", "poles at 0", "max \\|pole\\|", "median \\|other pole\\|",
+                   "median pole-zero distance", "other poles with a zero within 0.03"],
+                  [[k, v["order"], v["poles_at_origin"], v["max_abs_pole"], v["median_abs_other_pole"],
+                    v["median_pz_distance"], f"{100 * v['share_within_0.03']:.0f} %"]
                    for k, v in summary["pole_zero"].items()])
 
         # ---- Table 5.4, Fig 5.11 ---------------------------------------------------------
@@ -378,14 +380,18 @@ def _poles_zeros(design):
 
 
 def _pz_stats(design) -> dict:
+    """Pole-zero summary: poles at the origin (the y_p delay line), and for the others their radius and
+    the distance to the nearest zero (small = a nearly cancelling pair, removable by order reduction)."""
     p, z = _poles_zeros(design)
     zf = z[np.isfinite(z)]
-    dist = [float(np.min(np.abs(zf - pk))) for pk in p] if zf.size else []
-    dist = np.asarray(dist)
-    return {"order": int(p.size), "max_abs_pole": float(np.max(np.abs(p))),
+    at_origin = np.abs(p) < 1e-3
+    other = p[~at_origin]
+    dist = np.array([np.min(np.abs(zf - pk)) for pk in other]) if zf.size else np.zeros(0)
+    return {"order": int(p.size), "n_zeros": int(zf.size), "poles_at_origin": int(np.count_nonzero(at_origin)),
+            "max_abs_pole": float(np.max(np.abs(p))),
+            "median_abs_other_pole": float(np.median(np.abs(other))) if other.size else float("nan"),
             "median_pz_distance": float(np.median(dist)) if dist.size else float("nan"),
-            "share_within_0.01": float(np.mean(dist < 0.01)) if dist.size else float("nan"),
-            "n_zeros": int(zf.size)}
+            "share_within_0.03": float(np.mean(dist < 0.03)) if dist.size else float("nan")}
 
 
 def _fig_pz(cases, path: Path, title: str) -> str:
