@@ -8,6 +8,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import asdict, dataclass
 
@@ -32,7 +33,7 @@ __all__ = [
     "step_response",
     "step_metrics_rows",
     "plot_steps",
-    "quiet",
+    "collect_warnings",
 ]
 
 #: §5.4 Table 5.1: design name -> (W1 name, W2 name)
@@ -244,16 +245,13 @@ def plot_steps(ax, results: dict[str, StepResult], title: str) -> None:
     ax.legend(fontsize=8)
 
 
-class quiet(warnings.catch_warnings):
-    """Context manager silencing the expected warnings of sweeps (near-γ_min, rank deficiency).
+@contextlib.contextmanager
+def collect_warnings():
+    """Record (instead of printing) every warning raised inside the block; yields the list.
 
-    The warnings are recorded (``self.log``) so that the report can list them.
+    The sweeps expect some (near-γ_min levels, rank-deficient noise-free regressors, inaccurate
+    solver statuses); the reports list them.
     """
-
-    def __init__(self):
-        super().__init__(record=True)
-
-    def __enter__(self):
-        self.log = super().__enter__()
+    with warnings.catch_warnings(record=True) as log:
         warnings.simplefilter("always")
-        return self.log
+        yield log

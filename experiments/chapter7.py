@@ -36,7 +36,14 @@ from unfalsify import arx_least_squares, arx_unfalsify, subspace_unfalsify  # no
 from synthesis import Additive  # noqa: E402
 from unfalsify.robust import additive_robustness, additive_weight_fixed_point, robust_design_from_data  # noqa: E402
 
-from ._servo import design_weights, plot_steps, quiet, servo_data, step_metrics_rows, step_response  # noqa: E402
+from ._servo import (  # noqa: E402
+    collect_warnings,
+    design_weights,
+    plot_steps,
+    servo_data,
+    step_metrics_rows,
+    step_response,
+)
 from .plants import SERVO_DT, servo  # noqa: E402
 from .report import Report, save_figure, write_csv, write_json  # noqa: E402
 
@@ -137,7 +144,7 @@ def run(opts) -> dict:
         f"i = {i}, j = {j} (n = {n_sub}). Solver: Clarabel (cvxpy)."
         + (" **Quick mode: small sizes.**" if opts.quick else ""))
 
-    with quiet() as log:
+    with collect_warnings() as log:
         # ---- 1. ARX δ --------------------------------------------------------------------------
         arx_jobs = [("conditioned", n) for n in cfg.arx_sizes] + [("thesis", n) for n in cfg.arx_thesis_sizes]
         arx_rows = []

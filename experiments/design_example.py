@@ -33,7 +33,7 @@ from ._servo import (  # noqa: E402
     continuous_weights,
     design_weights,
     plot_steps,
-    quiet,
+    collect_warnings,
     servo_data,
     step_metrics_rows,
     step_response,
@@ -160,7 +160,7 @@ def run(opts) -> dict:
     figures: list[str] = []
     warn_log: list[str] = []
 
-    with quiet() as log:
+    with collect_warnings() as log:
         # ---- Figs 5.2, 5.3 -------------------------------------------------------------
         figures.append(_fig_data(data, out))
         figures.append(_fig_weights(W, out))
