@@ -24,7 +24,7 @@ import numpy as np
 
 from ._validation import DataError, as_signal
 from .controller import RecedingHorizonController
-from .hinf import gamma_min, hinf_design
+from .hinf import hinf_design
 from .recursive import RecursivePredictor
 
 __all__ = ["GammaPolicy", "AdaptiveUpdate", "AdaptiveHinf"]
@@ -155,9 +155,7 @@ class AdaptiveHinf:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             pred = self.recursive.predictor()
-            gmin = gamma_min(pred, self.W1, self.W2, **self._design_kwargs)
-            gamma = self.policy(gmin)
-            design = hinf_design(pred, self.W1, self.W2, gamma=gamma, **self._design_kwargs)
+            design = hinf_design(pred, self.W1, self.W2, gamma=self.policy, **self._design_kwargs)
         seconds = time.perf_counter() - t0
         msgs = tuple(f"{w.category.__name__}: {w.message}" for w in caught)
         if caught and not self._warned:

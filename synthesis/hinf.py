@@ -258,9 +258,11 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     W1, W2 : control.StateSpace, control.TransferFunction, scalar or matrix
         Discrete weights on the tracking error ``r − y`` (``l`` inputs) and on ``u`` (``m``
         inputs), relative degree 0, one common sample time (the data's).
-    gamma : float, optional
+    gamma : float or callable, optional
         Level; must exceed ``γ_min``.  Default ``gamma_ratio * γ_min`` (∞ if ``γ_min = 0``,
-        i.e. no disturbance channel, e.g. the causal law with ``i = 1``).
+        i.e. no disturbance channel, e.g. the causal law with ``i = 1``).  A callable is a
+        γ policy: it receives ``γ_min`` and returns γ (e.g. :class:`synthesis.GammaPolicy`,
+        ``γ = γ_min + α`` of §5.3), so γ_min is computed only once.
     gamma_ratio : float
         Used when ``gamma`` is None; 1.1 is the thesis's rule of thumb (§5.1 comment 4).
     causal : bool
@@ -294,6 +296,8 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
             raise DataError(f"gamma_ratio must be a positive number, got {gamma_ratio!r}")
         g0 = minimax_gamma_min(pm.Md, pm.Mu)
         gamma = gamma_ratio * g0 if g0 > 0 else np.inf
+    elif callable(gamma):
+        gamma = float(gamma(minimax_gamma_min(pm.Md, pm.Mu)))
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
     ws = [WeightState("x_w1", _A(W1s), _B(W1s), "e"), WeightState("x_w2", _A(W2s), _B(W2s), "u")]
     if unc is not None:

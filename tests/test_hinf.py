@@ -294,6 +294,23 @@ def test_design_api(case):
     assert d.disturbance_gain.shape == (i * l, d.gain.shape[1])
 
 
+def test_gamma_policy_callable_receives_gamma_min(case):
+    pred, W1, W2, *_ = case
+    seen = []
+
+    def policy(gmin):
+        seen.append(gmin)
+        return gmin + 0.5
+
+    d = hinf_design(pred, W1, W2, gamma=policy)
+    gmin = gamma_min(pred, W1, W2)
+    assert seen == [pytest.approx(gmin, rel=1e-12)]
+    assert d.gamma == pytest.approx(gmin + 0.5, rel=1e-12)
+    np.testing.assert_allclose(d.gain, hinf_design(pred, W1, W2, gamma=gmin + 0.5).gain, rtol=1e-10, atol=1e-12)
+    with pytest.raises(InfeasibleGammaError):
+        hinf_design(pred, W1, W2, gamma=lambda g: 0.5 * g)
+
+
 def test_gamma_errors_and_warning():
     pred = _servo_predictor()
     W1, W2 = _siso_weights()
