@@ -78,7 +78,7 @@ def _solve_one(spec: dict, size: int, seed: int) -> dict:
         t0 = time.perf_counter()
         res = uf.arx_unfalsify(u, y, 2, 2, sigma, form=spec["form"])
         wall = time.perf_counter() - t0
-        label = f"n={n}"
+        label = _label(spec, size)
     else:
         i, j = spec["i"], size
         n = 2 * i + j - 1
@@ -89,7 +89,7 @@ def _solve_one(spec: dict, size: int, seed: int) -> dict:
         t0 = time.perf_counter()
         res = uf.subspace_unfalsify(u, y, i, sigma, form=spec["form"], eliminate_L=spec.get("eliminate", False))
         wall = time.perf_counter() - t0
-        label = f"(i, j)=({i}, {j})"
+        label = _label(spec, size)
     p = res.problem
     stats = p.solver_stats
     cert = res.certificate
@@ -120,6 +120,10 @@ def _child(conn, spec, size, seed):
         conn.close()
 
 
+def _label(spec: dict, size: int) -> str:
+    return f"n={size}" if spec["kind"] == "arx" else f"(i, j)=({spec['i']}, {size})"
+
+
 def _run_with_budget(spec: dict, size: int, seed: int, budget: float) -> dict:
     ctx = mp.get_context("fork")
     parent, child = ctx.Pipe(duplex=False)
@@ -135,11 +139,11 @@ def _run_with_budget(spec: dict, size: int, seed: int, budget: float) -> dict:
         if proc.is_alive():  # pragma: no cover
             proc.kill()
             proc.join()
-        return {"size": size, "status": f"timeout (> {budget:.0f} s)", "wall_s": elapsed}
+        return {"size": size, "label": _label(spec, size), "status": f"timeout (> {budget:.0f} s)", "wall_s": elapsed}
     kind, payload = parent.recv()
     proc.join()
     if kind == "error":
-        return {"size": size, "status": "error", "error": payload, "wall_s": elapsed}
+        return {"size": size, "label": _label(spec, size), "status": "error", "error": payload, "wall_s": elapsed}
     return payload
 
 

@@ -115,6 +115,13 @@ from dataclasses import dataclass  # noqa: E402
 class Certificate:
     """Independent check of an unfalsification answer, recomputed from the returned variables.
 
+    What is certified is the pair (noise, impulses): ``e − ξ = T(u) h`` (to rounding of one
+    multiplication by ``T(u)``; exactly, for the literal form, where h is the exact rational
+    deconvolution of the returned ``e − ξ``) and ``‖T(h)‖₂ ≤ δ_certified``, which by Theorem 7.1
+    is the thesis inequality.  Checking the thesis inequality from the rounded ξ *alone* is
+    ill-posed for long records: rounding errors of ξ are amplified by ``T(u)⁻¹`` (cond up to
+    1e17 at n = 80).
+
     Attributes
     ----------
     delta : float

@@ -82,7 +82,8 @@ class SubspaceResult:
     certificate : Certificate
         δ recomputed as ``max_k ‖T(h_k)‖₂`` from the returned Ξ and L, and ``‖Ξ‖_F/√(ij)``.
     scale : tuple of float
-        ``(s_u, s_y)``: the problem was posed on ``u/s_u``, ``y/s_y``.
+        ``(s_u, s_y)``: the problem was posed on ``u/s_u``, ``y/s_y`` (``s_u`` = rms of u,
+        ``s_y`` = rms of the predictor residual).
     regressor_singular_values : ndarray
         Singular values of ``A = [W_p; U_f]``.
     """
@@ -247,7 +248,13 @@ def subspace_unfalsify(
                 f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
             )
 
-    su, sy = _rms(u), _rms(y)
+    # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
+    # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
+    su = _rms(u)
+    Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    sy = _rms(Yf - Lref @ A)
+    if not sy > 1e-12 * _rms(y):
+        sy = _rms(y)
     As = A.copy()
     As[:i] /= su
     As[i : 2 * i] /= sy
