@@ -24,7 +24,7 @@ import warnings
 
 import numpy as np
 
-from .report import Report, format_table, write_json
+from .report import Report, write_json
 
 __all__ = ["run"]
 

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import control as ct
 import numpy as np
+
+from synthesis._validation import as_discrete_system
 
 __all__ = [
     "AlgebraicLoopError",
@@ -116,20 +117,6 @@ class ClosedLoopResult:
 
 
 # ---------------------------------------------------------------------------
-def _as_discrete_ss(sys, name: str) -> ct.StateSpace:
-    if isinstance(sys, ct.TransferFunction):
-        sys = ct.ss(sys)
-    if not isinstance(sys, ct.StateSpace):
-        raise ValueError(f"{name} must be a python-control StateSpace or TransferFunction, got {type(sys).__name__}")
-    if not ct.isdtime(sys, strict=True):
-        raise ValueError(
-            f"{name} is continuous-time (dt = 0); discretise it first (e.g. control.c2d(sys, dt, 'zoh'))")
-    for mat in (sys.A, sys.B, sys.C, sys.D):
-        if not np.all(np.isfinite(mat)):
-            raise ValueError(f"{name} has NaN or infinite entries")
-    return sys
-
-
 def _dt(sys) -> float:
     return 1.0 if sys.dt is True else float(sys.dt)
 
@@ -167,10 +154,10 @@ def _noise(rng, sigma, n: int, width: int, name: str) -> np.ndarray:
 
 def _plant_matrices(plant, perturbation):
     """``(A, B, C, D)`` of ``plant + perturbation`` (parallel connection, shared input)."""
-    P = _as_discrete_ss(plant, "plant")
+    P = as_discrete_system(plant, "plant")
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     if perturbation is not None:
-        Dl = _as_discrete_ss(perturbation, "perturbation")
+        Dl = as_discrete_system(perturbation, "perturbation")
         _check_same_dt(P, Dl, "plant and perturbation")
         if (Dl.ninputs, Dl.noutputs) != (P.ninputs, P.noutputs):
             raise ValueError(
@@ -291,7 +278,7 @@ def closed_loop(plant, controller, r, *, perturbation=None, process_noise: float
             controller.observe(u[k], ym[k], r[k])
             x = A @ x + B @ (u[k] + w[k])
     else:
-        K = _as_discrete_ss(controller, "controller")
+        K = as_discrete_system(controller, "controller")
         _check_same_dt(P, K, "plant and controller")
         if K.noutputs != m:
             raise ValueError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")

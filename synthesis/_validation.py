@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DataError", "as_signal", "check_horizon"]
+__all__ = ["DataError", "as_signal", "as_discrete_system", "check_horizon"]
 
 
 class DataError(ValueError):
@@ -74,3 +74,36 @@ def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1
                 f"need at least {min_columns}; collect at least {2 * i - 1 + min_columns} samples or reduce the horizon"
             )
     return i
+
+
+def as_discrete_system(sys, name: str, *, hint: str = ""):
+    """Return ``sys`` as a discrete-time python-control ``StateSpace`` with finite matrices.
+
+    Parameters
+    ----------
+    sys : control.StateSpace or control.TransferFunction
+        A discrete-time LTI system (``dt > 0`` or ``dt=True``).
+    name : str
+        Name used in error messages (``"P"``, ``"plant"``, ...).
+    hint : str, optional
+        Extra advice appended to the continuous-time error.
+
+    Raises
+    ------
+    DataError
+        If ``sys`` is not a python-control LTI system, is continuous time, or has NaN/inf entries.
+    """
+    import control  # local: keeps the numpy-only helpers importable without python-control
+
+    if isinstance(sys, control.TransferFunction):
+        sys = control.ss(sys)
+    if not isinstance(sys, control.StateSpace):
+        raise DataError(f"{name} must be a python-control StateSpace or TransferFunction, got {type(sys).__name__}")
+    if not control.isdtime(sys, strict=True):
+        raise DataError(
+            f"{name} is continuous-time (dt = 0); discretise it first (e.g. control.c2d(sys, dt, 'zoh'))"
+            + (f"; {hint}" if hint else ""))
+    for mat in (sys.A, sys.B, sys.C, sys.D):
+        if not np.all(np.isfinite(mat)):
+            raise DataError(f"{name} has NaN or infinite entries")
+    return sys

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError
+from ._validation import DataError, as_discrete_system
 from .minimax import InfeasibleGammaError
 from .weights import as_weight, common_dt
 
@@ -150,14 +150,8 @@ def mixsyn_closed_loop(P, W1, W2, K) -> control.StateSpace:
 
 
 def _check(P, W1, W2):
-    if isinstance(P, control.TransferFunction):
-        P = control.ss(P)
-    if not isinstance(P, control.StateSpace):
-        raise DataError(f"P must be a python-control StateSpace or TransferFunction, got {type(P).__name__}")
-    if not control.isdtime(P, strict=True):
-        raise DataError(
-            "P is continuous-time: discrete_mixsyn designs discrete controllers; discretise the plant "
-            "(control.c2d(P, dt, 'zoh')) or use control.mixsyn for continuous time")
+    P = as_discrete_system(P, "P", hint="discrete_mixsyn designs discrete controllers; use control.mixsyn "
+                                        "for continuous time")
     W1 = as_weight(W1, "W1", inputs=P.noutputs, dt=P.dt)
     W2 = as_weight(W2, "W2", inputs=P.ninputs, dt=P.dt)
     dt = common_dt(P, W1, W2)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError
+from ._validation import DataError, as_discrete_system
 from .minimax import InfeasibleGammaError
 from .weights import as_weight, common_dt
 
@@ -171,12 +171,7 @@ def generalized_plant(P, W1, W2) -> GeneralizedPlant:
     -------
     GeneralizedPlant
     """
-    if isinstance(P, control.TransferFunction):
-        P = control.ss(P)
-    if not isinstance(P, control.StateSpace):
-        raise DataError(f"P must be a python-control StateSpace or TransferFunction, got {type(P).__name__}")
-    if not control.isdtime(P, strict=True):
-        raise DataError("P is continuous-time; discretise it (e.g. control.c2d(P, dt, 'zoh')) first")
+    P = as_discrete_system(P, "P")
     m, l = P.ninputs, P.noutputs
     W1 = as_weight(W1, "W1", inputs=l, dt=P.dt)
     W2 = as_weight(W2, "W2", inputs=m, dt=P.dt)

@@ -64,7 +64,7 @@ def test_w3_rules_and_gamma_ordering(quick_run):
 def test_small_gain_certificate_agrees_with_perturbed_poles(quick_run):
     """Where δ‖KS‖∞ < 1 every size-δ perturbation tried must leave the closed-loop poles inside the circle."""
     _, s = quick_run
-    for name, cert in s["certificates"].items():
+    for cert in s["certificates"].values():
         assert cert["delta_times_peak"] == pytest.approx(s["delta"] * cert["peak_KS"])
         assert cert["radius"] == pytest.approx(1 / cert["peak_KS"])
     sm = s["step_metrics"]

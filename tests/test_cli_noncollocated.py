@@ -19,7 +19,7 @@ import synthesis
 
 def _thesis_y3_plant():
     k, a = 24.26, 0.35
-    zz1, wz1, zz2, wz2 = 0.026, 10.65, 0.011, 42.00
+    wz1, wz2 = 10.65, 42.00  # (the y3 transfer function has no zeros: ζz1, ζz2 do not enter)
     zp1, wp1, zp2, wp2 = 0.024, 15.85, 0.010, 43.50
     den = np.polymul(np.polymul([1, a, 0], [1, 2 * zp1 * wp1, wp1**2]), [1, 2 * zp2 * wp2, wp2**2])
     # state space before sampling: a tf of this order in polynomial form loses ~1e-4 in a closed loop

@@ -1,5 +1,4 @@
 """Subspace LQG (Thm 4.1) against its normal-equation closed form (4.2), and Thm 4.2 (γ → ∞ limit of H∞)."""
-import control
 import numpy as np
 import pytest
 from scipy import signal

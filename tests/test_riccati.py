@@ -12,7 +12,7 @@ from synthesis.riccati import StageSaddleError, generalized_plant, hinf_riccati,
 
 def _batch(A, B, C, D, i):
     """Γ = [C; CA; …] and block lower-triangular Toeplitz H of Markov parameters (built directly)."""
-    n, p, q = A.shape[0], B.shape[1], C.shape[0]
+    p, q = B.shape[1], C.shape[0]
     Gam = np.vstack([C @ np.linalg.matrix_power(A, t) for t in range(i)])
     H = np.zeros((i * q, i * p))
     for t in range(i):
