@@ -144,3 +144,16 @@ def test_is_unfalsified_rejects_bad_gamma():
         uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], -1.0)
     with pytest.raises(DataError):
         uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], np.nan)
+
+
+def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
+    # a public helper must not leak ZeroDivisionError/IndexError: DataError names the problem and the fix
+    with pytest.raises(DataError, match="u\\[0\\] == 0.*first non-zero"):
+        uf.deconvolve([0.0, 1.0, 1.0], [0.0, 1.0, 2.0])
+    with pytest.raises(DataError, match="same length"):
+        uf.deconvolve([1.0, 1.0, 1.0], [0.0, 1.0], exact=True)
+    with pytest.raises(DataError, match="same length"):
+        uf.deconvolve([], [])
+    for n in (2, 5):  # the method is checked for every size (n < 3 used to fall through to dense)
+        with pytest.raises(ValueError, match="unknown method"):
+            uf.toeplitz_norm(np.ones(n), method="svd")

@@ -27,6 +27,8 @@ import scipy.linalg
 import scipy.signal
 from scipy.sparse.linalg import LinearOperator, svds
 
+from synthesis._validation import DataError
+
 __all__ = [
     "toeplitz_matrix",
     "toeplitz_norm",
@@ -80,6 +82,8 @@ def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
     tol : float
         Relative tolerance passed to ARPACK.
     """
+    if method not in ("auto", "dense", "lanczos"):
+        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
     h = np.asarray(h, dtype=float).reshape(-1)
     n = h.size
     if n == 0:
@@ -91,8 +95,6 @@ def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
         method = "dense" if n <= DENSE_LIMIT else "lanczos"
     if method == "dense" or n < 3:
         return float(np.linalg.norm(toeplitz_matrix(h), 2))
-    if method != "lanczos":
-        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
     op = _fft_operator(h / scale)
     v0 = np.ones(n) / np.sqrt(n)
     s = svds(op, k=1, which="LM", tol=tol, v0=v0, return_singular_vectors=False, solver="arpack")
@@ -112,11 +114,21 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
         cond ``T(u)`` (O(n²) big-number operations; fine for n up to a few hundred).
         If False, :func:`scipy.signal.lfilter` (IIR filter ``1/u(q)``), O(n²) flops,
         whose error grows like cond ``T(u)``.
+
+    Raises
+    ------
+    DataError
+        ``u[0] == 0`` (``T(u)`` singular) or ``u``, ``y`` of different lengths.
     """
     u = np.asarray(u, dtype=float).reshape(-1)
     y = np.asarray(y, dtype=float).reshape(-1)
+    if u.size == 0 or u.size != y.size:
+        raise DataError(f"u and y must be non-empty and of the same length, got {u.size} and {y.size} samples")
     if u[0] == 0.0:
-        raise ZeroDivisionError("T(u) is singular: u[0] == 0")
+        raise DataError(
+            "T(u) is singular: u[0] == 0; start the record at the first non-zero input sample "
+            "(the system is at rest before it)"
+        )
     if not exact:
         return scipy.signal.lfilter([1.0], u, y)
     n = y.size
