@@ -5,9 +5,11 @@ input fails early with an exception that names the problem and the fix.
 """
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
-__all__ = ["DataError", "as_signal", "as_discrete_system", "check_horizon"]
+__all__ = ["DataError", "as_signal", "as_discrete_system", "check_horizon", "check_level", "check_sample_time"]
 
 
 class DataError(ValueError):
@@ -31,9 +33,13 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -
     Raises
     ------
     DataError
-        If ``x`` is not 1-D or 2-D, is empty, contains NaN/inf, or has the wrong
+        If ``x`` is complex, not 1-D or 2-D, is empty, contains NaN/inf, or has the wrong
         length or number of channels.
     """
+    if np.iscomplexobj(x):
+        raise DataError(
+            f"{name} is complex; the toolkit works on real sampled signals (pass the real part explicitly "
+            "if that is what you mean)")
     try:
         arr = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -107,3 +113,46 @@ def as_discrete_system(sys, name: str, *, hint: str = ""):
         if not np.all(np.isfinite(mat)):
             raise DataError(f"{name} has NaN or infinite entries")
     return sys
+
+
+def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0.0) -> float:
+    """Return ``value`` as a float ``> minimum`` (a level γ, a ratio, a tolerance, ...).
+
+    Parameters
+    ----------
+    value : real number
+        The value to check; ``bool`` and strings are refused.
+    name : str
+        Name used in error messages (``"gamma"``, ``"gamma_ratio"``, ...).
+    allow_inf : bool
+        Accept ``+inf`` (e.g. ``gamma = inf``, the LQ limit).
+    minimum : float
+        Strict lower bound.
+
+    Raises
+    ------
+    DataError
+        If ``value`` is not a real number, is NaN, is infinite (unless allowed) or is ``<= minimum``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise DataError(f"{name} must be a real number > {minimum:g}, got {value!r}")
+    v = float(value)
+    if np.isnan(v) or not v > minimum or (np.isinf(v) and not allow_inf):
+        raise DataError(f"{name} must be a {'' if allow_inf else 'finite '}number > {minimum:g}, got {value!r}")
+    return v
+
+
+def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
+    """Return a valid discrete sample time: a positive finite float, or ``True`` (unspecified).
+
+    Raises
+    ------
+    DataError
+        If ``dt`` is 0 / ``False`` / ``None`` (continuous time), negative, NaN, infinite or not a number.
+    """
+    if dt is True and allow_true:
+        return True
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt > 0):
+        allowed = "a positive finite sample time" + (" or True (unspecified)" if allow_true else "")
+        raise DataError(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
+    return float(dt)

@@ -293,3 +293,13 @@ def test_bench_predictor_quick(tmp_path):
     assert summary["batch"] and summary["recursive"]
     for row in summary["batch"]:
         assert row["qr_s"] > 0 and row["cholesky_s"] > 0 and row["max_rel_diff"] < 1e-6
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_complex_data_is_refused_not_truncated(method):
+    """Casting complex samples to float would silently drop their imaginary part."""
+    u = np.random.default_rng(11).standard_normal(50)
+    with pytest.raises(DataError, match="complex"):
+        fit_predictor(u + 1j * u, u, 3, method=method)
+    with pytest.raises(DataError, match="complex"):
+        fit_predictor(u, (u + 0j).astype(complex), 3, method=method)
