@@ -84,6 +84,8 @@ class RecursivePredictor:
             window = int(window)
         self.window = window
         self.track = track
+        if rcond is not None:
+            rcond = _resolve_rcond(rcond, "recursive", 1, 1)  # validate now, not at the first predictor()
         self._rcond = rcond
         i, c = self.horizon, self.m + self.l
         self._N = 2 * i * c

@@ -182,3 +182,14 @@ def test_push_sequences_equal_refit_property(m, l, i, window, extra0, chunks, tr
     ref, (start, _) = _refit(u, y, i, t, rp)
     np.testing.assert_allclose(rp.gram, hankel_gram(u[start:t], y[start:t], i), rtol=1e-10, atol=1e-9)
     _assert_same(p, ref, tol=1e-7)
+
+
+def test_bad_rcond_is_refused_at_construction():
+    u, y = _data(5, 50, 2, 1)
+    for bad in (-1.0, 1.5, float("nan"), "tight"):
+        with pytest.raises(DataError, match="rcond"):
+            RecursivePredictor.from_data(u, y, 3, rcond=bad)
+    rp = RecursivePredictor.from_data(u, y, 3, rcond=1e-3)
+    assert rp.predictor().rcond == 1e-3
+    with pytest.raises(DataError, match="horizon"):
+        RecursivePredictor(3.0, 1, 1)
