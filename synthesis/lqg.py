@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError
+from ._validation import DataError, check_sample_time
 from .controller import lti_controller
 
 __all__ = ["LqgDesign", "lqg_design"]
@@ -88,11 +88,24 @@ def lqg_design(pred, Q, R, *, dt=True) -> LqgDesign:
     R : scalar or (m, m) array
         Input weight, ``R = Rᵀ > 0``.
     dt : float or True
-        Sample time of the data, given to the controller (the predictor has none).
+        Sample time of the data, given to the controller (the predictor has none); ``True``
+        (default) leaves it unspecified but discrete.
+
+    Returns
+    -------
+    LqgDesign
+
+    Raises
+    ------
+    DataError
+        Predictor of the wrong shape or with NaN, ``Q``/``R`` not symmetric positive definite or
+        of the wrong size, ``dt`` not a positive sample time (0 would make the controller
+        continuous-time).
     """
     from .hinf import _predictor_parts  # shared validation
 
     Lw, Lu, i, m, l = _predictor_parts(pred)
+    dt = check_sample_time(dt)
     Q = _spd(Q, l, "Q")
     R = _spd(R, m, "R")
     Qc = np.kron(np.eye(i), np.linalg.cholesky(Q).T)  # Q_cᵀ Q_c = Q_diag

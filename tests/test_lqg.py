@@ -68,3 +68,12 @@ def test_bad_q_r():
         lqg_design(_predictor(2, 2), np.array([[1.0, 0.5], [0.0, 1.0]]), np.eye(2))
     with pytest.raises(DataError, match="NaN"):
         lqg_design(pred, np.nan, 1.0)
+
+
+def test_bad_sample_time():
+    pred = _predictor(1, 1)
+    assert lqg_design(pred, 1.0, 1.0, dt=0.1).controller.dt == 0.1
+    assert lqg_design(pred, 1.0, 1.0).controller.dt is True
+    for bad in (0, 0.0, -0.1, float("nan"), float("inf"), "0.1", False):
+        with pytest.raises(DataError, match="dt"):
+            lqg_design(pred, 1.0, 1.0, dt=bad)
