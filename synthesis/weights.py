@@ -58,8 +58,8 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
         raise WeightError(f"tustin needs a python-control TransferFunction or StateSpace, got {type(sys_continuous).__name__}")
     if not control.isctime(sys_continuous, strict=True):
         raise WeightError("tustin needs a continuous-time system (dt = 0); the weight is already discrete")
-    if not (isinstance(dt, numbers.Real) and np.isfinite(dt) and dt > 0):
-        raise WeightError(f"dt must be a positive finite sample time, got {dt!r}")
+    if isinstance(dt, bool) or not (isinstance(dt, numbers.Real) and np.isfinite(dt) and dt > 0):
+        raise WeightError(f"dt must be a positive finite sample time in seconds, got {dt!r}")
     sysd = control.sample_system(sys_continuous, float(dt), method="bilinear")
     return control.ss(sysd)
 

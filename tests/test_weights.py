@@ -131,3 +131,9 @@ def test_common_dt():
         common_dt(a, b)
     assert common_dt(a, as_weight(1.0, "W")) == 0.1
     assert common_dt(as_weight(1.0, "W")) is True
+
+
+def test_tustin_refuses_boolean_sample_time():
+    s = control.tf("s")
+    with pytest.raises(WeightError, match="dt"):
+        tustin(1 / (s + 1), True)
