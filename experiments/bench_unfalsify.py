@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import sys
 import time
 import warnings
 
 import numpy as np
+from tqdm import tqdm
 
 from .report import Report, write_json
 
@@ -153,11 +155,11 @@ def run(opts) -> dict:
     results = []
     for spec in _series(opts.quick):
         rows = []
-        for size in spec["sizes"]:
+        for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
             row = _run_with_budget(spec, size, opts.seed, budget)
             rows.append(row)
-            print(f"[bench-unfalsify] {spec['name']}: size {size}: {row.get('status')} "
-                  f"{row.get('wall_s', float('nan')):.2f} s", flush=True)
+            tqdm.write(f"[bench-unfalsify] {spec['name']}: size {size}: {row.get('status')} "
+                       f"{row.get('wall_s', float('nan')):.2f} s", file=sys.stderr)
             if row.get("status", "").startswith("timeout") or row.get("wall_s", 0.0) > budget or row.get("status") == "error":
                 break
         finished = [r for r in rows if "delta" in r and r["wall_s"] <= budget]

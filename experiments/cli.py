@@ -2,11 +2,13 @@
 
 Each subcommand is a function ``run(opts: Options) -> dict`` living in its own
 module; it writes its files under ``opts.out`` and returns a JSON-serialisable
-summary (printed with ``--json``).
+summary (printed with ``--json``, which then is the only thing on stdout: anything the
+subcommand prints is sent to stderr).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import sys
@@ -56,7 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     run = getattr(importlib.import_module(module), func)
     opts = Options(quick=args.quick, json=args.json, out=args.out, seed=args.seed)
     opts.out.mkdir(parents=True, exist_ok=True)
-    summary = run(opts)
+    # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
+    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+        summary = run(opts)
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=_jsonable)
         sys.stdout.write("\n")
