@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, as_discrete_system
+from ._validation import DataError, as_discrete_system, check_level
 from .minimax import InfeasibleGammaError
 from .weights import as_weight, common_dt
 
@@ -269,8 +269,7 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
     l = int(n_disturbances)
     if not 0 < l < B.shape[1]:
         raise DataError(f"n_disturbances must be in [1, {B.shape[1] - 1}], got {n_disturbances!r}")
-    if not (np.isfinite(gamma) and gamma > 0):
-        raise DataError(f"gamma must be a positive number, got {gamma!r}")
+    gamma = check_level(gamma, "gamma")
     p = B.shape[1]
     Rg = np.zeros((p, p))
     Rg[:l, :l] = gamma**2 * np.eye(l)
@@ -312,6 +311,12 @@ def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
     Returns
     -------
     RiccatiLaw
+
+    Raises
+    ------
+    DataError
+        Inconsistent shapes, NaN/inf in the plant, ``Q``, ``R`` or ``terminal``, a bad horizon, or a
+        singular stage matrix ``BᵀP_tB + DᵀQD + R``.
     """
     A, B, C, D = _matrices(A, B, C, D)
     i = _check_horizon(horizon)
@@ -327,6 +332,9 @@ def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
     P0 = np.zeros((n, n)) if terminal is None else np.asarray(terminal, dtype=float)
     if P0.shape != (n, n):
         raise DataError(f"terminal must be {n}x{n}")
+    for name, M in (("Q", Q), ("R", R), ("terminal", P0)):
+        if not np.all(np.isfinite(M)):
+            raise DataError(f"{name} contains NaN or infinite values")
 
     def check(M, t):
         if np.linalg.cond(M) > 1e14:

@@ -202,3 +202,18 @@ def test_theorem_4_3_mimo_three_disk():
     law = hinf_riccati(gp.A, gp.B, gp.C, gp.D, gamma=gamma, horizon=i, n_disturbances=gp.l)
     u_ric = law.controls(gp.state(x[k], xw1, xw2))
     np.testing.assert_allclose(u_sub, u_ric, atol=1e-6 * np.abs(u_ric).max())
+
+
+def test_non_finite_weights_and_levels_are_named():
+    from synthesis import DataError
+
+    A, B, C, D = _random_system(np.random.default_rng(0), 3, 2, 2)
+    with pytest.raises(DataError, match="Q"):
+        lqr_riccati(A, B, C, D, np.nan, 1.0, horizon=3)
+    with pytest.raises(DataError, match="R"):
+        lqr_riccati(A, B, C, D, 1.0, np.full((2, 2), np.inf), horizon=3)
+    with pytest.raises(DataError, match="terminal"):
+        lqr_riccati(A, B, C, D, 1.0, 1.0, horizon=3, terminal=np.full((3, 3), np.nan))
+    for bad in ("1.0", None, np.nan):
+        with pytest.raises(DataError, match="gamma"):
+            hinf_riccati(A, B, C, D, gamma=bad, horizon=3, n_disturbances=1)
