@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import dataclass
 
 import cvxpy as cp
 import numpy as np
@@ -63,6 +64,12 @@ def siso_signal(x, name: str, n: int | None = None) -> np.ndarray:
     return arr[:, 0].copy()
 
 
+def rms_or_one(x: np.ndarray) -> float:
+    """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
+    r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))
+    return r if r > 0 else 1.0
+
+
 def check_form(form: str) -> str:
     if form not in ("conditioned", "thesis"):
         raise ValueError(f"unknown form {form!r}; use 'conditioned' (default) or 'thesis'")
@@ -106,9 +113,6 @@ def solved_value(status: str, value) -> float:
     if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or value is None:
         return float("nan")
     return float(value)
-
-
-from dataclasses import dataclass  # noqa: E402
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,7 @@ from ._common import (
     IllConditionedWarning,
     check_form,
     check_sigma,
+    rms_or_one,
     siso_signal,
     solve,
     solved_value,
@@ -148,11 +149,6 @@ def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     return theta, float(np.linalg.norm(e) / np.sqrt(Y.size))
 
 
-def _rms(x: np.ndarray) -> float:
-    r = float(np.sqrt(np.mean(x**2)))
-    return r if r > 0 else 1.0
-
-
 def arx_unfalsify(
     u,
     y,
@@ -225,10 +221,10 @@ def arx_unfalsify(
         )
     # scale u to unit rms and y so that the least-squares equation error has unit rms: the
     # program splits exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
-    su = _rms(u)
+    su = rms_or_one(u)
     sy = arx_least_squares(u, y, na, nb)[1]
-    if not sy > 1e-12 * _rms(y):
-        sy = _rms(y)
+    if not sy > 1e-12 * rms_or_one(y):
+        sy = rms_or_one(y)
     us, ys = u / su, y / sy
     Phi_s, Y_s = arx_regressor(us, ys, na, nb)
     sig_s = sigma / sy

@@ -40,6 +40,7 @@ from ._common import (
     IllConditionedWarning,
     check_form,
     check_sigma,
+    rms_or_one,
     siso_signal,
     solve,
     solved_value,
@@ -140,11 +141,6 @@ def subspace_data(u, y, horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     Uf = block_hankel(u, i, j, i)
     Yf = block_hankel(y, i, j, i)
     return np.vstack([Up, Yp, Uf]), Uf, Yf
-
-
-def _rms(x: np.ndarray) -> float:
-    r = float(np.sqrt(np.mean(x**2)))
-    return r if r > 0 else 1.0
 
 
 def _column_toeplitz_operator(Uf: np.ndarray) -> sp.csr_matrix:
@@ -250,11 +246,11 @@ def subspace_unfalsify(
 
     # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
     # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
-    su = _rms(u)
+    su = rms_or_one(u)
     Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
-    sy = _rms(Yf - Lref @ A)
-    if not sy > 1e-12 * _rms(y):
-        sy = _rms(y)
+    sy = rms_or_one(Yf - Lref @ A)
+    if not sy > 1e-12 * rms_or_one(y):
+        sy = rms_or_one(y)
     As = A.copy()
     As[:i] /= su
     As[i : 2 * i] /= sy
