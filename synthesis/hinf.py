@@ -24,12 +24,13 @@ this engine in the tests.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from dataclasses import dataclass
 
 import control
 import numpy as np
 
-from ._validation import DataError
+from ._validation import DataError, check_level
 from .controller import WeightState, lti_controller
 from .minimax import minimax_gamma_min, solve_minimax
 from .weights import WeightError, as_weight, common_dt, markov_toeplitz, observability
@@ -292,12 +293,13 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     kind = type(uncertainty) if unc else None
     pm = _build_map(Lw, Lu, i, m, l, W1s, W2s, kind, unc, bool(causal))
     if gamma is None:
-        if not (np.isfinite(gamma_ratio) and gamma_ratio > 0):
-            raise DataError(f"gamma_ratio must be a positive number, got {gamma_ratio!r}")
+        gamma_ratio = check_level(gamma_ratio, "gamma_ratio")
         g0 = minimax_gamma_min(pm.Md, pm.Mu)
         gamma = gamma_ratio * g0 if g0 > 0 else np.inf
     elif callable(gamma):
-        gamma = float(gamma(minimax_gamma_min(pm.Md, pm.Mu)))
+        gamma = _real(gamma(minimax_gamma_min(pm.Md, pm.Mu)), "gamma returned by the gamma policy")
+    else:
+        gamma = _real(gamma, "gamma")
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
     ws = [WeightState("x_w1", _A(W1s), _B(W1s), "e"), WeightState("x_w2", _A(W2s), _B(W2s), "u")]
     if unc is not None:
@@ -310,6 +312,13 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         columns=pm.columns, disturbances=pm.disturbances, weight_states=tuple(ws),
     )
     return dataclasses.replace(design, controller=lti_controller(design))
+
+
+def _real(value, name: str) -> float:
+    """A real level (NaN and values <= γ_min are left to :func:`solve_minimax`, which states γ_min)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise DataError(f"{name} must be a real number above gamma_min (or None, or a callable), got {value!r}")
+    return float(value)
 
 
 def _A(W):

@@ -30,6 +30,7 @@ with ``M_u = Q R`` and ``M̃ = (I − QQᵀ)M``,
 """
 from __future__ import annotations
 
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -160,6 +161,8 @@ def solve_minimax(Md, Mu, Mx, gamma: float) -> MinimaxSolution:
     else:
         U, s, Vt = np.zeros((Md.shape[0], 0)), np.zeros(0), np.zeros((0, 0))
         gmin = 0.0
+    if isinstance(gamma, bool) or not isinstance(gamma, numbers.Real):
+        raise DataError(f"gamma must be a real number above gamma_min = {gmin:.6g}, got {gamma!r}")
     gamma = float(gamma)
     if not (gamma > gmin) or np.isnan(gamma):
         raise InfeasibleGammaError(gamma, gmin)

@@ -354,3 +354,11 @@ def test_bad_weights_and_predictor():
         gamma_min(nan, W1, W2)
     with pytest.raises(DataError):
         gamma_min(object(), W1, W2)
+
+
+def test_non_numeric_levels_are_named():
+    pred = _servo_predictor()
+    W1, W2 = _siso_weights()
+    for kw in (dict(gamma="big"), dict(gamma_ratio="x"), dict(gamma_ratio=None), dict(gamma=lambda g: "x")):
+        with pytest.raises(DataError, match="gamma"):
+            hinf_design(pred, W1, W2, **kw)

@@ -110,3 +110,10 @@ def test_bad_maps():
     Mx_nan[0, 0] = np.nan
     with pytest.raises(DataError, match="NaN"):
         solve_minimax(Md, Mu, Mx_nan, 10.0)
+
+
+def test_non_numeric_gamma_is_named():
+    Md, Mu, Mx = np.eye(3)[:, :1], np.eye(3)[:, 1:], np.ones((3, 2))
+    for bad in ("2.0", None, True):
+        with pytest.raises(DataError, match="gamma must be a real number"):
+            solve_minimax(Md, Mu, Mx, bad)
