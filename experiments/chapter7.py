@@ -31,10 +31,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from synthesis import fit_predictor, hinf_design  # noqa: E402
-from unfalsify import arx_least_squares, arx_unfalsify, subspace_unfalsify  # noqa: E402
-from synthesis import Additive  # noqa: E402
-from unfalsify.robust import additive_robustness, additive_weight_fixed_point, robust_design_from_data  # noqa: E402
+from synthesis import Additive, fit_predictor, hinf_design  # noqa: E402
+from unfalsify import (  # noqa: E402
+    additive_channel,
+    additive_robustness,
+    additive_weight_fixed_point,
+    arx_least_squares,
+    arx_unfalsify,
+    robust_design_from_data,
+    subspace_unfalsify,
+)
 
 from ._servo import (  # noqa: E402
     collect_warnings,
@@ -81,13 +87,11 @@ def additive_channel_response(plant, controller, w: np.ndarray) -> np.ndarray:
     """``M(e^{jωT})`` with ``M = (1 − C_y P)⁻¹ C_y``: what an additive perturbation ``P_Δ`` sees.
 
     The loop with ``y = (P + P_Δ) u`` is ``d = P_Δ u``, ``u = M d``; it loses stability where
-    ``P_Δ M = 1``.  SISO; ``controller`` has inputs ``[r; y]``.
+    ``P_Δ M = 1``.  SISO; ``controller`` has inputs ``[r; y]``; ``M`` from
+    :func:`unfalsify.additive_channel`, evaluated at ``e^{jωT}``.
     """
-    P = control.ss(plant)
-    Cy = control.ss(controller)[:, 1:]
-    M = control.feedback(Cy, P, sign=+1)
-    dt = float(P.dt)
-    return np.asarray(M(np.exp(1j * w * dt))).reshape(-1)
+    M = additive_channel(plant, controller)
+    return np.asarray(M(np.exp(1j * np.asarray(w, float) * float(M.dt)))).reshape(-1)
 
 
 def worst_phase_allpass(plant, controller, size: float, *, n_grid: int = 4096):

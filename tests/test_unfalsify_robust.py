@@ -145,3 +145,16 @@ def test_bad_arguments(setup):
         uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], 0.01, gamma_ratio=1.0)
     with pytest.raises(ValueError):
         uf.additive_weight_fixed_point(setup["pred"], setup["W1"], setup["W2"], -0.1)
+
+
+def test_additive_channel_against_direct_formula_and_bad_controller(setup):
+    # M = C_y/(1 − C_y P) point by point from the two frequency responses (second route)
+    res, plant = setup["res"], setup["plant"]
+    M = uf.additive_channel(plant, res.controller)
+    Cy = control.ss(res.controller)[:, 1:]
+    for w in (0.03, 0.7, 5.0, 25.0):
+        z = np.exp(1j * w * plant.dt)
+        k, p = complex(np.squeeze(Cy(z))), complex(np.squeeze(plant(z)))
+        assert complex(np.squeeze(M(z))) == pytest.approx(k / (1 - k * p), rel=1e-8)
+    with pytest.raises(ValueError, match=r"inputs \[r; y\]"):
+        uf.additive_channel(plant, Cy)  # an error-feedback controller (one input) is refused

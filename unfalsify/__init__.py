@@ -13,6 +13,7 @@ from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .robust import (
     AdditiveRobustness,
     RobustDesignResult,
+    additive_channel,
     additive_robustness,
     additive_weight_fixed_point,
     robust_design_from_data,
@@ -41,6 +42,7 @@ __all__ = [
     "subspace_unfalsify",
     "AdditiveRobustness",
     "RobustDesignResult",
+    "additive_channel",
     "additive_robustness",
     "additive_weight_fixed_point",
     "robust_design_from_data",

@@ -61,6 +61,7 @@ __all__ = [
     "robust_design_from_data",
     "additive_weight_fixed_point",
     "AdditiveRobustness",
+    "additive_channel",
     "additive_robustness",
 ]
 
@@ -299,6 +300,36 @@ class AdditiveRobustness:
         return bool(self.stable and delta * self.peak < 1.0)
 
 
+def additive_channel(plant, controller) -> control.StateSpace:
+    """``M = (I − C_y P)⁻¹ C_y``: the transfer an additive plant perturbation sees (Fig. 3.5).
+
+    With ``u = C_r r + C_y y`` and ``y = (P + P_Δ) u``, the perturbation's output ``d = P_Δ u``
+    returns as ``u = M d`` (``M = −K(I + PK)⁻¹`` for ``K = −C_y``); the loop is stable for
+    every stable ``P_Δ`` with ``‖P_Δ‖∞ ‖M‖∞ < 1`` (small gain) if it is nominally stable.
+
+    Parameters
+    ----------
+    plant : control.StateSpace or TransferFunction
+        Discrete plant P (``m`` inputs, ``l`` outputs).
+    controller : control.StateSpace
+        Discrete controller, inputs ``[r; y]`` (``2l``), outputs ``u`` (``m``), same sample time.
+
+    Raises
+    ------
+    DataError
+        The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
+    """
+    P = control.ss(plant)
+    C = control.ss(controller)
+    l = P.noutputs
+    if C.ninputs != 2 * l or C.noutputs != P.ninputs:
+        raise DataError(
+            f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s), got {C.ninputs} input(s) and "
+            f"{C.noutputs} output(s); pass the controller of synthesis.hinf_design (inputs [r; y])"
+        )
+    return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
+
+
 def additive_robustness(plant, controller, *, n_grid: int = 4096) -> AdditiveRobustness:
     """Nominal stability and ``‖(I − C_y P)⁻¹ C_y‖∞`` (frequency grid) for a controller with inputs ``[r; y]``.
 
@@ -312,13 +343,7 @@ def additive_robustness(plant, controller, *, n_grid: int = 4096) -> AdditiveRob
         Frequency-grid size for :func:`synthesis.peak_gain` (uniform and logarithmic grids plus
         the pole angles, peaks refined locally).  ``peak`` is ∞ when the nominal loop is unstable.
     """
-    P = control.ss(plant)
-    C = control.ss(controller)
-    l = P.noutputs
-    if C.ninputs != 2 * l or C.noutputs != P.ninputs:
-        raise DataError(f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s)")
-    Cy = C[:, l:]
-    M = control.feedback(Cy, P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
+    M = additive_channel(plant, controller)
     Am = np.asarray(M.A, float)
     rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0
     peak = peak_gain(M, n_grid=n_grid) if rho < 1.0 else float("inf")
