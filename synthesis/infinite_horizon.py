@@ -21,13 +21,14 @@ true infimum as ``ε → 0`` (the result records ``epsilon``).
 """
 from __future__ import annotations
 
+import numbers
 import warnings
 from dataclasses import dataclass
 
 import control
 import numpy as np
 
-from ._validation import DataError, as_discrete_system
+from ._validation import DataError, as_discrete_system, check_level
 from .minimax import InfeasibleGammaError
 from .weights import as_weight, common_dt
 
@@ -138,12 +139,25 @@ def mixsyn_closed_loop(P, W1, W2, K) -> control.StateSpace:
     Parameters
     ----------
     P, W1, W2 : discrete systems (weights as accepted by :func:`synthesis.as_weight`)
-    K : control.StateSpace
-        Discrete controller ``u = K e`` (``l`` inputs, ``m`` outputs).
+    K : control.StateSpace or control.TransferFunction
+        Discrete controller ``u = K e`` (``l`` inputs, ``m`` outputs), the plant's sample time.
+
+    Raises
+    ------
+    DataError
+        Continuous-time or NaN systems, a controller with another sample time or the wrong
+        number of inputs/outputs, an ill-posed loop.
     """
-    P, W1, W2, _ = _check(P, W1, W2)
+    P, W1, W2, dt = _check(P, W1, W2)
+    K = as_discrete_system(K, "K", hint="discretise the controller at the plant's sample time")
+    if K.dt is not True and not np.isclose(float(K.dt), dt, rtol=1e-9, atol=0):
+        raise DataError(f"K has sample time {K.dt} but the plant has {dt}; use a controller sampled at the plant's dt")
+    if (K.ninputs, K.noutputs) != (P.noutputs, P.ninputs):
+        raise DataError(
+            f"K has {K.ninputs} input(s) and {K.noutputs} output(s); an error-feedback controller u = K e for this "
+            f"plant needs {P.noutputs} input(s) (e = r - y) and {P.ninputs} output(s) (u)")
     pr = _problem(P, W1, W2)
-    Kd = _parts(control.ss(K))
+    Kd = _parts(K)
     A, B, C, D = _lft(pr["A"], pr["Br"], pr["Bu"], pr["Cz"], pr["Ce"], pr["Dzr"], pr["Dzu"], pr["Der"],
                       pr["Deu"], Kd)
     return control.ss(A, B, C, D, P.dt)
@@ -173,16 +187,38 @@ def _gains(A, B, C, D, w):
 
 
 def peak_gain(sys, n_grid: int = 4000) -> float:
-    """H∞ norm of a stable discrete system by a dense frequency grid plus local refinement.
+    """H∞ norm of a discrete system by a dense frequency grid plus local refinement.
 
     The grid is uniform and logarithmic on ``(0, π]`` rad/sample and contains the pole angles
     (lightly damped modes); the five highest grid peaks are refined by a bounded scalar search.
     Used instead of ``control.norm``, which returns ∞ when a (stable) closed-loop pole lies
     within ~1e-5 of the unit circle.
+
+    Parameters
+    ----------
+    sys : control.StateSpace or control.TransferFunction
+        Discrete-time system.
+    n_grid : int
+        Points of each of the two frequency grids.
+
+    Returns
+    -------
+    float
+        ``sup_ω σ̄(G(e^{jω}))``, or ``inf`` when a pole lies on or outside the unit circle
+        (spectral radius ``>= 1``): the H∞ norm of an unstable system is infinite.
+
+    Raises
+    ------
+    DataError
+        If ``sys`` is continuous-time (its discrete frequency response would be meaningless) or
+        not a python-control system.
     """
     from scipy.optimize import minimize_scalar
 
+    sys = as_discrete_system(sys, "sys", hint="use control.norm(sys, 'inf') for continuous time")
     A, B, C, D = _parts(sys)
+    if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+        return float("inf")
     ang = np.abs(np.angle(np.linalg.eigvals(A))) if A.size else np.zeros(0)
     w = np.unique(np.concatenate([np.linspace(1e-7, np.pi, n_grid), np.geomspace(1e-7, np.pi, n_grid),
                                   ang[(ang > 0) & (ang <= np.pi)], [np.pi]]))
@@ -235,10 +271,24 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     ------
     DataError (ValueError)
         Continuous-time plant or weights, bad weights, unit-circle poles with ``epsilon = 0``,
-        poles at ``z = −1``.
+        poles at ``z = −1``; ``gamma``, ``gamma_ratio`` (< 1), ``rtol`` or ``epsilon`` (< 0)
+        not valid numbers (checked before any synthesis).
     InfeasibleGammaError
         If ``gamma`` is given and not above ``gamma_opt``.
     """
+    if gamma is not None:
+        gamma = check_level(gamma, "gamma")
+    gamma_ratio = check_level(gamma_ratio, "gamma_ratio")
+    if gamma_ratio < 1:
+        raise DataError(f"gamma_ratio must be >= 1 (the returned controller needs gamma >= gamma_opt), got {gamma_ratio!r}")
+    rtol = check_level(rtol, "rtol")
+    if rtol >= 1:
+        raise DataError(f"rtol must lie in (0, 1), got {rtol!r}")
+    if epsilon is not None:
+        if isinstance(epsilon, bool) or not isinstance(epsilon, numbers.Real) or not (
+                np.isfinite(epsilon) and epsilon >= 0):
+            raise DataError(f"epsilon must be a finite number >= 0 (or None for the default), got {epsilon!r}")
+        epsilon = float(epsilon)
     P, W1, W2, dt = _check(P, W1, W2)
     pr = _problem(P, W1, W2)
     A = pr["A"]
@@ -248,8 +298,6 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     Ap = _parts(P)[0]
     if epsilon is None:
         epsilon = 1e-4 if _on_unit_circle(Ap) else 0.0
-    if epsilon < 0 or not np.isfinite(epsilon):
-        raise DataError(f"epsilon must be >= 0, got {epsilon!r}")
     if epsilon == 0 and _on_unit_circle(Ap):
         raise DataError("the plant has poles on the unit circle: pass epsilon > 0 (fictitious input disturbance)")
     # exogenous inputs [r; d]
@@ -316,11 +364,7 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
             lo = mid
     gamma_opt = hi
     if gamma is None:
-        if not (np.isfinite(gamma_ratio) and gamma_ratio >= 1):
-            raise DataError(f"gamma_ratio must be >= 1, got {gamma_ratio!r}")
         gamma = gamma_ratio * gamma_opt
-    elif not (np.isfinite(gamma) and gamma > 0):
-        raise DataError(f"gamma must be a positive number, got {gamma!r}")
     res = attempt(float(gamma), n_grid=4000)
     if res is None:
         raise InfeasibleGammaError(float(gamma), gamma_opt)

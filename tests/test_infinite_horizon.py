@@ -88,3 +88,41 @@ def test_refuses_bad_input():
         discrete_mixsyn(servo(), ct.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1), W2)  # W1 strictly proper
     with pytest.raises(ValueError):
         discrete_mixsyn(servo(), W1, W2, epsilon=0.0)  # unit-circle pole needs epsilon > 0
+
+
+def test_peak_gain_checks_its_system():
+    G = ct.tf([0.5], [1, -0.5], 0.1)  # |G| peaks at z = 1: 0.5 / 0.5 = 1
+    assert peak_gain(G) == pytest.approx(1.0, rel=1e-9)  # a TransferFunction is accepted
+    assert peak_gain(ct.ss(G)) == pytest.approx(1.0, rel=1e-9)
+    assert peak_gain(ct.tf([1], [1, -1.5], 0.1)) == np.inf  # unstable: the H∞ norm is infinite
+    assert peak_gain(ct.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]], 0.1)) == np.inf  # pole on the unit circle
+    assert peak_gain(ct.ss([], [], [], [[3.0, 4.0]], 0.1)) == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="continuous"):
+        peak_gain(ct.tf([1], [1, 1]))
+
+
+def test_closed_loop_checks_the_controller():
+    P = servo()
+    W1, W2 = _servo_weights()
+    K = discrete_mixsyn(P, W1, W2).controller
+    assert mixsyn_closed_loop(P, W1, W2, ct.tf(K)).dt == P.dt  # a TransferFunction controller is accepted
+    with pytest.raises(ValueError, match="continuous"):
+        mixsyn_closed_loop(P, W1, W2, ct.ss(-1.0, 1.0, 1.0, 0.0))
+    with pytest.raises(ValueError, match="sample time"):
+        mixsyn_closed_loop(P, W1, W2, ct.ss(0.5, 1.0, 1.0, 0.0, 0.2))
+    with pytest.raises(ValueError, match="input"):
+        mixsyn_closed_loop(P, W1, W2, ct.ss(0.5, [[1.0, 1.0]], 1.0, [[0.0, 0.0]], 0.1))
+
+
+def test_bad_levels_are_refused_before_the_bisection(monkeypatch):
+    import slycot
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the level arguments must be checked before any synthesis")
+
+    monkeypatch.setattr(slycot, "sb10ad", forbidden)
+    W1, W2 = _servo_weights()
+    for kw in (dict(gamma_ratio=0.5), dict(gamma_ratio="x"), dict(gamma=-1.0), dict(gamma="big"),
+               dict(epsilon=-1e-4), dict(epsilon="small"), dict(rtol=0.0), dict(rtol=1.0)):
+        with pytest.raises(synthesis.DataError):
+            discrete_mixsyn(servo(), W1, W2, **kw)
