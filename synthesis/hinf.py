@@ -33,7 +33,7 @@ import numpy as np
 from ._validation import DataError, check_level
 from .controller import WeightState, lti_controller
 from .minimax import minimax_gamma_min, solve_minimax
-from .weights import WeightError, as_weight, common_dt, markov_toeplitz, observability
+from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
 
 __all__ = [
     "Additive",
@@ -301,9 +301,9 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     else:
         gamma = _real(gamma, "gamma")
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
-    ws = [WeightState("x_w1", _A(W1s), _B(W1s), "e"), WeightState("x_w2", _A(W2s), _B(W2s), "u")]
+    ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]
     if unc is not None:
-        ws.append(WeightState("x_w3", _A(unc[0]), _B(unc[0]), "y" if kind is Multiplicative else "u"))
+        ws.append(_weight_state("x_w3", unc[0], "y" if kind is Multiplicative else "u"))
     design = HinfDesign(
         predictor=pred, W1=W1s, W2=W2s,
         uncertainty=None if unc is None else kind(unc[0], unc[1]),
@@ -321,9 +321,6 @@ def _real(value, name: str) -> float:
     return float(value)
 
 
-def _A(W):
-    return np.asarray(W.A, float).reshape(W.nstates, W.nstates)
-
-
-def _B(W):
-    return np.asarray(W.B, float).reshape(W.nstates, W.ninputs)
+def _weight_state(name: str, W, drive: str) -> WeightState:
+    A, B, _, _ = _ss_parts(W)
+    return WeightState(name, A, B, drive)

@@ -30,7 +30,8 @@ import numpy as np
 
 from ._validation import DataError, as_discrete_system, check_level
 from .minimax import InfeasibleGammaError
-from .weights import as_weight, common_dt
+from .riccati import generalized_plant
+from .weights import _ss_parts, as_weight, common_dt
 
 __all__ = ["MixsynResult", "discrete_mixsyn", "mixsyn_closed_loop", "peak_gain"]
 
@@ -73,13 +74,6 @@ class MixsynResult:
         return control.ss(K.A, np.hstack([K.B, -K.B]), K.C, np.hstack([K.D, -K.D]), K.dt)
 
 
-def _parts(sys):
-    n = sys.nstates
-    return (np.asarray(sys.A, float).reshape(n, n), np.asarray(sys.B, float).reshape(n, sys.ninputs),
-            np.asarray(sys.C, float).reshape(sys.noutputs, n),
-            np.asarray(sys.D, float).reshape(sys.noutputs, sys.ninputs))
-
-
 def _d2c(A, B, C, D, a):
     """Bilinear map ``z = (a + s)/(a − s)``: discrete (A, B, C, D) → continuous."""
     n = A.shape[0]
@@ -113,24 +107,17 @@ def _lft(A, B1, B2, C1, C2, D11, D12, D21, D22, K):
 
 
 def _problem(P, W1, W2):
-    """Discrete generalized plant ``[r; (d); u] → [z1; z2; e]``, state ``[x_p; x_w1; x_w2]``."""
-    Ap, Bp, Cp, Dp = _parts(P)
-    A1, B1, C1, D1 = _parts(W1)
-    A2, B2, C2, D2 = _parts(W2)
-    npl, n1, n2 = Ap.shape[0], A1.shape[0], A2.shape[0]
-    l, m = Cp.shape[0], Bp.shape[1]
-    q1, q2 = C1.shape[0], C2.shape[0]
-    Z = np.zeros
-    A = np.block([[Ap, Z((npl, n1)), Z((npl, n2))],
-                  [-B1 @ Cp, A1, Z((n1, n2))],
-                  [Z((n2, npl)), Z((n2, n1)), A2]])
-    Bu = np.vstack([Bp, -B1 @ Dp, B2])          # control u (also the disturbance d direction)
-    Br = np.vstack([Z((npl, l)), B1, Z((n2, l))])
-    Cz = np.block([[-D1 @ Cp, C1, Z((q1, n2))], [Z((q2, npl)), Z((q2, n1)), C2]])
-    Dzr = np.vstack([D1, Z((q2, l))])
-    Dzu = np.vstack([-D1 @ Dp, D2])
-    Ce = np.hstack([-Cp, Z((l, n1 + n2))])
-    return dict(A=A, Br=Br, Bu=Bu, Cz=Cz, Dzr=Dzr, Dzu=Dzu, Ce=Ce, Der=np.eye(l), Deu=-Dp, l=l, m=m)
+    """Discrete generalized plant ``[r; (d); u] → [z1; z2; e]``, state ``[x_p; x_w1; x_w2]``.
+
+    The ``[r; u] → z`` part is the §4.2.1 plant of :func:`~synthesis.generalized_plant`; the
+    measured output is the error ``e = r − y = −C_p x_p + r − D_p u``.
+    """
+    gp = generalized_plant(P, W1, W2)
+    l, m = gp.l, gp.m
+    _, _, Cp, Dp = _ss_parts(P)
+    Ce = np.hstack([-Cp, np.zeros((l, gp.n_w1 + gp.n_w2))])
+    return dict(A=gp.A, Br=gp.B[:, :l], Bu=gp.B[:, l:], Cz=gp.C, Dzr=gp.D[:, :l], Dzu=gp.D[:, l:],
+                Ce=Ce, Der=np.eye(l), Deu=-Dp, l=l, m=m)
 
 
 def mixsyn_closed_loop(P, W1, W2, K) -> control.StateSpace:
@@ -157,7 +144,7 @@ def mixsyn_closed_loop(P, W1, W2, K) -> control.StateSpace:
             f"K has {K.ninputs} input(s) and {K.noutputs} output(s); an error-feedback controller u = K e for this "
             f"plant needs {P.noutputs} input(s) (e = r - y) and {P.ninputs} output(s) (u)")
     pr = _problem(P, W1, W2)
-    Kd = _parts(K)
+    Kd = _ss_parts(K)
     A, B, C, D = _lft(pr["A"], pr["Br"], pr["Bu"], pr["Cz"], pr["Ce"], pr["Dzr"], pr["Dzu"], pr["Der"],
                       pr["Deu"], Kd)
     return control.ss(A, B, C, D, P.dt)
@@ -216,7 +203,7 @@ def peak_gain(sys, n_grid: int = 4000) -> float:
     from scipy.optimize import minimize_scalar
 
     sys = as_discrete_system(sys, "sys", hint="use control.norm(sys, 'inf') for continuous time")
-    A, B, C, D = _parts(sys)
+    A, B, C, D = _ss_parts(sys)
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return float("inf")
     ang = np.abs(np.angle(np.linalg.eigvals(A))) if A.size else np.zeros(0)
@@ -295,7 +282,7 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     l, m = pr["l"], pr["m"]
     if A.size and np.min(np.abs(np.linalg.eigvals(A) + 1.0)) < 1e-8:
         raise DataError("the plant or a weight has a pole at z = -1: the bilinear map is singular there")
-    Ap = _parts(P)[0]
+    Ap = _ss_parts(P)[0]
     if epsilon is None:
         epsilon = 1e-4 if _on_unit_circle(Ap) else 0.0
     if epsilon == 0 and _on_unit_circle(Ap):

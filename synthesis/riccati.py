@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, as_discrete_system, check_level
+from ._validation import DataError, as_discrete_system, check_horizon, check_level
 from .minimax import InfeasibleGammaError
-from .weights import as_weight, common_dt
+from .weights import _ss_parts, as_weight, common_dt
 
 __all__ = ["GeneralizedPlant", "RiccatiLaw", "StageSaddleError", "generalized_plant", "hinf_riccati", "lqr_riccati"]
 
@@ -149,13 +149,6 @@ class RiccatiLaw:
 
 
 # ---------------------------------------------------------------------------------------------
-def _parts(sys):
-    n = sys.nstates
-    return (np.asarray(sys.A, float).reshape(n, n), np.asarray(sys.B, float).reshape(n, sys.ninputs),
-            np.asarray(sys.C, float).reshape(sys.noutputs, n),
-            np.asarray(sys.D, float).reshape(sys.noutputs, sys.ninputs))
-
-
 def generalized_plant(P, W1, W2) -> GeneralizedPlant:
     """Build the §4.2.1 generalized plant from a discrete plant and weights.
 
@@ -176,9 +169,9 @@ def generalized_plant(P, W1, W2) -> GeneralizedPlant:
     W1 = as_weight(W1, "W1", inputs=l, dt=P.dt)
     W2 = as_weight(W2, "W2", inputs=m, dt=P.dt)
     dt = common_dt(P, W1, W2)
-    Ap, Bp, Cp, Dp = _parts(P)
-    A1, B1, C1, D1 = _parts(W1)
-    A2, B2, C2, D2 = _parts(W2)
+    Ap, Bp, Cp, Dp = _ss_parts(P)
+    A1, B1, C1, D1 = _ss_parts(W1)
+    A2, B2, C2, D2 = _ss_parts(W2)
     npl, n1, n2 = Ap.shape[0], A1.shape[0], A2.shape[0]
     q1, q2 = C1.shape[0], C2.shape[0]
     Z = np.zeros
@@ -204,12 +197,6 @@ def _matrices(A, B, C, D):
         if not np.all(np.isfinite(M)):
             raise DataError(f"{name} contains NaN or infinite values")
     return A, B, C, D
-
-
-def _check_horizon(horizon) -> int:
-    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
-        raise DataError(f"horizon must be an integer >= 1, got {horizon!r}")
-    return int(horizon)
 
 
 def _recursion(A, B, CtC, CtD, DtD_plus, horizon, terminal, check=None):
@@ -265,7 +252,7 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
     if n_disturbances is None:
         raise DataError("n_disturbances (the number of references l) is required with plain matrices")
     A, B, C, D = _matrices(A, B, C, D)
-    i = _check_horizon(horizon)
+    i = check_horizon(horizon)
     l = int(n_disturbances)
     if not 0 < l < B.shape[1]:
         raise DataError(f"n_disturbances must be in [1, {B.shape[1] - 1}], got {n_disturbances!r}")
@@ -319,7 +306,7 @@ def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
         singular stage matrix ``BᵀP_tB + DᵀQD + R``.
     """
     A, B, C, D = _matrices(A, B, C, D)
-    i = _check_horizon(horizon)
+    i = check_horizon(horizon)
     l, m, n = C.shape[0], B.shape[1], A.shape[0]
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))

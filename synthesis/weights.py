@@ -22,7 +22,7 @@ import numbers
 import control
 import numpy as np
 
-from ._validation import DataError
+from ._validation import DataError, check_horizon
 
 __all__ = [
     "WeightError",
@@ -193,7 +193,7 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
     ``H[r, c] = D`` for ``r = c``, ``C A^{r-c-1} B`` for ``r > c``, 0 above the diagonal;
     blocks are ``(outputs × inputs)``; the result has shape ``(i·p, i·q)``.
     """
-    i = _horizon(i)
+    i = check_horizon(i)
     A, B, C, D = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
     p, q = D.shape
     blocks = np.zeros((i + 1, p, q))  # blocks[k] = k-th Markov parameter; blocks[i] = 0 (upper part)
@@ -209,7 +209,7 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
 
 def observability(sys, i: int) -> np.ndarray:
     """Extended observability matrix ``Γ = [C; CA; …; CA^{i-1}]`` (3.12), shape ``(i·p, n)``."""
-    i = _horizon(i)
+    i = check_horizon(i)
     A, _, C, _ = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
     rows = []
     CA = C
@@ -217,9 +217,3 @@ def observability(sys, i: int) -> np.ndarray:
         rows.append(CA)
         CA = CA @ A
     return np.vstack(rows) if rows else np.zeros((0, A.shape[0]))
-
-
-def _horizon(i) -> int:
-    if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 1:
-        raise DataError(f"horizon must be an integer >= 1, got {i!r}")
-    return int(i)
