@@ -7,11 +7,18 @@ comparators.
 from ._validation import DataError
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
-from .hankel import hankel_gram
+from .hankel import hankel_gram, hankel_order
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .recursive import RecursivePredictor, RefactorWarning
-from .weights import WeightError, as_weight, markov_toeplitz, observability, tustin
-from .minimax import InfeasibleGammaError, MinimaxSolution, NearGammaMinWarning, minimax_gamma_min, solve_minimax
+from .weights import WeightError, as_weight, common_dt, is_zero_weight, markov_toeplitz, observability, tustin
+from .minimax import (
+    NEAR_GAMMA_MIN_RATIO,
+    InfeasibleGammaError,
+    MinimaxSolution,
+    NearGammaMinWarning,
+    minimax_gamma_min,
+    solve_minimax,
+)
 from .controller import RecedingHorizonController, WeightState, lti_controller
 from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
 from .lqg import LqgDesign, lqg_design
@@ -69,4 +76,9 @@ __all__ = [
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",
+    # module-level public helpers
+    "hankel_order",
+    "common_dt",
+    "is_zero_weight",
+    "NEAR_GAMMA_MIN_RATIO",
 ]

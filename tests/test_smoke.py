@@ -25,3 +25,16 @@ def test_public_names_are_exported():
         assert pkg.__all__, pkg.__name__
         for name in pkg.__all__:
             assert hasattr(pkg, name), f"{pkg.__name__}.{name}"
+
+
+def test_every_public_module_name_is_reexported():
+    """What a synthesis module declares public in its __all__ is importable from the package."""
+    import importlib
+    import pkgutil
+
+    for info in pkgutil.iter_modules(synthesis.__path__):
+        if info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"synthesis.{info.name}")
+        missing = sorted(set(getattr(mod, "__all__", ())) - set(synthesis.__all__))
+        assert not missing, f"synthesis.{info.name}: {missing}"
