@@ -7,6 +7,7 @@ from .simulate import (
     OpenLoopData,
     closed_loop,
     closed_loop_adaptive,
+    closed_loop_system,
     collect_data,
 )
 
@@ -24,5 +25,6 @@ __all__: list[str] = [
     "OpenLoopData",
     "closed_loop",
     "closed_loop_adaptive",
+    "closed_loop_system",
     "collect_data",
 ]

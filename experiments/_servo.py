@@ -19,7 +19,7 @@ from synthesis import tustin
 
 from .plants import SERVO_DT, servo
 from .signals import prbs, step
-from .simulate import closed_loop, collect_data
+from .simulate import closed_loop, closed_loop_system, collect_data
 
 __all__ = [
     "DESIGNS",
@@ -120,24 +120,11 @@ def servo_data(n: int, *, seed: int = 0, sigma_process: float = SIGMA_PROCESS,
 
 
 def closed_loop_matrix(plant: control.StateSpace, controller: control.StateSpace) -> np.ndarray:
-    """State matrix of the loop ``u = K [r; y]``, ``y = P u`` (``P`` with ``l`` outputs).
+    """State matrix of the loop ``u = K [r; y]``, ``y = P u``: :func:`experiments.simulate.closed_loop_system`'s ``A``.
 
-    With ``u = C_c x_c + D_y y (+ D_r r)`` and ``y = C_p x + D_p u``, ``u = F(D_y C_p x + C_c x_c)``,
-    ``F = (I − D_y D_p)⁻¹`` (well posed unless ``I − D_y D_p`` is singular).  Used for the
-    stability verdict (spectral radius), independently of the time simulation.
+    Used for the stability verdict (spectral radius), independently of the time simulation.
     """
-    Ap, Bp, Cp, Dp = (np.atleast_2d(np.asarray(M, float)) for M in (plant.A, plant.B, plant.C, plant.D))
-    Ac, Bc, Cc, Dc = (np.asarray(M, float) for M in (controller.A, controller.B, controller.C, controller.D))
-    Ac = Ac.reshape(controller.nstates, controller.nstates)
-    Bc = Bc.reshape(controller.nstates, controller.ninputs)
-    Cc = Cc.reshape(controller.noutputs, controller.nstates)
-    Dc = Dc.reshape(controller.noutputs, controller.ninputs)
-    l = Cp.shape[0]
-    By, Dy = Bc[:, l:], Dc[:, l:]
-    F = np.linalg.inv(np.eye(Dy.shape[0]) - Dy @ Dp)
-    Ux, Uc = F @ Dy @ Cp, F @ Cc  # u = Ux x + Uc xc
-    Yx, Yc = Cp + Dp @ Ux, Dp @ Uc  # y = Yx x + Yc xc
-    return np.block([[Ap + Bp @ Ux, Bp @ Uc], [By @ Yx, Ac + By @ Yc]])
+    return np.asarray(closed_loop_system(plant, controller).A, float)
 
 
 @dataclass(frozen=True)

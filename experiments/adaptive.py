@@ -196,7 +196,7 @@ def run(opts) -> dict:
 
 
 def _spectral_radius(P, K) -> float:
-    from .noncollocated import closed_loop_system
+    from .simulate import closed_loop_system
 
     return float(np.max(np.abs(np.linalg.eigvals(np.asarray(closed_loop_system(P, K).A)))))
 

@@ -35,6 +35,7 @@ import time
 import control as ct
 import numpy as np
 
+from . import simulate
 from ._torsional import DT, NONCOLLOCATED
 from .report import Report, save_figure, write_csv, write_json
 
@@ -122,28 +123,15 @@ def _zero_crossings(t, d) -> np.ndarray:
 
 
 def closed_loop_system(plant: ct.StateSpace, controller: ct.StateSpace) -> ct.StateSpace:
-    """Closed loop ``r → [y; u]`` of a strictly proper plant and a controller.
+    """Closed loop ``r → [y; u]`` of a strictly proper plant and a controller (§6 plants are).
 
     The controller has inputs ``[r; y]`` (subspace controller, (5.3)–(5.4)) or ``e = r − y``
-    (error feedback); ``u = C_K x_K + D_r r + D_y y``.  Used for closed-loop poles and for
-    frequency responses of the weighted closed loop.
+    (error feedback).  Used for closed-loop poles and for frequency responses of the weighted
+    closed loop; the construction is :func:`experiments.simulate.closed_loop_system`.
     """
     if np.any(np.asarray(plant.D) != 0):
         raise ValueError("closed_loop_system needs a strictly proper plant (D = 0)")
-    l = plant.noutputs
-    Ap, Bp, Cp = (np.asarray(M, float) for M in (plant.A, plant.B, plant.C))
-    Ak, Bk, Ck, Dk = (np.asarray(M, float) for M in (controller.A, controller.B, controller.C, controller.D))
-    if controller.ninputs == 2 * l:
-        Br, By, Dr, Dy = Bk[:, :l], Bk[:, l:], Dk[:, :l], Dk[:, l:]
-    elif controller.ninputs == l:
-        Br, By, Dr, Dy = Bk, -Bk, Dk, -Dk
-    else:
-        raise ValueError(f"controller must have {2 * l} inputs [r; y] or {l} inputs e = r - y")
-    A = np.block([[Ap + Bp @ Dy @ Cp, Bp @ Ck], [By @ Cp, Ak]])
-    B = np.vstack([Bp @ Dr, Br])
-    C = np.block([[Cp, np.zeros((l, Ak.shape[0]))], [Dy @ Cp, Ck]])
-    D = np.vstack([np.zeros((l, Br.shape[1])), Dr])
-    return ct.ss(A, B, C, D, plant.dt)
+    return simulate.closed_loop_system(plant, controller)
 
 
 def _weighted_norm_on_grid(plant, controller, W1, W2, omega) -> float:

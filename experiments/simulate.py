@@ -19,6 +19,8 @@
   plant, Ch. 7) and process / sensor noise are optional.
 * :func:`closed_loop_adaptive` — :func:`closed_loop` with an adaptive controller,
   also returning its ``γ_min(t)`` and ``γ(t)`` histories.
+* :func:`closed_loop_system` — the same LTI loop as a python-control system ``r → [y; u]``
+  (closed-loop poles, frequency responses).
 
 Timing at sample ``k``: ``y_k = C x_k + D u_k`` is measured (plus sensor noise),
 the controller computes ``u_k`` from its state and ``[r_k; y_k]`` (strictly proper
@@ -40,6 +42,7 @@ __all__ = [
     "collect_data",
     "closed_loop",
     "closed_loop_adaptive",
+    "closed_loop_system",
 ]
 
 
@@ -278,18 +281,7 @@ def closed_loop(plant, controller, r, *, perturbation=None, process_noise: float
             controller.observe(u[k], ym[k], r[k])
             x = A @ x + B @ (u[k] + w[k])
     else:
-        K = as_discrete_system(controller, "controller")
-        _check_same_dt(P, K, "plant and controller")
-        if K.noutputs != m:
-            raise ValueError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")
-        Ac, Bc, Cc, Dc = (np.asarray(M, float) for M in (K.A, K.B, K.C, K.D))
-        if K.ninputs == 2 * l:
-            Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
-        elif K.ninputs == l:  # error feedback u = K (r − y)
-            Br, By, Dr, Dy = Bc, -Bc, Dc, -Dc
-        else:
-            raise ValueError(
-                f"controller must have inputs [r; y] ({2 * l}) or e = r - y ({l}); it has {K.ninputs}")
+        Ac, Br, By, Cc, Dr, Dy = _controller_parts(P, controller)
         if plant_ft and np.any(Dy != 0):
             raise AlgebraicLoopError(
                 "algebraic loop: the plant (plus perturbation) has a feedthrough D != 0 and the controller a "
@@ -308,6 +300,70 @@ def closed_loop(plant, controller, r, *, perturbation=None, process_noise: float
             x = A @ x + B @ (u[k] + w[k])
     dt = _dt(P)
     return ClosedLoopResult(t=np.arange(n) * dt, r=r, y=y, u=u, y_measured=ym, dt=dt)
+
+
+def _controller_parts(P, controller):
+    """``(A_K, B_r, B_y, C_K, D_r, D_y)`` of an LTI controller ``u = C_K x_K + D_r r + D_y y``.
+
+    Inputs ``[r; y]`` (``2l``, the subspace controllers (5.3)–(5.4)) or ``e = r − y`` (``l``,
+    error feedback: ``B_y = −B_r``, ``D_y = −D_r``); ``m`` outputs and the plant's sample time.
+    """
+    m, l = P.ninputs, P.noutputs
+    K = as_discrete_system(controller, "controller")
+    _check_same_dt(P, K, "plant and controller")
+    if K.noutputs != m:
+        raise ValueError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")
+    n = K.nstates
+    Ac, Bc, Cc, Dc = (np.asarray(M, float).reshape(shape) for M, shape in
+                      ((K.A, (n, n)), (K.B, (n, K.ninputs)), (K.C, (m, n)), (K.D, (m, K.ninputs))))
+    if K.ninputs == 2 * l:
+        return Ac, Bc[:, :l], Bc[:, l:], Cc, Dc[:, :l], Dc[:, l:]
+    if K.ninputs == l:  # error feedback u = K (r − y)
+        return Ac, Bc, -Bc, Cc, Dc, -Dc
+    raise ValueError(f"controller must have inputs [r; y] ({2 * l}) or e = r - y ({l}); it has {K.ninputs}")
+
+
+def closed_loop_system(plant, controller):
+    """The LTI closed loop ``r → [y; u]`` of ``plant`` under an LTI ``controller``, as a StateSpace.
+
+    Same loop as :func:`closed_loop` (state ``[x; x_K]``): ``y = C_p x + D_p u`` and
+    ``u = C_K x_K + D_r r + D_y y``, solved for ``u = F (D_y C_p x + C_K x_K + D_r r)`` with
+    ``F = (I − D_y D_p)⁻¹``.  Its poles decide closed-loop stability independently of a time
+    simulation (spectral radius of ``.A`` below 1).
+
+    Parameters
+    ----------
+    plant : control.StateSpace or TransferFunction
+        Discrete plant (``m`` inputs, ``l`` outputs); a feedthrough ``D_p`` is allowed.
+    controller : control.StateSpace or TransferFunction
+        Inputs ``[r; y]`` (``2l``) or ``e = r − y`` (``l``), ``m`` outputs, same sample time.
+
+    Raises
+    ------
+    AlgebraicLoopError
+        ``I − D_y D_p`` singular (the loop is not well posed).
+    ValueError
+        Sizes or sample times that do not fit.
+    """
+    import control
+
+    P = as_discrete_system(plant, "plant")
+    Ap, Bp, Cp, Dp = (np.asarray(M, float).reshape(shape) for M, shape in
+                      ((P.A, (P.nstates, P.nstates)), (P.B, (P.nstates, P.ninputs)),
+                       (P.C, (P.noutputs, P.nstates)), (P.D, (P.noutputs, P.ninputs))))
+    Ak, Br, By, Ck, Dr, Dy = _controller_parts(P, controller)
+    I_DD = np.eye(P.ninputs) - Dy @ Dp
+    if np.linalg.cond(I_DD) > 1e12:
+        raise AlgebraicLoopError("the loop is not well posed: I − D_y D_p is singular; make the plant or the "
+                                 "controller's y-feedthrough strictly proper")
+    F = np.linalg.inv(I_DD)
+    Ux, Uk, Ur = F @ Dy @ Cp, F @ Ck, F @ Dr  # u = Ux x + Uk x_K + Ur r
+    Yx, Yk, Yr = Cp + Dp @ Ux, Dp @ Uk, Dp @ Ur  # y = Yx x + Yk x_K + Yr r
+    A = np.block([[Ap + Bp @ Ux, Bp @ Uk], [By @ Yx, Ak + By @ Yk]])
+    B = np.vstack([Bp @ Ur, Br + By @ Yr])
+    C = np.block([[Yx, Yk], [Ux, Uk]])
+    D = np.vstack([Yr, Ur])
+    return control.ss(A, B, C, D, P.dt)
 
 
 def closed_loop_adaptive(plant, adaptive, r, **kwargs) -> ClosedLoopResult:

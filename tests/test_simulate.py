@@ -5,7 +5,7 @@ import pytest
 
 from experiments.plants import servo, three_disk
 from experiments.signals import prbs, step
-from experiments.simulate import AlgebraicLoopError, closed_loop, collect_data
+from experiments.simulate import AlgebraicLoopError, closed_loop, closed_loop_system, collect_data
 
 
 def _forced(sys, u):
@@ -124,3 +124,42 @@ def test_collect_data_continues_from_final_state():
     # closed loop continues the same way (zero controller = open loop with u = 0)
     c = closed_loop(P, ct.ss([], [], [], [[0.0, 0.0]], P.dt), np.zeros(10), x0=whole.x_final)
     np.testing.assert_allclose(c.y, collect_data(P, np.zeros(10), x0=whole.x_final).y, atol=1e-12)
+
+
+def _freq(sys, w, dt):
+    return np.asarray(sys(np.exp(1j * w * dt))).reshape(sys.noutputs, -1)
+
+
+@pytest.mark.parametrize("form", ["[r; y]", "e = r - y"])
+def test_closed_loop_system_matches_feedback_with_feedthroughs(form):
+    # a proper plant (D ≠ 0) and a controller with y-feedthrough: the well-posed loop, second route
+    # by python-control's feedback of the transfer functions, poles and frequency response
+    dt = 0.1
+    P = ct.ss([[0.9, 0.1], [0.0, 0.7]], [[0.0], [1.0]], [[1.0, 0.5]], [[0.3]], dt)
+    k = ct.ss([[0.5]], [[1.0]], [[0.2]], [[0.4]], dt)  # error feedback u = k (r − y)
+    K = k if form == "e = r - y" else ct.ss(k.A, np.hstack([k.B, -k.B]), k.C, np.hstack([k.D, -k.D]), dt)
+    cl = closed_loop_system(P, K)
+    ref_y = ct.feedback(P * k, 1)  # r → y
+    ref_u = ct.feedback(k, P)  # r → u
+    assert np.sort_complex(np.linalg.eigvals(cl.A)) == pytest.approx(np.sort_complex(ct.poles(ct.ss(ref_y))))
+    w = np.array([0.1, 1.0, 5.0, 20.0])
+    G = _freq(cl, w, dt)
+    assert G[0] == pytest.approx(_freq(ref_y, w, dt)[0], rel=1e-9)
+    assert G[1] == pytest.approx(_freq(ref_u, w, dt)[0], rel=1e-9)
+    # and the time loop of closed_loop (strictly proper plant, same controller) agrees with it
+    Ps = ct.ss(P.A, P.B, P.C, 0 * P.D, dt)
+    r = step(40)
+    res = closed_loop(Ps, K, r)
+    yu = _forced(closed_loop_system(Ps, K), r)
+    np.testing.assert_allclose(np.hstack([res.y, res.u]), yu, atol=1e-10)
+
+
+def test_closed_loop_system_ill_posed_loop_raises():
+
+    dt = 0.1
+    P = ct.ss([[0.5]], [[1.0]], [[1.0]], [[2.0]], dt)
+    K = ct.ss([[0.5]], [[0.0, 1.0]], [[0.0]], [[0.0, 0.5]], dt)  # D_y D_p = 1: I − D_y D_p singular
+    with pytest.raises(AlgebraicLoopError, match="not well posed"):
+        closed_loop_system(P, K)
+    with pytest.raises(ValueError, match="inputs"):
+        closed_loop_system(P, ct.ss([[0.5]], [[1.0, 1.0, 1.0]], [[1.0]], [[0.0, 0.0, 0.0]], dt))
