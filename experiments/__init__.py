@@ -1,5 +1,5 @@
 """Plants, signals, simulations and the thesis experiments (Ch. 5–7)."""
-from .plants import THREE_DISK, ThreeDiskParameters, servo, three_disk
+from .plants import SERVO_DT, THREE_DISK, THREE_DISK_DT, ThreeDiskParameters, servo, three_disk
 from .signals import prbs, step, step_sequence, white_noise
 from .simulate import (
     AlgebraicLoopError,
@@ -12,7 +12,9 @@ from .simulate import (
 )
 
 __all__: list[str] = [
+    "SERVO_DT",
     "THREE_DISK",
+    "THREE_DISK_DT",
     "ThreeDiskParameters",
     "servo",
     "three_disk",
