@@ -22,7 +22,7 @@ import numbers
 import control
 import numpy as np
 
-from ._validation import DataError, check_horizon
+from ._validation import DataError, as_discrete_system, check_horizon
 
 __all__ = [
     "WeightError",
@@ -192,9 +192,22 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
 
     ``H[r, c] = D`` for ``r = c``, ``C A^{r-c-1} B`` for ``r > c``, 0 above the diagonal;
     blocks are ``(outputs × inputs)``; the result has shape ``(i·p, i·q)``.
+
+    Parameters
+    ----------
+    sys : control.StateSpace, control.TransferFunction, scalar or 2-D array
+        Discrete-time system (a scalar or matrix is a static gain ``D``).
+    i : int
+        Horizon (number of block rows and columns).
+
+    Raises
+    ------
+    DataError
+        Continuous-time dynamics (Markov parameters are discrete-time objects), NaN/inf entries,
+        a bad horizon.
     """
     i = check_horizon(i)
-    A, B, C, D = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
+    A, B, C, D = _ss_parts(_discrete(sys))
     p, q = D.shape
     blocks = np.zeros((i + 1, p, q))  # blocks[k] = k-th Markov parameter; blocks[i] = 0 (upper part)
     blocks[0] = D
@@ -208,12 +221,31 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
 
 
 def observability(sys, i: int) -> np.ndarray:
-    """Extended observability matrix ``Γ = [C; CA; …; CA^{i-1}]`` (3.12), shape ``(i·p, n)``."""
+    """Extended observability matrix ``Γ = [C; CA; …; CA^{i-1}]`` (3.12), shape ``(i·p, n)``.
+
+    Accepts what :func:`markov_toeplitz` accepts and raises the same errors.
+    """
     i = check_horizon(i)
-    A, _, C, _ = _ss_parts(sys if isinstance(sys, control.StateSpace) else control.ss(sys))
+    A, _, C, _ = _ss_parts(_discrete(sys))
     rows = []
     CA = C
     for _ in range(i):
         rows.append(CA)
         CA = CA @ A
     return np.vstack(rows) if rows else np.zeros((0, A.shape[0]))
+
+
+def _discrete(sys) -> control.StateSpace:
+    """``sys`` as a ``StateSpace``; a static gain may have any sample time, dynamics must be discrete."""
+    if isinstance(sys, (numbers.Real, np.ndarray, list, tuple)):
+        D = np.atleast_2d(np.asarray(sys, dtype=float))
+        if D.ndim != 2 or not np.all(np.isfinite(D)):
+            raise DataError(f"a static gain must be a finite scalar or 2-D matrix, got {sys!r}")
+        return _static(D, True)
+    if isinstance(sys, control.TransferFunction):
+        sys = control.ss(sys)
+    if isinstance(sys, control.StateSpace) and sys.nstates == 0:
+        if not np.all(np.isfinite(np.asarray(sys.D, dtype=float))):
+            raise DataError("the system's D contains NaN or infinite values")
+        return sys
+    return as_discrete_system(sys, "sys", hint="Markov parameters and Γ are defined for discrete-time systems")

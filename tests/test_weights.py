@@ -137,3 +137,16 @@ def test_tustin_refuses_boolean_sample_time():
     s = control.tf("s")
     with pytest.raises(WeightError, match="dt"):
         tustin(1 / (s + 1), True)
+
+
+def test_markov_toeplitz_and_observability_refuse_continuous_time():
+    s = control.tf("s")
+    for f in (markov_toeplitz, observability):
+        with pytest.raises(DataError, match="continuous"):
+            f(1 / (s + 1), 3)
+        with pytest.raises(DataError, match="NaN"):
+            f(control.ss([[0.5]], [[1.0]], [[np.nan]], [[1.0]], DT), 3)
+    # a static gain is the same in either time domain; arrays are static gains
+    np.testing.assert_array_equal(markov_toeplitz(np.array([[2.0]]), 2), 2.0 * np.eye(2))
+    np.testing.assert_array_equal(markov_toeplitz(control.ss([], [], [], [[2.0]]), 2), 2.0 * np.eye(2))
+    assert observability(3.0, 2).shape == (2, 0)
