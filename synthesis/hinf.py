@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, check_level
+from ._validation import DataError, check_level, check_sample_time
 from .controller import WeightState, lti_controller
 from .minimax import minimax_gamma_min, solve_minimax
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
@@ -156,7 +156,7 @@ def _predictor_parts(pred):
     return Lw, Lu, i, m, l
 
 
-def _weights(pred_m, pred_l, W1, W2, uncertainty):
+def _weights(pred_m, pred_l, W1, W2, uncertainty, data_dt=None):
     W1 = as_weight(W1, "W1", inputs=pred_l)
     W2 = as_weight(W2, "W2", inputs=pred_m)
     unc = None
@@ -168,6 +168,14 @@ def _weights(pred_m, pred_l, W1, W2, uncertainty):
         W4 = as_weight(uncertainty.W4, "W4", outputs=pred_l, allow_zero=True, square_rank=True)
         unc = (W3, W4)
     dt = common_dt(W1, W2, *(unc or ()))
+    if data_dt is not None:
+        data_dt = check_sample_time(data_dt)
+        if dt is True:
+            dt = data_dt
+        elif data_dt is not True and not np.isclose(dt, data_dt, rtol=1e-9, atol=0):
+            raise WeightError(
+                f"the weights have sample time {dt} but the data's is {data_dt}; discretise the weights at the "
+                f"data's sample time (e.g. synthesis.tustin(W, {data_dt}))")
     # give static weights the common sample time so every system returned is discrete with one dt
     fix = lambda W: W if W.nstates else control.ss(W.A, W.B, W.C, W.D, dt)  # noqa: E731
     W1, W2 = fix(W1), fix(W2)
@@ -228,27 +236,41 @@ def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
     return PerformanceMap(Md, Mu, Mx, tuple(disturbances), tuple(columns))
 
 
-def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None) -> PerformanceMap:
+def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> PerformanceMap:
     """Performance map ``z = M_d d + M_u u + M_x x`` of a law ((3.21), Thm 3.2, (3.49), Thm 3.7).
 
     Parameters are those of :func:`hinf_design`.
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty)
+    W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty, dt)
     return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc, bool(causal))
 
 
-def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None) -> float:
+def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> float:
     """Best achievable level ``γ_min`` (3.8), causal (3.41), multiplicative (3.46), additive (3.64).
 
     Computed exactly as ``‖(I − P_u) M_d‖₂`` by :func:`synthesis.minimax.minimax_gamma_min`.
+
+    Parameters
+    ----------
+    pred, W1, W2, causal, uncertainty, dt
+        As for :func:`hinf_design`.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    WeightError, DataError
+        As for :func:`hinf_design`.
     """
-    pm = performance_map(pred, W1, W2, causal=causal, uncertainty=uncertainty)
+    pm = performance_map(pred, W1, W2, causal=causal, uncertainty=uncertainty, dt=dt)
     return minimax_gamma_min(pm.Md, pm.Mu)
 
 
 def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float = 1.1,
-                causal: bool = False, uncertainty=None) -> HinfDesign:
+                causal: bool = False, uncertainty=None, dt=None) -> HinfDesign:
     """Finite-horizon model-free subspace based central H∞ design (Thms 3.1, 3.2, 3.4, 3.7).
 
     Parameters
@@ -271,6 +293,11 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         feedthrough from ``r``.
     uncertainty : Multiplicative or Additive, optional
         Robust design (Thm 3.4 / Thm 3.7).
+    dt : float, optional
+        The data's sample time (the predictor does not carry one).  When given, the weights'
+        sample time must equal it (else :class:`WeightError`), and it is the controller's
+        sample time even when every weight is static.  Default: the weights' common sample
+        time (``True``, unspecified, if all are static).
 
     Returns
     -------
@@ -289,7 +316,7 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         If ``gamma < 1.03 γ_min``.
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty)
+    W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty, dt)
     kind = type(uncertainty) if unc else None
     pm = _build_map(Lw, Lu, i, m, l, W1s, W2s, kind, unc, bool(causal))
     if gamma is None:

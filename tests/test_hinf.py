@@ -362,3 +362,19 @@ def test_non_numeric_levels_are_named():
     for kw in (dict(gamma="big"), dict(gamma_ratio="x"), dict(gamma_ratio=None), dict(gamma=lambda g: "x")):
         with pytest.raises(DataError, match="gamma"):
             hinf_design(pred, W1, W2, **kw)
+
+
+def test_data_sample_time_is_checked_against_the_weights():
+    pred = _servo_predictor()
+    W1, W2 = _siso_weights()  # discretised at DT = 0.1
+    d = hinf_design(pred, W1, W2, dt=DT)
+    assert d.controller.dt == DT
+    assert gamma_min(pred, W1, W2, dt=DT) == pytest.approx(d.gamma_min, rel=1e-12)
+    for fn in (hinf_design, gamma_min):
+        with pytest.raises(WeightError, match="data's is 0.05"):
+            fn(pred, W1, W2, dt=0.05)  # data sampled at 20 Hz, weights at 10 Hz
+    with pytest.raises(DataError, match="dt"):
+        hinf_design(pred, W1, W2, dt=0.0)
+    # static weights take the data's sample time (without it the controller's dt is unspecified)
+    assert hinf_design(pred, 2.0, 0.5).controller.dt is True
+    assert hinf_design(pred, 2.0, 0.5, dt=0.05).controller.dt == 0.05
