@@ -92,15 +92,28 @@ def _check_maps(Md, Mu, Mx=None):
     Mu = np.asarray(Mu, dtype=float)
     if Mu.ndim != 2 or Mu.shape[1] == 0:
         raise DataError(f"M_u must be a 2-D matrix with at least one column, got shape {Mu.shape}")
-    Md = np.asarray(Md, dtype=float).reshape(Mu.shape[0], -1)
+    rows = Mu.shape[0]
+    Md = _rows_like(Md, rows, "M_d")
     arrays = [("M_d", Md), ("M_u", Mu)]
     if Mx is not None:
-        Mx = np.asarray(Mx, dtype=float).reshape(Mu.shape[0], -1)
+        Mx = _rows_like(Mx, rows, "M_x")
         arrays.append(("M_x", Mx))
     for name, a in arrays:
         if not np.all(np.isfinite(a)):
             raise DataError(f"{name} contains NaN or infinite values (check the predictor and the weights)")
     return Md, Mu, Mx
+
+
+def _rows_like(M, rows: int, name: str) -> np.ndarray:
+    """``M`` as a 2-D array with ``rows`` rows (a 1-D array of that length is one column)."""
+    M = np.asarray(M, dtype=float)
+    if M.ndim == 1 and M.size == rows:
+        M = M[:, None]
+    if M.ndim != 2 or M.shape[0] != rows:
+        raise DataError(
+            f"{name} has shape {M.shape} but the performance map has {rows} rows (those of M_u): "
+            "M_d, M_u and M_x must have the same number of rows")
+    return M
 
 
 def _qr_u(Mu):

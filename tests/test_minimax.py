@@ -117,3 +117,13 @@ def test_non_numeric_gamma_is_named():
     for bad in ("2.0", None, True):
         with pytest.raises(DataError, match="gamma must be a real number"):
             solve_minimax(Md, Mu, Mx, bad)
+
+
+def test_maps_with_different_row_counts_are_refused():
+    """A (3, 2) M_d against a 2-row M_u used to be reshaped to (2, 3) and give a wrong γ_min."""
+    with pytest.raises(DataError, match="same number of rows"):
+        minimax_gamma_min(np.ones((3, 2)), np.eye(2))
+    with pytest.raises(DataError, match="M_x"):
+        solve_minimax(np.ones((2, 1)), np.eye(2), np.ones((3, 2)), 5.0)
+    # a 1-D M_d of the right length is one disturbance column
+    assert minimax_gamma_min(np.array([0.0, 0.0, 2.0]), np.eye(3)[:, :2]) == pytest.approx(2.0)
