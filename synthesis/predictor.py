@@ -97,6 +97,8 @@ class Predictor:
             raise DataError(f"w_p must have {self.Lw.shape[1]} entries, got {w_p.size}")
         if u_f.size != self.Lu.shape[1]:
             raise DataError(f"u_f must have {self.Lu.shape[1]} entries, got {u_f.size}")
+        if not (np.all(np.isfinite(w_p)) and np.all(np.isfinite(u_f))):
+            raise DataError("w_p and u_f must be finite (no NaN/inf)")
         return (self.Lw @ w_p + self.Lu @ u_f).reshape(self.horizon, self.l)
 
     def past_vector(self, u_past, y_past) -> np.ndarray:
@@ -112,12 +114,19 @@ class Predictor:
 def block_hankel(x: np.ndarray, rows: int, cols: int, start: int = 0) -> np.ndarray:
     """Block Hankel matrix with ``rows`` block rows and ``cols`` columns, (2.1)–(2.4).
 
-    ``x`` has shape ``(n, k)``; block row ``r`` holds ``x[start + r : start + r + cols].T``.
+    ``x`` has shape ``(n, k)`` (or ``(n,)``); block row ``r`` holds ``x[start + r : start + r + cols].T``.
     Returns an array of shape ``(rows*k, cols)`` (a copy).
+
+    Raises
+    ------
+    DataError
+        NaN/inf or badly shaped ``x``, ``rows`` or ``cols`` not positive integers, ``start``
+        negative, or too few samples.
     """
-    x = np.asarray(x, dtype=float)
-    if x.ndim == 1:
-        x = x[:, None]
+    x = as_signal(x, "x")
+    for name, v, low in (("rows", rows, 1), ("cols", cols, 1), ("start", start, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+            raise DataError(f"{name} must be an integer >= {low}, got {v!r}")
     k = x.shape[1]
     seg = x[start : start + rows + cols - 1]
     if seg.shape[0] < rows + cols - 1:

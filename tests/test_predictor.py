@@ -303,3 +303,17 @@ def test_complex_data_is_refused_not_truncated(method):
         fit_predictor(u + 1j * u, u, 3, method=method)
     with pytest.raises(DataError, match="complex"):
         fit_predictor(u, (u + 0j).astype(complex), 3, method=method)
+
+
+def test_block_hankel_and_predict_validate_input():
+    x = np.arange(10.0)
+    np.testing.assert_array_equal(synthesis.block_hankel(x, 3, 4, start=2), hankel_loops(x, 3, 4, 2))
+    with pytest.raises(DataError, match="rows"):
+        synthesis.block_hankel(x, 0, 5)
+    with pytest.raises(DataError, match="start"):
+        synthesis.block_hankel(x, 2, 3, start=-1)
+    with pytest.raises(DataError, match="NaN"):
+        synthesis.block_hankel(np.r_[x, np.nan], 2, 10)
+    p = fit_predictor(*noisy_mimo(seed=12, n=200), 3)
+    with pytest.raises(DataError, match="finite"):
+        p.predict(np.full(12, np.nan), np.zeros(6))
