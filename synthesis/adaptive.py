@@ -122,6 +122,11 @@ class AdaptiveHinf:
             raise DataError(f"period must be a positive number of samples, got {period!r}")
         if not isinstance(policy, GammaPolicy):
             raise DataError("policy must be a synthesis.GammaPolicy")
+        fixed = sorted({"gamma", "gamma_ratio"} & set(design_kwargs))
+        if fixed:
+            raise DataError(
+                f"{', '.join(fixed)} cannot be passed to AdaptiveHinf: gamma follows gamma_min through the policy; "
+                "use policy=GammaPolicy('ratio', alpha) or GammaPolicy('offset', alpha)")
         self.recursive = predictor
         self.W1, self.W2 = W1, W2
         self.period = int(period)

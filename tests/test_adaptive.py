@@ -99,3 +99,11 @@ def test_bad_arguments():
         AdaptiveHinf(synthesis.fit_predictor(u0, y0, I_H), W1, W2, period=10)
     with pytest.raises(ValueError):
         AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=10, policy=0.1)
+
+
+def test_fixed_gamma_is_refused_with_the_policy_named():
+    u0, y0 = _init_data()
+    W1, W2 = _weights()
+    for kw in (dict(gamma=3.0), dict(gamma_ratio=1.2)):
+        with pytest.raises(ValueError, match="GammaPolicy"):
+            AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=10, **kw)
