@@ -61,7 +61,10 @@ class LqgDesign:
 
 
 def _spd(M, n: int, name: str) -> np.ndarray:
-    M = np.atleast_2d(np.asarray(M, dtype=float))
+    try:
+        M = np.atleast_2d(np.asarray(M, dtype=float))
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{name} must be a scalar or a {n}×{n} numeric matrix, got {M!r}") from exc
     if M.shape == (1, 1) and n > 1:
         M = M[0, 0] * np.eye(n)
     if M.shape != (n, n):

@@ -77,3 +77,9 @@ def test_bad_sample_time():
     for bad in (0, 0.0, -0.1, float("nan"), float("inf"), "0.1", False):
         with pytest.raises(DataError, match="dt"):
             lqg_design(pred, 1.0, 1.0, dt=bad)
+
+
+def test_non_numeric_weights_are_named():
+    pred = _predictor(1, 1)
+    with pytest.raises(DataError, match="Q must be"):
+        lqg_design(pred, "a", 1.0)
