@@ -158,3 +158,24 @@ def test_additive_channel_against_direct_formula_and_bad_controller(setup):
         assert complex(np.squeeze(M(z))) == pytest.approx(k / (1 - k * p), rel=1e-8)
     with pytest.raises(ValueError, match=r"inputs \[r; y\]"):
         uf.additive_channel(plant, Cy)  # an error-feedback controller (one input) is refused
+
+
+def test_uncertified_delta_is_raised_to_the_certified_value_and_warned(setup):
+    # a (7.5) answer whose own impulses certify a larger δ than the solver reported (as from an
+    # 'optimal_inaccurate' solve): the design must be sized by the certified value, with a warning
+    import dataclasses
+
+    unf = setup["res"].unfalsification
+    low = dataclasses.replace(unf, delta=0.5 * unf.delta,
+                              certificate=dataclasses.replace(unf.certificate, delta=0.5 * unf.delta))
+    assert not low.certificate.ok()
+    with pytest.warns(uf.SolverWarning, match="not certified"):
+        r = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], unf.sigma,
+                                       predictor=setup["pred"], unfalsification=low)
+    assert r.delta == pytest.approx(unf.certificate.delta_certified, rel=1e-12)
+    assert r.covered_delta == pytest.approx((1 + r.margin) * r.delta, rel=1e-8)
+    with warnings.catch_warnings():  # a certified answer is used as is, silently
+        warnings.simplefilter("error", uf.SolverWarning)
+        r2 = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], unf.sigma,
+                                        predictor=setup["pred"], unfalsification=unf)
+    assert r2.delta == unf.delta

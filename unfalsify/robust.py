@@ -53,7 +53,7 @@ import synthesis
 from synthesis import Additive, HinfDesign, peak_gain
 from synthesis._validation import DataError
 
-from ._common import UnfalsificationError
+from ._common import SolverWarning, UnfalsificationError
 from .subspace import SubspaceResult, subspace_unfalsify
 
 __all__ = [
@@ -78,7 +78,8 @@ class RobustDesignResult:
         Theorem 3.7 design with ``uncertainty = Additive(W3 = cI, W4 = I)`` (the nominal
         Theorem 3.1 design, ``uncertainty=None``, when δ = 0).
     delta : float
-        Unfalsified δ.
+        Unfalsified δ used by the design: the solver's δ, or the larger certified δ
+        (``unfalsification.certificate.delta_certified``) when the certificate fails.
     w3_gain : float
         ``c`` (``W3 = c I``).
     w3_rule : str
@@ -214,6 +215,14 @@ def robust_design_from_data(
         If (7.5) did not produce a finite δ.
     DataError, synthesis.WeightError
         Bad data / weights / predictor.
+
+    Warns
+    -----
+    SolverWarning
+        The (7.5) answer is not certified (:meth:`Certificate.ok` false): δ is then raised to the
+        certified value.
+    UserWarning
+        ``w3_rule="thesis"`` does not cover δ.
     """
     if w3_rule not in ("small-gain", "thesis"):
         raise ValueError(f"unknown w3_rule {w3_rule!r}; use 'small-gain' or 'thesis'")
@@ -229,6 +238,20 @@ def robust_design_from_data(
     if not np.isfinite(delta):
         raise UnfalsificationError(f"(7.5) returned no δ (status {unf.status!r}); cannot size the uncertainty")
     delta = max(delta, 0.0)
+    cert = unf.certificate
+    if not cert.ok():
+        # the solver's δ is not certified by its own variables (e.g. 'optimal_inaccurate'): size the
+        # uncertainty by the δ that the returned impulses do certify, never by a smaller one
+        warnings.warn(
+            f"(7.5) answer not certified (status {unf.status!r}, δ = {delta:.6g}, certified δ = "
+            f"{cert.delta_certified:.6g}, noise rms {cert.noise_rms:.6g} vs σ = {cert.sigma:.6g}); the design uses "
+            "max(δ, certified δ): solve (7.5) with form='conditioned' or smaller data for a certified δ",
+            SolverWarning,
+            stacklevel=2,
+        )
+        if not np.isfinite(cert.delta_certified):
+            raise UnfalsificationError("(7.5) returned impulses that certify no finite δ; cannot size the uncertainty")
+        delta = max(delta, float(cert.delta_certified))
     pred = unf.predictor
     if predictor is not None:
         pred = predictor
