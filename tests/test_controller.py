@@ -175,3 +175,44 @@ def test_receding_horizon_inputs(servo):
     assert np.allclose(rh.state[: 2 * i], np.r_[u_past[-i:], y_past[-i:]])
     with pytest.raises(DataError):
         rh.reset(u_past[:3])
+
+
+@pytest.mark.parametrize("law", ["nominal", "causal", "multiplicative", "additive"])
+def test_mimo_lti_and_receding_horizon_agree_on_arbitrary_signals(law):
+    """m = 2, l = 3: the stacking of u_p, y_p and the weight states must agree channel by channel.
+
+    Both forms are driven by the same arbitrary (r, y) sequences (no plant needed): the LTI
+    system (5.3)–(5.4) by a hand-written state recursion, the receding-horizon loop by control/observe.
+    """
+    rng = np.random.default_rng(7)
+    m, l, i = 2, 3, 4
+    n = 2 * i + 300 - 1
+    A = rng.standard_normal((4, 4))
+    A *= 0.8 / max(abs(np.linalg.eigvals(A)))
+    Bp, Cp = rng.standard_normal((4, m)), rng.standard_normal((l, 4))
+    u = rng.standard_normal((n, m))
+    _, y, _ = signal.dlsim((A, Bp, Cp, np.zeros((l, m)), DT), u)
+    pred = fit_predictor(u, y + 0.05 * rng.standard_normal(y.shape), i)
+    s = control.tf("s")
+    w = lambda k, z, p: control.ss(tustin(k * (s + z) / (s + p), DT))  # noqa: E731
+    W1 = control.append(w(2, 2, 0.1), w(3, 1, 0.2), w(1, 3, 0.5))
+    W2 = control.append(w(0.5, 1, 5), w(0.4, 2, 6))
+    unc = {"multiplicative": Multiplicative(control.append(w(0.3, 1, 10), w(0.2, 1, 9), w(0.1, 2, 8)),
+                                            control.append(w(0.5, 2, 4), w(0.4, 1, 3), w(0.3, 1, 2))),
+           "additive": Additive(control.append(w(0.2, 3, 6), w(0.1, 2, 5)),
+                                control.append(w(0.5, 2, 4), w(0.4, 1, 3), w(0.3, 1, 2)))}.get(law)
+    d = hinf_design(pred, W1, W2, causal=law == "causal", uncertainty=unc)
+    K = d.controller
+    assert (K.ninputs, K.noutputs) == (2 * l, m)
+    Ak, Bk, Ck, Dk = (np.asarray(M) for M in (K.A, K.B, K.C, K.D))
+    rh = RecedingHorizonController(d)
+    xk = np.zeros(K.nstates)
+    for k in range(40):
+        r_k, y_k = rng.standard_normal(l), rng.standard_normal(l)
+        v = np.r_[r_k, y_k]
+        u_lti = Ck @ xk + Dk @ v
+        u_rh = rh.control(r_k)
+        np.testing.assert_allclose(u_rh, u_lti, rtol=1e-9, atol=1e-10 * max(1.0, np.abs(u_lti).max()))
+        rh.observe(u_rh, y_k, r_k)
+        xk = Ak @ xk + Bk @ v
+        np.testing.assert_allclose(rh.state, xk, rtol=1e-9, atol=1e-10 * max(1.0, np.abs(xk).max()))
