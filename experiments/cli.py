@@ -53,6 +53,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
     args = _parser().parse_args(argv)
     module, func, _ = COMMANDS[args.command]
     run = getattr(importlib.import_module(module), func)

@@ -43,6 +43,7 @@ class SolverWarning(UserWarning):
 
 
 def check_sigma(sigma) -> float:
+    """σ of ``‖ξ‖_rms ≤ σ`` (§7.2.2) as a float; raises DataError unless finite and > 0."""
     try:
         s = float(sigma)
     except (TypeError, ValueError) as exc:
@@ -71,6 +72,7 @@ def rms_or_one(x: np.ndarray) -> float:
 
 
 def check_form(form: str) -> str:
+    """``form`` of (7.4)/(7.5): ``"conditioned"`` or ``"thesis"`` (raises ValueError otherwise)."""
     if form not in ("conditioned", "thesis"):
         raise ValueError(f"unknown form {form!r}; use 'conditioned' (default) or 'thesis'")
     return form

@@ -311,6 +311,7 @@ class AdditiveRobustness:
 
     @property
     def stable(self) -> bool:
+        """Nominal closed loop stable (``spectral_radius < 1``)."""
         return bool(self.spectral_radius < 1.0)
 
     @property
