@@ -179,3 +179,10 @@ def test_uncertified_delta_is_raised_to_the_certified_value_and_warned(setup):
         r2 = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], unf.sigma,
                                         predictor=setup["pred"], unfalsification=unf)
     assert r2.delta == unf.delta
+
+
+@pytest.mark.parametrize("kw", [dict(delta=np.nan), dict(delta=0.1, margin=-0.1), dict(delta=0.1, gamma_ratio=1.0),
+                                dict(delta=0.1, gamma_ratio=0.5)])
+def test_fixed_point_rejects_bad_arguments(setup, kw):
+    with pytest.raises(ValueError, match="must be"):
+        uf.additive_weight_fixed_point(setup["pred"], setup["W1"], setup["W2"], **kw)

@@ -134,6 +134,8 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
         raise DataError(f"delta must be finite and >= 0, got {delta!r}")
     if not (np.isfinite(margin) and margin >= 0):
         raise DataError(f"margin must be finite and >= 0, got {margin!r}")
+    if not (np.isfinite(gamma_ratio) and gamma_ratio > 1.0):
+        raise DataError(f"gamma_ratio must be > 1 (the design needs γ > γ_min_a), got {gamma_ratio!r}")
     if delta == 0:
         return 0.0
     g = _gamma_of(pred, W1, W2, causal, gamma_ratio, pred.l)
