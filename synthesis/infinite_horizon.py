@@ -307,12 +307,15 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 out = slycot.sb10ad(A.shape[0], Bg.shape[1], Cg.shape[0], m, l, g, Ac, Bc, Cc, Dc, job=4)
-        except Exception:  # SLICOT reports infeasibility / rank failures as exceptions
+        except slycot.exceptions.SlycotArithmeticError:  # infeasible level, rank or Riccati failure (info > 0)
             return None
         Kc = out[1:5]
         if any(not np.all(np.isfinite(M)) for M in Kc):
             return None
-        Kd = _c2d(*Kc, a)
+        try:
+            Kd = _c2d(*Kc, a)
+        except np.linalg.LinAlgError:  # a controller pole at s = 2/dt has no discrete image
+            return None
         try:
             cl = _lft(A, pr["Br"], pr["Bu"], pr["Cz"], pr["Ce"], pr["Dzr"], pr["Dzu"], pr["Der"], pr["Deu"], Kd)
         except DataError:
