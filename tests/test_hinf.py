@@ -176,29 +176,44 @@ def test_theorem_3_3_causal_not_worse(case):
     assert gamma_min(pred, W1, W2) >= gamma_min(pred, W1, W2, causal=True)
 
 
-# ------------------------------------------------------------------------------------------ Thm 3.4
-def test_multiplicative_closed_form(case):
-    pred, W1, W2, W3, W4, _ = case
+# ------------------------------------------------------------------------------------------ Thms 3.4, 3.7
+@pytest.mark.parametrize("kind", [Multiplicative, Additive])
+def test_robust_closed_form(case, kind):
+    """γ_min (3.46)/(3.64) and the saddle system (3.45)/(3.63) written out from the thesis.
+
+    The two laws share the r and s rows; they differ in z3: H3(L_u u + L_w w_p) + Γ3 x_w3
+    (multiplicative, W3 on the output) or H3 u + Γ3 x_w3 (additive, W3 on the control; (3.63)
+    drops the right-hand matrix, derived here from the proof of Thm 3.7).
+    """
+    pred, W1, W2, W3m, W4, W3a = case
+    W3 = W3m if kind is Multiplicative else W3a
     (H1, G1), (H2, G2), (H3, G3), (H4, G4) = _mats(pred, [W1, W2, W3, W4])
     Lw, Lu = pred.Lw, pred.Lu
     Q1, Q2, Q3 = H1.T @ H1, H2.T @ H2, H3.T @ H3
     Q4o = H4 @ H4.T
-    X = inv(inv(Q1) + Lu @ inv(Q2 + Lu.T @ Q3 @ Lu) @ Lu.T)
-    gm_ref = np.sqrt(lam_max((np.eye(len(Q4o)) + Q4o) @ X))  # (3.46)
-    d = hinf_design(pred, W1, W2, uncertainty=Multiplicative(W3, W4), gamma_ratio=1.2)
+    if kind is Multiplicative:
+        X = inv(inv(Q1) + Lu @ inv(Q2 + Lu.T @ Q3 @ Lu) @ Lu.T)  # (3.46)
+        Quu = Lu.T @ (Q1 + Q3) @ Lu + Q2
+        u_wp, u_x3 = -Lu.T @ (Q1 + Q3) @ Lw, -Lu.T @ H3.T @ G3  # (3.45)
+    else:
+        X = inv(inv(Q1) + Lu @ inv(Q2 + Q3) @ Lu.T)  # (3.64)
+        Quu = Lu.T @ Q1 @ Lu + Q2 + Q3
+        u_wp, u_x3 = -Lu.T @ Q1 @ Lw, -H3.T @ G3  # from z3 = H3 u + Γ3 x_w3
+    gm_ref = np.sqrt(lam_max((np.eye(len(Q4o)) + Q4o) @ X))
+    d = hinf_design(pred, W1, W2, uncertainty=kind(W3, W4), gamma_ratio=1.2)
     assert d.gamma_min == pytest.approx(gm_ref, rel=1e-9)
     g2 = d.gamma**2
     n_r, n_s = len(Q1), H4.shape[1]
     Hs = np.block([
         [Q1 - g2 * np.eye(n_r), -Q1 @ H4, -Q1 @ Lu],
         [-H4.T @ Q1, H4.T @ Q1 @ H4 - g2 * np.eye(n_s), H4.T @ Q1 @ Lu],
-        [-Lu.T @ Q1, Lu.T @ Q1 @ H4, Lu.T @ (Q1 + Q3) @ Lu + Q2]])
+        [-Lu.T @ Q1, Lu.T @ Q1 @ H4, Quu]])
     Z = lambda a, b: np.zeros((a, b))  # noqa: E731
     n2, n3 = G2.shape[1], G3.shape[1]
     rhs = np.block([
         [Q1 @ Lw, -H1.T @ G1, Z(n_r, n2), Z(n_r, n3), Q1 @ G4],
         [-H4.T @ Q1 @ Lw, H4.T @ H1.T @ G1, Z(n_s, n2), Z(n_s, n3), -H4.T @ Q1 @ G4],
-        [-Lu.T @ (Q1 + Q3) @ Lw, Lu.T @ H1.T @ G1, -H2.T @ G2, -Lu.T @ H3.T @ G3, -Lu.T @ Q1 @ G4]])  # (3.45)
+        [u_wp, Lu.T @ H1.T @ G1, -H2.T @ G2, u_x3, -Lu.T @ Q1 @ G4]])
     sol = np.linalg.solve(Hs, rhs)
     scale = np.abs(sol).max()
     assert [c for c, _ in d.columns] == ["w_p", "x_w1", "x_w2", "x_w3", "x_w4"]
@@ -212,36 +227,6 @@ def test_multiplicative_closed_form(case):
         Hr[: n_r + n_s, : n_r + n_s] += (g2 - gg) * np.eye(n_r + n_s)
         ev = np.linalg.eigvalsh(Hr)
         assert ((np.sum(ev > 0), np.sum(ev < 0)) == (i * m, n_r + n_s)) is ok
-
-
-# ------------------------------------------------------------------------------------------ Thm 3.7
-def test_additive_closed_form(case):
-    pred, W1, W2, _, W4, W3 = case
-    (H1, G1), (H2, G2), (H3, G3), (H4, G4) = _mats(pred, [W1, W2, W3, W4])
-    Lw, Lu = pred.Lw, pred.Lu
-    Q1, Q2, Q3 = H1.T @ H1, H2.T @ H2, H3.T @ H3
-    Q4o = H4 @ H4.T
-    X = inv(inv(Q1) + Lu @ inv(Q2 + Q3) @ Lu.T)
-    gm_ref = np.sqrt(lam_max((np.eye(len(Q4o)) + Q4o) @ X))  # (3.64)
-    d = hinf_design(pred, W1, W2, uncertainty=Additive(W3, W4), gamma_ratio=1.2)
-    assert d.gamma_min == pytest.approx(gm_ref, rel=1e-9)
-    g2 = d.gamma**2
-    n_r, n_s = len(Q1), H4.shape[1]
-    Hs = np.block([
-        [Q1 - g2 * np.eye(n_r), -Q1 @ H4, -Q1 @ Lu],
-        [-H4.T @ Q1, H4.T @ Q1 @ H4 - g2 * np.eye(n_s), H4.T @ Q1 @ Lu],
-        [-Lu.T @ Q1, Lu.T @ Q1 @ H4, Lu.T @ Q1 @ Lu + Q2 + Q3]])  # (3.63)
-    Z = lambda a, b: np.zeros((a, b))  # noqa: E731
-    n2, n3 = G2.shape[1], G3.shape[1]
-    # (3.63) drops the right-hand matrix; from z3 = H3 u + Γ3 x_w3 (proof of Thm 3.7) it is:
-    rhs = np.block([
-        [Q1 @ Lw, -H1.T @ G1, Z(n_r, n2), Z(n_r, n3), Q1 @ G4],
-        [-H4.T @ Q1 @ Lw, H4.T @ H1.T @ G1, Z(n_s, n2), Z(n_s, n3), -H4.T @ Q1 @ G4],
-        [-Lu.T @ Q1 @ Lw, Lu.T @ H1.T @ G1, -H2.T @ G2, -H3.T @ G3, -Lu.T @ Q1 @ G4]])
-    sol = np.linalg.solve(Hs, rhs)
-    scale = np.abs(sol).max()
-    assert np.allclose(d.gain, sol[n_r + n_s:], atol=1e-8 * scale)
-    assert np.allclose(d.disturbance_gain, sol[: n_r + n_s], atol=1e-8 * scale)
 
 
 # ------------------------------------------------------------------------------------------ Thms 3.5, 3.6
