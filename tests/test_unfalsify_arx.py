@@ -10,16 +10,10 @@ import scipy.signal
 import unfalsify as uf
 from synthesis import DataError
 
+from _servo_arx import A_SERVO, B_SERVO, servo_arx_data  # tests/ helper
+
 # servo 1/(s(s+1)) ZOH at 10 Hz, as an ARX(2, 2) model (coefficients rounded)
-A_SERVO = [1.0, -1.904837, 0.904837]
-B_SERVO = [0.0, 0.004837, 0.004679]
-
-
-def _data(n, seed, noise=0.03):
-    rng = np.random.default_rng(seed)
-    u = np.sign(rng.standard_normal(n))
-    y = scipy.signal.lfilter(B_SERVO, A_SERVO, u) + noise * rng.standard_normal(n)
-    return u, y
+_data = servo_arx_data
 
 
 def _quiet(fn, *args, **kw):

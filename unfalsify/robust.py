@@ -357,14 +357,12 @@ def additive_channel(plant, controller) -> control.StateSpace:
 
 
 def additive_robustness(plant, controller, *, n_grid: int = 4096) -> AdditiveRobustness:
-    """Nominal stability and ``‖(I − C_y P)⁻¹ C_y‖∞`` (frequency grid) for a controller with inputs ``[r; y]``.
+    """Nominal stability and ``‖M‖∞``, ``M = (I − C_y P)⁻¹ C_y``, for a controller with inputs ``[r; y]``.
 
     Parameters
     ----------
-    plant : control.StateSpace or TransferFunction
-        Discrete plant P (``m`` inputs, ``l`` outputs).
-    controller : control.StateSpace
-        Discrete controller, inputs ``[r; y]`` (``2l``), outputs ``u`` (``m``), same sample time.
+    plant, controller
+        As for :func:`additive_channel`.
     n_grid : int
         Frequency-grid size for :func:`synthesis.peak_gain` (uniform and logarithmic grids plus
         the pole angles, peaks refined locally).  ``peak`` is ∞ when the nominal loop is unstable.
