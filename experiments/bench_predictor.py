@@ -26,6 +26,7 @@ import warnings
 
 import numpy as np
 from scipy.signal import lfilter
+from tqdm import tqdm
 
 from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor
 
@@ -65,7 +66,7 @@ def _peak_bytes(fn) -> int:
 
 def _batch(sizes, rng, repeats):
     rows = []
-    for i, j in sizes:
+    for i, j in tqdm(sizes, desc="bench-predictor: batch fits", leave=False):
         u, y = _siso_data(j + 2 * i - 1, rng)
         reps = repeats if j <= 10_000 else max(3, repeats // 2)
         t_qr = median_time(lambda: _fit(u, y, i, "qr"), repeats=reps)
@@ -98,7 +99,7 @@ def _memory(i, j, rng):
 
 def _recursive(i, js, rng, n_push, chunk):
     rows = []
-    for j in js:
+    for j in tqdm(js, desc="bench-predictor: recursive updates", leave=False):
         n0 = j + 2 * i - 1
         u, y = _siso_data(n0 + n_push + chunk * 10, rng)
         for track, window in (("gram", None), ("gram", j), ("factor", None), ("factor", j)):
