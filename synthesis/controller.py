@@ -65,6 +65,14 @@ def _column_slices(design) -> dict[str, slice]:
     return out
 
 
+def _check_design(design, *, extra: tuple = ()) -> None:
+    """Refuse anything that is not a design (HinfDesign / LqgDesign or an object with their fields)."""
+    for attr in ("gain", "columns", "weight_states", "horizon", "m", "l", "causal") + extra:
+        if not hasattr(design, attr):
+            raise DataError(f"design has no attribute {attr!r}; pass an HinfDesign or LqgDesign")
+    _column_slices(design)
+
+
 def _first_step_gains(design):
     """First ``m`` rows of ``G`` split into ``(k_r, K)``: ``u_k = k_r r_k + K ξ`` (5.4)."""
     m, l, i = design.m, design.l, design.horizon
@@ -99,6 +107,7 @@ def lti_controller(design) -> control.StateSpace:
     Built as ``ξ⁺ = A₀ ξ + E_u u + E_r r + E_y y`` with ``u`` substituted:
     ``A = A₀ + E_u K``, ``B = [E_r + E_u k_r, E_y]``, ``C = K``, ``D = [k_r, 0]``.
     """
+    _check_design(design, extra=("dt",))
     i, m, l = design.horizon, design.m, design.l
     k_r, K = _first_step_gains(design)
     nu, ny = i * m, i * l
@@ -160,10 +169,7 @@ class RecedingHorizonController:
     # -- set-up -----------------------------------------------------------------------
     @staticmethod
     def _check(design):
-        for attr in ("gain", "columns", "weight_states", "horizon", "m", "l", "causal"):
-            if not hasattr(design, attr):
-                raise DataError(f"design has no attribute {attr!r}; pass an HinfDesign or LqgDesign")
-        _column_slices(design)
+        _check_design(design)
 
     @property
     def design(self):

@@ -216,3 +216,10 @@ def test_mimo_lti_and_receding_horizon_agree_on_arbitrary_signals(law):
         rh.observe(u_rh, y_k, r_k)
         xk = Ak @ xk + Bk @ v
         np.testing.assert_allclose(rh.state, xk, rtol=1e-9, atol=1e-10 * max(1.0, np.abs(xk).max()))
+
+
+def test_lti_controller_refuses_non_designs():
+    from synthesis import lti_controller
+
+    with pytest.raises(DataError, match="HinfDesign or LqgDesign"):
+        lti_controller(object())
