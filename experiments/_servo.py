@@ -92,12 +92,14 @@ class ServoData:
 
     @property
     def n(self) -> int:
+        """Number of samples."""
         return self.u.shape[0]
 
     def first(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The first ``n`` samples ``(u, y)`` (the thesis uses one data set for every design)."""
         if n > self.n:
-            raise ValueError(f"asked for {n} samples of a data set of {self.n}")
+            raise ValueError(f"asked for {n} samples of a data set of {self.n}; generate a longer one "
+                             f"with servo_data({n}, seed={self.seed})")
         return self.u[:n], self.y[:n]
 
 

@@ -133,3 +133,11 @@ def test_step_response_metrics_on_known_loop():
     assert res.y == pytest.approx(ref, abs=1e-9)
     assert res.stable and res.steady_state_error < 1e-3
     assert res.overshoot == pytest.approx(100 * (ref.max() - 1), rel=1e-9)
+
+
+def test_servo_data_first_too_many_samples_names_the_fix():
+    data = servo_data(30, seed=2)
+    u, y = data.first(30)
+    assert u.shape == y.shape == (30,)
+    with pytest.raises(ValueError, match=r"servo_data\(31, seed=2\)"):
+        data.first(31)
