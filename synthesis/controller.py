@@ -233,11 +233,11 @@ class RecedingHorizonController:
                 parts.append(np.zeros(size))
         return np.concatenate(parts)
 
-    def _ref(self, r_k, required: bool):
+    def _ref(self, r_k, required: bool, why: str = ""):
         l = self._design.l
         if r_k is None:
             if required:
-                raise DataError("this is a causal design (Thm 3.2): pass the present reference r_k to control()")
+                raise DataError(why)
             return np.zeros(l)
         r = np.asarray(r_k, dtype=float).reshape(-1)
         if r.size != l or not np.all(np.isfinite(r)):
@@ -247,18 +247,26 @@ class RecedingHorizonController:
     def control(self, r_k=None) -> np.ndarray:
         """Steps 6–8: the control ``u_k`` (shape ``(m,)``); ``r_k`` is needed only for the causal law."""
         d = self._design
-        r = self._ref(r_k, required=d.causal)
+        r = self._ref(r_k, required=d.causal,
+                      why="this is a causal design (Thm 3.2): pass the present reference r_k to control()")
         self.plan = (np.asarray(d.gain) @ self._vector(r)).reshape(d.horizon, d.m)
         return self.plan[0].copy()
 
     def observe(self, u_k, y_k, r_k=None) -> None:
-        """Steps 9–10: record the applied ``u_k``, measured ``y_k`` and reference ``r_k``."""
+        """Steps 9–10: record the applied ``u_k``, measured ``y_k`` and reference ``r_k``.
+
+        ``r_k`` drives the W1 state through ``r_k − y_k`` (step 10), so it is required whenever
+        W1 has states; it may be omitted (taken as 0) only when it cannot matter (static W1).
+        """
         d = self._design
         u = np.asarray(u_k, dtype=float).reshape(-1)
         y = np.asarray(y_k, dtype=float).reshape(-1)
         if u.size != d.m or y.size != d.l or not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise DataError(f"u_k must be {d.m} and y_k {d.l} finite value(s)")
-        r = self._ref(r_k, required=False)
+        tracks = any(ws.drive == "e" and np.size(ws.A) for ws in d.weight_states)
+        r = self._ref(r_k, required=tracks,
+                      why="W1 has states driven by r_k − y_k (step 10 of §5.1): pass the reference r_k to "
+                          "observe() (r_k = 0 for regulation)")
         self.u_p = np.vstack([self.u_p[1:], u[None, :]])
         self.y_p = np.vstack([self.y_p[1:], y[None, :]])
         drive = {"e": r - y, "u": u, "y": y}

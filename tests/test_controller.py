@@ -168,6 +168,10 @@ def test_receding_horizon_inputs(servo):
         rh.control([1.0, 2.0])
     with pytest.raises(DataError):
         rh.observe(np.nan, 0.0, 0.0)
+    with pytest.raises(DataError, match="r_k"):  # a dynamic W1 needs r_k − y_k: omitting r_k would track 0
+        rh.observe(0.0, 0.0)
+    static = RecedingHorizonController(hinf_design(pred, 2.0, 0.5, dt=W1.dt))
+    static.observe(0.0, 1.0)  # static W1: r_k cannot matter and may be omitted
     u_past = np.arange(20.0)
     y_past = -np.arange(20.0)
     rh.reset(u_past, y_past)
