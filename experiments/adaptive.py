@@ -26,6 +26,7 @@ model-based ``γ_opt`` is about 2.25).  ``--quick``: 5 s of closed loop and ``i 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -124,7 +125,7 @@ def _window_stats(t, e, lo, hi) -> float:
 
 def run(opts) -> dict:
     """Run the §6.3 experiment; write ``adaptive.md``, figures, CSV/JSON under ``opts.out``."""
-    out = opts.out / "adaptive"
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     c = _compute(opts)
     res, ideal, model = c["res"], c["ideal"], c["model"]

@@ -15,7 +15,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Options", "COMMANDS", "main"]
+__all__ = ["Options", "COMMANDS", "main", "output_dir"]
 
 
 @dataclass(frozen=True)
@@ -52,12 +52,18 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def output_dir(out: Path, command: str) -> Path:
+    """Folder a subcommand writes into: ``<out>/<command with '-' → '_'>``."""
+    return Path(out) / command.replace("-", "_")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
     args = _parser().parse_args(argv)
     module, func, _ = COMMANDS[args.command]
     run = getattr(importlib.import_module(module), func)
-    opts = Options(quick=args.quick, json=args.json, out=args.out, seed=args.seed)
+    # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
+    opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed)
     opts.out.mkdir(parents=True, exist_ok=True)
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():

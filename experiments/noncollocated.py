@@ -31,6 +31,7 @@ designs that stabilise the true plant).
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import control as ct
 import numpy as np
@@ -217,7 +218,7 @@ def _slowest_time_constant(sys, dt: float) -> float:
 
 def run(opts) -> dict:
     """Run the §6.2 experiment; write ``noncollocated.md``, figures, CSV/JSON/NPZ under ``opts.out``."""
-    out = opts.out / "noncollocated"
+    out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     c = _compute(opts)
     P, sub, model = c["P"], c["sub"], c["model"]

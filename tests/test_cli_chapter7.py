@@ -21,6 +21,7 @@ from synthesis import fit_predictor, hinf_design
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("chapter7")
     assert main(["chapter7", "--quick", "--out", str(out)]) == 0
+    out = out / "chapter7"
     return out, json.loads((out / "chapter7.json").read_text())
 
 

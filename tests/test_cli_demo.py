@@ -12,6 +12,7 @@ from experiments.cli import main
 def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
+    tmp_path = tmp_path / "demo"  # the CLI writes into <out>/demo/
     assert "demo.md" in printed and "Design 1" in printed and "δ" in printed
     md = (tmp_path / "demo.md").read_text()
     assert "Table 5.1" in md and "§7.4" in md

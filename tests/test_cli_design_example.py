@@ -31,6 +31,7 @@ from synthesis.predictor import Predictor
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("design_example")
     assert main(["design-example", "--quick", "--out", str(out)]) == 0
+    out = out / "design_example"
     return out, json.loads((out / "design_example.json").read_text())
 
 

@@ -25,7 +25,7 @@ def test_bench_unfalsify_quick(tmp_path):
 
 def test_cli_registers_bench(tmp_path):
     assert main(["bench-unfalsify", "--quick", "--out", str(tmp_path)]) == 0
-    assert (tmp_path / "bench_unfalsify.json").exists()
+    assert (tmp_path / "bench_unfalsify" / "bench_unfalsify.json").exists()
 
 
 def test_json_flag_prints_only_json(tmp_path, capsys):
@@ -33,5 +33,5 @@ def test_json_flag_prints_only_json(tmp_path, capsys):
     assert main(["bench-unfalsify", "--quick", "--json", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr()
     data = json.loads(out.out)
-    assert data == json.loads((tmp_path / "bench_unfalsify.json").read_text())
+    assert data == json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())
     assert "Chapter 7 unfalsification LMIs" in out.err  # the report text went to stderr instead
