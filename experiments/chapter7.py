@@ -51,7 +51,7 @@ from ._servo import (  # noqa: E402
     step_response,
 )
 from .plants import SERVO_DT, servo  # noqa: E402
-from .report import Report, save_figure, write_csv, write_json  # noqa: E402
+from .report import Report, finish_report, save_figure, write_csv  # noqa: E402
 
 __all__ = ["run", "Config", "worst_phase_allpass", "additive_channel_response"]
 
@@ -321,17 +321,8 @@ def run(opts) -> dict:
     rep.figure(out / "chapter7_steps.png", "Step responses of the nominal and robust loops with and without P_Δ")
     summary["step_metrics"] = {f"{k[0]} / {k[1]}": v.metrics() for k, v in steps.items()}
 
-    if warn_log:
-        rep.section("Warnings raised (expected)")
-        rep.text("\n".join(f"- {w}" for w in warn_log))
-    summary["warnings"] = warn_log
     summary["delta"] = delta
-    summary["seconds"] = time.perf_counter() - t_start
-    summary["figures"] = [Path(f).name for f in figs]
-    rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
-    summary["report"] = str(rep.write(out / "chapter7.md"))
-    write_json(out / "chapter7.json", summary)
-    return summary
+    return finish_report(rep, summary, out, "chapter7", warn_log=warn_log, figures=figs, t_start=t_start)
 
 
 def _fig_small_gain(plant, controllers: dict, delta: float, out: Path) -> str:

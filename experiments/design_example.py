@@ -39,7 +39,7 @@ from ._servo import (  # noqa: E402
     step_response,
 )
 from .plants import SERVO_DT, servo  # noqa: E402
-from .report import Report, save_figure, write_csv, write_json  # noqa: E402
+from .report import Report, finish_report, save_figure, write_csv  # noqa: E402
 
 __all__ = ["run", "Config", "NOMINAL_I", "NOMINAL_J", "NOMINAL_N"]
 
@@ -303,17 +303,9 @@ def run(opts) -> dict:
     rep.table(headers, rows)
     write_csv(out / "step_metrics.csv", [h.replace("\\|", "|") for h in headers], rows)
     summary["step_metrics"] = {k: v.metrics() for k, v in all_steps.items()}
-    if warn_log:
-        rep.section("Warnings raised during the sweeps (expected)")
-        rep.text("\n".join(f"- {w}" for w in warn_log))
-    summary["warnings"] = warn_log
-    summary["seconds"] = time.perf_counter() - t_start
-    summary["figures"] = [Path(f).name for f in figures]
-    rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
-    summary["report"] = str(rep.write(out / "design_example.md"))
-    write_json(out / "design_example.json", summary)
     _PREDICTORS.clear()
-    return summary
+    return finish_report(rep, summary, out, "design_example", warn_log=warn_log, figures=figures, t_start=t_start,
+                         warnings_heading="Warnings raised during the sweeps (expected)")
 
 
 # ---------------------------------------------------------------------------------------------

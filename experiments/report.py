@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Iterable, Sequence
 
-__all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time"]
+__all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time", "finish_report"]
 
 
 def format_table(headers: Sequence[str], rows: Iterable[Sequence], floatfmt: str = ".4g") -> str:
@@ -92,3 +92,23 @@ class Report:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("\n".join(self.parts))
         return path
+
+
+def finish_report(rep: Report, summary: dict, out: Path, name: str, *, warn_log=(), figures=(),
+                  t_start: float | None = None, warnings_heading: str = "Warnings raised (expected)") -> dict:
+    """Close a run: list the warnings, record run time and figures, write ``<name>.md`` and ``<name>.json``.
+
+    Returns ``summary`` with ``warnings``, ``seconds`` (if ``t_start``), ``figures`` and ``report`` filled in.
+    """
+    warn_log = list(warn_log)
+    if warn_log:
+        rep.section(warnings_heading)
+        rep.text("\n".join(f"- {w}" for w in warn_log))
+    summary["warnings"] = warn_log
+    if t_start is not None:
+        summary["seconds"] = time.perf_counter() - t_start
+        rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
+    summary["figures"] = [Path(f).name for f in figures]
+    summary["report"] = str(rep.write(Path(out) / f"{name}.md"))
+    write_json(Path(out) / f"{name}.json", summary)
+    return summary

@@ -211,7 +211,7 @@ def test_mimo_lti_and_receding_horizon_agree_on_arbitrary_signals(law):
     Ak, Bk, Ck, Dk = (np.asarray(M) for M in (K.A, K.B, K.C, K.D))
     rh = RecedingHorizonController(d)
     xk = np.zeros(K.nstates)
-    for k in range(40):
+    for _ in range(40):
         r_k, y_k = rng.standard_normal(l), rng.standard_normal(l)
         v = np.r_[r_k, y_k]
         u_lti = Ck @ xk + Dk @ v
