@@ -357,7 +357,9 @@ def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, rcond: float, 
             f"only j = {j} columns for {n_reg} regressors: collect at least {n_reg + 2 * i - 1} samples"
             if j < n_reg
             else "the outputs are (nearly) noise free, i.e. an exact function of the past data "
-            f"(plant order < i·l), or rcond = {rcond:.3g} is too large"
+            "(plant order < i·l), or the channels are badly scaled (singular values below rcond times the "
+            "largest are dropped: normalise each u and y channel to unit rms before fitting, or use "
+            f"method='qr', whose default tolerance is eps-relative), or rcond = {rcond:.3g} is too large"
         )
         warnings.warn(
             f"regressor [W_p; U_f] has numerical rank {q} < {n_reg} although the input is persistently "

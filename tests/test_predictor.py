@@ -226,6 +226,22 @@ def test_default_rcond_gram_methods_are_looser():
     assert synthesis.default_rcond("recursive", 100, 1000) == synthesis.default_rcond("cholesky", 100, 1000)
 
 
+def test_badly_scaled_output_warns_and_names_the_fix():
+    # y in a tiny unit (e.g. metres for a micro-positioner): the Gram route's √eps-relative tolerance
+    # drops the y rows, so the cholesky predictor is wrong — it must say so and name the fix;
+    # normalised data (or method="qr") gives the right predictor.
+    u, y = noisy_mimo(seed=4, n=600)
+    scale = 1e-7
+    with pytest.warns(PersistenceWarning, match="badly scaled.*unit rms"):
+        p = fit_predictor(u, scale * y, 4)
+    ref = fit_predictor(u, y, 4)
+    assert p.rank < p.n_regressors == ref.rank
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PersistenceWarning)
+        q = fit_predictor(u, scale * y, 4, method="qr")
+    assert rel(q.Lu / scale, ref.Lu) < 1e-6
+
+
 def test_explicit_rcond_truncates():
     u, y = noisy_mimo(seed=9, n=300)
     with pytest.warns(PersistenceWarning, match="rcond = 0.5 is too large"):
