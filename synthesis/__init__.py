@@ -16,6 +16,7 @@ from .minimax import (
     InfeasibleGammaError,
     MinimaxSolution,
     NearGammaMinWarning,
+    feasibility_threshold,
     minimax_gamma_min,
     solve_minimax,
 )
@@ -48,6 +49,7 @@ __all__ = [
     "InfeasibleGammaError",
     "MinimaxSolution",
     "NearGammaMinWarning",
+    "feasibility_threshold",
     "minimax_gamma_min",
     "solve_minimax",
     "RecedingHorizonController",

@@ -320,12 +320,9 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     kind = type(uncertainty) if unc else None
     pm = _build_map(Lw, Lu, i, m, l, W1s, W2s, kind, unc, bool(causal))
     if gamma is None:
-        gamma_ratio = check_level(gamma_ratio, "gamma_ratio")
-        g0 = minimax_gamma_min(pm.Md, pm.Mu)
-        gamma = gamma_ratio * g0 if g0 > 0 else np.inf
-    elif callable(gamma):
-        gamma = _real(gamma(minimax_gamma_min(pm.Md, pm.Mu)), "gamma returned by the gamma policy")
-    else:
+        ratio = check_level(gamma_ratio, "gamma_ratio")
+        gamma = lambda g0: ratio * g0 if g0 > 0 else np.inf  # noqa: E731 - a γ policy
+    elif not callable(gamma):
         gamma = _real(gamma, "gamma")
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
     ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]

@@ -20,7 +20,10 @@ orthogonal projector on range(M_u).  Hence the exact threshold
     γ_min = ‖(I − P_u) M_d‖₂,
 
 computed here from a QR factorisation of ``M_u`` and one SVD (no bisection, no
-explicit normal equations).
+explicit normal equations).  The same factorisation decides feasibility and gives the
+gains: a level is accepted only above :func:`feasibility_threshold` (γ_min plus the
+accuracy of its computation), so ``solve_minimax(..., gamma=minimax_gamma_min(...))``
+always raises instead of returning gains from a numerically singular saddle.
 
 Saddle point (3.31).  ``[d_wc; u_opt] = −Hess⁻¹ [M_d M_u]ᵀ M_x x``, evaluated stably:
 with ``M_u = Q R`` and ``M̃ = (I − QQᵀ)M``,
@@ -44,6 +47,7 @@ __all__ = [
     "MinimaxSolution",
     "NearGammaMinWarning",
     "NEAR_GAMMA_MIN_RATIO",
+    "feasibility_threshold",
     "minimax_gamma_min",
     "solve_minimax",
 ]
@@ -55,9 +59,11 @@ NEAR_GAMMA_MIN_RATIO = 1.03
 class InfeasibleGammaError(ValueError):
     """γ ≤ γ_min: no saddle point, the level-γ problem has no solution (3.29)."""
 
-    def __init__(self, gamma: float, gamma_min: float):
+    def __init__(self, gamma: float, gamma_min: float, threshold: float | None = None):
         self.gamma = float(gamma)
         self.gamma_min = float(gamma_min)
+        #: smallest accepted level (γ_min plus the accuracy of its computation), when known
+        self.threshold = self.gamma_min if threshold is None else float(threshold)
         super().__init__(
             f"gamma = {self.gamma:.6g} is not above gamma_min = {self.gamma_min:.6g}: the level-gamma "
             f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = "
@@ -132,32 +138,110 @@ def _project_out(Q, M):
     return M - Q @ (Q.T @ M)
 
 
+#: Safety factor of :func:`feasibility_threshold` over the first-order error estimate.
+_THRESHOLD_SAFETY = 8.0
+
+
+@dataclass(frozen=True, eq=False)
+class _Saddle:
+    """The factorisations every γ decision and every gain is computed from (computed once)."""
+
+    Q: np.ndarray
+    R: np.ndarray
+    U: np.ndarray
+    s: np.ndarray
+    Vt: np.ndarray
+    gamma_min: float
+    threshold: float
+
+
+def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
+    """Smallest level this engine accepts: ``γ_min + τ``, ``τ = 8 · max(r, c) · eps · ‖M_d‖_F``.
+
+    The computed ``γ_min`` is the largest singular value of the computed ``(I − Q Qᵀ) M_d``.
+    Householder QR, the projection and the SVD are backward stable, so the computed value is
+    the exact ``γ_min`` of maps perturbed by ``O(max(r, c) · eps)`` relative to their size
+    (``r`` rows, ``c`` columns of ``[M_d M_u]``); by Weyl's inequality it is within about
+    ``max(r, c) · eps · ‖M_d‖₂ ≤ max(r, c) · eps · ‖M_d‖_F`` of the true one.  A level closer to
+    the computed ``γ_min`` than that (times the safety factor 8) cannot be told apart from
+    ``γ_min`` itself: the saddle Hessian ``γ²I − M̃_dᵀM̃_d`` is then numerically singular and its
+    inertia (3.29) is not decided by the data, so :func:`solve_minimax` refuses it.
+
+    Parameters
+    ----------
+    Md, Mu : ndarray
+        The performance map's disturbance and control blocks.
+    gamma_min : float
+        The computed ``γ_min``.
+
+    Returns
+    -------
+    float
+        ``γ_min + τ``, i.e. ``γ_min (1 + k eps)`` with ``k = 8 max(r, c) ‖M_d‖_F / γ_min``.
+    """
+    rows, cols = Md.shape[0], Md.shape[1] + Mu.shape[1]
+    tau = _THRESHOLD_SAFETY * max(rows, cols) * np.finfo(float).eps * float(np.linalg.norm(Md))
+    return float(gamma_min + tau)
+
+
+def _saddle(Md, Mu) -> _Saddle:
+    """QR of ``M_u`` and SVD of ``(I − P_u) M_d``: γ_min and its threshold from one computation."""
+    Q, R = _qr_u(Mu)
+    if Md.shape[1]:
+        U, s, Vt = np.linalg.svd(_project_out(Q, Md), full_matrices=False)
+        gmin = float(s[0]) if s.size else 0.0
+    else:
+        U, s, Vt = np.zeros((Md.shape[0], 0)), np.zeros(0), np.zeros((0, 0))
+        gmin = 0.0
+    return _Saddle(Q=Q, R=R, U=U, s=s, Vt=Vt, gamma_min=gmin, threshold=feasibility_threshold(Md, Mu, gmin))
+
+
 def minimax_gamma_min(Md, Mu) -> float:
     """Exact threshold ``γ_min = ‖(I − P_u) M_d‖₂`` of the saddle condition (3.29).
 
-    Returns 0 when there are no disturbances.
+    Computed by the same QR and SVD as :func:`solve_minimax`, so passing the value returned
+    here back as ``gamma`` always raises :class:`InfeasibleGammaError`.  Returns 0 when there
+    are no disturbances.
     """
     Md, Mu, _ = _check_maps(Md, Mu)
-    Q, _ = _qr_u(Mu)
-    if Md.shape[1] == 0:
-        return 0.0
-    return float(np.linalg.norm(_project_out(Q, Md), 2))
+    return _saddle(Md, Mu).gamma_min
 
 
-def solve_minimax(Md, Mu, Mx, gamma: float) -> MinimaxSolution:
+def _level(gamma, sd: _Saddle) -> float:
+    """The level to use: a number, or ``gamma(γ_min)`` for a policy; checked against the threshold."""
+    if callable(gamma) and not isinstance(gamma, numbers.Real):
+        gamma = gamma(sd.gamma_min)
+        what = "gamma returned by the gamma policy"
+    else:
+        what = "gamma"
+    if isinstance(gamma, bool) or not isinstance(gamma, numbers.Real):
+        raise DataError(f"{what} must be a real number above gamma_min = {sd.gamma_min:.6g}, got {gamma!r}")
+    gamma = float(gamma)
+    if np.isnan(gamma) or not gamma > sd.threshold:
+        raise InfeasibleGammaError(gamma, sd.gamma_min, sd.threshold)
+    return gamma
+
+
+def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
     """Saddle-point gains of the game (3.31) for a level ``gamma > γ_min``.
 
     Parameters
     ----------
     Md, Mu, Mx : array_like
         Performance map ``z = M_d d + M_u u + M_x x`` (same number of rows).
-    gamma : float
-        Level; ``numpy.inf`` gives the LQ limit (``d_wc = 0``).
+    gamma : float or callable
+        Level; ``numpy.inf`` gives the LQ limit (``d_wc = 0``).  A callable is a γ policy: it
+        receives ``γ_min`` (computed once, from the same factorisation as the gains) and returns
+        the level.
 
     Raises
     ------
     InfeasibleGammaError
-        If ``gamma <= γ_min`` (the message states γ_min).
+        If ``gamma`` is not above :func:`feasibility_threshold` (``γ_min`` plus the accuracy of its
+        computation, relative ``O(max(r, c) eps)``); the message states γ_min.  ``gamma = γ_min``
+        exactly and ``np.nextafter(γ_min, inf)`` always raise.
+    DataError
+        Non-numeric ``gamma``, NaN maps, rank-deficient ``M_u``, mismatched shapes.
 
     Warns
     -----
@@ -165,30 +249,21 @@ def solve_minimax(Md, Mu, Mx, gamma: float) -> MinimaxSolution:
         If ``gamma < 1.03 γ_min`` (§5.4.4).
     """
     Md, Mu, Mx = _check_maps(Md, Mu, Mx)
-    Q, R = _qr_u(Mu)
-    Mdt = _project_out(Q, Md)
-    Mxt = _project_out(Q, Mx)
-    if Md.shape[1]:
-        U, s, Vt = np.linalg.svd(Mdt, full_matrices=False)
-        gmin = float(s[0]) if s.size else 0.0
-    else:
-        U, s, Vt = np.zeros((Md.shape[0], 0)), np.zeros(0), np.zeros((0, 0))
-        gmin = 0.0
-    if isinstance(gamma, bool) or not isinstance(gamma, numbers.Real):
-        raise DataError(f"gamma must be a real number above gamma_min = {gmin:.6g}, got {gamma!r}")
-    gamma = float(gamma)
-    if not (gamma > gmin) or np.isnan(gamma):
-        raise InfeasibleGammaError(gamma, gmin)
+    sd = _saddle(Md, Mu)
+    gamma = _level(gamma, sd)
+    gmin = sd.gamma_min
     if gamma < NEAR_GAMMA_MIN_RATIO * gmin:
         warnings.warn(
             f"gamma = {gamma:.6g} is within 3% of gamma_min = {gmin:.6g}: the gains are close to singular and "
             "the loop went unstable there in §5.4.4; prefer gamma >= 1.1 gamma_min",
             NearGammaMinWarning, stacklevel=3)
+    Mxt = _project_out(sd.Q, Mx)
     if np.isinf(gamma) or Md.shape[1] == 0:
         d_gain = np.zeros((Md.shape[1], Mx.shape[1]))
     else:
         # (γ²I − VS²Vᵀ)⁻¹ V S Uᵀ = V diag(s / (γ² − s²)) Uᵀ, with γ² − s² = (γ − s)(γ + s) kept accurate.
+        s = sd.s
         coef = s / ((gamma - s) * (gamma + s))
-        d_gain = Vt.T @ (coef[:, None] * (U.T @ Mxt))
-    u_gain = -solve_triangular(R, Q.T @ (Md @ d_gain + Mx), lower=False)
+        d_gain = sd.Vt.T @ (coef[:, None] * (sd.U.T @ Mxt))
+    u_gain = -solve_triangular(sd.R, sd.Q.T @ (Md @ d_gain + Mx), lower=False)
     return MinimaxSolution(gamma=gamma, gamma_min=gmin, u_gain=u_gain, d_gain=d_gain)

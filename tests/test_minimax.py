@@ -4,8 +4,11 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from synthesis import DataError, InfeasibleGammaError, NearGammaMinWarning, minimax_gamma_min, solve_minimax
+from synthesis import (DataError, InfeasibleGammaError, NearGammaMinWarning, feasibility_threshold,
+                       minimax_gamma_min, solve_minimax)
 
 
 def _maps(seed, nz=30, nd=8, nu=6, nx=5):
@@ -74,7 +77,8 @@ def test_infeasible_gamma_and_near_warning():
     gm = minimax_gamma_min(Md, Mu)
     with pytest.raises(InfeasibleGammaError, match=f"{gm:.6g}") as err:
         solve_minimax(Md, Mu, Mx, gm)
-    assert err.value.gamma_min == pytest.approx(gm)
+    assert err.value.gamma_min == gm  # the same computation, not an approximation of it
+    assert gm < err.value.threshold < gm * (1 + 1e-10)
     assert isinstance(err.value, ValueError)
     with pytest.raises(InfeasibleGammaError):
         solve_minimax(Md, Mu, Mx, 0.5 * gm)
@@ -127,3 +131,75 @@ def test_maps_with_different_row_counts_are_refused():
         solve_minimax(np.ones((2, 1)), np.eye(2), np.ones((3, 2)), 5.0)
     # a 1-D M_d of the right length is one disturbance column
     assert minimax_gamma_min(np.array([0.0, 0.0, 2.0]), np.eye(3)[:, :2]) == pytest.approx(2.0)
+
+
+def _random_map(seed, nz, nd, nu, nx, scale):
+    """A random performance map; ``scale`` spreads the column norms over many decades."""
+    rng = np.random.default_rng(seed)
+    Md, Mu, Mx = (rng.standard_normal((nz, k)) for k in (nd, nu, nx))
+    Md = Md * np.logspace(0, scale, nd)[None, :]
+    Mu = Mu * np.logspace(0, -scale, nu)[None, :]
+    return Md, Mu, Mx
+
+
+_maps_strategy = st.tuples(
+    st.integers(0, 2**32 - 1),       # seed
+    st.integers(1, 12),              # extra rows over nu (M_u must have full column rank)
+    st.integers(1, 10),              # nd
+    st.integers(1, 10),              # nu
+    st.integers(1, 6),               # nx
+    st.floats(0.0, 4.0),             # decades of column scaling
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(_maps_strategy)
+def test_gamma_min_and_next_float_are_refused(args):
+    """γ = γ_min and γ = nextafter(γ_min, ∞) are infeasible, whatever the map (the bug: one ulp apart)."""
+    seed, extra, nd, nu, nx, scale = args
+    Md, Mu, Mx = _random_map(seed, nu + extra, nd, nu, nx, scale)
+    gm = minimax_gamma_min(Md, Mu)
+    for g in (gm, np.nextafter(gm, np.inf), 0.5 * gm):
+        with pytest.raises(InfeasibleGammaError) as err:
+            solve_minimax(Md, Mu, Mx, g)
+        assert err.value.gamma_min == gm
+    # the policy route decides with the same numbers: a policy returning γ_min is refused too
+    with pytest.raises(InfeasibleGammaError):
+        solve_minimax(Md, Mu, Mx, lambda g0: g0)
+
+
+@settings(max_examples=150, deadline=None)
+@given(_maps_strategy)
+def test_accepted_levels_have_a_true_saddle(args):
+    """Any accepted γ just above the threshold gives gains whose Hessian has the saddle inertia (3.29):
+    an independent eigenvalue check of γ²I − M̃_dᵀM̃_d on the explicit projection, no singular solve."""
+    seed, extra, nd, nu, nx, scale = args
+    Md, Mu, Mx = _random_map(seed, nu + extra, nd, nu, nx, scale)
+    gm = minimax_gamma_min(Md, Mu)
+    thr = feasibility_threshold(Md, Mu, gm)
+    g = np.nextafter(thr, np.inf) * (1 + 1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NearGammaMinWarning)
+        sol = solve_minimax(Md, Mu, Mx, g)
+    assert np.all(np.isfinite(sol.u_gain)) and np.all(np.isfinite(sol.d_gain))
+    # independent route: projector by lstsq, not QR; smallest eigenvalue of the Schur complement
+    P = Mu @ np.linalg.lstsq(Mu, np.eye(Mu.shape[0]), rcond=None)[0]
+    Mdt = Md - P @ Md
+    sv = np.linalg.svd(Mdt, compute_uv=False)
+    assert sv[0] < g  # γ² − σ_max² > 0: the maximisation over d is strictly concave
+    # and the gains solve the stationarity condition (3.31) of the full Hessian to working accuracy
+    H = _hessian(Md, Mu, g)
+    rhs = -np.hstack([Md, Mu]).T @ Mx
+    res = H @ np.vstack([sol.d_gain, sol.u_gain]) - rhs
+    scale_ = np.linalg.norm(H, 2) * np.linalg.norm(np.vstack([sol.d_gain, sol.u_gain]), 2) + np.linalg.norm(rhs, 2)
+    assert np.linalg.norm(res, 2) <= 1e-6 * scale_
+
+
+def test_threshold_is_relative_to_the_accuracy_of_gamma_min():
+    """τ grows with the map's size and norm and is a few hundred ulps of γ_min on a normal map."""
+    Md, Mu, _ = _maps(4)
+    gm = minimax_gamma_min(Md, Mu)
+    thr = feasibility_threshold(Md, Mu, gm)
+    k = (thr - gm) / (gm * np.finfo(float).eps)
+    assert 1 < k < 1e4
+    assert feasibility_threshold(10 * Md, Mu, 10 * gm) == pytest.approx(10 * thr, rel=1e-12)
