@@ -30,3 +30,5 @@ __all__: list[str] = [
     "closed_loop_system",
     "collect_data",
 ]
+
+from synthesis import __version__  # noqa: E402 - one distribution, one version

@@ -1,6 +1,6 @@
 """Servo design-example pieces shared by ``design-example``, ``chapter7`` and ``demo`` (thesis §5.4).
 
-* the four §5.4 weights (NOTES.md reading of the OCR'd ``0.01/5`` factors), Tustin at 10 Hz;
+* the four §5.4 weights (the OCR'd ``0.01/s`` read as ``0.01/5``: the factor that makes W1 100 at DC), Tustin at 10 Hz;
 * the one noisy open-loop data set (PRBS ±1, process noise at the plant input, sensor noise);
 * closed-loop step responses with a stability verdict taken from the closed-loop
   eigenvalues (an independent route from the time simulation) and step metrics;
@@ -59,7 +59,7 @@ PLOT_LIMIT = 2.0
 
 
 def continuous_weights() -> dict[str, control.TransferFunction]:
-    """The four continuous §5.4 weights (NOTES.md: the OCR's ``0.01/s`` reads ``0.01/5``).
+    """The four continuous §5.4 weights (the OCR's ``0.01/s`` reads ``0.01/5``: a DC-gain normalisation, not an integrator).
 
     ``W1x`` are 100 at DC and 0.2 (W11) / 0.2 (W12) at high frequency; ``W2x`` are 0.05 at
     DC and 1 at high frequency.

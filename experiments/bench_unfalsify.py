@@ -33,8 +33,8 @@ __all__ = ["run"]
 BUDGET_S = 120.0
 QUICK_BUDGET_S = 30.0
 
-#: measured reference timings from NOTES.md (same machine class, Clarabel)
-NOTES_TIMINGS = "ARX conditioned n = 20 → 0.2 s, 40 → 3.2 s, 80 → 78 s, 100 → 138 s; subspace (10, 200) → 5.9 s, (20, 400) → 97 s."
+#: earlier measurements on this 2-core machine class (Clarabel 0.11, cvxpy 1.9), for comparison
+EARLIER_TIMINGS = "ARX conditioned n = 20 → 0.2 s, 40 → 3.2 s, 80 → 78 s, 100 → 138 s; subspace (10, 200) → 5.9 s, (20, 400) → 97 s."
 
 
 def _series(quick: bool) -> list[dict]:
@@ -182,7 +182,7 @@ def run(opts) -> dict:
         f"{os.cpu_count()} CPU(s) visible, shared."
         + (" **Quick mode: tiny sizes, numbers not meaningful.**" if opts.quick else "")
     )
-    rep.text(f"Reference timings from NOTES.md: {NOTES_TIMINGS}")
+    rep.text(f"Earlier measurements on the same machine class (Clarabel): {EARLIER_TIMINGS}")
     headers = ["series", "size", "status", "δ", "δ_cert", "viol", "wall [s]", "solver [s]", "iters", "cond T(u)"]
     table_rows = []
     for s in results:

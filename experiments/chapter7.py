@@ -61,7 +61,7 @@ class Config:
     """Problem sizes (full run, or ``--quick``)."""
 
     arx_sizes: tuple = (40, 60)  # conditioned form (n = 80: 78 s alone, minutes on a loaded machine)
-    arx_thesis_sizes: tuple = (40,)  # literal §7.2.2 LMI (301 s at n = 80: NOTES.md)
+    arx_thesis_sizes: tuple = (40,)  # literal §7.2.2 LMI (measured 301 s at n = 80 with Clarabel)
     na: int = 2
     nb: int = 2
     horizon: int = 15

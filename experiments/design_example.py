@@ -152,7 +152,7 @@ def run(opts) -> dict:
         f"Data: one open-loop experiment of {data.n} samples (PRBS ±1, unity power; white Gaussian process "
         f"noise σ = {data.sigma_process} at the plant input and sensor noise σ = {data.sigma_sensor}; "
         f"seed {opts.seed}). Each design uses its first n = 2i + j − 1 samples. Nominal design i = {NOMINAL_I}, "
-        f"j = {NOMINAL_J}, γ = 1.1 γ_min, W1 = W11, W2 = W21 (weights as corrected in NOTES.md, Tustin at 10 Hz). "
+        f"j = {NOMINAL_J}, γ = 1.1 γ_min, W1 = W11, W2 = W21 (the OCR's `0.01/s` read as `0.01/5`, Tustin at 10 Hz). "
         "Closed-loop step responses are noise free; a loop is marked unstable when the spectral radius of "
         "its closed-loop state matrix is ≥ 1." + (" **Quick mode: reduced sweeps.**" if opts.quick else ""))
     summary: dict = {"seed": opts.seed, "quick": bool(opts.quick), "n_data": data.n}

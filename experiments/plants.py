@@ -76,7 +76,7 @@ class ThreeDiskParameters:
 
 
 THREE_DISK = ThreeDiskParameters()
-"""The §6.1 parameter values (see NOTES.md)."""
+"""The §6.1 parameter values (thesis §6.1: k, α and the zero/pole damping ratios and frequencies in rad/s)."""
 
 
 def servo(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:

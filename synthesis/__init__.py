@@ -4,6 +4,9 @@ Subspace predictor (Ch. 2), finite-horizon minimax H∞/LQG laws (Ch. 3–4),
 LTI / receding-horizon / adaptive implementations (Ch. 5) and model-based
 comparators.
 """
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _version
+
 from ._validation import DataError
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
@@ -84,3 +87,8 @@ __all__ = [
     "is_zero_weight",
     "NEAR_GAMMA_MIN_RATIO",
 ]
+
+try:
+    __version__ = _version("subspace-hinf")
+except _PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"

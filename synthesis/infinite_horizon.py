@@ -4,7 +4,7 @@ Problem (3.1): find a discrete LTI ``K`` (error feedback ``u = K e``, ``e = r �
 stabilises ``P`` and minimises ``‖[W1 S; W2 K S]‖∞`` with ``S = (I + P K)⁻¹``.
 
 python-control's ``hinfsyn`` (SLICOT SB10AD) is continuous-time only and silently wrong
-on discrete plants (NOTES.md).  Here the discrete generalized plant is mapped to
+on discrete plants (it returns a controller with dt = 0 and a meaningless γ).  Here the discrete generalized plant is mapped to
 continuous time by the bilinear transform ``z = (a + s)/(a − s)``, ``a = 2/dt``, which maps
 the unit circle onto the imaginary axis and therefore preserves the H∞ norm of every
 closed loop; SB10AD builds the central controller for a fixed level (``job=4``), the

@@ -1,7 +1,7 @@
 """``python -m experiments design-example --quick``: files, Table 5.1 against the thesis, second routes.
 
 Data seed 0 (the CLI default).  Reference values: thesis Table 5.1 (γ_min 0.880 / 1.493 / 1.347)
-and NOTES.md (model-based γ_min with the exact Markov Toeplitz matrix of (5.6) in place of
+and an exact-model route (model-based γ_min with the exact Markov Toeplitz matrix of (5.6) in place of
 ``L_u``: 0.874 / 1.493 / 1.361).
 """
 from __future__ import annotations
@@ -83,7 +83,7 @@ def test_table_5_1_close_to_model_based_second_route(quick_run):
     W = design_weights()
     for name, (w1, w2), notes in zip(DESIGNS, DESIGNS.values(), (0.874, 1.493, 1.361)):
         g_exact = hinf_design(exact, W[w1], W[w2]).gamma_min
-        assert g_exact == pytest.approx(notes, abs=1.5e-3)  # NOTES.md
+        assert g_exact == pytest.approx(notes, abs=1.5e-3)  # measured earlier with the exact Markov Toeplitz matrix
         assert summary["table_5_1"][name]["gamma_min"] == pytest.approx(g_exact, rel=0.03)
 
 

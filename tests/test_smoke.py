@@ -38,3 +38,12 @@ def test_every_public_module_name_is_reexported():
         mod = importlib.import_module(f"synthesis.{info.name}")
         missing = sorted(set(getattr(mod, "__all__", ())) - set(synthesis.__all__))
         assert not missing, f"synthesis.{info.name}: {missing}"
+
+
+def test_versions_come_from_the_installed_distribution():
+    from importlib.metadata import version
+
+    v = version("subspace-hinf")
+    assert v and v[0].isdigit()
+    for pkg in (synthesis, unfalsify, experiments):
+        assert pkg.__version__ == v, pkg.__name__

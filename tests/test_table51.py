@@ -1,13 +1,13 @@
 """Table 5.1 (§5.4): γ_min of Designs 1–3 on the servo 1/(s(s+1)) at 10 Hz.
 
-Data as in §5.4 / NOTES.md: PRBS ±1 (``scipy.signal.max_len_seq``, 11 bits, seeded start state),
+Data as in §5.4: PRBS ±1 (``scipy.signal.max_len_seq``, 11 bits, seeded start state),
 white Gaussian process noise σ = 0.05 at the plant input and sensor noise σ = 0.05,
-i = 20, j = 1000, n = 2i + j − 1 = 1039.  Weights (NOTES.md erratum), Tustin at 10 Hz.
+i = 20, j = 1000, n = 2i + j − 1 = 1039.  Weights with the OCR's 0.01/s read as 0.01/5, Tustin at 10 Hz.
 
 Two routes: (1) the predictor fitted from noisy data, γ_min within 3 % of the thesis's
 0.880 / 1.493 / 1.347 (SEED = 3: −0.9 %, −0.9 %, −0.9 %; across seeds 0–9 the deviations range over
 [−2.0, +0.7] %, [−1.4, +1.2] %, [−3.0, +6.1] %, so Design 3 is the most data-sensitive);
-(2) the exact plant Markov Toeplitz matrix in place of L_u: 0.874 / 1.493 / 1.361 (NOTES.md).
+(2) the exact plant Markov Toeplitz matrix in place of L_u: 0.874 / 1.493 / 1.361 (computed with the exact (5.6) Markov parameters).
 """
 import control
 import numpy as np

@@ -116,7 +116,7 @@ def test_ill_conditioned_input_warns_and_well_conditioned_does_not():
 
 
 def test_noisy_gain_grows_with_n():
-    # NOTES: for noisy data the minimal gain grows with n (noise is not a bounded causal Δ)
+    # for noisy data the minimal gain grows with n (noise is not a bounded causal Δ)
     rng = np.random.default_rng(8)
     u = np.sign(rng.standard_normal(60))
     y = scipy.signal.lfilter([0, 0.00484, 0.00468], [1, -1.905, 0.905], u) + 0.03 * rng.standard_normal(60)

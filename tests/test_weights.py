@@ -27,7 +27,7 @@ def test_tustin_matches_bilinear_frequency_map():
         z = np.exp(1j * w * DT)
         wc = 2 / DT * np.tan(w * DT / 2)
         assert np.isclose(Wd(z), Wc(1j * wc), rtol=1e-9)
-    # DC gain 100 and Nyquist gain 0.2 (NOTES: W1 is 100 at DC, 0.2 at high frequency)
+    # DC gain 100 and Nyquist gain 0.2 (W1 is 100 at DC, 0.2 at high frequency)
     assert np.isclose(Wd(1.0), 100.0, rtol=1e-9)
     assert np.isclose(Wd(-1.0), 0.2, rtol=1e-9)
 

@@ -47,3 +47,5 @@ __all__ = [
     "additive_weight_fixed_point",
     "robust_design_from_data",
 ]
+
+from synthesis import __version__  # noqa: E402 - one distribution, one version

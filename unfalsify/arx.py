@@ -20,7 +20,8 @@ Two cvxpy formulations of the same program:
     trusted in the near-null directions of ``T(u)`` -- see the result's ``certificate``.
 
 The tempting substitution ``h = T(u)⁻¹(e − ξ)`` is not offered: it inverts ``T(u)`` and is
-wrong by orders of magnitude for n ≥ 40 (NOTES.md).
+wrong by orders of magnitude for n ≥ 40 (measured: Clarabel δ = 1.31 instead of 0.0861 at n = 80,
+SCS δ = 6.3 instead of 0.170 at n = 40).
 """
 from __future__ import annotations
 
