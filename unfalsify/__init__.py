@@ -10,9 +10,16 @@ from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .model import predictor_model
+from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, step_metrics
 from .robust import (
     AdditiveRobustness,
+    DesignSearch,
+    FewDataWarning,
+    NotCertifiedError,
+    NotCertifiedWarning,
     RobustDesignResult,
+    SearchRecord,
     additive_channel,
     additive_robustness,
     additive_weight_fixed_point,
@@ -40,8 +47,19 @@ __all__ = [
     "SubspaceResult",
     "subspace_data",
     "subspace_unfalsify",
+    "predictor_model",
+    "LoopCertificate",
+    "StepMetrics",
+    "certify_loop",
+    "closed_loop_ry",
+    "step_metrics",
     "AdditiveRobustness",
+    "DesignSearch",
+    "FewDataWarning",
+    "NotCertifiedError",
+    "NotCertifiedWarning",
     "RobustDesignResult",
+    "SearchRecord",
     "additive_channel",
     "additive_robustness",
     "additive_weight_fixed_point",

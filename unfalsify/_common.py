@@ -1,6 +1,7 @@
 """Exceptions, warnings, thresholds and solver plumbing shared by the unfalsification modules."""
 from __future__ import annotations
 
+import numbers
 import time
 import warnings
 from dataclasses import dataclass
@@ -44,10 +45,9 @@ class SolverWarning(UserWarning):
 
 def check_sigma(sigma) -> float:
     """σ of ``‖ξ‖_rms ≤ σ`` (§7.2.2) as a float; raises DataError unless finite and > 0."""
-    try:
-        s = float(sigma)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"sigma must be a positive number, got {sigma!r}") from exc
+    if isinstance(sigma, bool) or not isinstance(sigma, numbers.Real):
+        raise DataError(f"sigma must be a positive real number (the admissible rms noise level), got {sigma!r}")
+    s = float(sigma)
     if not np.isfinite(s) or s <= 0.0:
         raise DataError(
             f"sigma (the admissible rms noise level) must be finite and > 0, got {sigma!r}; "

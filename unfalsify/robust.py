@@ -42,6 +42,8 @@ against the finite-horizon promise ``γ/c = 3.4``.
 """
 from __future__ import annotations
 
+import itertools
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -51,12 +53,19 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, peak_gain
-from synthesis._validation import DataError
+from synthesis._validation import DataError, check_horizon
 
-from ._common import SolverWarning, UnfalsificationError
-from .subspace import SubspaceResult, subspace_unfalsify
+from ._common import SolverWarning, UnfalsificationError, check_sigma
+from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop
+from .model import predictor_model
+from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 
 __all__ = [
+    "DesignSearch",
+    "FewDataWarning",
+    "NotCertifiedError",
+    "NotCertifiedWarning",
+    "SearchRecord",
     "RobustDesignResult",
     "robust_design_from_data",
     "additive_weight_fixed_point",
@@ -66,32 +75,118 @@ __all__ = [
 ]
 
 
+class NotCertifiedWarning(UserWarning):
+    """The §7.4 pipeline could not certify the loop it returns (the reason is in the message)."""
+
+
+class NotCertifiedError(UnfalsificationError):
+    """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""
+
+
+class FewDataWarning(UserWarning):
+    """The (7.5) window has few columns for the predictor it estimates: δ is then optimistic."""
+
+
+@dataclass(frozen=True)
+class DesignSearch:
+    """The design family :func:`robust_design_from_data` searches when its first design does not certify.
+
+    Candidates are tried in order of increasing departure from the requested design (the sum
+    of the option indices below, the requested values first), and the first that certifies
+    (:func:`unfalsify.certify_loop`: nominal stability on P̂, proven small gain, performance
+    floor) is returned.
+
+    Attributes
+    ----------
+    gamma_ratios : tuple of float
+        Levels ``γ = ratio · γ_min_a`` (larger: less aggressive, closer to the LQ law).
+    w3_factors : tuple of float
+        Multipliers of the fixed-point W3 gain ``c`` (a larger ``W3 = cI`` penalises ``u`` in the
+        additive channel and widens the finite-horizon coverage ``c/γ``).
+    causal : tuple of bool
+        Strictly causal (Thm 3.1 family) and causal (Thm 3.2 family) laws.
+    horizons : tuple of int
+        Further horizons ``i`` (each needs a predictor: ``predictor_for(i)``, or a least-squares
+        fit on the given data when the pipeline estimates the predictor itself).
+    """
+
+    gamma_ratios: tuple = (1.1, 1.5, 2.0, 4.0, 10.0)
+    w3_factors: tuple = (1.0, 3.0, 10.0, 30.0)
+    causal: tuple = (False, True)
+    horizons: tuple = ()
+
+
+@dataclass(frozen=True)
+class SearchRecord:
+    """One design tried by the search: its options, level and certificate (or why it could not be built)."""
+
+    horizon: int
+    causal: bool
+    gamma_ratio: float
+    w3_gain: float
+    gamma: float
+    gamma_min: float
+    certificate: LoopCertificate | None
+    error: str = ""
+    reference_certificate: LoopCertificate | None = None
+
+    @property
+    def certified(self) -> bool:
+        """Certified on P̂ (and on P̂_ref when there is one)."""
+        return bool(self.certificate is not None and _both_certified(self.certificate, self.reference_certificate))
+
+    @property
+    def reason(self) -> str:
+        """Why not certified (``''`` when it is)."""
+        if self.error or self.certificate is None:
+            return self.error
+        return _joint_reason(self.certificate, self.reference_certificate)
+
+
 @dataclass(frozen=True, eq=False)
 class RobustDesignResult:
-    """§7.4 pipeline result.
+    """§7.4 pipeline result, with the certificate of the loop it ships.
 
     Attributes
     ----------
     unfalsification : SubspaceResult
         The (7.5) solution that produced δ.
     design : synthesis.HinfDesign
-        Theorem 3.7 design with ``uncertainty = Additive(W3 = cI, W4 = I)`` (the nominal
-        Theorem 3.1 design, ``uncertainty=None``, when δ = 0).
+        The design returned: the first certified one of the search, or the requested design
+        when none certifies (then ``certified`` is False and ``reason`` says why).
     delta : float
-        Unfalsified δ used by the design: the solver's δ, or the larger certified δ
-        (``unfalsification.certificate.delta_certified``) when the certificate fails.
+        Unfalsified δ: the solver's δ, or the larger certified δ
+        (``unfalsification.certificate.delta_certified``) when its certificate fails.
     w3_gain : float
-        ``c`` (``W3 = c I``).
+        ``c`` (``W3 = c I``) of the returned design.
     w3_rule : str
-        ``"small-gain"`` (``c = (1+margin) δ γ(c)``) or ``"thesis"`` (``c = 1/δ``).
+        ``"small-gain"`` (``c = (1+margin) δ γ(c)``, times the search's factor) or ``"thesis"`` (``c = 1/δ``).
     margin : float
+        Relative margin, both of the W3 rule and of the loop certificate.
     gamma, gamma_min_a : float
         Level used and (3.64) at ``W3 = c``.
     gamma_min_nominal : float
         (3.8) for the same predictor and ``W1, W2`` without uncertainty.
     covered_delta : float
-        ``c/γ``: the additive ``‖P_Δ‖∞`` the small-gain argument covers (≥ δ for the
-        small-gain rule; for the thesis rule it is ``1/(γδ)``).
+        ``c/γ``: what Theorem 3.7's *finite-horizon* argument covers.  Not a statement about
+        the LTI loop; :attr:`certified` is.
+    model : control.StateSpace
+        The data-based nominal model P̂ (:func:`unfalsify.predictor_model` of the predictor δ
+        was computed for) the loop is certified on.
+    certificate : LoopCertificate
+        Verdict on the returned loop ``(P̂, K)``.
+    search : tuple of SearchRecord
+        Every design tried, in order (the first is the requested design).
+    reference_model : control.StateSpace or None
+        A second data-based model ``P̂_ref`` (the predictor model at ``reference_horizon``,
+        default 2i): the same certificate must hold on it too.  A short horizon gives a coarse
+        ARX model whose own error can exceed δ near the peak of ``|K(I+P̂K)⁻¹|``; a longer one
+        exposes that error.  None when no reference predictor could be had (see
+        ``reference_note``).
+    reference_certificate : LoopCertificate or None
+        The verdict on ``(P̂_ref, K)``.
+    reference_note : str
+        Why there is no reference model (``''`` when there is one).
     """
 
     unfalsification: SubspaceResult
@@ -104,6 +199,12 @@ class RobustDesignResult:
     gamma_min_a: float
     gamma_min_nominal: float
     covered_delta: float
+    model: control.StateSpace
+    certificate: LoopCertificate
+    search: tuple
+    reference_model: control.StateSpace | None = None
+    reference_certificate: LoopCertificate | None = None
+    reference_note: str = ""
 
     @property
     def controller(self) -> control.StateSpace:
@@ -111,21 +212,50 @@ class RobustDesignResult:
         return self.design.controller
 
     @property
+    def certified(self) -> bool:
+        """The returned loop is certified on P̂ and on P̂_ref (stable, proven small gain, performance floor)."""
+        return _both_certified(self.certificate, self.reference_certificate)
+
+    @property
+    def reason(self) -> str:
+        """Why the loop is not certified (``''`` when it is)."""
+        return _joint_reason(self.certificate, self.reference_certificate)
+
+    @property
+    def small_gain(self) -> float:
+        """``δ · ‖K(I + P̂K)⁻¹‖∞`` with the proven upper bound of the norm (the larger of P̂ and P̂_ref)."""
+        ref = self.reference_certificate
+        return max(self.certificate.small_gain, ref.small_gain if ref is not None else 0.0)
+
+    @property
     def covers_delta(self) -> bool:
-        """True when ``covered_delta >= delta``."""
-        return bool(self.covered_delta >= self.delta)
+        """Same as :attr:`certified`: δ is covered only when the implemented loop is certified."""
+        return self.certified
 
 
-def _gamma_of(pred, W1, W2, causal: bool, gamma_ratio: float, l: int):
+def _both_certified(cert: LoopCertificate, ref: LoopCertificate | None) -> bool:
+    return bool(cert.certified and (ref is None or ref.certified))
+
+
+def _joint_reason(cert: LoopCertificate, ref: LoopCertificate | None) -> str:
+    if not cert.certified:
+        return cert.reason
+    if ref is not None and not ref.certified:
+        return f"on the reference model P̂_ref: {ref.reason}"
+    return ""
+
+
+def _gamma_of(pred, W1, W2, causal: bool, gamma_ratio: float, l: int, dt=None):
     def g(c: float) -> float:
         unc = Additive(float(c) * np.eye(pred.m), np.eye(l))
-        return gamma_ratio * synthesis.gamma_min(pred, W1, W2, causal=causal, uncertainty=unc)
+        return gamma_ratio * synthesis.gamma_min(pred, W1, W2, causal=causal, uncertainty=unc, dt=dt)
 
     return g
 
 
 def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: float = 1.1, margin: float = 0.1,
-                                causal: bool = False, xtol: float = 1e-10, max_doublings: int = 80) -> float:
+                                causal: bool = False, xtol: float = 1e-10, max_doublings: int = 80,
+                                dt=None) -> float:
     """Smallest-found ``c`` with ``c = (1 + margin) δ γ(c)``, ``γ(c) = gamma_ratio · γ_min_a(W3 = cI, W4 = I)``.
 
     Returns 0 when ``delta == 0``.  See the module docstring for why a root exists.
@@ -138,7 +268,7 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
         raise DataError(f"gamma_ratio must be > 1 (the design needs γ > γ_min_a), got {gamma_ratio!r}")
     if delta == 0:
         return 0.0
-    g = _gamma_of(pred, W1, W2, causal, gamma_ratio, pred.l)
+    g = _gamma_of(pred, W1, W2, causal, gamma_ratio, pred.l, dt)
     k = (1.0 + margin) * delta
 
     def f(c):
@@ -157,6 +287,63 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
     return float(brentq(f, lo, hi, xtol=xtol * max(hi, 1.0), rtol=4 * np.finfo(float).eps))
 
 
+def _positive_real(value, name: str, *, above: float = 0.0, allow_equal: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or (
+            value < above if allow_equal else value <= above):
+        rel = ">=" if allow_equal else ">"
+        raise DataError(f"{name} must be a finite real number {rel} {above:g}, got {value!r}")
+    return float(value)
+
+
+def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int]:
+    """rms of ``Y_f − L [W_p; U_f]`` on the window (L: the given predictor, or least squares on the window)."""
+    A, _, Yf = subspace_data(u, y, i)
+    if predictor is not None:
+        R = Yf - np.hstack([predictor.Lw, predictor.Lu]) @ A
+    else:
+        L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+        R = Yf - L @ A
+    return float(np.linalg.norm(R) / np.sqrt(R.size)), A.shape[0], A.shape[1]
+
+
+def _check_window(u, y, i: int, sigma: float, predictor) -> None:
+    """Refuse or flag windows that make δ meaningless (before any LMI is solved)."""
+    rms, rows, j = _window_residual_rms(u, y, i, predictor)
+    if predictor is None:
+        if j <= rows:
+            raise DataError(
+                f"the window has j = {j} columns but the predictor estimated on it has {rows} regressors "
+                f"(i(2m+l) = {rows}): it interpolates the data exactly and δ = 0 says nothing. Use a longer window "
+                f"(j ≥ {3 * rows}) or pass predictor=fit_predictor(u_long, y_long, {i}) fitted on a longer record")
+        if j < 3 * rows:
+            warnings.warn(
+                f"the window has j = {j} < 3 × {rows} columns for the {rows} regressors of the predictor estimated "
+                "on it: the fit absorbs much of the noise and δ is optimistic. Use a longer window or pass a "
+                "predictor fitted on a longer record (predictor=...)", FewDataWarning, stacklevel=3)
+    if not sigma < rms:
+        raise DataError(
+            f"sigma = {sigma:.4g} is not below the residual rms {rms:.4g} of the model on this window: every "
+            "residual is explained as noise and δ = 0 says nothing about the uncertainty. σ is the noise level "
+            f"you assume; it must be below the residual rms (e.g. sigma = {0.5 * rms:.3g}, half of it)")
+
+
+def _design(pred, W1, W2, delta, *, c, gamma_ratio, causal, dt):
+    unc = Additive(c * np.eye(int(pred.m)), np.eye(int(pred.l))) if c > 0 else None
+    return synthesis.hinf_design(pred, W1, W2, gamma_ratio=gamma_ratio, causal=causal, uncertainty=unc, dt=dt)
+
+
+def _candidates(search: DesignSearch, horizon: int, causal: bool, gamma_ratio: float):
+    """Search options as (horizon, causal, gamma_ratio, w3_factor), requested first, by increasing departure."""
+    causals = [causal] + [c for c in search.causal if c != causal]
+    horizons = [horizon] + [h for h in search.horizons if h != horizon]
+    ratios = [gamma_ratio] + [g for g in search.gamma_ratios if g > gamma_ratio]
+    factors = [1.0] + [f for f in search.w3_factors if f > 1.0]
+    opts = [horizons, causals, ratios, factors]
+    idx = itertools.product(*(range(len(o)) for o in opts))
+    ordered = sorted(idx, key=lambda t: (sum(t), t))
+    return [tuple(o[k] for o, k in zip(opts, t)) for t in ordered]
+
+
 def robust_design_from_data(
     u,
     y,
@@ -169,43 +356,82 @@ def robust_design_from_data(
     margin: float = 0.1,
     w3_rule: str = "small-gain",
     predictor=None,
+    predictor_for=None,
     causal: bool = False,
     unfalsification: SubspaceResult | None = None,
     form: str = "conditioned",
     solver: str = "CLARABEL",
     solver_options: dict | None = None,
+    dt=None,
+    search: DesignSearch | bool | None = True,
+    tracking_floor: float = TRACKING_FLOOR,
+    step_samples: int = STEP_SAMPLES,
+    require_certified: bool = False,
+    reference_horizon: int | None = None,
 ) -> RobustDesignResult:
-    """§7.4 steps 1–5: δ by subspace unfalsification (7.5), then a robust Theorem 3.7 design.
+    """§7.4 steps 1–5 -- δ by subspace unfalsification (7.5), a robust Theorem 3.7 design -- and a
+    certificate of the LTI loop that ships.
+
+    Theorem 3.7's guarantee is finite-horizon; it does not carry over by itself to the
+    receding-horizon LTI controller (5.3)–(5.4).  So every design is checked on the implemented
+    loop with the data-based model ``P̂`` (:func:`unfalsify.predictor_model`) by
+    :func:`unfalsify.certify_loop`: ``(P̂, K)`` stable, ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + margin)``
+    proven, and a step that tracks (the performance floor).  When the first design does not
+    certify, the design family :class:`DesignSearch` is searched; the first certified design is
+    returned, and every design tried is reported in ``result.search``.
+
+    What is certified: every plant ``P̂ + Δ`` with ``Δ`` stable and ``‖Δ‖∞ ≤ (1 + margin)δ`` is
+    stabilised.  The true plant is among them under the assumption that the unfalsified δ of
+    (7.5) bounds its deviation from ``P̂`` (see :mod:`unfalsify.certify`).
 
     Parameters
     ----------
     u, y : array_like
-        SISO experiment data (step 1).
+        SISO experiment data (step 1): the (7.5) window, ``n = 2i + j − 1`` samples.
     horizon : int
         i, for both (7.5) and the design.
     W1, W2 : weights
         Performance weights, as for :func:`synthesis.hinf_design` (step 2).
     sigma : float
-        Admissible rms noise level of (7.5) (step 2).
+        Admissible rms noise level of (7.5) (step 2); a positive number below the residual rms
+        of the model on the window.
     gamma_ratio : float
-        ``γ = gamma_ratio · γ_min_a`` (step 4).
+        ``γ = gamma_ratio · γ_min_a`` of the first design (step 4).
     margin : float
-        Relative margin of the small-gain rule: the design covers ``(1 + margin) δ``.
+        Relative margin: the W3 rule covers ``(1 + margin) δ`` and the certificate needs
+        ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + margin)``.
     w3_rule : {"small-gain", "thesis"}
-        ``"small-gain"`` (default): ``W3 = c I`` with ``c = (1 + margin) δ γ(c)`` (see the module
-        docstring).  ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only
-        (warns when it does not cover δ).
+        ``"small-gain"`` (default): ``W3 = c I`` with ``c = (1 + margin) δ γ(c)`` (module docstring).
+        ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only.
     predictor : synthesis.Predictor, optional
-        A fixed predictor of horizon i (e.g. least squares on a longer record): δ is then
-        computed for *this* model (L fixed in (7.5)) and the design uses it.  Default: the
-        ``(L_w, L_u)`` found by (7.5) jointly with δ.  Either way δ bounds the uncertainty
-        of the model the design uses.
+        A fixed predictor of horizon i (e.g. least squares on a longer record): δ is computed for
+        this model (L fixed in (7.5)), the design and P̂ use it.  Default: the ``(L_w, L_u)`` found
+        by (7.5) jointly with δ.
+    predictor_for : callable, optional
+        ``horizon -> Predictor`` for the search's other horizons (e.g.
+        ``lambda h: fit_predictor(u_long, y_long, h)``).  Without it the search fits them by least
+        squares on ``(u, y)`` when ``predictor`` is None, and skips them otherwise.
     causal : bool
-        Causal law (Thm 3.2 variant).
+        Causal law (Thm 3.2 variant) for the first design.
     unfalsification : SubspaceResult, optional
         Reuse a (7.5) solution instead of solving again (it must come from the same data).
     form, solver, solver_options
         Passed to :func:`subspace_unfalsify`.
+    dt : float, optional
+        The data's sample time; the weights' must equal it (``WeightError`` otherwise).  Default:
+        the weights' common sample time.
+    search : DesignSearch, bool or None
+        The design family searched when the first design does not certify (True: the default
+        :class:`DesignSearch`; False/None: no search).
+    tracking_floor, step_samples
+        Performance floor of :func:`unfalsify.certify_loop`.
+    require_certified : bool
+        Raise :class:`NotCertifiedError` instead of warning when nothing certifies.
+    reference_horizon : int, optional
+        Horizon of the reference model ``P̂_ref`` on which every design must certify too
+        (default ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on
+        ``(u, y)`` when ``predictor`` is None and the window is long enough; otherwise there is
+        no reference and ``result.reference_note`` says why).
 
     Returns
     -------
@@ -213,29 +439,145 @@ def robust_design_from_data(
 
     Raises
     ------
+    DataError
+        Bad data, weights, σ (not a positive number, or not below the window's residual rms),
+        a window with no more columns than the predictor estimated on it has regressors.
     UnfalsificationError
-        If (7.5) did not produce a finite δ.
-    DataError, synthesis.WeightError
-        Bad data / weights / predictor.
+        (7.5) did not produce a finite δ.
+    NotCertifiedError
+        ``require_certified=True`` and no design certifies.
 
     Warns
     -----
+    NotCertifiedWarning
+        No design of the search certifies; ``result.certified`` is False and ``result.reason``
+        says why (nominal loop unstable on P̂, small gain, performance floor).
+    FewDataWarning
+        j < 3 × the regressors of a predictor estimated on the window.
     SolverWarning
-        The (7.5) answer is not certified (:meth:`Certificate.ok` false): δ is then raised to the
-        certified value.
-    UserWarning
-        ``w3_rule="thesis"`` does not cover δ.
+        The (7.5) answer is not certified: δ is raised to the certified value.
     """
     if w3_rule not in ("small-gain", "thesis"):
         raise ValueError(f"unknown w3_rule {w3_rule!r}; use 'small-gain' or 'thesis'")
-    if not (np.isfinite(gamma_ratio) and gamma_ratio > 1.0):
-        raise DataError(f"gamma_ratio must be > 1 (γ > γ_min_a), got {gamma_ratio!r}")
+    gamma_ratio = _positive_real(gamma_ratio, "gamma_ratio", above=1.0)
+    margin = _positive_real(margin, "margin", allow_equal=True)
+    sigma = check_sigma(sigma)
+    if search is True:
+        search = DesignSearch()
+    elif search is False:
+        search = None
+    elif search is not None and not isinstance(search, DesignSearch):
+        raise DataError(f"search must be a DesignSearch, True or False/None, got {search!r}")
+    i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+    if predictor is not None and int(predictor.horizon) != i:
+        raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
     unf = unfalsification
     if unf is None:
-        unf = subspace_unfalsify(u, y, horizon, sigma, form=form, predictor=predictor, solver=solver,
+        _check_window(u, y, i, sigma, predictor)
+        unf = subspace_unfalsify(u, y, i, sigma, form=form, predictor=predictor, solver=solver,
                                  solver_options=solver_options)
-    elif unf.horizon != horizon:
-        raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {horizon}")
+    elif unf.horizon != i:
+        raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
+    delta = _delta_of(unf)
+    pred = unf.predictor
+    if predictor is not None:
+        if not np.allclose(np.hstack([unf.Lw, unf.Lu]), np.hstack([predictor.Lw, predictor.Lu])):
+            raise DataError("the given unfalsification was not computed for the given predictor")
+        pred = predictor
+    if w3_rule == "thesis" and delta == 0:
+        raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
+
+    def build(h, cz, ratio, factor):
+        p = pred if h == i else _predictor_at(h, u, y, predictor, predictor_for)
+        if w3_rule == "small-gain":
+            c = additive_weight_fixed_point(p, W1, W2, delta, gamma_ratio=ratio, margin=margin, causal=cz, dt=dt)
+        else:
+            c = 1.0 / delta
+        # δ = 0: no uncertainty at all, the nominal design.  (W3 = 0 alone would not do: W4 = I keeps
+        # the channel s → z_w1 of Fig. 3.5, so γ_min_a(c → 0) stays above the nominal γ_min.)
+        return _design(p, W1, W2, delta, c=factor * c, gamma_ratio=ratio, causal=cz, dt=dt), factor * c
+
+    first, c0 = build(i, bool(causal), gamma_ratio, 1.0)
+    model = predictor_model(pred, first.dt)
+    ref_h = 2 * i if reference_horizon is None else int(reference_horizon)
+    ref_model, ref_note = None, ""
+    try:
+        ref_model = predictor_model(_predictor_at(ref_h, u, y, predictor, predictor_for), first.dt)
+    except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
+        ref_note = f"no reference model at horizon {ref_h}: {exc}"
+    cert_opts = dict(margin=margin, tracking_floor=tracking_floor, step_samples=step_samples)
+
+    def check(d):
+        ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else None
+        return certify_loop(model, d.controller, delta, **cert_opts), ref
+
+    records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
+    chosen = (first, c0, records[0])
+    if not records[0].certified and search is not None:
+        for h, cz, ratio, factor in _candidates(search, i, bool(causal), gamma_ratio)[1:]:
+            try:
+                d, c = build(h, cz, ratio, factor)
+                rec = _record(h, cz, ratio, c, d, *check(d))
+            except (ValueError, np.linalg.LinAlgError) as exc:  # DataError / InfeasibleGammaError / no predictor
+                records.append(SearchRecord(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
+                                            error=f"{type(exc).__name__}: {exc}"))
+                continue
+            records.append(rec)
+            if rec.certified:
+                chosen = (d, c, rec)
+                break
+    design, c, rec = chosen
+    if not rec.certified:
+        tried = len(records)
+        msg = (f"the §7.4 loop is NOT certified for δ = {delta:.4g}: {rec.reason}"
+               + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made"))
+        if require_certified:
+            raise NotCertifiedError(msg)
+        warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
+    g_nom = synthesis.gamma_min(design.predictor, W1, W2, causal=design.causal, dt=dt)
+    covered = c / design.gamma if design.gamma > 0 else np.inf
+    return RobustDesignResult(
+        unfalsification=unf,
+        design=design,
+        delta=delta,
+        w3_gain=float(c),
+        w3_rule=w3_rule,
+        margin=float(margin),
+        gamma=float(design.gamma),
+        gamma_min_a=float(design.gamma_min),
+        gamma_min_nominal=float(g_nom),
+        covered_delta=float(covered),
+        model=model,
+        certificate=rec.certificate,
+        search=tuple(records),
+        reference_model=ref_model,
+        reference_certificate=rec.reference_certificate,
+        reference_note=ref_note,
+    )
+
+
+def _record(h, cz, ratio, c, design, cert, ref_cert) -> SearchRecord:
+    return SearchRecord(horizon=int(h), causal=bool(cz), gamma_ratio=float(ratio), w3_gain=float(c),
+                        gamma=float(design.gamma), gamma_min=float(design.gamma_min), certificate=cert,
+                        reference_certificate=ref_cert)
+
+
+def _predictor_at(h: int, u, y, predictor, predictor_for):
+    if predictor_for is not None:
+        p = predictor_for(h)
+    elif predictor is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", synthesis.PersistenceWarning)
+            p = synthesis.fit_predictor(u, y, h)
+    else:
+        raise DataError(f"horizon {h} needs a predictor: pass predictor_for=lambda h: fit_predictor(u_long, y_long, h)")
+    if int(p.horizon) != int(h):
+        raise DataError(f"predictor_for({h}) returned a predictor of horizon {p.horizon}")
+    return p
+
+
+def _delta_of(unf: SubspaceResult) -> float:
+    """δ to design for: the solver's, raised to the certified value when its certificate fails."""
     delta = float(unf.delta)
     if not np.isfinite(delta):
         raise UnfalsificationError(f"(7.5) returned no δ (status {unf.status!r}); cannot size the uncertainty")
@@ -249,50 +591,12 @@ def robust_design_from_data(
             f"{cert.delta_certified:.6g}, noise rms {cert.noise_rms:.6g} vs σ = {cert.sigma:.6g}); the design uses "
             "max(δ, certified δ): solve (7.5) with form='conditioned' or smaller data for a certified δ",
             SolverWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
         if not np.isfinite(cert.delta_certified):
             raise UnfalsificationError("(7.5) returned impulses that certify no finite δ; cannot size the uncertainty")
         delta = max(delta, float(cert.delta_certified))
-    pred = unf.predictor
-    if predictor is not None:
-        pred = predictor
-        if not np.allclose(np.hstack([unf.Lw, unf.Lu]), np.hstack([predictor.Lw, predictor.Lu])):
-            raise DataError("the given unfalsification was not computed for the given predictor")
-    if int(pred.horizon) != int(horizon):
-        raise DataError(f"predictor has horizon {pred.horizon}, expected {horizon}")
-    l = int(pred.l)
-    if w3_rule == "small-gain":
-        c = additive_weight_fixed_point(pred, W1, W2, delta, gamma_ratio=gamma_ratio, margin=margin, causal=causal)
-    else:
-        if delta == 0:
-            raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
-        c = 1.0 / delta
-    # δ = 0: no uncertainty at all, the nominal design.  (W3 = 0 alone would not do: W4 = I keeps
-    # the channel s → z_w1 of Fig. 3.5, so γ_min_a(c → 0) stays above the nominal γ_min.)
-    unc = Additive(c * np.eye(int(pred.m)), np.eye(l)) if c > 0 else None
-    design = synthesis.hinf_design(pred, W1, W2, gamma_ratio=gamma_ratio, causal=causal, uncertainty=unc)
-    g_nom = synthesis.gamma_min(pred, W1, W2, causal=causal)
-    covered = c / design.gamma if design.gamma > 0 else np.inf
-    if covered < delta:
-        warnings.warn(
-            f"the design covers additive perturbations up to c/γ = {covered:.3g} < δ = {delta:.3g} "
-            f"(w3_rule={w3_rule!r}); the small-gain rule W3 = cI with c ≥ γδ is needed",
-            UserWarning,
-            stacklevel=2,
-        )
-    return RobustDesignResult(
-        unfalsification=unf,
-        design=design,
-        delta=delta,
-        w3_gain=float(c),
-        w3_rule=w3_rule,
-        margin=float(margin),
-        gamma=float(design.gamma),
-        gamma_min_a=float(design.gamma_min),
-        gamma_min_nominal=float(g_nom),
-        covered_delta=float(covered),
-    )
+    return delta
 
 
 @dataclass(frozen=True)

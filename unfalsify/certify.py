@@ -1,0 +1,223 @@
+"""Certificate of the loop that ships: stability, small gain and a performance floor on P̂.
+
+The §7.4 pipeline returns an LTI controller ``K`` (inputs ``[r; y]``, output ``u``: (5.3)–(5.4)).
+Theorem 3.7 bounds a *finite-horizon* game in which Δ acts from rest on the future inputs; in
+the receding-horizon loop Δ also corrupts the past data ``w_p`` the controller trusts, so that
+bound does not carry over to ``K`` by itself.  This module checks the implemented loop
+directly, on the data-based model ``P̂`` (:func:`unfalsify.predictor_model`):
+
+1. **Nominal stability**: the loop ``(P̂, K)`` is Schur stable.
+2. **Small gain**: with ``M̂ = (I − C_y P̂)⁻¹ C_y`` (= ``−K(I + P̂K)⁻¹`` for ``K = −C_y``, the map
+   an additive plant perturbation sees, :func:`unfalsify.additive_channel`),
+
+       δ · ‖M̂‖∞ ≤ 1/(1 + margin),
+
+   decided with the *proven* upper bound of :func:`synthesis.hinfnorm.hinf_norm`.  Then the loop
+   is stable for every plant ``P̂ + Δ`` with ``Δ`` stable and ``‖Δ‖∞ ≤ (1 + margin)·δ``.
+3. **Performance floor**: a controller that does almost nothing is trivially robust on a
+   stable plant.  A unit step on every reference channel of ``(P̂, K)``, simulated noise free
+   for ``step_samples`` samples, must track: the mean absolute error over the last quarter of
+   the run is at most ``tracking_floor`` (default 0.1, i.e. 10 % of the step).
+
+Which plants this covers, and the assumption that links it to δ: the certificate is a theorem
+about the set ``{P̂ + Δ : Δ stable, ‖Δ‖∞ ≤ (1 + margin) δ}``.  The true plant belongs to it
+only under the assumption of Chapter 7 that the smallest unfalsified additive uncertainty
+(δ of (7.5), which bounds the first ``i`` Markov parameters of every column operator
+``‖T(h_k)‖₂ ≤ δ`` — by Carathéodory–Fejér the least H∞ norm of a causal LTI system with those
+Markov parameters) also bounds the plant's deviation from ``P̂`` at all frequencies, with the
+model's own error absorbed by ``margin``.  Data cannot prove that assumption; they can only
+fail to falsify it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from synthesis._validation import DataError
+from synthesis.hinfnorm import NormBracket, hinf_norm
+
+__all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "step_metrics"]
+
+#: Default performance floor: mean |r − y| over the last quarter of a unit step.
+TRACKING_FLOOR = 0.1
+#: Default length of the step used for the performance floor (samples).
+STEP_SAMPLES = 300
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Unit-step metrics of a loop ``r → y`` (every reference channel stepped at once; worst channel).
+
+    Attributes
+    ----------
+    final_error : float
+        Mean ``|1 − y|`` over the last quarter of the run (``inf`` when the loop is unstable).
+    overshoot : float
+        ``max(y) − 1`` as a fraction of the step (0 when there is none).
+    rise_samples : int
+        First sample with ``y ≥ 0.9`` (−1 when never reached).
+    samples : int
+        Length of the run.
+    """
+
+    final_error: float
+    overshoot: float
+    rise_samples: int
+    samples: int
+
+
+@dataclass(frozen=True)
+class LoopCertificate:
+    """Verdict of :func:`certify_loop` on the loop ``(P̂, K)``.
+
+    Attributes
+    ----------
+    certified : bool
+        Nominal loop stable, small gain proven and the performance floor met.
+    reason : str
+        ``''`` when certified; otherwise the first failed condition in words.
+    delta, margin : float
+        The uncertainty size and the relative margin of the small-gain test.
+    spectral_radius : float
+        Of the nominal closed loop ``(P̂, K)``.
+    norm : NormBracket or None
+        ``lower ≤ ‖M̂‖∞ ≤ upper`` (None when the nominal loop is unstable).
+    small_gain : float
+        ``δ · upper`` (``inf`` when the nominal loop is unstable); certified needs
+        ``small_gain ≤ 1/(1 + margin)``.
+    step : StepMetrics or None
+        Unit step on ``(P̂, K)`` (None when the nominal loop is unstable).
+    tracking_floor : float
+    """
+
+    certified: bool
+    reason: str
+    delta: float
+    margin: float
+    spectral_radius: float
+    norm: NormBracket | None
+    small_gain: float
+    step: StepMetrics | None
+    tracking_floor: float
+
+    @property
+    def stable(self) -> bool:
+        """Nominal loop ``(P̂, K)`` stable."""
+        return bool(self.spectral_radius < 1.0)
+
+    @property
+    def tracks(self) -> bool:
+        """The performance floor is met."""
+        return bool(self.step is not None and self.step.final_error <= self.tracking_floor)
+
+    @property
+    def radius(self) -> float:
+        """Proven small-gain radius ``1/upper``: every stable ``Δ`` with ``‖Δ‖∞`` below it keeps ``(P̂ + Δ, K)`` stable."""
+        if self.norm is None or not math.isfinite(self.norm.upper):
+            return 0.0
+        return float(1.0 / self.norm.upper) if self.norm.upper > 0 else float("inf")
+
+
+def _split(plant, controller):
+    P = control.ss(plant)
+    C = control.ss(controller)
+    l = P.noutputs
+    if C.ninputs != 2 * l or C.noutputs != P.ninputs:
+        raise DataError(
+            f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s), got {C.ninputs} input(s) and "
+            f"{C.noutputs} output(s); pass the controller of synthesis.hinf_design (inputs [r; y])")
+    if not (P.isdtime() and C.isdtime()):
+        raise DataError("plant and controller must both be discrete-time systems")
+    if P.dt is not True and C.dt is not True and not np.isclose(float(P.dt), float(C.dt), rtol=1e-9, atol=0):
+        raise DataError(f"plant has sample time {P.dt} but the controller {C.dt}: design the controller at the data's "
+                        "sample time (pass dt= to the design)")
+    return P, C, l
+
+
+def closed_loop_ry(plant, controller) -> control.StateSpace:
+    """Noise-free closed loop ``r → y`` of ``y = P u``, ``u = C_r r + C_y y`` (controller inputs ``[r; y]``)."""
+    P, C, l = _split(plant, controller)
+    return control.feedback(P, C[:, l:], sign=+1) * C[:, :l]
+
+
+def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepMetrics:
+    """Unit step on every input of a discrete loop ``r → y``; the worst output channel's metrics."""
+    A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
+    if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+        return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
+    r = np.ones(B.shape[1])
+    x = np.zeros(A.shape[0])
+    Br, Dr = B @ r, D @ r
+    y = np.empty((samples, C.shape[0]))
+    for k in range(samples):
+        y[k] = C @ x + Dr
+        x = A @ x + Br
+    tail = y[-max(samples // 4, 1):]
+    final = float(np.max(np.mean(np.abs(1.0 - tail), axis=0)))
+    over = float(max(np.max(y) - 1.0, 0.0))
+    reached = np.nonzero(np.all(y >= 0.9, axis=1))[0]
+    return StepMetrics(final_error=final, overshoot=over, rise_samples=int(reached[0]) if reached.size else -1,
+                       samples=int(samples))
+
+
+def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracking_floor: float = TRACKING_FLOOR,
+                 step_samples: int = STEP_SAMPLES, tol: float = 1e-8) -> LoopCertificate:
+    """Certify the implemented loop ``(P̂, K)`` for additive uncertainty of size δ (see the module docstring).
+
+    Parameters
+    ----------
+    model : control.StateSpace
+        The nominal model ``P̂`` (e.g. :func:`unfalsify.predictor_model`), discrete.
+    controller : control.StateSpace
+        The controller with inputs ``[r; y]`` (as from :func:`synthesis.hinf_design`).
+    delta : float
+        Additive uncertainty size (≥ 0).
+    margin : float
+        Relative margin: certified needs ``δ · ‖M̂‖∞ ≤ 1/(1 + margin)``.
+    tracking_floor : float
+        Performance floor (mean absolute step error over the last quarter of the run).
+    step_samples : int
+        Length of the step run.
+    tol : float
+        Relative gap of the H∞ bracket.
+
+    Returns
+    -------
+    LoopCertificate
+
+    Raises
+    ------
+    DataError
+        Bad δ / margin / floor, or a controller that does not fit the model.
+    """
+    for name, v in (("delta", delta), ("margin", margin), ("tracking_floor", tracking_floor)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
+                math.isfinite(v) and v >= 0):
+            raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
+    if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
+        raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
+    P, C, l = _split(model, controller)
+    M = control.feedback(C[:, l:], P, sign=+1)
+    Am = np.asarray(M.A, float)
+    rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0
+    common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=float(tracking_floor))
+    if not rho < 1.0:
+        return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model P̂ (spectral radius {rho:.6g})",
+                               norm=None, small_gain=float("inf"), step=None, **common)
+    bracket = hinf_norm(M, tol=tol)
+    small_gain = float(delta) * bracket.upper if delta > 0 else 0.0
+    step = step_metrics(closed_loop_ry(P, C), int(step_samples))
+    reason = ""
+    if not math.isfinite(bracket.upper):
+        reason = f"‖K(I+P̂K)⁻¹‖∞ not proven finite ({bracket.reason})"
+    elif small_gain > 1.0 / (1.0 + margin):
+        reason = (f"small gain: δ·‖K(I+P̂K)⁻¹‖∞ = {delta:.4g} × {bracket.upper:.4g} = {small_gain:.4g} > "
+                  f"1/(1 + margin) = {1.0 / (1.0 + margin):.4g}")
+    elif not step.final_error <= tracking_floor:
+        reason = (f"performance floor: the step on P̂ leaves a mean error {step.final_error:.3g} > {tracking_floor:.3g} "
+                  "over its last quarter (the controller does not track)")
+    return LoopCertificate(certified=not reason, reason=reason, norm=bracket, small_gain=small_gain, step=step,
+                           **common)
