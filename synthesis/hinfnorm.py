@@ -42,7 +42,7 @@ from ._validation import DataError, as_discrete_system, check_level
 
 __all__ = ["NormBracket", "NormTest", "hinf_norm", "norm_below"]
 
-#: Poles closer than this to the unit circle (``1 − |p|``) are listed in :attr:`NormBracket.near_poles`.
+#: Poles at most this close to the unit circle (``1 − |p|``) are listed in :attr:`NormBracket.near_poles`.
 NEAR_UNIT_CIRCLE = 1e-6
 #: Pencil eigenvalues with ``| |z| − 1 | ≤ CIRCLE_TOL`` count as on the unit circle (not proven below).
 CIRCLE_TOL = 1e-10
@@ -80,7 +80,7 @@ class NormBracket:
         ``''`` when ``upper`` is finite; otherwise why it is ``inf`` (unstable, pole on the unit
         circle within rounding).
     near_poles : tuple of complex
-        Poles with ``1 − |p| < near_distance`` (stable but lightly damped: the norm is huge and
+        Poles with ``1 − |p| ≤ near_distance`` (stable but lightly damped: the norm is huge and
         sensitive to the model).  Reported, never hidden; the bracket is still proven.
     near_distance : float
         The distance used for :attr:`near_poles` (``NEAR_UNIT_CIRCLE``).
@@ -442,7 +442,7 @@ def hinf_norm(sys, *, tol: float = 1e-8, n_grid: int = 64) -> NormBracket:
     tol = _as_tol(tol)
     s = _Sys(sys, "sys")
     stable, reason = s.stability()
-    near = tuple(complex(p) for p in s.poles if 1.0 - abs(p) < NEAR_UNIT_CIRCLE)
+    near = tuple(complex(p) for p in s.poles if 1.0 - abs(p) <= NEAR_UNIT_CIRCLE * (1 + 1e-6))
     if not stable:
         return NormBracket(lower=float("inf"), upper=float("inf"), frequency=float("nan"), tol=tol, stable=False,
                            spectral_radius=s.rho, reason=reason, near_poles=near)
