@@ -37,6 +37,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "chapter7": ("experiments.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
+    "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
 }
 
 

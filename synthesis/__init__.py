@@ -27,6 +27,7 @@ from .controller import RecedingHorizonController, WeightState, lti_controller
 from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
 from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
+from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 
@@ -78,6 +79,11 @@ __all__ = [
     "discrete_mixsyn",
     "mixsyn_closed_loop",
     "peak_gain",
+    # certified discrete H∞ norm
+    "NormBracket",
+    "NormTest",
+    "hinf_norm",
+    "norm_below",
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",

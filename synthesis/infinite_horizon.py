@@ -9,7 +9,9 @@ continuous time by the bilinear transform ``z = (a + s)/(a − s)``, ``a = 2/dt`
 the unit circle onto the imaginary axis and therefore preserves the H∞ norm of every
 closed loop; SB10AD builds the central controller for a fixed level (``job=4``), the
 controller is mapped back, and the level is bisected on the *discrete* closed loop
-(stable and ``‖·‖∞ ≤ γ``, checked on the discrete system by :func:`peak_gain`).
+(stable and ``‖·‖∞ < γ(1 + 1e-8)``, *proven* on the discrete system by
+:func:`~synthesis.norm_below`, the bounded-real test; the reported norm is the proven upper side
+of :func:`~synthesis.hinf_norm`).
 
 Plants with poles on the unit circle (the servo's and the three-disk's integrators)
 violate the Riccati solvability assumption (A4): the reference enters only through
@@ -29,6 +31,7 @@ import control
 import numpy as np
 
 from ._validation import DataError, as_discrete_system, check_level
+from .hinfnorm import NormBracket, hinf_norm, norm_below
 from .minimax import InfeasibleGammaError
 from .riccati import generalized_plant
 from .weights import _ss_parts, as_weight, common_dt
@@ -52,12 +55,16 @@ class MixsynResult:
         Smallest feasible level found by bisection (within ``rtol``; an upper bound of the
         infimum, see ``epsilon``).
     norm : float
-        ``‖[W1 S; W2 K S]‖∞`` of the discrete closed loop with :attr:`controller` (≤ ``gamma``).
+        Proven upper bound of ``‖[W1 S; W2 K S]‖∞`` for the discrete closed loop with
+        :attr:`controller` (``bracket.upper``; below ``gamma·(1 + 1e-8)``).
     closed_loop : control.StateSpace
         Discrete map ``r → [z_w1; z_w2]``.
     epsilon : float
         Size of the fictitious plant-input disturbance (0 when not needed).
     bisection_steps : int
+    bracket : NormBracket
+        ``lower ≤ ‖[W1 S; W2 K S]‖∞ ≤ upper`` of :attr:`closed_loop` (:func:`~synthesis.hinf_norm`):
+        ``lower`` attained at ``bracket.frequency``, ``upper`` (= :attr:`norm`) proven.
     """
 
     controller: control.StateSpace
@@ -67,6 +74,7 @@ class MixsynResult:
     closed_loop: control.StateSpace
     epsilon: float
     bisection_steps: int
+    bracket: NormBracket | None = None
 
     def controller_ry(self) -> control.StateSpace:
         """The controller with inputs ``[r; y]`` (``u = K r − K y``), for the common interface."""
@@ -174,12 +182,15 @@ def _gains(A, B, C, D, w):
 
 
 def peak_gain(sys, n_grid: int = 4000) -> float:
-    """H∞ norm of a discrete system by a dense frequency grid plus local refinement.
+    """Dense-grid *estimate* of the H∞ norm of a discrete system: a lower bound, not a certificate.
 
     The grid is uniform and logarithmic on ``(0, π]`` rad/sample and contains the pole angles
     (lightly damped modes); the five highest grid peaks are refined by a bounded scalar search.
-    Used instead of ``control.norm``, which returns ∞ when a (stable) closed-loop pole lies
-    within ~1e-5 of the unit circle.
+    The value is a gain actually attained, hence ``≤ ‖G‖∞``; a grid can miss a sharp peak, and
+    it is slow (two dense solves per grid point).  For a proven bound use
+    :func:`~synthesis.hinf_norm` (bracket with a proven upper side) or
+    :func:`~synthesis.norm_below`.  (``control.norm`` is not used: it returns ∞ when a stable
+    closed-loop pole lies within ~1e-5 of the unit circle.)
 
     Parameters
     ----------
@@ -253,6 +264,7 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     Returns
     -------
     MixsynResult
+        ``norm`` is the proven upper bound of the closed-loop norm, ``bracket`` both sides.
 
     Raises
     ------
@@ -262,7 +274,26 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
         not valid numbers (checked before any synthesis).
     InfeasibleGammaError
         If ``gamma`` is given and not above ``gamma_opt``.
+
+    Notes
+    -----
+    A level ``g`` counts as achieved when SB10AD returns a controller whose discrete closed
+    loop is stable and *proven* to have ``‖·‖∞ < g(1 + 1e-8)`` (:func:`~synthesis.norm_below`).
     """
+    return _discrete_mixsyn(P, W1, W2, gamma, gamma_ratio=gamma_ratio, rtol=rtol, epsilon=epsilon)
+
+
+def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsilon=None,
+                     route: str = "certified") -> MixsynResult:
+    """:func:`discrete_mixsyn` with a choice of the level check.
+
+    ``route="certified"`` (the public function): :func:`norm_below` in the bisection and
+    :func:`hinf_norm` for the result.  ``route="grid"``: the former dense-grid check by
+    :func:`peak_gain` (kept for the ``bench-norms`` comparison; ``bracket`` is then None and
+    ``norm`` the grid estimate).
+    """
+    if route not in ("certified", "grid"):
+        raise DataError(f"route must be 'certified' or 'grid', got {route!r}")
     if gamma is not None:
         gamma = check_level(gamma, "gamma")
     gamma_ratio = check_level(gamma_ratio, "gamma_ratio")
@@ -299,7 +330,7 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     a = 2.0 / dt
     Ac, Bc, Cc, Dc = _d2c(A, Bg, Cg, Dg, a)
 
-    def attempt(g, n_grid=1000):
+    def attempt(g, n_grid=1000, final=False):
         """Discrete controller for level g, or None if infeasible."""
         import slycot
 
@@ -323,10 +354,17 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
         if cl[0].size and np.max(np.abs(np.linalg.eigvals(cl[0]))) >= 1 - 1e-10:
             return None
         sys = control.ss(*cl, dt)
-        nrm = peak_gain(sys, n_grid=n_grid)
-        if not nrm <= g * (1 + 1e-8):
+        if route == "grid":
+            nrm = peak_gain(sys, n_grid=n_grid)
+            if not nrm <= g * (1 + 1e-8):
+                return None
+            return Kd, sys, nrm, None
+        if not norm_below(sys, g * (1 + 1e-8)):
             return None
-        return Kd, sys, nrm
+        if not final:
+            return Kd, sys, None, None
+        br = hinf_norm(sys)
+        return Kd, sys, br.upper, br
 
     hi = 1.0
     best = attempt(hi)
@@ -355,11 +393,11 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     gamma_opt = hi
     if gamma is None:
         gamma = gamma_ratio * gamma_opt
-    res = attempt(float(gamma), n_grid=4000)
+    res = attempt(float(gamma), n_grid=4000, final=True)
     if res is None:
         raise InfeasibleGammaError(float(gamma), gamma_opt)
-    Kd, cl, nrm = res
+    Kd, cl, nrm, br = res
     K = control.ss(*Kd, dt, inputs=[f"e[{c}]" for c in range(l)], outputs=[f"u[{c}]" for c in range(m)],
                    name="discrete_mixsyn")
     return MixsynResult(controller=K, gamma=float(gamma), gamma_opt=float(gamma_opt), norm=nrm,
-                        closed_loop=cl, epsilon=float(epsilon), bisection_steps=steps)
+                        closed_loop=cl, epsilon=float(epsilon), bisection_steps=steps, bracket=br)

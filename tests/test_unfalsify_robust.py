@@ -79,6 +79,9 @@ def test_additive_robustness_peak_matches_direct_formula(setup):
     rob = uf.additive_robustness(plant, res.controller, n_grid=8192)
     assert rob.peak >= direct * (1 - 1e-9)
     assert rob.peak == pytest.approx(direct, rel=0.02)
+    # peak is the proven side of the bracket; the grid values lie below it
+    assert rob.peak == rob.bracket.upper and rob.bracket.lower <= rob.peak
+    assert direct <= rob.bracket.lower * (1 + 1e-9) and rob.bracket.gap < 1e-6
 
 
 @pytest.mark.parametrize("kind", ["+static", "-static", "+delay", "-delay", "lowpass"])

@@ -37,7 +37,7 @@ import control
 import numpy as np
 
 from synthesis._validation import DataError
-from synthesis.hinfnorm import NormBracket, hinf_norm
+from synthesis import NormBracket, hinf_norm
 
 __all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "step_metrics"]
 
