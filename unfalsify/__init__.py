@@ -9,7 +9,7 @@ from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, So
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
-from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .robust import (
     AdditiveRobustness,
     RobustDesignResult,
@@ -39,6 +39,7 @@ __all__ = [
     "is_unfalsified",
     "unfalsified_gain",
     "unfalsified_gain_result",
+    "SubspaceProblem",
     "SubspaceResult",
     "subspace_data",
     "subspace_unfalsify",
