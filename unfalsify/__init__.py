@@ -5,11 +5,11 @@
 * :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5);
 * :func:`robust_design_from_data` -- §7.4 steps 1–5 (δ → additive-uncertainty H∞ design).
 """
-from ._common import COND_WARN, Certificate, IllConditionedWarning, SolverWarning, UnfalsificationError
+from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, SolverWarning, UnfalsificationError
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
-from .arx import ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
+from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
-from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .model import predictor_model
 from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, step_metrics
 from .robust import (
@@ -27,6 +27,7 @@ from .robust import (
 )
 
 __all__ = [
+    "BACKENDS",
     "COND_WARN",
     "Certificate",
     "IllConditionedWarning",
@@ -36,6 +37,7 @@ __all__ = [
     "toeplitz_cond",
     "toeplitz_matrix",
     "toeplitz_norm",
+    "ArxProblem",
     "ArxResult",
     "arx_least_squares",
     "arx_regressor",
@@ -44,6 +46,7 @@ __all__ = [
     "is_unfalsified",
     "unfalsified_gain",
     "unfalsified_gain_result",
+    "SubspaceProblem",
     "SubspaceResult",
     "subspace_data",
     "subspace_unfalsify",

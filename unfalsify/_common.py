@@ -12,6 +12,8 @@ import numpy as np
 from synthesis._validation import DataError, as_signal
 
 __all__ = [
+    "BACKENDS",
+    "Certificate",
     "UnfalsificationError",
     "IllConditionedWarning",
     "SolverWarning",
@@ -117,42 +119,141 @@ def solved_value(status: str, value) -> float:
     return float(value)
 
 
-@dataclass(frozen=True)
-class Certificate:
-    """Independent check of an unfalsification answer, recomputed from the returned variables.
+BACKENDS = ("cvxpy", "structured")
 
-    What is certified is the pair (noise, impulses): ``e − ξ = T(u) h`` (to rounding of one
-    multiplication by ``T(u)``; exactly, for the literal form, where h is the exact rational
-    deconvolution of the returned ``e − ξ``) and ``‖T(h)‖₂ ≤ δ_certified``, which by Theorem 7.1
-    is the thesis inequality.  Checking the thesis inequality from the rounded ξ *alone* is
-    ill-posed for long records: rounding errors of ξ are amplified by ``T(u)⁻¹`` (cond up to
-    1e17 at n = 80).
+
+def check_backend(backend: str) -> str:
+    """``backend`` of :func:`arx_unfalsify` / :func:`subspace_unfalsify` (raises ValueError otherwise)."""
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; use one of {', '.join(repr(b) for b in BACKENDS)}")
+    return backend
+
+
+@dataclass(frozen=True, eq=False)
+class Certificate:
+    """Two-sided certificate of an unfalsification answer, checkable from the data alone.
+
+    Upper side (primal).  The returned impulses h (and model parameters θ or L) give the noise
+    ``ξ = Φθ + Y − T(u)h`` (ARX) or ``Ξ = Y_f − L A − H̃`` (subspace); if ``‖ξ‖₂ ≤ σ√N`` (N noise
+    samples) then ``upper_bound = max_k ‖T(h_k)‖₂`` -- computed, not taken from the solver -- is
+    attained by a feasible point, so δ_unf ≤ upper_bound.  By Theorem 7.1 this is the left-hand
+    side of (7.4)/(7.5) for the returned noise.
+
+    Lower side (dual).  For ANY ``V`` (the multiplier of the data equation, one column per column
+    of the data) and ANY ``W_k`` (the multiplier of the norm bound ``‖T(h_k)‖₂ ≤ δ``)::
+
+        δ_unf ≥ max(0, (⟨V, B⟩ − σ√N ‖V‖_F) / Σ_k ‖W_k‖_*)
+
+    after projecting V orthogonally to the model directions (``Φᵀv = 0``; ``V Aᵀ = 0`` when L is
+    optimised) and correcting each ``W_k`` by a lower-triangular Toeplitz term so that
+    ``T*(W_k) = T(u_k)ᵀ v_k`` holds exactly (``T*`` sums subdiagonals).  Derivation: for every
+    feasible point ``Σ_k ⟨W_k, T(h_k)⟩ ≤ δ Σ_k ‖W_k‖_*`` (nuclear norm is the dual norm of ‖·‖₂),
+    and the left side equals ``⟨V, H̃⟩ = ⟨V, B − model − Ξ⟩ ≥ ⟨V, B⟩ − σ√N ‖V‖_F``.  The bound is
+    invariant to scaling (V, W) together and holds for inexact duals; see :mod:`unfalsify._columns`.
+    A PSD multiplier ``G`` of the LMI ``[δI T(h)ᵀ; T(h) δI] ⪰ 0`` corresponds to ``W = −2 G21``.
 
     Attributes
     ----------
     delta : float
-        δ reported by the solver.
-    delta_certified : float
-        The smallest δ that the returned noise and impulse(s) actually certify: ``max_k ‖T(h_k)‖₂``
-        with ``h_k`` recomputed from the returned noise (exactly, in rational arithmetic, for the
-        literal form) -- by Theorem 7.1 this is the exact left-hand side of (7.4)/(7.5).
-    noise_rms : float
-        rms of the returned noise (``‖ξ‖₂/√n`` or ``‖Ξ‖_F/√(ij)``), to compare with σ.
+        δ reported by the backend.
+    upper_bound : float
+        ``max_k ‖T(h_k)‖₂`` recomputed from ``impulses`` (alias ``delta_certified``).
+    lower_bound : float
+        The dual bound above, recomputed from ``dual_v``, ``dual_G`` (NaN if no dual point).
+    noise_norm, noise_bound : float
+        ``‖ξ‖₂`` (or ``‖Ξ‖_F``) recomputed from the primal point, and ``σ√N``.
     sigma : float
-        The admissible rms noise level.
+        The admissible rms noise level σ.
+    n_noise : int
+        N, the number of noise samples.
+    impulses : ndarray
+        h (n,) or H (i, j), in data units.
+    params : ndarray
+        θ (ARX) or ``[L_w L_u]`` (subspace), in data units.
+    dual_v : ndarray or None
+        V, shape (n,) or (i, j).
+    dual_G : ndarray, tuple or None
+        W: dense ``(n, n)`` / ``(j, i, i)``, or a factor pair ``(P, Q)`` meaning ``P @ Q.T`` (per column).
+    problem : object
+        The problem object (:class:`ArxProblem` or :class:`SubspaceProblem`) holding the data.
     """
 
     delta: float
-    delta_certified: float
-    noise_rms: float
+    upper_bound: float
+    lower_bound: float
+    noise_norm: float
+    noise_bound: float
     sigma: float
+    n_noise: int
+    impulses: object = None
+    params: object = None
+    dual_v: object = None
+    dual_G: object = None
+    problem: object = None
+
+    @property
+    def delta_certified(self) -> float:
+        """Alias of ``upper_bound``: the δ the returned impulses certify."""
+        return self.upper_bound
+
+    @property
+    def noise_rms(self) -> float:
+        """rms of the returned noise, ``noise_norm/√N`` (compare with σ)."""
+        return float(self.noise_norm / np.sqrt(self.n_noise))
+
+    @property
+    def gap(self) -> float:
+        """``upper_bound − lower_bound``."""
+        return float(self.upper_bound - self.lower_bound)
+
+    @property
+    def relative_gap(self) -> float:
+        """``gap / upper_bound`` (0 when both are 0)."""
+        if self.upper_bound == 0.0 and self.lower_bound == 0.0:
+            return 0.0
+        return float(self.gap / abs(self.upper_bound)) if self.upper_bound else float("inf")
 
     @property
     def max_violation(self) -> float:
-        """``max(δ_certified − δ, noise_rms − σ)`` (≤ 0 means the answer satisfies the original inequalities)."""
-        return float(max(self.delta_certified - self.delta, self.noise_rms - self.sigma))
+        """Largest relative violation, each constraint in its own units.
+
+        ``max((δ_certified − δ)/δ, (‖ξ‖ − σ√N)/(σ√N))``; ≤ 0 means the reported δ is attained by the
+        returned (feasible) point.
+        """
+        dv = (self.upper_bound - self.delta) / abs(self.delta) if self.delta else (
+            0.0 if self.upper_bound <= 0.0 else float("inf"))
+        nv = (self.noise_norm - self.noise_bound) / self.noise_bound
+        return float(max(dv, nv))
 
     def ok(self, rtol: float = 1e-5) -> bool:
-        """True when the violation is within ``rtol`` relative to ``max(δ, σ)``."""
-        scale = max(abs(self.delta), self.sigma)
-        return bool(np.isfinite(self.delta_certified) and self.max_violation <= rtol * scale)
+        """True when the norm bound holds to ``rtol`` relative to δ and the noise bound to ``rtol``
+        relative to σ√N (each constraint in its own units)."""
+        if not (np.isfinite(self.upper_bound) and np.isfinite(self.delta) and np.isfinite(self.noise_norm)):
+            return False
+        norm_ok = self.upper_bound - self.delta <= rtol * abs(self.delta) + 1e-300
+        noise_ok = self.noise_norm - self.noise_bound <= rtol * self.noise_bound
+        return bool(norm_ok and noise_ok)
+
+    def verify(self, rtol: float = 1e-6) -> bool:
+        """Recompute both bounds from the data and the stored points alone; True if they match.
+
+        Checks: the primal noise is within ``σ√N`` (to ``rtol``), ``max_k ‖T(h_k)‖₂`` equals
+        ``upper_bound`` and the dual bound recomputed from ``(dual_v, dual_G)`` with this σ equals
+        ``lower_bound`` (to ``rtol`` relative), and ``lower_bound ≤ upper_bound``.
+        """
+        if self.problem is None:
+            return False
+        up, nn = self.problem.evaluate_primal(self.impulses, self.params)
+        if not (np.isfinite(up) and np.isfinite(nn)):
+            return False
+        bound = self.sigma * np.sqrt(self.n_noise)
+        scale = max(abs(up), abs(self.upper_bound), 1e-300)
+        ok = abs(up - self.upper_bound) <= rtol * scale and nn <= bound * (1 + rtol)
+        ok = ok and abs(nn - self.noise_norm) <= rtol * max(nn, bound) and abs(bound - self.noise_bound) <= rtol * bound
+        if self.dual_v is not None:
+            lo = self.problem.evaluate_dual(self.dual_v, self.dual_G, sigma=self.sigma)
+            ok = ok and np.isfinite(lo) and abs(lo - self.lower_bound) <= rtol * scale
+            ok = ok and self.lower_bound <= self.upper_bound * (1 + rtol) + 1e-300
+        elif np.isfinite(self.lower_bound) and self.lower_bound > 0:
+            return False
+        return bool(ok)

@@ -25,6 +25,7 @@ SCS δ = 6.3 instead of 0.170 at n = 40).
 """
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -33,10 +34,13 @@ import numpy as np
 
 from synthesis._validation import DataError
 
+from ._columns import ColumnForm, _conv_cols
 from ._common import (
     COND_WARN,
     Certificate,
     IllConditionedWarning,
+    SolverWarning,
+    check_backend,
     check_form,
     check_sigma,
     rms_or_one,
@@ -47,7 +51,7 @@ from ._common import (
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 
-__all__ = ["ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
+__all__ = ["ArxProblem", "ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,11 +70,13 @@ class ArxResult:
         h, the first n Markov parameters of Δ: ``e − ξ = T(u) h`` (for the thesis form
         recomputed from ξ in exact rational arithmetic).
     status : str
-        cvxpy status (``"optimal"``, ``"optimal_inaccurate"``, ...).
+        cvxpy status (``"optimal"``, ``"optimal_inaccurate"``, ...), or for the structured backend
+        ``"optimal"``, ``"time_limit"``, ``"interrupted"``, ``"max_iter"``, ``"failed"``.
     solve_time : float
-        Wall time of ``problem.solve`` in seconds (includes cvxpy compilation).
-    problem : cvxpy.Problem
-        The problem as solved, to inspect or extend (in scaled units, see ``scale``).
+        Wall time of the solve in seconds (cvxpy: ``problem.solve``, incl. compilation).
+    problem : cvxpy.Problem or None
+        The cvxpy problem as solved (in scaled units, see ``scale``); None for the structured backend
+        (the data are in ``certificate.problem``, an :class:`ArxProblem`).
     form : str
         ``"conditioned"`` or ``"thesis"``.
     sigma : float
@@ -80,7 +86,8 @@ class ArxResult:
     cond_Tu : float
         cond₂ ``T(u)``.
     certificate : Certificate
-        Independent recomputation of δ and the noise rms from ``(theta, noise, impulse)``.
+        Two-sided certificate: ``upper_bound = ‖T(h)‖₂`` and the noise recomputed from
+        ``(theta, impulse)``, ``lower_bound`` from the dual point; ``verify()`` recomputes both.
     scale : tuple of float
         ``(s_u, s_y)``: the problem was posed on ``u/s_u`` and ``y/s_y`` (``s_u`` = rms of u,
         ``s_y`` = rms of the least-squares equation error).
@@ -100,6 +107,7 @@ class ArxResult:
     cond_Tu: float
     certificate: Certificate
     scale: tuple
+    backend: str = "cvxpy"
 
     @property
     def a(self) -> np.ndarray:
@@ -150,87 +158,102 @@ def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     return theta, float(np.linalg.norm(e) / np.sqrt(Y.size))
 
 
-def arx_unfalsify(
-    u,
-    y,
-    na: int,
-    nb: int,
-    sigma: float,
-    *,
-    form: str = "conditioned",
-    solver: str = "CLARABEL",
-    solver_options: dict | None = None,
-) -> ArxResult:
-    """Smallest ``‖Δ‖∞`` unfalsifying the ARX model (7.3) with ``‖ξ‖_rms ≤ σ``: program (7.4).
+@dataclass(frozen=True, eq=False)
+class ArxProblem:
+    """Program (7.4) on given data: validation, scaling and the independent bounds.
 
-    Parameters
-    ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO data, system at rest before t = 0; ``u[0]`` must be non-zero.
-    na, nb : int
-        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …``.
-    sigma : float
-        Admissible rms noise level σ > 0 (same units as y).
-    form : {"conditioned", "thesis"}
-        See the module docstring.  ``"conditioned"`` is exact and well conditioned;
-        ``"thesis"`` is the literal §7.2.2 LMI (small n only).
-    solver : str
-        cvxpy solver name, passed explicitly (cvxpy may otherwise choose SCS).
-    solver_options : dict, optional
-        Extra keyword arguments for ``Problem.solve``.
-
-    Returns
-    -------
-    ArxResult
-        With ``certificate``: δ recomputed as ``‖T(h)‖₂`` from the returned h (exact
-        Theorem 7.1 value of the left side of (7.4) for the returned ξ) and the noise rms.
-
-    Raises
-    ------
-    DataError
-        Bad data (NaN, lengths, MIMO, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
-    UnfalsificationError
-        Solver failure or an infeasible/unbounded status (impossible in exact arithmetic).
-
-    Warns
-    -----
-    SolverWarning
-        Status other than optimal (δ is NaN unless ``optimal_inaccurate``).
-    IllConditionedWarning
-        ``form="thesis"`` with ``cond T(u) > COND_WARN``.
+    Build with :meth:`from_data`.  ``evaluate_primal`` and ``evaluate_dual`` are the two sides of
+    :class:`Certificate` (data units); ``column_form`` is the scaled program the backends solve:
+    ``u/s_u``, ``y/s_y`` with ``s_u`` = rms(u), ``s_y`` = rms of the least-squares equation error.
     """
-    form = check_form(form)
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
-    na, nb = _order(na, "na"), _order(nb, "nb")
-    sigma = check_sigma(sigma)
-    n = u.size
-    if n <= na + nb:
-        raise DataError(f"need more samples than parameters: n = {n} <= na + nb = {na + nb}")
-    if u[0] == 0.0:
-        raise DataError(
-            "u[0] == 0: T(u) is singular, so no causal Δ(q)u can explain a non-zero error at t = 0 and the "
-            "substitution e − ξ = T(u)h is not available; start the record at the first non-zero input sample"
-        )
-    cond = toeplitz_cond(u)
-    if form == "thesis" and not cond <= COND_WARN:
-        warnings.warn(
-            f"form='thesis' with cond T(u) = {cond:.3g}: T(u)ᵀT(u) is numerically singular; the solver's δ "
-            "is not certified by its own variables (see certificate); prefer form='conditioned'",
-            IllConditionedWarning,
-            stacklevel=2,
-        )
-    # scale u to unit rms and y so that the least-squares equation error has unit rms: the
-    # program splits exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
-    su = rms_or_one(u)
-    sy = arx_least_squares(u, y, na, nb)[1]
-    if not sy > 1e-12 * rms_or_one(y):
-        sy = rms_or_one(y)
-    us, ys = u / su, y / sy
-    Phi_s, Y_s = arx_regressor(us, ys, na, nb)
-    sig_s = sigma / sy
-    Tu_s = toeplitz_matrix(us)
 
+    u: np.ndarray
+    y: np.ndarray
+    na: int
+    nb: int
+    sigma: float
+    scale: tuple
+    cond_Tu: float
+
+    @classmethod
+    def from_data(cls, u, y, na, nb, sigma) -> "ArxProblem":
+        """Validate (raises :class:`DataError`) and scale."""
+        u = siso_signal(u, "u")
+        y = siso_signal(y, "y", n=u.size)
+        na, nb = _order(na, "na"), _order(nb, "nb")
+        sigma = check_sigma(sigma)
+        n = u.size
+        if n <= na + nb:
+            raise DataError(f"need more samples than parameters: n = {n} <= na + nb = {na + nb}")
+        if u[0] == 0.0:
+            raise DataError(
+                "u[0] == 0: T(u) is singular, so no causal Δ(q)u can explain a non-zero error at t = 0 and the "
+                "substitution e − ξ = T(u)h is not available; start the record at the first non-zero input sample"
+            )
+        # u to unit rms, y so that the least-squares equation error has unit rms: the program splits
+        # exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
+        su = rms_or_one(u)
+        sy = arx_least_squares(u, y, na, nb)[1]
+        if not sy > 1e-12 * rms_or_one(y):
+            sy = rms_or_one(y)
+        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=toeplitz_cond(u))
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.u.size)
+
+    def column_form(self, scaled: bool = True) -> ColumnForm:
+        """(7.4) as the column form (C) of :mod:`unfalsify._columns` (j = 1, 𝓛 = range Φ)."""
+        su, sy = self.scale if scaled else (1.0, 1.0)
+        Phi, Y = arx_regressor(self.u / su, self.y / sy, self.na, self.nb)
+        Q = np.linalg.qr(Phi)[0] if Phi.shape[1] else None
+        return ColumnForm((self.u / su)[:, None], Y[:, None], self.sigma / sy * np.sqrt(self.n), basis_left=Q)
+
+    def evaluate_primal(self, h, theta) -> tuple[float, float]:
+        """``(‖T(h)‖₂, ‖Φθ + Y − T(u)h‖₂)`` recomputed from the data (inf/NaN for non-finite input)."""
+        h = np.asarray(h, float).reshape(-1)
+        theta = np.asarray(theta, float).reshape(-1)
+        if not (np.all(np.isfinite(h)) and np.all(np.isfinite(theta))):
+            return float("inf"), float("nan")
+        Phi, Y = arx_regressor(self.u, self.y, self.na, self.nb)
+        xi = (Phi @ theta if theta.size else 0.0) + Y - _conv_cols(self.u[:, None], h[:, None])[:, 0]
+        return toeplitz_norm(h), float(np.linalg.norm(xi))
+
+    def evaluate_dual(self, v, W, sigma=None) -> float:
+        """The weak-duality lower bound of :class:`Certificate` for any ``v`` (n,) and ``W``."""
+        sigma = self.sigma if sigma is None else float(sigma)
+        return self.column_form(scaled=False).lower_bound(v, W, rho=sigma * np.sqrt(self.n))
+
+
+def _best_scaled_dual(form: ColumnForm, v, W) -> tuple[np.ndarray, object]:
+    """A solver's (v, W) with the relative scale and sign of W chosen to maximise the bound.
+
+    Any (v, W) gives a valid bound; solvers' sign and scaling conventions for duals differ, so the
+    relative scale α of ``v`` is picked by a coarse search (small problems only).
+    """
+    best = (-1.0, v, W)
+    for sgn in (1.0, -1.0):
+        Ws = sgn * np.asarray(W, float)
+        grid = np.logspace(-6, 6, 49)
+        vals = [form.lower_bound(a * v, Ws) for a in grid]
+        k = int(np.nanargmax(vals))
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        for a in np.geomspace(lo, hi, 17):
+            val = form.lower_bound(a * v, Ws)
+            if val > best[0]:
+                best = (val, a * v, Ws)
+    return best[1], best[2]
+
+
+def _solve_cvxpy(P: ArxProblem, form: str, solver: str, solver_options) -> dict:
+    """The reference cvxpy models (unchanged), in scaled units; returns a dict in data units."""
+    n, na, nb = P.n, P.na, P.nb
+    su, sy = P.scale
+    us, ys = P.u / su, P.y / sy
+    Phi_s, Y_s = arx_regressor(us, ys, na, nb)
+    sig_s = P.sigma / sy
+    Tu_s = toeplitz_matrix(us)
     p = na + nb
     theta = cp.Variable(p, name="theta")
     delta = cp.Variable(name="delta")
@@ -261,39 +284,199 @@ def arx_unfalsify(
         th_s = np.asarray(theta.value, dtype=float).reshape(-1)
     theta_out = th_s.copy()
     theta_out[na:] *= sy / su
-    Phi, Y = arx_regressor(u, y, na, nb)
+    Phi, Y = arx_regressor(P.u, P.y, na, nb)
     e_out = Phi @ theta_out + Y if p else Y
+    v = W = None
     if form == "conditioned":
         h_out = np.asarray(h.value, dtype=float) * (sy / su) if h.value is not None else np.full(n, np.nan)
-        xi_out = e_out - toeplitz_matrix(u) @ h_out
+        lam, Z = cons[0].dual_value, cons[1].dual_value
+        xi_s = np.asarray(xi.value, float) if xi.value is not None else None
+        if lam is not None and Z is not None and xi_s is not None and np.linalg.norm(xi_s) > 0:
+            v = float(lam) * xi_s / np.linalg.norm(xi_s)
+            W = -2.0 * np.asarray(Z, float)[n:, :n]
     else:
         xi_out = np.asarray(xi_v.value, dtype=float) * sy if xi_v.value is not None else np.full(n, np.nan)
         if np.all(np.isfinite(xi_out)):
             with np.errstate(over="ignore", invalid="ignore"):
-                h_out = deconvolve(u, e_out - xi_out, exact=n <= 400)
+                h_out = deconvolve(P.u, e_out - xi_out, exact=n <= 400)
         else:
             h_out = np.full(n, np.nan)
-    delta_out = d_s * sy / su
-    d_cert = toeplitz_norm(h_out) if np.all(np.isfinite(h_out)) else float("inf")
-    cert = Certificate(
-        delta=delta_out,
-        delta_certified=d_cert,
-        noise_rms=float(np.linalg.norm(xi_out) / np.sqrt(n)),
-        sigma=sigma,
-    )
+        Z = cons[1].dual_value
+        if Z is not None:
+            Z21 = np.asarray(Z, float)[n:, :n]
+            v = -2.0 * np.array([np.trace(Z21, offset=-k) for k in range(n)])
+            W = -2.0 * Z21 @ Tu_s.T
+    if v is not None and np.all(np.isfinite(v)) and np.all(np.isfinite(W)):
+        v, W = _best_scaled_dual(P.column_form(scaled=True), v, W)
+        W = W * su  # data units: T(u)ᵀv = s_u T(u/s_u)ᵀv
+    else:
+        v = W = None
+    return dict(delta=d_s * sy / su, h=h_out, theta=theta_out, status=status, time=elapsed, problem=prob, v=v, W=W)
+
+
+def _solve_structured(P: ArxProblem, tol: float, time_limit, progress: bool) -> dict:
+    """The structured barrier solver (:mod:`unfalsify._structured`); returns a dict in data units."""
+    from ._structured import solve_structured
+
+    su, sy = P.scale
+    f = P.column_form(scaled=True)
+    t0 = time.perf_counter()
+    B0 = f.project(f.B)
+    if np.linalg.norm(B0) <= f.rho:  # the least-squares model already explains the data: δ = 0
+        h_s = np.zeros(P.n)
+        out = dict(status="optimal", H=h_s[:, None], V=None, W=None, upper=0.0, lower=0.0)
+    else:
+        out = solve_structured(f, B0, tol=tol, time_limit=time_limit, progress=progress)
+        h_s = out["H"][:, 0]
+    h = h_s * (sy / su)
+    Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
+    if Phi.shape[1]:
+        theta = -np.linalg.lstsq(Phi, Y - _conv_cols(P.u[:, None], h[:, None])[:, 0], rcond=None)[0]
+    else:
+        theta = np.zeros(0)
+    W = None if out["W"] is None else out["W"][0] * su
+    v = out["V"]
+    v = None if v is None else v[:, 0]
+    return dict(delta=out["upper"] * sy / su, h=h, theta=theta, status=out["status"], time=time.perf_counter() - t0,
+                problem=None, v=v, W=W)
+
+
+def _finish_structured(status: str, what: str, cert_gap: float) -> None:
+    if status != "optimal":
+        warnings.warn(
+            f"{what}: structured backend stopped with status '{status}'"
+            + (f"; the certified bracket has relative gap {cert_gap:.3g}" if np.isfinite(cert_gap) else ""),
+            SolverWarning,
+            stacklevel=3,
+        )
+
+
+def arx_unfalsify(
+    u,
+    y,
+    na: int,
+    nb: int,
+    sigma: float,
+    *,
+    form: str = "conditioned",
+    solver: str = "CLARABEL",
+    solver_options: dict | None = None,
+    backend: str = "cvxpy",
+    tol: float = 1e-6,
+    time_limit: float | None = None,
+    progress: bool = True,
+) -> ArxResult:
+    """Smallest ``‖Δ‖∞`` unfalsifying the ARX model (7.3) with ``‖ξ‖_rms ≤ σ``: program (7.4).
+
+    Parameters
+    ----------
+    u, y : array_like, shape (n,) or (n, 1)
+        SISO data, system at rest before t = 0; ``u[0]`` must be non-zero.
+    na, nb : int
+        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …``.
+    sigma : float
+        Admissible rms noise level σ > 0 (same units as y).
+    form : {"conditioned", "thesis"}
+        See the module docstring.  ``"conditioned"`` is exact and well conditioned;
+        ``"thesis"`` is the literal §7.2.2 LMI (small n only, cvxpy backend only).
+    solver : str
+        cvxpy solver name, passed explicitly (cvxpy may otherwise choose SCS); cvxpy backend.
+    solver_options : dict, optional
+        Extra keyword arguments for ``Problem.solve``; cvxpy backend.
+    backend : {"cvxpy", "structured"}
+        ``"cvxpy"``: the generic LMI models above (the reference).  ``"structured"``: the barrier
+        solver of :mod:`unfalsify._structured`, which exploits the Toeplitz structure (O(n²) memory,
+        O(n³) per iteration; n = 400 in seconds).
+    tol : float
+        Structured backend: stop when the certified relative gap ``(upper − lower)/upper ≤ tol``.
+    time_limit : float, optional
+        Structured backend: wall-clock limit in seconds; on expiry (or Ctrl-C) the best certified
+        bracket so far is returned with status ``"time_limit"`` (``"interrupted"``) and a warning.
+    progress : bool
+        Structured backend: a tqdm bar (outer iteration, bounds) for solves longer than ~2 s.
+
+    Returns
+    -------
+    ArxResult
+        With a two-sided ``certificate`` (:class:`Certificate`): ``upper_bound = ‖T(h)‖₂`` and the
+        noise recomputed from ``(theta, impulse)``, ``lower_bound`` from the dual point.
+
+    Raises
+    ------
+    DataError
+        Bad data (NaN, lengths, MIMO, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
+    ValueError
+        Unknown ``form`` or ``backend``, or ``form="thesis"`` with the structured backend.
+    UnfalsificationError
+        cvxpy: solver failure or an infeasible/unbounded status (impossible in exact arithmetic).
+
+    Warns
+    -----
+    SolverWarning
+        Status other than optimal (δ is NaN unless ``optimal_inaccurate``, or, for the structured
+        backend, ``time_limit``/``interrupted``, where δ is the certified upper bound).
+    IllConditionedWarning
+        ``form="thesis"`` with ``cond T(u) > COND_WARN``.
+    """
+    form = check_form(form)
+    backend = check_backend(backend)
+    if backend == "structured" and form != "conditioned":
+        raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
+    P = ArxProblem.from_data(u, y, na, nb, sigma)
+    if form == "thesis" and not P.cond_Tu <= COND_WARN:
+        warnings.warn(
+            f"form='thesis' with cond T(u) = {P.cond_Tu:.3g}: T(u)ᵀT(u) is numerically singular; the solver's δ "
+            "is not certified by its own variables (see certificate); prefer form='conditioned'",
+            IllConditionedWarning,
+            stacklevel=2,
+        )
+    if backend == "cvxpy":
+        out = _solve_cvxpy(P, form, solver, solver_options)
+    else:
+        out = _solve_structured(P, float(tol), time_limit, progress)
+    cert = certify(P, out["delta"], out["h"], out["theta"], out["v"], out["W"])
+    delta = out["delta"]
+    if backend == "structured":
+        if out["status"] not in ("optimal", "time_limit", "interrupted") or not np.isfinite(cert.upper_bound):
+            delta = float("nan")
+        _finish_structured(out["status"], f"ARX unfalsification (n={P.n})", cert.relative_gap)
+    Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
+    xi = (Phi @ out["theta"] if P.na + P.nb else 0.0) + Y - _conv_cols(P.u[:, None], out["h"][:, None])[:, 0]
     return ArxResult(
-        delta=delta_out,
-        theta=theta_out,
-        noise=xi_out,
-        impulse=h_out,
-        status=status,
-        solve_time=elapsed,
-        problem=prob,
+        delta=delta,
+        theta=out["theta"],
+        noise=xi,
+        impulse=out["h"],
+        status=out["status"],
+        solve_time=out["time"],
+        problem=out["problem"],
         form=form,
-        sigma=sigma,
-        na=na,
-        nb=nb,
-        cond_Tu=cond,
+        sigma=P.sigma,
+        na=P.na,
+        nb=P.nb,
+        cond_Tu=P.cond_Tu,
         certificate=cert,
-        scale=(su, sy),
+        scale=P.scale,
+        backend=backend,
+    )
+
+
+def certify(P, delta, impulses, params, v, W) -> Certificate:
+    """The :class:`Certificate` of a primal point (impulses, params) and a dual point (v, W) for ``P``."""
+    up, nn = P.evaluate_primal(impulses, params)
+    lo = P.evaluate_dual(v, W) if v is not None else float("nan")
+    n_noise = int(np.size(P.u)) if isinstance(P, ArxProblem) else int(P.horizon * P.n_columns)
+    return Certificate(
+        delta=float(delta),
+        upper_bound=float(up),
+        lower_bound=float(lo),
+        noise_norm=float(nn),
+        noise_bound=float(P.sigma * np.sqrt(n_noise)),
+        sigma=P.sigma,
+        n_noise=n_noise,
+        impulses=impulses,
+        params=params,
+        dual_v=v,
+        dual_G=W,
+        problem=P,
     )

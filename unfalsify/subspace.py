@@ -23,6 +23,7 @@ Layout follows :class:`synthesis.Predictor`: ``W_p = [U_p; Y_p]``, ``L_w`` is ``
 """
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -34,10 +35,12 @@ import scipy.sparse as sp
 from synthesis import Predictor, block_hankel
 from synthesis._validation import DataError, check_horizon
 
+from ._columns import ColumnForm, _conv_cols
 from ._common import (
     COND_WARN,
     Certificate,
     IllConditionedWarning,
+    check_backend,
     check_form,
     check_sigma,
     rms_or_one,
@@ -48,7 +51,7 @@ from ._common import (
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 
-__all__ = ["SubspaceResult", "subspace_unfalsify", "subspace_data"]
+__all__ = ["SubspaceProblem", "SubspaceResult", "subspace_unfalsify", "subspace_data"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,6 +109,7 @@ class SubspaceResult:
     certificate: Certificate
     scale: tuple
     regressor_singular_values: np.ndarray
+    backend: str = "cvxpy"
 
     @property
     def max_violation(self) -> float:
@@ -156,106 +160,110 @@ def _l_value(L, L_fixed, Lscale, i) -> np.ndarray:
     return np.asarray(L.value, float) * Lscale
 
 
-def subspace_unfalsify(
-    u,
-    y,
-    horizon: int,
-    sigma: float,
-    *,
-    form: str = "conditioned",
-    eliminate_L: bool = False,
-    predictor=None,
-    solver: str = "CLARABEL",
-    solver_options: dict | None = None,
-) -> SubspaceResult:
-    """Smallest δ bounding the column operators ``Δ_k`` that unfalsify the subspace model: (7.5).
+@dataclass(frozen=True, eq=False)
+class SubspaceProblem:
+    """Program (7.5) on given data: validation, scaling, the fixed predictor and the bounds.
 
-    Parameters
-    ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO data; ``j = n − 2i + 1`` columns.
-    horizon : int
-        The prediction horizon i.
-    sigma : float
-        Admissible rms noise level σ > 0 of Ξ (units of y).
-    form : {"conditioned", "thesis"}
-        See the module docstring.
-    eliminate_L : bool
-        Conditioned form only: eliminate ``[L_w L_u]`` analytically (fewer variables, a denser
-        noise cone; see ``experiments/bench_unfalsify.py`` for which is faster).
-    predictor : synthesis.Predictor, optional
-        Fix ``[L_w L_u]`` to a given SISO predictor of horizon i (e.g. a least-squares fit on a
-        longer record) and compute the δ of that model: (7.5) with L a constant.  Default: L is
-        optimised jointly with Ξ and the impulses, as in the thesis.
-    solver : str
-        cvxpy solver, passed explicitly.
-    solver_options : dict, optional
-        Extra keyword arguments for ``Problem.solve``.
-
-    Returns
-    -------
-    SubspaceResult
-
-    Raises
-    ------
-    DataError
-        NaN/inf, lengths, MIMO, bad horizon / too few samples, σ ≤ 0, or a column of ``U_f``
-        whose first entry ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular: the reformulation and
-        Theorem 7.1 need it invertible; a ±1 PRBS never has zeros).
-    UnfalsificationError
-        Solver failure or infeasible/unbounded status.
-
-    Warns
-    -----
-    SolverWarning, IllConditionedWarning
-        As for :func:`unfalsify.arx_unfalsify`.
+    Build with :meth:`from_data`.  ``evaluate_primal(H, L)`` / ``evaluate_dual(V, W)`` are the two
+    sides of :class:`Certificate` (data units); ``column_form`` is what the backends solve.
     """
-    form = check_form(form)
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
-    sigma = check_sigma(sigma)
-    A, Uf, Yf = subspace_data(u, y, horizon)
-    i, j = Uf.shape
-    zero_cols = np.flatnonzero(Uf[0] == 0.0)
-    if zero_cols.size:
-        raise DataError(
-            f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
-            f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
-            "samples (e.g. a ±1 PRBS)"
-        )
-    cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
-    if form == "thesis" and not cond <= COND_WARN:
-        warnings.warn(
-            f"form='thesis' with max_k cond T((U_f)_k) = {cond:.3g}: the literal LMI is numerically "
-            "singular; prefer form='conditioned'",
-            IllConditionedWarning,
-            stacklevel=2,
-        )
-    if form == "thesis" and eliminate_L:
-        raise ValueError("eliminate_L applies to form='conditioned' only")
-    L_fixed = None
-    if predictor is not None:
-        if eliminate_L:
-            raise ValueError("eliminate_L and a fixed predictor exclude each other")
-        L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
-        if int(predictor.horizon) != i or L_fixed.shape != (i, 3 * i) or not np.all(np.isfinite(L_fixed)):
-            raise DataError(
-                f"predictor must be a finite SISO predictor of horizon {i} (Lw {i}×{2 * i}, Lu {i}×{i}); "
-                f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
-            )
 
-    # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
-    # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
-    su = rms_or_one(u)
-    Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
-    sy = rms_or_one(Yf - Lref @ A)
-    if not sy > 1e-12 * rms_or_one(y):
-        sy = rms_or_one(y)
-    As = A.copy()
-    As[:i] /= su
-    As[i : 2 * i] /= sy
-    As[2 * i :] /= su
-    Ufs, Yfs, sig_s = Uf / su, Yf / sy, sigma / sy
+    u: np.ndarray
+    y: np.ndarray
+    horizon: int
+    sigma: float
+    L_fixed: np.ndarray | None
+    scale: tuple
+    cond_Tu: float
+    A: np.ndarray
+    Uf: np.ndarray
+    Yf: np.ndarray
+
+    @property
+    def n_columns(self) -> int:
+        """j."""
+        return int(self.Uf.shape[1])
+
+    @classmethod
+    def from_data(cls, u, y, horizon, sigma, predictor=None) -> "SubspaceProblem":
+        """Validate (raises :class:`DataError`) and scale."""
+        u = siso_signal(u, "u")
+        y = siso_signal(y, "y", n=u.size)
+        sigma = check_sigma(sigma)
+        A, Uf, Yf = subspace_data(u, y, horizon)
+        i, j = Uf.shape
+        zero_cols = np.flatnonzero(Uf[0] == 0.0)
+        if zero_cols.size:
+            raise DataError(
+                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
+                f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
+                "samples (e.g. a ±1 PRBS)"
+            )
+        L_fixed = None
+        if predictor is not None:
+            L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
+            if int(predictor.horizon) != i or L_fixed.shape != (i, 3 * i) or not np.all(np.isfinite(L_fixed)):
+                raise DataError(
+                    f"predictor must be a finite SISO predictor of horizon {i} (Lw {i}×{2 * i}, Lu {i}×{i}); "
+                    f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
+                )
+        cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
+        # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
+        # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
+        su = rms_or_one(u)
+        Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+        sy = rms_or_one(Yf - Lref @ A)
+        if not sy > 1e-12 * rms_or_one(y):
+            sy = rms_or_one(y)
+        return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
+                   A=A, Uf=Uf, Yf=Yf)
+
+    def scaled_A(self) -> np.ndarray:
+        """``A`` with rows scaled as the data (``u/s_u``, ``y/s_y``)."""
+        i = self.horizon
+        su, sy = self.scale
+        As = self.A.copy()
+        As[:i] /= su
+        As[i : 2 * i] /= sy
+        As[2 * i :] /= su
+        return As
+
+    def column_form(self, scaled: bool = True) -> ColumnForm:
+        """(7.5) as the column form (C) (𝓛 = {L A}, or {0} with the predictor fixed)."""
+        su, sy = self.scale if scaled else (1.0, 1.0)
+        i, j = self.Uf.shape
+        rho = self.sigma / sy * np.sqrt(i * j)
+        if self.L_fixed is not None:
+            return ColumnForm(self.Uf / su, (self.Yf - self.L_fixed @ self.A) / sy, rho)
+        As = self.scaled_A() if scaled else self.A
+        Vt, sv = np.linalg.svd(As, full_matrices=False)[2], np.linalg.svd(As, compute_uv=False)
+        rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
+        return ColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T)
+
+    def evaluate_primal(self, H, L) -> tuple[float, float]:
+        """``(max_k ‖T(h_k)‖₂, ‖Y_f − L A − H̃‖_F)`` recomputed from the data."""
+        H = np.asarray(H, float)
+        L = np.asarray(L, float)
+        if not (np.all(np.isfinite(H)) and np.all(np.isfinite(L))):
+            return float("inf"), float("nan")
+        Xi = self.Yf - L @ self.A - _conv_cols(self.Uf, H)
+        d = max(toeplitz_norm(H[:, k]) for k in range(H.shape[1]))
+        return float(d), float(np.linalg.norm(Xi))
+
+    def evaluate_dual(self, V, W, sigma=None) -> float:
+        """The weak-duality lower bound of :class:`Certificate` for any ``V`` (i, j) and ``W``."""
+        sigma = self.sigma if sigma is None else float(sigma)
+        return self.column_form(scaled=False).lower_bound(V, W, rho=sigma * np.sqrt(self.Uf.size))
+
+
+def _solve_cvxpy(P: SubspaceProblem, form, eliminate_L, solver, solver_options) -> dict:
+    """The reference cvxpy models (unchanged), in scaled units; returns a dict in data units."""
+    A, Uf, Yf = P.A, P.Uf, P.Yf
+    i, j = Uf.shape
+    su, sy = P.scale
+    L_fixed = P.L_fixed
+    As = P.scaled_A()
+    Ufs, Yfs, sig_s = Uf / su, Yf / sy, P.sigma / sy
     bound = sig_s * np.sqrt(i * j)
 
     delta = cp.Variable(name="delta")
@@ -273,31 +281,40 @@ def subspace_unfalsify(
             L = cp.Variable((i, 3 * i), name="L") if L is None else L
             resid = Yfs - L @ As - Ht
             noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound]
-        cons = noise_con + [toeplitz_norm_lmi(H[:, k], delta, i) for k in range(j)]
+        lmis = [toeplitz_norm_lmi(H[:, k], delta, i) for k in range(j)]
+        cons = noise_con + lmis
     else:
         L = cp.Variable((i, 3 * i), name="L") if L is None else L
         Xi = cp.Variable((i, j), name="Xi")
         G = Yfs - L @ As - Xi
         xv = cp.reshape(cp.vec(Xi, order="F"), (i * j, 1), order="F") / np.sqrt(i * j)
         cons = [cp.bmat([[np.array([[sig_s]]), xv.T], [xv, sig_s * np.eye(i * j)]]) >> 0]
+        lmis = []
         for k in range(j):
             Tk = toeplitz_matrix(Ufs[:, k])
             Gk = toeplitz_expr(G[:, k], i)
-            cons.append(cp.bmat([[delta * (Tk.T @ Tk), Gk.T], [Gk, delta * np.eye(i)]]) >> 0)
+            lmis.append(cp.bmat([[delta * (Tk.T @ Tk), Gk.T], [Gk, delta * np.eye(i)]]) >> 0)
+        cons += lmis
     prob = cp.Problem(cp.Minimize(delta), cons)
     status, elapsed = solve(prob, solver, solver_options, f"subspace unfalsification (form={form}, i={i}, j={j})")
     d_s = solved_value(status, delta.value)
 
-    # --- back to original units and independent certificate --------------------------------
+    # --- back to original units --------------------------------------------------------------
+    V = W = None
     if form == "conditioned":
         Hv = np.asarray(H.value, float) * (sy / su) if H.value is not None else np.full((i, j), np.nan)
-        Htil = np.column_stack([toeplitz_matrix(Uf[:, k]) @ Hv[:, k] for k in range(j)])
+        Htil = _conv_cols(Uf, Hv)
         if eliminate_L:
             L_out = (Yf - Htil) @ np.linalg.pinv(A)
         else:
             L_out = _l_value(L, L_fixed, Lscale, i)
-        Xi_out = Yf - L_out @ A - Htil
         impulses = Hv
+        Zs = [c.dual_value for c in lmis]
+        lam = noise_con[0].dual_value if noise_con else None
+        Xi_s = (Yf - L_out @ A - Htil) / sy
+        if lam is not None and all(Z is not None for Z in Zs) and np.linalg.norm(Xi_s) > 0:
+            V = float(lam) * Xi_s / np.linalg.norm(Xi_s)
+            W = np.stack([-2.0 * np.asarray(Z, float)[i:, :i] for Z in Zs])
     else:
         L_out = _l_value(L, L_fixed, Lscale, i)
         Xi_out = np.asarray(Xi.value, float) * sy if Xi.value is not None else np.full((i, j), np.nan)
@@ -307,32 +324,150 @@ def subspace_unfalsify(
                 impulses = np.column_stack([deconvolve(Uf[:, k], G_out[:, k], exact=True) for k in range(j)])
         else:
             impulses = np.full((i, j), np.nan)
-    d_cert = (
-        max(toeplitz_norm(impulses[:, k]) for k in range(j)) if np.all(np.isfinite(impulses)) else float("inf")
-    )
-    delta_out = d_s * sy / su
-    cert = Certificate(
-        delta=delta_out,
-        delta_certified=float(d_cert),
-        noise_rms=float(np.linalg.norm(Xi_out) / np.sqrt(i * j)),
-        sigma=sigma,
-    )
+        Zs = [c.dual_value for c in lmis]
+        if all(Z is not None for Z in Zs):
+            Z21 = np.stack([np.asarray(Z, float)[i:, :i] for Z in Zs])
+            V = -2.0 * np.stack([np.trace(Z21, offset=-d, axis1=1, axis2=2) for d in range(i)])
+            W = np.stack([-2.0 * Z21[k] @ toeplitz_matrix(Ufs[:, k]).T for k in range(j)])
+    if V is not None and np.all(np.isfinite(V)) and np.all(np.isfinite(W)):
+        from .arx import _best_scaled_dual
+
+        V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
+        W = W * su
+    else:
+        V = W = None
+    return dict(delta=d_s * sy / su, H=impulses, L=L_out, status=status, time=elapsed, problem=prob, v=V, W=W)
+
+
+def _solve_structured(P: SubspaceProblem, tol, time_limit, progress) -> dict:
+    """The structured barrier solver; returns a dict in data units."""
+    from ._structured import solve_structured
+
+    su, sy = P.scale
+    f = P.column_form(scaled=True)
+    i, j = P.Uf.shape
+    t0 = time.perf_counter()
+    B0 = f.project(f.B)
+    if np.linalg.norm(B0) <= f.rho:
+        out = dict(status="optimal", H=np.zeros((i, j)), V=None, W=None, upper=0.0)
+    else:
+        out = solve_structured(f, B0, tol=tol, time_limit=time_limit, progress=progress)
+    H = out["H"] * (sy / su)
+    Htil = _conv_cols(P.Uf, H)
+    L = P.L_fixed.copy() if P.L_fixed is not None else np.linalg.lstsq(P.A.T, (P.Yf - Htil).T, rcond=None)[0].T
+    W = None if out["W"] is None else out["W"] * su
+    return dict(delta=out["upper"] * sy / su, H=H, L=L, status=out["status"], time=time.perf_counter() - t0,
+                problem=None, v=out["V"], W=W)
+
+
+def subspace_unfalsify(
+    u,
+    y,
+    horizon: int,
+    sigma: float,
+    *,
+    form: str = "conditioned",
+    eliminate_L: bool = False,
+    predictor=None,
+    solver: str = "CLARABEL",
+    solver_options: dict | None = None,
+    backend: str = "cvxpy",
+    tol: float = 1e-6,
+    time_limit: float | None = None,
+    progress: bool = True,
+) -> SubspaceResult:
+    """Smallest δ bounding the column operators ``Δ_k`` that unfalsify the subspace model: (7.5).
+
+    Parameters
+    ----------
+    u, y : array_like, shape (n,) or (n, 1)
+        SISO data; ``j = n − 2i + 1`` columns.
+    horizon : int
+        The prediction horizon i.
+    sigma : float
+        Admissible rms noise level σ > 0 of Ξ (units of y).
+    form : {"conditioned", "thesis"}
+        See the module docstring (``"thesis"``: cvxpy backend only).
+    eliminate_L : bool
+        cvxpy conditioned form: eliminate ``[L_w L_u]`` analytically.  (The structured backend
+        always eliminates L by projection.)
+    predictor : synthesis.Predictor, optional
+        Fix ``[L_w L_u]`` to a given SISO predictor of horizon i and compute the δ of that model:
+        (7.5) with L a constant.  Default: L is optimised jointly, as in the thesis.
+    solver, solver_options
+        cvxpy backend: solver (passed explicitly) and extra ``Problem.solve`` arguments.
+    backend : {"cvxpy", "structured"}
+        See :func:`unfalsify.arx_unfalsify`.
+    tol, time_limit, progress
+        Structured backend, as for :func:`unfalsify.arx_unfalsify`.
+
+    Returns
+    -------
+    SubspaceResult
+        With a two-sided :class:`Certificate`.
+
+    Raises
+    ------
+    DataError
+        NaN/inf, lengths, MIMO, bad horizon / too few samples, σ ≤ 0, or a column of ``U_f``
+        whose first entry ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
+    ValueError
+        Unknown form/backend; incompatible options.
+    UnfalsificationError
+        cvxpy: solver failure or infeasible/unbounded status.
+
+    Warns
+    -----
+    SolverWarning, IllConditionedWarning
+        As for :func:`unfalsify.arx_unfalsify`.
+    """
+    form = check_form(form)
+    backend = check_backend(backend)
+    if backend == "structured" and form != "conditioned":
+        raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
+    if form == "thesis" and eliminate_L:
+        raise ValueError("eliminate_L applies to form='conditioned' only")
+    if predictor is not None and eliminate_L:
+        raise ValueError("eliminate_L and a fixed predictor exclude each other")
+    P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
+    i, j = P.Uf.shape
+    if form == "thesis" and not P.cond_Tu <= COND_WARN:
+        warnings.warn(
+            f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
+            "singular; prefer form='conditioned'",
+            IllConditionedWarning,
+            stacklevel=2,
+        )
+    if backend == "cvxpy":
+        out = _solve_cvxpy(P, form, eliminate_L, solver, solver_options)
+    else:
+        out = _solve_structured(P, float(tol), time_limit, progress)
+    from .arx import _finish_structured, certify
+
+    cert = certify(P, out["delta"], out["H"], out["L"], out["v"], out["W"])
+    delta = out["delta"]
+    if backend == "structured":
+        if out["status"] not in ("optimal", "time_limit", "interrupted") or not np.isfinite(cert.upper_bound):
+            delta = float("nan")
+        _finish_structured(out["status"], f"subspace unfalsification (i={i}, j={j})", cert.relative_gap)
+    L_out = out["L"]
     return SubspaceResult(
-        delta=delta_out,
+        delta=delta,
         Lw=L_out[:, : 2 * i].copy(),
         Lu=L_out[:, 2 * i :].copy(),
-        noise=Xi_out,
-        impulses=impulses,
-        status=status,
-        solve_time=elapsed,
-        problem=prob,
+        noise=P.Yf - L_out @ P.A - _conv_cols(P.Uf, out["H"]),
+        impulses=out["H"],
+        status=out["status"],
+        solve_time=out["time"],
+        problem=out["problem"],
         form=form,
         eliminate_L=bool(eliminate_L and form == "conditioned"),
-        sigma=sigma,
+        sigma=P.sigma,
         horizon=i,
         n_columns=j,
-        cond_Tu=float(cond),
+        cond_Tu=P.cond_Tu,
         certificate=cert,
-        scale=(su, sy),
-        regressor_singular_values=np.linalg.svd(A, compute_uv=False),
+        scale=P.scale,
+        regressor_singular_values=np.linalg.svd(P.A, compute_uv=False),
+        backend=backend,
     )

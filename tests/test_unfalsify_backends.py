@@ -1,0 +1,131 @@
+"""Structured backend vs the cvxpy reference; the two-sided certificate and its verify()."""
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import unfalsify as uf
+from synthesis import DataError
+
+from _servo_arx import servo_arx_data  # tests/ helper
+
+
+def _sub_data(i, j, seed):
+    u, y = servo_arx_data(2 * i + j - 1, seed)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    return u, y, 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
+
+
+@pytest.mark.parametrize("seed,n,frac", [(0, 20, 0.5), (1, 25, 0.3), (2, 30, 0.8)])
+def test_structured_arx_equals_cvxpy(seed, n, frac):
+    u, y = servo_arx_data(n, seed)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    rc = uf.arx_unfalsify(u, y, 2, 2, frac * rms)
+    rs = uf.arx_unfalsify(u, y, 2, 2, frac * rms, backend="structured", tol=1e-8)
+    assert rs.status == "optimal" and rs.backend == "structured"
+    assert rs.delta == pytest.approx(rc.delta, rel=1e-6)
+    for r in (rc, rs):
+        c = r.certificate
+        assert c.verify() and c.ok()
+        assert c.lower_bound <= c.upper_bound * (1 + 1e-9)
+        assert c.lower_bound == pytest.approx(c.upper_bound, rel=1e-4)
+
+
+def test_structured_arx_other_plant_and_orders():
+    rng = np.random.default_rng(5)
+    n = 24
+    u = np.sign(rng.standard_normal(n))
+    y = np.convolve(u, [0.0, 1.0, -0.5, 0.2])[:n] + 0.05 * rng.standard_normal(n)
+    _, rms = uf.arx_least_squares(u, y, 1, 3)
+    rc = uf.arx_unfalsify(u, y, 1, 3, 0.5 * rms)
+    rs = uf.arx_unfalsify(u, y, 1, 3, 0.5 * rms, backend="structured", tol=1e-8)
+    assert rs.delta == pytest.approx(rc.delta, rel=1e-6)
+
+
+@pytest.mark.parametrize("fixed", [False, True])
+def test_structured_subspace_equals_cvxpy(fixed):
+    from synthesis import fit_predictor
+
+    u, y, sigma = _sub_data(3, 14, 0)
+    kw = {"predictor": fit_predictor(u, y, 3)} if fixed else {}
+    rc = uf.subspace_unfalsify(u, y, 3, sigma, **kw)
+    rs = uf.subspace_unfalsify(u, y, 3, sigma, backend="structured", tol=1e-8, **kw)
+    assert rs.delta == pytest.approx(rc.delta, rel=1e-6)
+    assert rs.certificate.verify() and rc.certificate.verify()
+
+
+def test_verify_fails_on_corrupted_certificates():
+    u, y = servo_arx_data(20, 3)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    c = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured").certificate
+    assert c.verify()
+    h = np.array(c.impulses, float)
+    h[3] += 1e-3
+    assert not dataclasses.replace(c, impulses=h).verify()
+    assert not dataclasses.replace(c, dual_v=2.0 * c.dual_v).verify()
+    assert not dataclasses.replace(c, dual_G=2.0 * c.dual_G).verify()
+    assert not dataclasses.replace(c, sigma=1.1 * c.sigma).verify()
+    assert not dataclasses.replace(c, sigma=0.9 * c.sigma).verify()
+    # scaling the dual point together leaves the bound unchanged (it is homogeneous)
+    assert dataclasses.replace(c, dual_v=3.0 * c.dual_v, dual_G=3.0 * c.dual_G).verify()
+
+
+def test_certificate_units_noise_violation_is_not_hidden_by_large_delta():
+    u, y = servo_arx_data(20, 4)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    c = uf.arx_unfalsify(u, y, 2, 2, 0.01 * rms).certificate
+    bad = dataclasses.replace(c, noise_norm=2.0 * c.noise_bound)
+    assert c.ok() and not bad.ok()
+
+
+def test_unknown_backend_and_thesis_structured_raise():
+    u, y = servo_arx_data(20, 0)
+    with pytest.raises(ValueError, match="'cvxpy', 'structured'"):
+        uf.arx_unfalsify(u, y, 2, 2, 0.1, backend="mosek")
+    with pytest.raises(ValueError, match="conditioned"):
+        uf.arx_unfalsify(u, y, 2, 2, 0.1, backend="structured", form="thesis")
+    with pytest.raises(DataError):
+        uf.arx_unfalsify(np.r_[0.0, u[1:]], y, 2, 2, 0.1, backend="structured")
+    with pytest.raises(ValueError, match="backends|'cvxpy'"):
+        uf.subspace_unfalsify(u, y, 3, 0.1, backend="x")
+
+
+def test_time_limit_returns_certified_bracket_with_warning():
+    u, y = servo_arx_data(60, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    with pytest.warns(uf.SolverWarning, match="time_limit"):
+        r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", time_limit=0.0)
+    assert r.status == "time_limit"
+    c = r.certificate
+    assert c.verify() and c.ok()
+    assert r.delta == pytest.approx(c.upper_bound)
+
+
+def test_zero_delta_structured():
+    u, y = servo_arx_data(25, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    r = uf.arx_unfalsify(u, y, 2, 2, 1.01 * rms, backend="structured")
+    assert r.status == "optimal" and r.delta == 0.0 and r.certificate.verify()
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), n=st.integers(8, 16), frac=st.floats(0.1, 0.95))
+def test_lower_bound_never_exceeds_clarabel_optimum(seed, n, frac):
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal(n))
+    u[0] = 1.0
+    y = rng.standard_normal(n)
+    _, rms = uf.arx_least_squares(u, y, 1, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rs = uf.arx_unfalsify(u, y, 1, 1, frac * rms, backend="structured")
+        rc = uf.arx_unfalsify(u, y, 1, 1, frac * rms)
+    c = rs.certificate
+    assert c.lower_bound <= c.upper_bound * (1 + 1e-9) + 1e-12
+    # independent optimum (Clarabel), solved to its own accuracy
+    assert c.lower_bound <= rc.delta * (1 + 1e-6) + 1e-9
+    assert rc.certificate.lower_bound <= rs.certificate.upper_bound * (1 + 1e-6) + 1e-9

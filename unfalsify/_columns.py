@@ -1,0 +1,172 @@
+"""The common column form of (7.4) and (7.5) and the bounds of its certificate.
+
+Both programs are instances of
+
+    min δ   s.t.   ‖T(h_k)‖₂ ≤ δ  (k = 0 … j−1),   ‖B − H̃ − X‖_F ≤ ρ  for some X ∈ 𝓛,        (C)
+
+with ``H̃ = [T(u_0)h_0 … T(u_{j−1})h_{j−1}]`` (m × j; column k convolves the input column u_k with
+the impulse h_k), a target ``B`` (m × j), a noise budget ρ and a linear subspace 𝓛 of m × j matrices
+(the directions of the model parameters):
+
+* ARX (7.4): j = 1, m = n, ``B = Y``, 𝓛 = range Φ (``X = Φθ``), ρ = σ√n;
+* subspace (7.5): m = i, ``B = Y_f``, 𝓛 = ``{L A}`` (rows in the row space of ``A = [W_p; U_f]``;
+  with L fixed ``B = Y_f − L A`` and 𝓛 = {0}), ρ = σ√(ij).
+
+Weak duality (the lower bound).  For ANY ``V`` (m × j) and ANY ``W_k`` (m × m):
+
+1. project ``V`` onto 𝓛^⊥ (then ``⟨V, X⟩ = 0`` for X ∈ 𝓛);
+2. let ``g_k = T(u_k)ᵀ v_k`` and correct ``W_k`` so that ``T*(W_k) = g_k`` exactly, where
+   ``T*(W)_d = Σ_i W[i+d, i]`` (sum of the d-th subdiagonal) is the adjoint of h ↦ T(h): add
+   ``T(c_k)`` with ``c_{k,d} = (g_k − T*(W_k))_d / (m − d)``;
+3. for every feasible (δ, h, X): ``⟨W_k, T(h_k)⟩ = h_kᵀ T*(W_k) = v_kᵀ T(u_k) h_k`` and
+   ``|⟨W_k, T(h_k)⟩| ≤ ‖W_k‖_* ‖T(h_k)‖₂ ≤ δ ‖W_k‖_*`` (nuclear norm, the dual of the spectral norm);
+   summing over k, ``⟨V, H̃⟩ = ⟨V, B − X − Ξ⟩ = ⟨V, B⟩ − ⟨V, Ξ⟩ ≥ ⟨V, B⟩ − ρ‖V‖_F`` (Cauchy–Schwarz);
+
+so       ``δ ≥ (⟨V, B⟩ − ρ‖V‖_F) / Σ_k ‖W_k‖_*``   and, trivially, δ ≥ 0.
+
+The bound is homogeneous of degree 0 in (V, W), needs no normalisation, and steps 1–2 make it valid
+for an inexact dual point (the corrections only enlarge the denominator).  The (V, W) of the LMI
+form: the multiplier ``G = [G11 G12; G21 G22] ⪰ 0`` of ``[δI T(h)ᵀ; T(h) δI] ⪰ 0`` gives
+``W = −2 G21`` with ``‖W‖_* ≤ tr G`` (so this bound is never weaker than the trace form); on the
+central path of the barrier method ``G = F(h, δ)⁻¹/t``.  At an optimum the bound is tight (strong
+duality: Slater holds).  Everything is computed from the data and (V, W) alone, in floating point:
+the only rounding not covered is that of the arithmetic itself (relative ~1e-13 here).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__: list[str] = []
+
+
+def _nfft(m: int) -> int:
+    return int(2 ** np.ceil(np.log2(max(2 * m, 2))))
+
+
+def _conv_cols(U: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Columns ``T(U[:, k]) H[:, k]`` (causal convolution truncated to m samples), by FFT."""
+    m = U.shape[0]
+    if m <= 64:
+        out = np.empty(np.broadcast_shapes(U.shape, H.shape))
+        for t in range(m):
+            out[t] = np.einsum("ij,ij->j", U[t::-1], H[: t + 1])
+        return out
+    nf = _nfft(m)
+    return np.fft.irfft(np.fft.rfft(U, nf, axis=0) * np.fft.rfft(H, nf, axis=0), nf, axis=0)[:m]
+
+
+def _conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Columns ``T(U[:, k])ᵀ X[:, k]`` (``T(u)ᵀ = J T(u) J``, J the flip)."""
+    return _conv_cols(U, X[::-1])[::-1]
+
+
+def adjoint_toeplitz(W: np.ndarray) -> np.ndarray:
+    """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W, or a stack ``(j, m, m)`` → ``(m, j)``."""
+    W = np.asarray(W, float)
+    if W.ndim == 2:
+        return np.array([np.trace(W, offset=-d) for d in range(W.shape[0])])
+    m = W.shape[-1]
+    return np.stack([np.trace(W, offset=-d, axis1=1, axis2=2) for d in range(m)])
+
+
+def adjoint_toeplitz_lowrank(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """``T*(P Qᵀ)`` without forming ``P Qᵀ`` (sum over factors of the cross-correlations), O(r m log m)."""
+    m = P.shape[0]
+    nf = _nfft(m)
+    c = np.fft.irfft(np.fft.rfft(P, nf, axis=0) * np.conj(np.fft.rfft(Q, nf, axis=0)), nf, axis=0)[:m]
+    return c.sum(axis=1)
+
+
+def nuclear_norm_lowrank(P: np.ndarray, Q: np.ndarray) -> float:
+    """``‖P Qᵀ‖_*`` from thin QR factors (O(m r²))."""
+    if P.shape[1] == 0:
+        return 0.0
+    Rp = np.linalg.qr(P, mode="r")
+    Rq = np.linalg.qr(Q, mode="r")
+    return float(np.linalg.svd(Rp @ Rq.T, compute_uv=False).sum())
+
+
+def _toeplitz_nuclear_upper(c: np.ndarray) -> float:
+    """An upper bound on ``‖T(c)‖_*``: ``Σ_d |c_d| ‖Z_d‖_* = Σ_d |c_d| (m − d)``."""
+    m = c.size
+    return float(np.sum(np.abs(c) * (m - np.arange(m))))
+
+
+class ColumnForm:
+    """Program (C) of the module docstring in given (original or scaled) units.
+
+    Parameters
+    ----------
+    U, B : ndarray, shape (m, j)
+        Input columns and targets.
+    rho : float
+        Noise budget ρ (a Frobenius / 2-norm bound, not an rms).
+    basis_left : ndarray (m, p), optional
+        j = 1 only: 𝓛 = range(basis_left) (orthonormal columns).
+    basis_right : ndarray (j, r), optional
+        𝓛 = ``{X Qᵀ}`` with ``Q = basis_right`` (orthonormal columns).
+    """
+
+    def __init__(self, U, B, rho, *, basis_left=None, basis_right=None):
+        self.U = np.asarray(U, float)
+        self.B = np.asarray(B, float)
+        self.rho = float(rho)
+        self.m, self.j = self.U.shape
+        self.Ql = basis_left
+        self.Qr = basis_right
+
+    def project(self, X: np.ndarray) -> np.ndarray:
+        """Orthogonal projection onto 𝓛^⊥."""
+        if self.Ql is not None and self.Ql.shape[1]:
+            X = X - self.Ql @ (self.Ql.T @ X)
+        if self.Qr is not None and self.Qr.shape[1]:
+            X = X - (X @ self.Qr) @ self.Qr.T
+        return X
+
+    def apply(self, H: np.ndarray) -> np.ndarray:
+        """``H̃``: column k is ``T(u_k) h_k``."""
+        return _conv_cols(self.U, H)
+
+    def apply_T(self, X: np.ndarray) -> np.ndarray:
+        """Adjoint of :meth:`apply`: column k is ``T(u_k)ᵀ x_k``."""
+        return _conv_cols_T(self.U, X)
+
+    def lower_bound(self, V, W, rho: float | None = None) -> float:
+        """The weak-duality bound of the module docstring for any ``V`` and ``W``.
+
+        ``W`` is a stack ``(j, m, m)`` (or ``(m, m)`` for j = 1) of dense multipliers, or a pair of
+        factor stacks ``(P, Q)`` of shapes ``(j, m, r)`` meaning ``W_k = P_k Q_kᵀ``.
+        """
+        rho = self.rho if rho is None else float(rho)
+        V = np.asarray(V, float).reshape(self.m, self.j, order="F")
+        if not np.all(np.isfinite(V)):
+            return float("nan")
+        V = self.project(V)
+        num = float(np.sum(V * self.B)) - rho * float(np.linalg.norm(V))
+        if not num > 0.0:
+            return 0.0
+        g = self.apply_T(V)  # (m, j)
+        den = 0.0
+        if isinstance(W, tuple):
+            P, Q = (np.asarray(a, float) for a in W)
+            if P.ndim == 2:
+                P, Q = P[None], Q[None]
+            for k in range(self.j):
+                d = g[:, k] - adjoint_toeplitz_lowrank(P[k], Q[k])
+                c = d / (self.m - np.arange(self.m))
+                den += nuclear_norm_lowrank(P[k], Q[k]) + _toeplitz_nuclear_upper(c)
+        else:
+            Ws = np.asarray(W, float)
+            if Ws.ndim == 2:
+                Ws = Ws[None]
+            if not np.all(np.isfinite(Ws)):
+                return float("nan")
+            idx = np.arange(self.m)
+            for k in range(self.j):
+                d = g[:, k] - adjoint_toeplitz(Ws[k])
+                c = d / (self.m - idx)
+                Wk = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
+                den += float(np.linalg.svd(Wk, compute_uv=False).sum())
+        if not den > 0.0:
+            return 0.0
+        return max(0.0, num / den)
