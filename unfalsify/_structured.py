@@ -334,6 +334,7 @@ class _Solver:
             status = "interrupted"
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
             status = "failed"
+            best["error"] = f"{type(exc).__name__}: {exc}"
         finally:
             if bar is not None:
                 bar.close()
