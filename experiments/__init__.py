@@ -1,5 +1,17 @@
 """Plants, signals, simulations and the thesis experiments (Ch. 5–7)."""
-from .plants import SERVO_DT, THREE_DISK, THREE_DISK_DT, ThreeDiskParameters, servo, three_disk
+from .plants import (
+    PLANT_CATALOGUE,
+    SERVO_DT,
+    THREE_DISK,
+    THREE_DISK_DT,
+    ThreeDiskParameters,
+    nonminimum_phase,
+    plant_catalogue,
+    resonant,
+    servo,
+    third_order,
+    three_disk,
+)
 from .signals import prbs, step, step_sequence, white_noise
 from .simulate import (
     AlgebraicLoopError,
@@ -18,6 +30,11 @@ __all__: list[str] = [
     "ThreeDiskParameters",
     "servo",
     "three_disk",
+    "third_order",
+    "resonant",
+    "nonminimum_phase",
+    "PLANT_CATALOGUE",
+    "plant_catalogue",
     "prbs",
     "step",
     "step_sequence",

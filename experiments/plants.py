@@ -25,6 +25,11 @@ from scipy.linalg import block_diag
 __all__ = [
     "servo",
     "three_disk",
+    "third_order",
+    "resonant",
+    "nonminimum_phase",
+    "PLANT_CATALOGUE",
+    "plant_catalogue",
     "ThreeDiskParameters",
     "THREE_DISK",
     "SERVO_DT",
@@ -135,6 +140,51 @@ def three_disk(
         raise ValueError(f"output must be one of 'y1', 'y2', 'y3', 'all'; got {output!r}")
     sys = _modal_ss(chosen, params.poles(), name=f"three_disk_{output}")
     return sys if continuous else _zoh(sys, dt)
+
+
+def third_order(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
+    """Stable third-order plant ``6/((s+1)(s+2)(s+3))`` (unit DC gain), ZOH-sampled (10 Hz default).
+
+    Not from the thesis: a test plant of different character for the §7.4 pipeline.
+    """
+    sys = _modal_ss({"y": np.array([6.0])}, np.array([-1.0, -2.0, -3.0]), name="third_order")
+    return sys if continuous else _zoh(sys, dt)
+
+
+def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
+    """Lightly damped resonant plant ``ω²/(s² + 2ζωs + ω²)`` (unit DC gain), ZOH-sampled.
+
+    Defaults ζ = 0.05, ω = 2 rad/s: a resonance peak of ``1/(2ζ) = 10`` (20 dB).  Not from the thesis.
+    """
+    if not (0 < zeta < 1 and omega > 0):
+        raise ValueError(f"need 0 < zeta < 1 and omega > 0, got zeta={zeta!r}, omega={omega!r}")
+    sys = _modal_ss({"y": np.array([omega * omega])}, _pair(zeta, omega), name="resonant")
+    return sys if continuous else _zoh(sys, dt)
+
+
+def nonminimum_phase(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
+    """Non-minimum-phase plant ``2(1 − s)/((s+1)(s+2))`` (unit DC gain, zero at s = +1), ZOH-sampled.
+
+    Not from the thesis.  The receding-horizon laws with short horizons tend to cancel its
+    right-half-plane zero (unstable loops at i = 10 on 10 Hz data).
+    """
+    sys = _modal_ss({"y": np.array([-2.0, 2.0])}, np.array([-1.0, -2.0]), name="nonminimum_phase")
+    return sys if continuous else _zoh(sys, dt)
+
+
+#: name -> (factory, one-line description): plants of different character for pipeline studies.
+PLANT_CATALOGUE = {
+    "servo": (servo, "1/(s(s+1)) at 10 Hz: integrating (§5.4)"),
+    "third_order": (third_order, "6/((s+1)(s+2)(s+3)) at 10 Hz: stable, third order"),
+    "resonant": (resonant, "4/(s²+0.2s+4) at 10 Hz: lightly damped, ζ = 0.05"),
+    "nonminimum_phase": (nonminimum_phase, "2(1−s)/((s+1)(s+2)) at 10 Hz: zero at s = +1"),
+    "three_disk_y1": (lambda: three_disk("y1"), "three-disk, collocated y1, 64 Hz (§6.1): integrator + two resonances"),
+}
+
+
+def plant_catalogue() -> dict[str, ct.StateSpace]:
+    """The plants of :data:`PLANT_CATALOGUE`, built (discrete, default sample times)."""
+    return {name: factory() for name, (factory, _) in PLANT_CATALOGUE.items()}
 
 
 # ---------------------------------------------------------------------------

@@ -52,7 +52,8 @@ def test_fixed_point_weight_and_gamma(setup):
     assert d.gamma == pytest.approx(res.gamma, rel=1e-10)
     assert c == pytest.approx((1 + res.margin) * res.delta * d.gamma, rel=1e-8)
     assert res.covered_delta == pytest.approx((1 + res.margin) * res.delta, rel=1e-8)
-    assert res.covers_delta
+    assert res.certified and res.covers_delta and res.reason == ""
+    assert len(res.search) == 1  # the requested design certified: no search
     # Thm 3.7: γ_min_a > γ_min of the nominal design (3.8)
     assert res.gamma_min_a > res.gamma_min_nominal
     assert res.gamma_min_nominal == pytest.approx(synthesis.gamma_min(pred, setup["W1"], setup["W2"]), rel=1e-12)
@@ -105,17 +106,21 @@ def test_closed_loop_with_additive_perturbation_of_size_delta_is_stable(setup, k
 
 
 def test_thesis_weight_rule_is_the_inverse(setup):
-    # W3 = (1/δ) I covers only ‖P_Δ‖∞ < 1/(γδ): over-conservative here (γδ² ≪ 1)
+    # W3 = (1/δ) I covers only ‖P_Δ‖∞ < 1/(γδ): over-conservative here (γδ² ≪ 1), and the controller it
+    # gives barely acts: trivially robust, but it fails the performance floor, so it is NOT certified
     res = setup["res"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # γδ² < 1: it covers δ, so no warning is expected
+    with pytest.warns(uf.NotCertifiedWarning, match="performance floor"):
         th = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], res.unfalsification.sigma,
                                         predictor=setup["pred"], w3_rule="thesis",
-                                        unfalsification=res.unfalsification)
+                                        unfalsification=res.unfalsification, search=False)
+    assert not th.certified and not th.covers_delta and "performance floor" in th.reason
+    assert th.certificate.small_gain < 1  # robust it is ...
+    assert th.certificate.step.final_error > 0.5  # ... because it does almost nothing
     assert th.w3_gain == pytest.approx(1 / res.delta)
     assert th.covered_delta == pytest.approx(1 / (th.gamma * res.delta))
     assert th.covered_delta > 10 * res.delta  # grossly over-covered
     assert th.gamma_min_a > res.gamma_min_a  # and it pays for it in performance
+    assert len(th.search) == 1  # search=False: the requested design only
 
 
 def test_thesis_rule_warns_when_it_does_not_cover_delta(setup):
@@ -123,10 +128,11 @@ def test_thesis_rule_warns_when_it_does_not_cover_delta(setup):
     import dataclasses
 
     unf = dataclasses.replace(setup["res"].unfalsification, delta=3.0)
-    with pytest.warns(UserWarning, match="covers additive perturbations"):
+    with pytest.warns(uf.NotCertifiedWarning, match="NOT certified for δ = 3"):
         th = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], 0.01,
                                         predictor=setup["pred"], w3_rule="thesis", unfalsification=unf)
-    assert not th.covers_delta
+    assert th.covered_delta < 3.0  # the finite-horizon coverage 1/(γδ) misses δ
+    assert not th.covers_delta and not th.certified and th.reason
 
 
 def test_zero_delta_gives_the_nominal_design(setup):
