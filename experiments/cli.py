@@ -35,6 +35,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "noncollocated": ("experiments.noncollocated", "run", "§6.2 non-collocated three-disk design"),
     "adaptive": ("experiments.adaptive", "run", "§6.3 adaptive simulation"),
     "chapter7": ("experiments.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
+    "robust-pipeline": ("experiments.robust_pipeline", "run",
+                        "§7.4 pipeline on plants it was not designed on: certified or not, checked on the true plant"),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
