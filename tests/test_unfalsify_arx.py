@@ -176,3 +176,18 @@ def test_unknown_form_raises():
     u, y = _data(8, 13)
     with pytest.raises(ValueError, match="form"):
         uf.arx_unfalsify(u, y, 1, 1, 0.1, form="inverse")
+
+
+def test_record_not_at_rest_is_warned():
+    """(7.4) takes the samples before the record as zero: a window cut mid-record is flagged."""
+    from experiments.plants import servo
+    from experiments.signals import prbs
+    from experiments.simulate import collect_data
+
+    d = collect_data(servo(), prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=1)
+    u, y = d.u[:, 0], d.y[:, 0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.NotAtRestWarning)
+        uf.ArxProblem.from_data(u[:40], y[:40], 2, 2, 0.01)  # from rest: silent
+    with pytest.warns(uf.NotAtRestWarning, match="does not start at rest"):
+        uf.ArxProblem.from_data(u[500:540], y[500:540], 2, 2, 0.01)

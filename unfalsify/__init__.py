@@ -5,7 +5,7 @@
 * :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5);
 * :func:`robust_design_from_data` -- §7.4 steps 1–5 (δ → additive-uncertainty H∞ design).
 """
-from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, SolverWarning, UnfalsificationError
+from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
@@ -31,6 +31,7 @@ __all__ = [
     "COND_WARN",
     "Certificate",
     "IllConditionedWarning",
+    "NotAtRestWarning",
     "SolverWarning",
     "UnfalsificationError",
     "deconvolve",

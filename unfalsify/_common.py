@@ -16,6 +16,7 @@ __all__ = [
     "Certificate",
     "UnfalsificationError",
     "IllConditionedWarning",
+    "NotAtRestWarning",
     "SolverWarning",
     "COND_WARN",
     "SOLVER_TOL",
@@ -35,6 +36,10 @@ SOLVER_TOL = 1e-6
 
 class UnfalsificationError(ValueError):
     """The unfalsification problem could not be solved (infeasible/unbounded/solver failure)."""
+
+
+class NotAtRestWarning(UserWarning):
+    """A program that assumes the system at rest before the record (7.3)/(7.4) got a record that starts mid-motion."""
 
 
 class IllConditionedWarning(UserWarning):

@@ -37,6 +37,7 @@ from synthesis._validation import DataError
 from ._columns import ColumnForm, _conv_cols
 from ._common import (
     COND_WARN,
+    NotAtRestWarning,
     Certificate,
     IllConditionedWarning,
     SolverWarning,
@@ -158,6 +159,26 @@ def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     return theta, float(np.linalg.norm(e) / np.sqrt(Y.size))
 
 
+def _warn_if_not_at_rest(u, y, na: int, nb: int, sigma: float) -> None:
+    """(7.4) takes the samples before the record as zero (system at rest).  Warn when the first
+    ``max(na, nb)`` equation errors of the least-squares model -- the rows that use those zeros --
+    are an order of magnitude above both σ and the other rows' errors: the record starts mid-motion."""
+    k0 = max(na, nb)
+    if k0 == 0 or u.size <= 2 * k0:
+        return
+    Phi, Y = arx_regressor(u, y, na, nb)
+    theta = -np.linalg.lstsq(Phi[k0:], Y[k0:], rcond=None)[0]
+    e = Phi @ theta + Y
+    head = float(np.sqrt(np.mean(e[:k0] ** 2)))
+    rest = float(np.sqrt(np.mean(e[k0:] ** 2)))
+    if head > 10.0 * max(rest, sigma):
+        warnings.warn(
+            f"the record does not start at rest: the first {k0} equation errors (rms {head:.3g}) use the zero "
+            f"samples (7.4) assumes before the record and are {head / max(rest, sigma):.0f}× the others; δ will "
+            "be inflated. Start the record at rest, or use the subspace program (7.5), which carries the past "
+            "data in W_p", NotAtRestWarning, stacklevel=4)
+
+
 @dataclass(frozen=True, eq=False)
 class ArxProblem:
     """Program (7.4) on given data: validation, scaling and the independent bounds.
@@ -194,6 +215,7 @@ class ArxProblem:
         # exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
         su = rms_or_one(u)
         sy = arx_least_squares(u, y, na, nb)[1]
+        _warn_if_not_at_rest(u, y, na, nb, sigma)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
         return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=toeplitz_cond(u))
