@@ -218,3 +218,25 @@ def test_few_columns_are_warned():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", uf.NotCertifiedWarning)
             uf.robust_design_from_data(u, y, i, W["W11"], W["W21"], 0.5 * rms, dt=P.dt, search=False)
+
+
+def test_without_a_reference_model_it_says_it_cannot_certify(nmp_window):
+    """Only P̂ (no longer record): the model's own error is unchecked, so no certificate, and the fix is named."""
+    P = third_order()
+    d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    u, y = d.u[:, 0], d.y[:, 0]
+    i, n = 10, 2 * 10 + 30 - 1
+    pred = synthesis.fit_predictor(u, y, i)
+    A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
+    rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
+    W = design_weights()
+    with pytest.warns(uf.NotCertifiedWarning, match="predictor_for"):
+        r = uf.robust_design_from_data(u[:n], y[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt)
+    assert not r.certified and r.reference_model is None and "no reference model" in r.reason
+    assert len(r.search) == 1  # no search: nothing could certify
+    # the weaker, explicit choice: P̂ alone
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.NotCertifiedWarning)
+        r2 = uf.robust_design_from_data(u[:n], y[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt,
+                                        unfalsification=r.unfalsification, require_reference=False)
+    assert r2.certified and r2.reference_certificate is None and r2.reference_note

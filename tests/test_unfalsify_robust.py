@@ -29,7 +29,8 @@ def setup():
     u, y = data.u[:n], data.y[:n]
     A, Uf, Yf = uf.subspace_data(u, y, I)
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
-    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred)
+    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred,
+                                     predictor_for=lambda h: synthesis.fit_predictor(data.u, data.y, h))
     return dict(W1=W1, W2=W2, pred=pred, u=u, y=y, res=res, plant=servo())
 
 

@@ -45,6 +45,7 @@ so (:class:`NotCertifiedWarning`) when nothing certifies.  With a plant model in
 from __future__ import annotations
 
 import itertools
+import math
 import numbers
 import warnings
 from dataclasses import dataclass
@@ -244,11 +245,11 @@ def _both_certified(cert: LoopCertificate, ref: LoopCertificate | None) -> bool:
 
 
 def _joint_reason(cert: LoopCertificate, ref: LoopCertificate | None) -> str:
-    if not cert.certified:
-        return cert.reason
+    reasons = [] if cert.certified else [cert.reason]
     if ref is not None and not ref.certified:
-        return f"on the reference model P̂_ref: {ref.reason}"
-    return ""
+        reasons.append(ref.reason if ref.norm is None and math.isnan(ref.spectral_radius)
+                       else f"on the reference model P̂_ref: {ref.reason}")
+    return "; ".join(reasons)
 
 
 def _gamma_of(pred, W1, W2, causal: bool, gamma_ratio: float, l: int, dt=None):
@@ -375,6 +376,7 @@ def robust_design_from_data(
     require_certified: bool = False,
     reference_horizon: int | None = None,
     certificate_margin: float = CERTIFICATE_MARGIN,
+    require_reference: bool = True,
 ) -> RobustDesignResult:
     """§7.4 steps 1–5 -- δ by subspace unfalsification (7.5), a robust Theorem 3.7 design -- and a
     certificate of the LTI loop that ships.
@@ -443,6 +445,11 @@ def robust_design_from_data(
         (default ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on
         ``(u, y)`` when ``predictor`` is None and the window is long enough; otherwise there is
         no reference and ``result.reference_note`` says why).
+    require_reference : bool
+        Without a reference model the loop is not certified (default): measured on an
+        integrating plant with a resonance (i = 10), certificates on P̂ alone failed on the true
+        plant, while P̂ and P̂_ref together never did on the plants tried.  ``False`` certifies on
+        P̂ alone (weaker; say so when you report it).
 
     Returns
     -------
@@ -515,12 +522,21 @@ def robust_design_from_data(
     try:
         ref_model = predictor_model(_predictor_at(ref_h, u, y, predictor, predictor_for), first.dt)
     except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
-        ref_note = f"no reference model at horizon {ref_h}: {exc}"
+        ref_note = (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
+                    "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)")
     certificate_margin = _positive_real(certificate_margin, "certificate_margin", allow_equal=True)
     cert_opts = dict(margin=certificate_margin, tracking_floor=tracking_floor, step_samples=step_samples)
+    missing = None
+    if ref_model is None and require_reference:
+        # measured without a reference: certificates on P̂ alone that failed on the true plant (an
+        # integrating plant with a resonance, i = 10), so a missing reference is a reason not to certify
+        missing = LoopCertificate(certified=False, reason=ref_note, delta=delta, margin=certificate_margin,
+                                  spectral_radius=float("nan"), norm=None, small_gain=float("nan"), step=None,
+                                  tracking_floor=float(tracking_floor))
+        search = None  # no design can certify without it
 
     def check(d):
-        ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else None
+        ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
         return certify_loop(model, d.controller, delta, **cert_opts), ref
 
     records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
