@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 
-from .report import Report, format_table, median_time, write_csv, write_json
+from .report import Report, format_table, median_time, save_figure, write_csv, write_json
 
 __all__ = ["run"]
 
@@ -70,6 +70,26 @@ def _row(case, size, t_old, t_new, old, new, agree, target, ok_extra=True):
     ratio = t_old / t_new if t_new > 0 else float("inf")
     return {"case": case, "size": size, "old_s": t_old, "new_s": t_new, "speedup": ratio, "old": old, "new": new,
             "agreement": agree, "target": target, "met": bool(ratio >= target and ok_extra)}
+
+
+def _figure(rows, path):
+    """Bar chart of speed-ups (log scale) with each target marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.2))
+    x = range(len(rows))
+    ax.bar(x, [r["speedup"] for r in rows], color=["tab:green" if r["met"] else "tab:red" for r in rows],
+           label="measured speed-up")
+    ax.scatter(x, [r["target"] for r in rows], marker="_", s=900, color="k", zorder=3, label="target")
+    ax.set_xticks(list(x), [r["case"] for r in rows])
+    ax.set_yscale("log")
+    ax.set_ylabel("speed-up (former time / new time)")
+    ax.set_xlabel("routine")
+    ax.legend()
+    return save_figure(fig, path)
 
 
 def run(opts) -> dict:
@@ -134,6 +154,8 @@ def run(opts) -> dict:
              "`new`: `hinf_norm` / `norm_below` (bracket with a proven upper side) and `slycot.tf01md`.")
     rep.text(format_table(headers, table, floatfmt=".4g"))
     out = opts.out
+    fig_path = _figure(rows, out / "bench_norms_speedup.png")
+    rep.figure(fig_path, "Speed-up of the new routes over the former ones (log scale), with the targets")
     print("\n".join(rep.parts))
     rep.write(out / "bench_norms.md")
     write_csv(out / "bench_norms.csv", headers, table)

@@ -8,6 +8,7 @@ from experiments.cli import Options, main
 def test_bench_norms_quick(tmp_path):
     summary = run(Options(quick=True, out=tmp_path))
     assert (tmp_path / "bench_norms.md").exists() and (tmp_path / "bench_norms.csv").exists()
+    assert (tmp_path / "bench_norms_speedup.png").stat().st_size > 1000
     data = json.loads((tmp_path / "bench_norms.json").read_text())
     assert data["quick"] is True
     rows = {r["case"]: r for r in summary["rows"]}
