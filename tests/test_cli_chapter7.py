@@ -56,7 +56,12 @@ def test_w3_rules_and_gamma_ordering(quick_run):
     delta = s["delta"]
     assert d["gamma_min_a"] > d["gamma_min_nominal"]  # Theorem 3.7 remark: γ_min_a > γ_min
     assert d["covered_delta"] == pytest.approx(d["w3_gain"] / d["gamma_robust"])
-    assert d["covered_delta"] == pytest.approx((1 + d["margin"]) * delta, rel=1e-6)
+    # the fixed point covers (1 + margin)δ; the design search may only widen W3 (factors ≥ 1)
+    assert d["covered_delta"] >= (1 + d["margin"]) * delta * (1 - 1e-6)
+    if d["designs_tried"] == 1:
+        assert d["covered_delta"] == pytest.approx((1 + d["margin"]) * delta, rel=1e-6)
+    # the loop that ships is certified on the data-based models (and checked on the true plant below)
+    assert d["certified"] and d["certificate_reason"] == "" and d["small_gain_on_model"] <= 1 / 1.25
     assert d["thesis_rule_w3_gain"] == pytest.approx(1 / delta)
     for r in s["delta_sweep"]:
         assert r["covered"] >= r["delta"]
