@@ -31,7 +31,7 @@ import control
 import numpy as np
 
 from ._validation import DataError, as_discrete_system, check_level
-from .hinfnorm import NormBracket, hinf_norm, norm_below
+from .hinfnorm import NormBracket, _norm_below, hinf_norm
 from .minimax import InfeasibleGammaError
 from .riccati import generalized_plant
 from .weights import _ss_parts, as_weight, common_dt
@@ -359,11 +359,15 @@ def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsil
             if not nrm <= g * (1 + 1e-8):
                 return None
             return Kd, sys, nrm, None
-        if not norm_below(sys, g * (1 + 1e-8)):
-            return None
         if not final:
+            # inner bisection steps: the pencil test without the rounding allowance (half the cost); the
+            # controller returned is built by a final attempt whose level is proven
+            if not _norm_below(sys, g * (1 + 1e-8), allowance=False):
+                return None
             return Kd, sys, None, None
-        br = hinf_norm(sys)
+        br = hinf_norm(sys)  # proven upper side, with the allowance
+        if not br.upper <= g * (1 + 1e-8):
+            return None
         return Kd, sys, br.upper, br
 
     hi = 1.0
