@@ -50,10 +50,12 @@ from ._common import (
 )
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from synthesis._repr import result
 
 __all__ = ["ArxProblem", "ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class ArxResult:
     """Solution of the ARX unfalsification program (7.4).
@@ -158,6 +160,7 @@ def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     return theta, float(np.linalg.norm(e) / np.sqrt(Y.size))
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class ArxProblem:
     """Program (7.4) on given data: validation, scaling and the independent bounds.

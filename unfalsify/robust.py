@@ -61,6 +61,7 @@ from ._common import SolverWarning, UnfalsificationError, check_sigma
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop
 from .model import predictor_model
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from synthesis._repr import result
 
 __all__ = [
     "DesignSearch",
@@ -122,6 +123,7 @@ class DesignSearch:
     horizons: tuple = ()
 
 
+@result
 @dataclass(frozen=True)
 class SearchRecord:
     """One design tried by the search: its options, level and certificate (or why it could not be built)."""
@@ -149,6 +151,7 @@ class SearchRecord:
         return _joint_reason(self.certificate, self.reference_certificate)
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class RobustDesignResult:
     """§7.4 pipeline result, with the certificate of the loop it ships.
@@ -611,6 +614,7 @@ def _delta_of(unf: SubspaceResult) -> float:
     return delta
 
 
+@result
 @dataclass(frozen=True)
 class AdditiveRobustness:
     """Additive-uncertainty robustness of a loop ``u = C_r r + C_y y``, ``y = P u``.
