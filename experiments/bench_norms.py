@@ -135,9 +135,9 @@ def run(opts) -> dict:
     rep.text(format_table(headers, table, floatfmt=".4g"))
     out = opts.out
     print("\n".join(rep.parts))
-    rep.write(out / "bench_norms.md")
+    md = rep.write(out / "bench_norms.md")
     write_csv(out / "bench_norms.csv", headers, table)
     summary = {"quick": quick, "blas_threads": threads, "targets": TARGETS, "rows": rows,
-               "all_met": all(r["met"] for r in rows)}
+               "all_met": all(r["met"] for r in rows), "report": str(md)}
     write_json(out / "bench_norms.json", summary)
     return summary

@@ -115,3 +115,9 @@ def test_worst_phase_allpass(small_loop):
     rho = lambda pert: np.max(np.abs(np.linalg.eigvals(  # noqa: E731
         closed_loop_matrix(control.ss(control.parallel(control.ss(P), control.ss(pert))), K))))
     assert rho(small) < 1 < rho(big)
+
+
+def test_report_tables_and_figures_are_complete(quick_run):
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(quick_run[0], "chapter7")
