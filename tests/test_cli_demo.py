@@ -14,7 +14,7 @@ def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     printed = capsys.readouterr().out
     tmp_path = tmp_path / "demo"  # the CLI writes into <out>/demo/
     assert "demo.md" in printed and "Design 1" in printed and "δ" in printed
-    assert printed.startswith(f"demo: report: {tmp_path / 'demo' / 'demo.md'}")
+    assert printed.startswith(f"demo: report: {tmp_path / 'demo.md'}")
     md = (tmp_path / "demo.md").read_text()
     assert "Table 5.1" in md and "§7.4" in md
     assert (tmp_path / "demo_table5_1_steps.png").exists()

@@ -55,7 +55,7 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis._validation import DataError, check_horizon
+from synthesis._validation import DataError, as_discrete_system, check_horizon, check_same_dt
 
 from ._common import SolverWarning, UnfalsificationError, check_sigma
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop
@@ -670,8 +670,9 @@ def additive_channel(plant, controller) -> control.StateSpace:
     DataError
         The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
     """
-    P = control.ss(plant)
-    C = control.ss(controller)
+    P = as_discrete_system(plant, "plant")
+    C = as_discrete_system(controller, "controller")
+    check_same_dt(P, C, "plant", "controller")
     l = P.noutputs
     if C.ninputs != 2 * l or C.noutputs != P.ninputs:
         raise DataError(
