@@ -16,6 +16,8 @@ from experiments.cli import main
 from experiments.plants import servo
 from synthesis import fit_predictor, hinf_design
 
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
+
 
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):

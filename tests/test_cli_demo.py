@@ -8,6 +8,8 @@ import pytest
 from experiments._servo import THESIS_TABLE_5_1
 from experiments.cli import main
 
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
+
 
 def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
