@@ -228,7 +228,7 @@ def plot_steps(ax, results: dict[str, StepResult], title: str) -> None:
     ax.axhline(1.0, color="0.6", lw=0.8, ls=":")
     ax.set_ylim(-0.5, PLOT_LIMIT)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("y")
+    ax.set_ylabel("y (servo output; reference step 1)")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)

@@ -191,9 +191,17 @@ def run(opts) -> dict:
               np.column_stack([upd_t, np.asarray(res.update_steps, int), upd_s]) if upd_s.size else [])
     figs = _figures(out, t, res, ideal, diff, gmin, gam, c["gamma_opt"])
     summary["files"] = sorted(p.name for p in out.iterdir()) + ["adaptive.json", "adaptive.md"]
+    summary["report"] = str(out / "adaptive.md")
     write_json(out / "adaptive.json", summary)
     _write_report(out, summary, figs)
     return summary
+
+
+def summary_lines(s: dict) -> list[str]:
+    """Key numbers of a run (printed by ``python -m experiments adaptive``)."""
+    return [f"γ_min {s['gamma_min_initial']:.3f} → {s['gamma_min_final']:.3f} (within 1 % of final from "
+            f"t = {s['gamma_min_within_1pct_of_final_from_s']:.1f} s), i = {s['i']}, "
+            f"{s['closed_loop_seconds']:g} s of closed loop"]
 
 
 def _spectral_radius(P, K) -> float:
@@ -229,7 +237,7 @@ def _figures(out, t, res, ideal, diff, gmin, gam, gamma_opt):
     for ax, zoom in zip(axes, (False, True)):
         ax.plot(t, diff, lw=0.9, label="y − y_ideal")
         ax.plot(t, res.r[:, 0] / 4, "k--", lw=0.7, label="r/4")
-        ax.set_ylabel("rad")
+        ax.set_ylabel("y − y_ideal, r/4 (rad)")
         ax.grid(True, lw=0.3)
         if zoom:
             tail = diff[t >= t[0] + 0.5 * (t[-1] - t[0])]
@@ -246,7 +254,7 @@ def _figures(out, t, res, ideal, diff, gmin, gam, gamma_opt):
     ax.step(t, gam, where="post", lw=0.7, label="γ(t) = γ_min + 0.6")
     ax.axhline(gamma_opt, color="k", ls=":", label=f"γ_opt ∞-horizon model-based = {gamma_opt:.3f}")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("γ")
+    ax.set_ylabel("γ (dimensionless)")
     ax.set_title("Fig 6.11: γ_min during adaptive simulation")
     ax.legend(loc="center right")
     ax.grid(True, lw=0.3)

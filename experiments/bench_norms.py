@@ -157,9 +157,9 @@ def run(opts) -> dict:
     fig_path = _figure(rows, out / "bench_norms_speedup.png")
     rep.figure(fig_path, "Speed-up of the new routes over the former ones (log scale), with the targets")
     print("\n".join(rep.parts))
-    rep.write(out / "bench_norms.md")
+    md = rep.write(out / "bench_norms.md")
     write_csv(out / "bench_norms.csv", headers, table)
     summary = {"quick": quick, "blas_threads": threads, "targets": TARGETS, "rows": rows,
-               "all_met": all(r["met"] for r in rows)}
+               "all_met": all(r["met"] for r in rows), "report": str(md)}
     write_json(out / "bench_norms.json", summary)
     return summary

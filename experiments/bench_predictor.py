@@ -212,6 +212,7 @@ def run(opts) -> dict:
         "quick": opts.quick,
         "seed": opts.seed,
         "openblas_num_threads": _blas_threads(),
+        "report": str(md),
     }
     write_json(opts.out / "bench_predictor.json", summary)
     print(md.read_text())

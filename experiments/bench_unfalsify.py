@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 from tqdm import tqdm
 
-from .report import Report, write_json
+from .report import LiveTable, Report, write_json
 
 __all__ = ["run"]
 
@@ -153,11 +153,16 @@ def run(opts) -> dict:
     """Run the benchmark; write ``bench_unfalsify.md`` / ``.json`` under ``opts.out``; return the summary."""
     budget = QUICK_BUDGET_S if opts.quick else BUDGET_S
     results = []
+    # rewritten after every solve: an interrupted run keeps the rows it finished
+    live = LiveTable(opts.out, "bench_unfalsify", "Chapter 7 unfalsification LMIs: solve time vs size (partial)",
+                     ["series", "size", "status", "δ", "wall [s]"])
     for spec in _series(opts.quick):
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
             row = _run_with_budget(spec, size, opts.seed, budget)
             rows.append(row)
+            live.add([spec["name"], row.get("label", size), row.get("status"), row.get("delta", float("nan")),
+                      row.get("wall_s", float("nan"))], record=dict(row, series=spec["name"]))
             tqdm.write(f"[bench-unfalsify] {spec['name']}: size {size}: {row.get('status')} "
                        f"{row.get('wall_s', float('nan')):.2f} s", file=sys.stderr)
             if row.get("status", "").startswith("timeout") or row.get("wall_s", 0.0) > budget or row.get("status") == "error":
@@ -198,7 +203,7 @@ def run(opts) -> dict:
     rep.table(["series", "largest size"], [[s["series"], s["largest_within_budget"]] for s in results])
     opts.out.mkdir(parents=True, exist_ok=True)
     md = rep.write(opts.out / "bench_unfalsify.md")
-    summary = {"series": results, "budget_s": budget, "quick": opts.quick, "seed": opts.seed}
+    summary = {"series": results, "budget_s": budget, "quick": opts.quick, "seed": opts.seed, "report": str(md)}
     write_json(opts.out / "bench_unfalsify.json", summary)
     print(md.read_text())
     return summary

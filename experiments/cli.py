@@ -3,7 +3,9 @@
 Each subcommand is a function ``run(opts: Options) -> dict`` living in its own
 module; it writes its files under ``opts.out`` and returns a JSON-serialisable
 summary (printed with ``--json``, which then is the only thing on stdout: anything the
-subcommand prints is sent to stderr).
+subcommand prints is sent to stderr).  Without ``--json``, :func:`main` ends every run with a short
+summary on stdout naming the report (the summary's ``report`` key), the run time (``seconds``) and
+the lines of the module's optional ``summary_lines(summary) -> list[str]``.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Options", "COMMANDS", "main", "output_dir"]
+__all__ = ["Options", "COMMANDS", "main", "output_dir", "summary_text"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
     args = _parser().parse_args(argv)
     module, func, _ = COMMANDS[args.command]
-    run = getattr(importlib.import_module(module), func)
+    mod = importlib.import_module(module)
+    run = getattr(mod, func)
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
     opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed)
     opts.out.mkdir(parents=True, exist_ok=True)
@@ -74,7 +77,32 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=_jsonable)
         sys.stdout.write("\n")
+    else:
+        print(summary_text(args.command, summary, getattr(mod, "summary_lines", None), opts.out), flush=True)
     return 0
+
+
+def summary_text(command: str, summary: dict, lines=None, out: Path | None = None) -> str:
+    """The closing summary of a run: where the report is, how long it took, then ``lines(summary)``.
+
+    Parameters
+    ----------
+    command : str
+        Subcommand name.
+    summary : dict
+        What ``run`` returned; ``report`` (path of the markdown report) and ``seconds`` are used if present.
+    lines : callable, optional
+        ``lines(summary) -> list[str]``: the subcommand's key numbers, one per line.
+    out : pathlib.Path, optional
+        Output folder, named when the summary has no ``report``.
+    """
+    report = summary.get("report") if isinstance(summary, dict) else None
+    where = f"report: {report}" if report else f"output in {out}" if out is not None else "done"
+    took = f" ({summary['seconds']:.1f} s)" if isinstance(summary, dict) and "seconds" in summary else ""
+    text = [f"{command}: {where}{took}"]
+    if lines is not None:
+        text += [f"  {line}" for line in lines(summary)]
+    return "\n".join(text)
 
 
 def _jsonable(obj):

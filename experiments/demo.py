@@ -45,7 +45,9 @@ def run(opts) -> dict:
 
     # ---- quick chapter 7 ---------------------------------------------------------------------
     c7_out = out / "chapter7"
-    c7 = chapter7.run(dataclasses.replace(opts, quick=True, out=c7_out))
+    # --quick: the smallest Chapter 7 sizes (the subspace LMI dominates the run time)
+    c7 = chapter7.run(dataclasses.replace(opts, quick=True, out=c7_out),
+                      cfg=chapter7.Config.tiny() if opts.quick else None)
     t_total = time.perf_counter() - t0
 
     # ---- report ------------------------------------------------------------------------------
@@ -62,7 +64,7 @@ def run(opts) -> dict:
     rep.figure(fig_steps, "Noise-free step responses of the three weight designs")
     d = c7["designs"]
     cert = c7["certificates"]
-    rep.section("§7.4 pipeline (quick sizes)")
+    rep.section("§7.4 pipeline (" + ("tiny sizes, `--quick`" if opts.quick else "quick sizes") + ")")
     rep.text(
         f"Subspace unfalsification (7.5) with i = {c7['horizon']}, j = {c7['columns']}, σ = {c7['sigma']}: "
         f"δ = {c7['delta']:.4g} ({c7['subspace']['status']}, {c7['subspace']['solve_time']:.1f} s). "
@@ -91,24 +93,26 @@ def run(opts) -> dict:
     summary = {
         "report": str(report),
         "seconds": t_total,
+        "quick": bool(opts.quick),
         "table_5_1": rows,
         "chapter7": {k: c7[k] for k in ("delta", "subspace", "arx", "designs", "certificates", "horizon", "columns",
                                         "sigma")},
     }
     write_json(out / "demo.json", summary)
-    if not opts.json:
-        _print_summary(summary)
     return summary
 
 
-def _print_summary(s: dict) -> None:
-    print(f"demo report: {s['report']}  ({s['seconds']:.1f} s)")
-    print("Table 5.1 (i = 20, j = 1000)   γ_min ours / thesis")
+def summary_lines(s: dict) -> list[str]:
+    """Key numbers of a demo run (printed by ``python -m experiments demo`` after the report path)."""
+    lines = ["Table 5.1 (i = 20, j = 1000)   γ_min ours / thesis"]
     for name, r in s["table_5_1"].items():
-        print(f"  {name}: {r['gamma_min']:.3f} / {THESIS_TABLE_5_1[name][0]:.3f}  ({100 * r['rel_diff']:+.1f} %)")
+        lines.append(f"  {name}: {r['gamma_min']:.3f} / {THESIS_TABLE_5_1[name][0]:.3f}  "
+                     f"({100 * r['rel_diff']:+.1f} %)")
     c7 = s["chapter7"]
     d = c7["designs"]
-    print(f"§7.4: subspace δ = {c7['delta']:.4g} (i = {c7['horizon']}, j = {c7['columns']}, σ = {c7['sigma']}); "
-          f"γ_min = {d['gamma_min_nominal']:.3f}, γ_min_a = {d['gamma_min_a']:.3f}")
+    lines.append(f"§7.4: subspace δ = {c7['delta']:.4g} (i = {c7['horizon']}, j = {c7['columns']}, σ = {c7['sigma']}); "
+                 f"γ_min = {d['gamma_min_nominal']:.3f}, γ_min_a = {d['gamma_min_a']:.3f}")
     for k, v in c7["certificates"].items():
-        print(f"  {k}: δ·‖K(I+PK)⁻¹‖∞ = {v['delta_times_peak']:.3g} ({'certified' if v['certifies_delta'] else 'NOT certified'})")
+        lines.append(f"  {k}: δ·‖K(I+PK)⁻¹‖∞ = {v['delta_times_peak']:.3g} "
+                     f"({'certified' if v['certifies_delta'] else 'NOT certified'})")
+    return lines

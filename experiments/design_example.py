@@ -395,7 +395,7 @@ def _fig_pz(cases, path: Path, title: str) -> str:
     for ax, c in zip(axes.flat, cases):
         p, z = _poles_zeros(c.design)
         z = z[np.isfinite(z) & (np.abs(z) < 3)]
-        ax.plot(np.cos(th), np.sin(th), color="0.6", lw=0.8)
+        ax.plot(np.cos(th), np.sin(th), color="0.6", lw=0.8, label="unit circle")
         ms = 4 if p.size < 100 else 2
         ax.plot(p.real, p.imag, "x", ms=ms, label="poles")
         ax.plot(z.real, z.imag, "o", ms=ms, mfc="none", mew=0.6, label="zeros")
@@ -403,6 +403,8 @@ def _fig_pz(cases, path: Path, title: str) -> str:
         ax.set_xlim(-1.6, 1.6)
         ax.set_ylim(-1.6, 1.6)
         ax.set_title(c.label, fontsize=9)
+        ax.set_xlabel("Re z (z-plane, dimensionless)", fontsize=8)
+        ax.set_ylabel("Im z", fontsize=8)
         ax.grid(True, alpha=0.3)
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
@@ -417,7 +419,7 @@ def _fig_data(data, out: Path) -> str:
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 4.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     a1.plot(t, data.y[:n], lw=0.8, label="measured y (noisy)")
     a1.plot(t, data.y_clean[:n], lw=0.8, alpha=0.7, label="noise-free response")
-    a1.set_ylabel("y")
+    a1.set_ylabel("y (servo output)")
     a1.legend(fontsize=8)
     a1.set_title("Fig. 5.2: output data used for the design examples")
     a2.step(t, data.u[:n], where="post", lw=0.6)
@@ -434,7 +436,7 @@ def _fig_weights(W: dict, out: Path) -> str:
             mag = np.abs(np.asarray(W[name](np.exp(1j * w * SERVO_DT))).reshape(-1))
             ax.loglog(w, 1.0 / mag, label=f"1/{name}")
         ax.set_xlabel("ω (rad/s)")
-        ax.set_ylabel("magnitude")
+        ax.set_ylabel("magnitude (absolute)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
     a1.set_title("inverse performance weights 1/W1")
@@ -447,3 +449,13 @@ def _continuous_dc_gains() -> dict:
     """DC and high-frequency gains of the continuous weights (report sanity line)."""
     return {k: (float(np.real(control.dcgain(v))), float(np.real(np.asarray(v(1e9j)).item())))
             for k, v in continuous_weights().items()}
+
+
+def summary_lines(s: dict) -> list[str]:
+    """Key numbers of a run (printed by ``python -m experiments design-example``)."""
+    lines = ["Table 5.1   γ_min ours / thesis"]
+    for name, r in s.get("table_5_1", {}).items():
+        lines.append(f"  {name}: {r['gamma_min']:.3f} / {r['thesis_gamma_min']:.3f}  ({100 * r['rel_diff']:+.1f} %)")
+    if s.get("warnings"):
+        lines.append(f"{len(s['warnings'])} warning(s) raised, listed in the report")
+    return lines

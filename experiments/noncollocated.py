@@ -304,9 +304,19 @@ def run(opts) -> dict:
         "thesis": THESIS,
         "files": sorted({p.name for p in out.iterdir()} | {"noncollocated.json", "noncollocated.md"}),
     }
+    summary["report"] = str(out / "noncollocated.md")
     write_json(out / "noncollocated.json", summary)
     _write_report(out, summary, figs)
     return summary
+
+
+def summary_lines(s: dict) -> list[str]:
+    """Key numbers of a run (printed by ``python -m experiments noncollocated``)."""
+    sub, mb = s["subspace"], s["model_based"]
+    return [f"subspace: γ_min = {sub['gamma_min']:.3f} (thesis {s['thesis']['gamma_min']}), γ = {sub['gamma']:.3f}, "
+            f"closed-loop spectral radius {sub['closed_loop_spectral_radius']:.6f}",
+            f"model-based: γ_opt = {mb['gamma_opt']:.3f}, γ = {mb['gamma']:.3f}",
+            f"step: rise time {sub['step']['rise_time_s']:.3g} s, overshoot {100 * sub['step']['overshoot']:.1f} %"]
 
 
 def _figures(out, c, omega):
@@ -335,7 +345,7 @@ def _figures(out, c, omega):
     ax.semilogx(omega, 20 * np.log10(np.abs(p)), label="|P_y3,u| (ZOH model)")
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("ω (rad/s)")
-    ax.set_ylabel("dB")
+    ax.set_ylabel("magnitude (dB)")
     ax.set_title("Fig 6.3: control specification (Tustin weights, 64 Hz) and plant")
     ax.grid(True, which="both", lw=0.3)
     ax.legend()
@@ -390,12 +400,13 @@ def _write_report(out, s, figs):
         ["γ = 1.35 γ_opt", mb["gamma"], th["gamma_model"]],
     ])
     rep.section("Step response on the true plant (noise free)")
+    rep.text("Overshoot in percent of the final value (the JSON keeps the fraction).")
     ms, mi = sub["step"], mb["step"]
     rep.table(["metric", "subspace K (y)", "model-based K (y_ideal)", "thesis (hardware)"], [
         ["rise time 10–90 % (s)", ms["rise_time_s"], mi["rise_time_s"], th["rise_time_s"]],
         ["ringing (Hz)", ms["ringing_hz"], mi["ringing_hz"], th["ringing_hz"]],
         ["steady-state error", ms["steady_state_error"], mi["steady_state_error"], th["steady_state_error"]],
-        ["overshoot", ms["overshoot"], mi["overshoot"], "–"],
+        ["overshoot (%)", 100 * ms["overshoot"], 100 * mi["overshoot"], "–"],
     ])
     rep.section("Closed loop on the true plant")
     rep.table(["controller", "order", "max |closed-loop pole|", "slowest time constant (s)",
@@ -430,4 +441,4 @@ def _write_report(out, s, figs):
     rep.figure(figs["step"], "Fig 6.5: y (subspace) vs y_ideal (model-based)")
     rep.figure(figs["controllers"],
                "Fig 6.7: Bode of K_sub (both channels: u/r with y = 0 and u/(−y) with r = 0) and K_model (u/e)")
-    rep.write(out / "noncollocated.md")
+    return rep.write(out / "noncollocated.md")

@@ -3,11 +3,16 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import time
 from pathlib import Path
 from typing import Iterable, Sequence
 
-__all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time", "finish_report"]
+_PIPE = re.compile(r"(?<!\\)\|")
+
+__all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time", "finish_report",
+           "markdown_tables", "LiveTable",
+           "check_figure", "FIGURE_PROBLEMS"]
 
 
 def format_table(headers: Sequence[str], rows: Iterable[Sequence], floatfmt: str = ".4g") -> str:
@@ -15,9 +20,11 @@ def format_table(headers: Sequence[str], rows: Iterable[Sequence], floatfmt: str
 
     def cell(v):
         if isinstance(v, float):
-            return format(v, floatfmt)
-        return str(v)
+            v = format(v, floatfmt)
+        # a bare '|' (e.g. "max |pole|") would split the cell: escape it (already escaped ones are kept)
+        return _PIPE.sub(r"\\|", str(v).replace("\n", " "))
 
+    headers = [cell(h) for h in headers]
     rows = [[cell(v) for v in r] for r in rows]
     widths = [max(len(str(h)), *(len(r[k]) for r in rows)) if rows else len(str(h)) for k, h in enumerate(headers)]
     line = lambda vals: "| " + " | ".join(str(v).ljust(w) for v, w in zip(vals, widths)) + " |"  # noqa: E731
@@ -44,12 +51,52 @@ def write_json(path: Path, data) -> Path:
     return path
 
 
+#: ``str(path) -> list of problems`` of every figure saved by :func:`save_figure` in this process
+#: (checked by the tests: labelled axes, a legend, no curve hidden under another).
+FIGURE_PROBLEMS: dict[str, list[str]] = {}
+
+
+def check_figure(fig) -> list[str]:
+    """What a figure lacks: axis labels, a legend, or a curve drawn exactly over another in the same style.
+
+    An axes may take its x (y) label from an axes it shares that axis with (stacked subplots); a figure
+    needs at least one legend when some axes has two or more labelled curves.  Two lines with the same
+    data (to 1e-6) must differ in line style or marker, or the first is invisible.
+    """
+    import numpy as np
+
+    problems = []
+    axes = [ax for ax in fig.get_axes() if ax.axison and (ax.lines or ax.collections or ax.images)]
+    for k, ax in enumerate(axes):
+        name = ax.get_title() or f"axes {k}"
+        for axis, shared in (("x", ax.get_shared_x_axes()), ("y", ax.get_shared_y_axes())):
+            get = "get_xlabel" if axis == "x" else "get_ylabel"
+            if not any(getattr(a, get)() for a in shared.get_siblings(ax)):
+                problems.append(f"{name}: no {axis} label")
+        lines = [ln for ln in ax.lines if ln.get_visible() and len(np.atleast_1d(ln.get_xdata())) > 1]
+        for a in range(len(lines)):
+            for b in range(a + 1, len(lines)):
+                la, lb = lines[a], lines[b]
+                ya, yb = np.asarray(la.get_ydata(), float), np.asarray(lb.get_ydata(), float)
+                xa, xb = np.asarray(la.get_xdata(), float), np.asarray(lb.get_xdata(), float)
+                same = (ya.shape == yb.shape and np.allclose(xa, xb, equal_nan=True)
+                        and np.allclose(ya, yb, rtol=1e-6, atol=0, equal_nan=True))
+                if same and (la.get_linestyle(), la.get_marker()) == (lb.get_linestyle(), lb.get_marker()):
+                    problems.append(f"{name}: curve {la.get_label()!r} is hidden under {lb.get_label()!r}")
+    labelled = [ax for ax in axes
+                if sum(not str(h.get_label()).startswith("_") for h in ax.lines + ax.collections) >= 2]
+    if labelled and not (fig.legends or any(ax.get_legend() for ax in fig.get_axes())):
+        problems.append("no legend")
+    return problems
+
+
 def save_figure(fig, path: Path) -> Path:
-    """Save a matplotlib figure as PNG and close it."""
+    """Save a matplotlib figure as PNG and close it; its :func:`check_figure` problems go to ``FIGURE_PROBLEMS``."""
     import matplotlib.pyplot as plt
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    FIGURE_PROBLEMS[str(path)] = check_figure(fig)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
@@ -112,3 +159,69 @@ def finish_report(rep: Report, summary: dict, out: Path, name: str, *, warn_log=
     summary["report"] = str(rep.write(Path(out) / f"{name}.md"))
     write_json(Path(out) / f"{name}.json", summary)
     return summary
+
+
+def markdown_tables(text: str) -> list[list[list[str]]]:
+    """The tables of a markdown document, each a list of rows of cells (split on unescaped ``|``).
+
+    A table is a run of consecutive lines starting with ``|``; the separator row (``|---|``) is kept
+    as a row, so a well-formed table has the same number of cells on every row.
+    """
+    tables, current = [], []
+    for line in text.splitlines() + [""]:
+        if line.lstrip().startswith("|"):
+            body = line.strip()
+            body = body[1:-1] if body.endswith("|") and not body.endswith("\\|") else body[1:]
+            current.append([c.strip() for c in _PIPE.split(body)])
+        elif current:
+            tables.append(current)
+            current = []
+    return tables
+
+
+class LiveTable:
+    """A results table written to disk after every row, so an interrupted run keeps what it finished.
+
+    Each :meth:`add` rewrites ``<out>/<name>.md`` (title, intro and the table so far, marked as
+    partial) and ``<out>/<name>.json`` (``{"partial": true, "rows": [...]}``); the run's final report,
+    written under the same names, replaces both when it completes.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        Output folder.
+    name : str
+        File stem (``"bench_unfalsify"``).
+    title : str
+        Markdown title.
+    headers : sequence of str
+        Table headers.
+    intro : str, optional
+        Text above the table.
+    """
+
+    def __init__(self, out: Path, name: str, title: str, headers: Sequence[str], intro: str = ""):
+        self.md = Path(out) / f"{name}.md"
+        self.json = Path(out) / f"{name}.json"
+        self.title, self.headers, self.intro = title, list(headers), intro
+        self.rows: list[list] = []
+        self.records: list = []
+
+    def add(self, row: Sequence, record=None) -> None:
+        """Append a table row (and its JSON ``record``, default: the row) and rewrite both files."""
+        if len(row) != len(self.headers):
+            raise ValueError(f"row has {len(row)} cells but the table has {len(self.headers)} headers")
+        self.rows.append(list(row))
+        self.records.append(list(row) if record is None else record)
+        self.flush()
+
+    def flush(self) -> None:
+        """Rewrite the markdown and JSON files with the rows so far."""
+        rep = Report(self.title)
+        if self.intro:
+            rep.text(self.intro)
+        rep.text(f"_Partial results: {len(self.rows)} row(s) so far; the run has not finished "
+                 "(or was interrupted)._\n")
+        rep.table(self.headers, self.rows)
+        rep.write(self.md)
+        write_json(self.json, {"partial": True, "headers": self.headers, "rows": self.records})

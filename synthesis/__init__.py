@@ -7,7 +7,7 @@ comparators.
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
-from ._validation import DataError
+from ._validation import DataError, InputTypeError
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -33,6 +33,7 @@ from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 
 __all__ = [
     "DataError",
+    "InputTypeError",
     "PersistenceWarning",
     "Predictor",
     "block_hankel",

@@ -9,11 +9,19 @@ import numbers
 
 import numpy as np
 
-__all__ = ["DataError", "as_signal", "as_discrete_system", "check_horizon", "check_level", "check_sample_time"]
+__all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
+           "check_horizon", "check_level", "check_sample_time"]
 
 
 class DataError(ValueError):
     """Invalid input data (shape, length, NaN/inf, too few samples, ...)."""
+
+
+class InputTypeError(DataError, TypeError):
+    """An argument of the wrong type (e.g. a string where an LTI system is expected).
+
+    Both a :class:`DataError` (a ``ValueError``) and a ``TypeError``, so either ``except`` catches it.
+    """
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -> np.ndarray:
@@ -96,15 +104,18 @@ def as_discrete_system(sys, name: str, *, hint: str = ""):
 
     Raises
     ------
+    InputTypeError
+        If ``sys`` is not a python-control LTI system.
     DataError
-        If ``sys`` is not a python-control LTI system, is continuous time, or has NaN/inf entries.
+        If ``sys`` is continuous time, has NaN/inf entries or is a transfer function that is not proper.
     """
     import control  # local: keeps the numpy-only helpers importable without python-control
 
-    if isinstance(sys, control.TransferFunction):
-        sys = control.ss(sys)
+    sys = to_state_space(sys, name)
     if not isinstance(sys, control.StateSpace):
-        raise DataError(f"{name} must be a python-control StateSpace or TransferFunction, got {type(sys).__name__}")
+        raise InputTypeError(
+            f"{name} must be a python-control StateSpace or TransferFunction, got {type(sys).__name__}; "
+            "build it with control.ss(A, B, C, D, dt) or control.tf(num, den, dt)")
     if not control.isdtime(sys, strict=True):
         raise DataError(
             f"{name} is continuous-time (dt = 0); discretise it first (e.g. control.c2d(sys, dt, 'zoh'))"
@@ -156,3 +167,58 @@ def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
         allowed = "a positive finite sample time" + (" or True (unspecified)" if allow_true else "")
         raise DataError(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
     return float(dt)
+
+
+def to_state_space(sys, name: str, *, error=DataError):
+    """Convert a python-control ``TransferFunction`` to ``StateSpace`` after checking it; pass anything else through.
+
+    Parameters
+    ----------
+    sys : object
+        Typically a ``control.TransferFunction`` or ``control.StateSpace``.
+    name : str
+        Name used in error messages.
+    error : type, optional
+        Exception class raised (a :class:`DataError` subclass, e.g. ``WeightError``).
+
+    Raises
+    ------
+    error
+        If a transfer function has NaN/inf coefficients, a zero denominator, or is not proper
+        (numerator degree above the denominator's: not causal, no state-space realisation).
+    """
+    import control
+
+    if not isinstance(sys, control.TransferFunction):
+        return sys
+    for i, (nums, dens) in enumerate(zip(sys.num, sys.den)):
+        for j, (num, den) in enumerate(zip(nums, dens)):
+            where = f" (output {i}, input {j})" if sys.noutputs * sys.ninputs > 1 else ""
+            num, den = np.atleast_1d(np.asarray(num, float)), np.atleast_1d(np.asarray(den, float))
+            if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+                raise error(f"{name} has NaN or infinite transfer-function coefficients{where}; "
+                            "check how the weight or system was computed")
+            den_nz, num_nz = np.flatnonzero(den), np.flatnonzero(num)
+            if den_nz.size == 0:
+                raise error(f"{name} has a zero denominator{where}")
+            deg_den = den.size - 1 - den_nz[0]
+            deg_num = num.size - 1 - num_nz[0] if num_nz.size else 0
+            if deg_num > deg_den:
+                raise error(
+                    f"{name} is not proper{where}: numerator degree {deg_num} > denominator degree {deg_den}, "
+                    "so it is not causal and has no state-space realisation; add poles (e.g. a far-away "
+                    "low-pass factor) or remove zeros")
+    try:
+        return control.ss(sys)
+    except (ValueError, np.linalg.LinAlgError) as exc:  # pragma: no cover - defensive
+        raise error(f"{name} could not be converted to state space: {exc}") from exc
+
+
+def check_same_dt(a, b, name_a: str, name_b: str) -> None:
+    """Raise :class:`DataError` unless two discrete systems share a sample time (``True`` matches any)."""
+    da, db = a.dt, b.dt
+    if da is True or db is True or da == db or (da and db and np.isclose(float(da), float(db), rtol=1e-12)):
+        return
+    raise DataError(
+        f"{name_a} has sample time {da} but {name_b} has {db}; both must be discretised at the same sample "
+        f"time (e.g. control.c2d(G, {db}, 'zoh') or synthesis.tustin(W, {db}))")

@@ -26,6 +26,7 @@ from ._validation import DataError, as_signal
 from .controller import RecedingHorizonController
 from .hinf import hinf_design
 from .recursive import RecursivePredictor
+from ._repr import result
 
 __all__ = ["GammaPolicy", "AdaptiveUpdate", "AdaptiveHinf"]
 
@@ -59,6 +60,7 @@ class GammaPolicy:
         return (1.0 + self.alpha) * gmin if self.kind == "ratio" else gmin + self.alpha
 
 
+@result
 @dataclass(frozen=True)
 class AdaptiveUpdate:
     """One design swapped into the controller.

@@ -25,12 +25,14 @@ import control
 import numpy as np
 
 from ._validation import DataError, as_signal
+from ._repr import result
 
 __all__ = ["WeightState", "RecedingHorizonController", "lti_controller"]
 
 _DRIVES = ("e", "u", "y")
 
 
+@result
 @dataclass(frozen=True)
 class WeightState:
     """A weight filter state run inside the controller.

@@ -34,6 +34,7 @@ from ._validation import DataError, check_level, check_sample_time
 from .controller import WeightState, lti_controller
 from .minimax import minimax_gamma_min, solve_minimax
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
+from ._repr import result
 
 __all__ = [
     "Additive",
@@ -68,6 +69,7 @@ class Additive:
     W4: object
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class PerformanceMap:
     """``z = M_d d + M_u u + M_x x`` for one law, with the block layout of ``d`` and ``x``."""
@@ -79,6 +81,7 @@ class PerformanceMap:
     columns: tuple  # ((name, size), ...) for x
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class HinfDesign:
     """A finite-horizon subspace H∞ design (Ch. 3) and its LTI controller (5.3)–(5.4).

@@ -39,6 +39,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ._validation import DataError, as_discrete_system, check_level
+from ._repr import result
 
 __all__ = ["NormBracket", "NormTest", "hinf_norm", "norm_below"]
 
@@ -55,6 +56,7 @@ _EPS = np.finfo(float).eps
 _BATCH_ORDER = 40
 
 
+@result
 @dataclass(frozen=True)
 class NormBracket:
     """Result of :func:`hinf_norm`: ``lower ≤ ‖G‖∞ ≤ upper``.
@@ -114,6 +116,7 @@ class NormBracket:
         return f"[{self.lower:.10g}, {self.upper:.10g}]"
 
 
+@result
 @dataclass(frozen=True)
 class NormTest:
     """Result of :func:`norm_below`; truthy iff ``‖G‖∞ < gamma`` is proven.

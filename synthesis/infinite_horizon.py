@@ -35,10 +35,12 @@ from .hinfnorm import NormBracket, _norm_below, hinf_norm
 from .minimax import InfeasibleGammaError
 from .riccati import generalized_plant
 from .weights import _ss_parts, as_weight, common_dt
+from ._repr import result
 
 __all__ = ["MixsynResult", "discrete_mixsyn", "mixsyn_closed_loop", "peak_gain"]
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class MixsynResult:
     """Result of :func:`discrete_mixsyn`.

@@ -18,10 +18,12 @@ import numpy as np
 
 from ._validation import DataError, check_sample_time
 from .controller import lti_controller
+from ._repr import result
 
 __all__ = ["LqgDesign", "lqg_design"]
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class LqgDesign:
     """A subspace LQG design (Thm 4.1).

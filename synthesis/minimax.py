@@ -41,6 +41,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from ._validation import DataError
+from ._repr import result
 
 __all__ = [
     "InfeasibleGammaError",
@@ -74,6 +75,7 @@ class NearGammaMinWarning(UserWarning):
     """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class MinimaxSolution:
     """Saddle point of ``min_u sup_d ‖M_d d + M_u u + M_x x‖² − γ²‖d‖²``.

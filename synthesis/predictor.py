@@ -17,6 +17,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ._validation import DataError, as_signal, check_horizon
 from .hankel import hankel_gram
+from ._repr import result
 
 __all__ = ["Predictor", "fit_predictor", "block_hankel", "PersistenceWarning", "default_rcond"]
 
@@ -25,6 +26,7 @@ class PersistenceWarning(UserWarning):
     """The input is not persistently exciting of order 2mi (§5.1, comment 1)."""
 
 
+@result
 @dataclass(frozen=True)
 class Predictor:
     """Subspace predictor ``ŷ = Lw w_p + Lu u_f`` (2.6).

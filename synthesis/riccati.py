@@ -27,6 +27,7 @@ import numpy as np
 from ._validation import DataError, as_discrete_system, check_horizon, check_level
 from .minimax import InfeasibleGammaError
 from .weights import _ss_parts, as_weight, common_dt
+from ._repr import result
 
 __all__ = ["GeneralizedPlant", "RiccatiLaw", "StageSaddleError", "generalized_plant", "hinf_riccati", "lqr_riccati"]
 
@@ -40,6 +41,7 @@ class StageSaddleError(InfeasibleGammaError):
         ValueError.__init__(self, message)
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class GeneralizedPlant:
     """Full-information generalized plant of §4.2.1.
@@ -87,6 +89,7 @@ class GeneralizedPlant:
         return np.concatenate(parts)
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class RiccatiLaw:
     """A finite-horizon law from a Riccati recursion.

@@ -22,7 +22,7 @@ import numbers
 import control
 import numpy as np
 
-from ._validation import DataError, as_discrete_system, check_horizon
+from ._validation import DataError, as_discrete_system, check_horizon, to_state_space
 
 __all__ = [
     "WeightError",
@@ -117,8 +117,7 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
         ``D`` without full column rank (relative degree > 0 makes ``Q = HᵀH``
         singular, §3.1).
     """
-    if isinstance(W, control.TransferFunction):
-        W = control.ss(W)
+    W = to_state_space(W, name, error=WeightError)
     if isinstance(W, control.StateSpace):
         A, B, C, D = _ss_parts(W)
         if W.nstates == 0:

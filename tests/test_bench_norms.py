@@ -1,8 +1,11 @@
+import pytest
 """Smoke test of ``python -m experiments bench-norms --quick``."""
 import json
 
 from experiments.bench_norms import run
 from experiments.cli import Options, main
+
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
 
 
 def test_bench_norms_quick(tmp_path):

@@ -103,3 +103,9 @@ def test_ideal_response_by_python_control(run_dir, model):
     T = ct.feedback(_thesis_y1_plant() * K, 1)
     y = ct.forced_response(T, T=t - t[0], U=r).outputs
     assert np.max(np.abs(y - y_ideal)) < 1e-6 * max(1.0, np.max(np.abs(y)))
+
+
+def test_report_tables_and_figures_are_complete(run_dir):
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(run_dir, "adaptive")

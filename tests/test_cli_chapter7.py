@@ -16,6 +16,8 @@ from experiments.cli import main
 from experiments.plants import servo
 from synthesis import fit_predictor, hinf_design
 
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
+
 
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
@@ -120,3 +122,9 @@ def test_worst_phase_allpass(small_loop):
     rho = lambda pert: np.max(np.abs(np.linalg.eigvals(  # noqa: E731
         closed_loop_matrix(control.ss(control.parallel(control.ss(P), control.ss(pert))), K))))
     assert rho(small) < 1 < rho(big)
+
+
+def test_report_tables_and_figures_are_complete(quick_run):
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(quick_run[0], "chapter7")

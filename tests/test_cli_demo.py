@@ -8,12 +8,15 @@ import pytest
 from experiments._servo import THESIS_TABLE_5_1
 from experiments.cli import main
 
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
+
 
 def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
     tmp_path = tmp_path / "demo"  # the CLI writes into <out>/demo/
     assert "demo.md" in printed and "Design 1" in printed and "δ" in printed
+    assert printed.startswith(f"demo: report: {tmp_path / 'demo.md'}")
     md = (tmp_path / "demo.md").read_text()
     assert "Table 5.1" in md and "§7.4" in md
     assert (tmp_path / "demo_table5_1_steps.png").exists()
@@ -26,6 +29,9 @@ def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
         assert summary["table_5_1"][name]["gamma"] == pytest.approx(gam, rel=0.03)
     assert summary["chapter7"]["delta"] > 0
     assert summary["seconds"] < 120
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(tmp_path, "demo")  # demo.md and chapter7/chapter7.md
 
 
 def test_demo_json_flag_prints_json_only(tmp_path, capsys):

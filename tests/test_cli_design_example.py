@@ -142,3 +142,9 @@ def test_servo_data_first_too_many_samples_names_the_fix():
     assert u.shape == y.shape == (30,)
     with pytest.raises(ValueError, match=r"servo_data\(31, seed=2\)"):
         data.first(31)
+
+
+def test_report_tables_and_figures_are_complete(quick_run):
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(quick_run[0], "design-example")

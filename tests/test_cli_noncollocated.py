@@ -162,3 +162,9 @@ def test_bad_input_raises():
         noncollocated.closed_loop_system(P, ct.ss([[0.5]], [[1, 1, 1]], [[1]], [[0, 0, 0]], DT))
     with pytest.raises(ValueError, match="strictly proper"):
         noncollocated.closed_loop_system(ct.ss([[0.5]], [[1]], [[1]], [[1]], DT), ct.ss([[0.5]], [[1]], [[1]], [[0]], DT))
+
+
+def test_report_tables_and_figures_are_complete(run_dir):
+    from _reports import assert_reports_complete
+
+    assert_reports_complete(run_dir, "noncollocated")

@@ -68,6 +68,7 @@ def test_lightly_damped_near_circle_complex_pair():
     assert b.near_poles and fine <= b.upper and b.lower >= fine * (1 - 1e-7)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 def test_mimo_bracket_contains_reference(seed):
     rng = np.random.default_rng(seed)

@@ -37,6 +37,7 @@ def _servo_weights(dt=0.1):
     return W1, W2
 
 
+@pytest.mark.slow
 def test_servo_design_is_verified_independently():
     P = servo()
     W1, W2 = _servo_weights()

@@ -112,6 +112,7 @@ def test_zero_delta_structured():
     assert r.status == "optimal" and r.delta == 0.0 and r.certificate.verify()
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), n=st.integers(8, 16), frac=st.floats(0.1, 0.95))
 def test_lower_bound_never_exceeds_clarabel_optimum(seed, n, frac):

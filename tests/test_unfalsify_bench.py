@@ -1,8 +1,11 @@
+import pytest
 """Smoke test of ``python -m experiments bench-unfalsify --quick``."""
 import json
 
 from experiments.bench_unfalsify import run
 from experiments.cli import Options, main
+
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
 
 
 def test_bench_unfalsify_quick(tmp_path):

@@ -16,6 +16,8 @@ import unfalsify as uf
 from experiments._servo import design_weights, servo_data, step_response
 from experiments.plants import servo
 
+pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
+
 I, J = 20, 20
 
 

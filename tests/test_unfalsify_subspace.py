@@ -53,6 +53,7 @@ def test_noise_free_fir_plant_needs_no_uncertainty():
     assert abs(res.delta) < 1e-6
 
 
+@pytest.mark.slow
 def test_delta_decreases_with_sigma_and_is_certified():
     u, y = _servo(5 * 2 + 30 - 1, 3)
     i = 5
@@ -149,6 +150,7 @@ def test_eliminate_with_thesis_form_is_rejected():
         uf.subspace_unfalsify(u, y, 3, 0.05, form="thesis", eliminate_L=True)
 
 
+@pytest.mark.slow
 def test_fixed_predictor_delta_is_at_least_the_joint_delta():
     # (7.5) optimises over L; fixing L to the least-squares predictor can only increase δ
     u, y = _servo(2 * 4 + 30 - 1, 10)

@@ -10,6 +10,7 @@ import cvxpy as cp
 import numpy as np
 
 from synthesis._validation import DataError, as_signal
+from synthesis._repr import result
 
 __all__ = [
     "BACKENDS",
@@ -134,6 +135,7 @@ def check_backend(backend: str) -> str:
     return backend
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class Certificate:
     """Two-sided certificate of an unfalsification answer, checkable from the data alone.

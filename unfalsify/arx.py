@@ -51,10 +51,12 @@ from ._common import (
 )
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from synthesis._repr import result
 
 __all__ = ["ArxProblem", "ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class ArxResult:
     """Solution of the ARX unfalsification program (7.4).
@@ -179,6 +181,7 @@ def _warn_if_not_at_rest(u, y, na: int, nb: int, sigma: float) -> None:
             "data in W_p", NotAtRestWarning, stacklevel=4)
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class ArxProblem:
     """Program (7.4) on given data: validation, scaling and the independent bounds.

@@ -38,6 +38,7 @@ import numpy as np
 
 from synthesis._validation import DataError
 from synthesis import NormBracket, hinf_norm
+from synthesis._repr import result
 
 __all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "step_metrics"]
 
@@ -47,6 +48,7 @@ TRACKING_FLOOR = 0.1
 STEP_SAMPLES = 300
 
 
+@result
 @dataclass(frozen=True)
 class StepMetrics:
     """Unit-step metrics of a loop ``r → y`` (every reference channel stepped at once; worst channel).
@@ -69,6 +71,7 @@ class StepMetrics:
     samples: int
 
 
+@result
 @dataclass(frozen=True)
 class LoopCertificate:
     """Verdict of :func:`certify_loop` on the loop ``(P̂, K)``.

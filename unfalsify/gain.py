@@ -23,10 +23,12 @@ from synthesis._validation import DataError
 
 from ._common import COND_WARN, IllConditionedWarning, siso_signal
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_norm
+from synthesis._repr import result
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
 
 
+@result
 @dataclass(frozen=True)
 class GainResult:
     """Result of Theorem 7.1.

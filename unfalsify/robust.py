@@ -56,12 +56,13 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis._validation import DataError, check_horizon
+from synthesis._validation import DataError, as_discrete_system, check_horizon, check_same_dt
 
 from ._common import SolverWarning, UnfalsificationError, check_sigma
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop
 from .model import predictor_model
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from synthesis._repr import result
 
 __all__ = [
     "DesignSearch",
@@ -123,6 +124,7 @@ class DesignSearch:
     horizons: tuple = ()
 
 
+@result
 @dataclass(frozen=True)
 class SearchRecord:
     """One design tried by the search: its options, level and certificate (or why it could not be built)."""
@@ -150,6 +152,7 @@ class SearchRecord:
         return _joint_reason(self.certificate, self.reference_certificate)
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class RobustDesignResult:
     """§7.4 pipeline result, with the certificate of the loop it ships.
@@ -627,6 +630,7 @@ def _delta_of(unf: SubspaceResult) -> float:
     return delta
 
 
+@result
 @dataclass(frozen=True)
 class AdditiveRobustness:
     """Additive-uncertainty robustness of a loop ``u = C_r r + C_y y``, ``y = P u``.
@@ -682,8 +686,9 @@ def additive_channel(plant, controller) -> control.StateSpace:
     DataError
         The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
     """
-    P = control.ss(plant)
-    C = control.ss(controller)
+    P = as_discrete_system(plant, "plant")
+    C = as_discrete_system(controller, "controller")
+    check_same_dt(P, C, "plant", "controller")
     l = P.noutputs
     if C.ninputs != 2 * l or C.noutputs != P.ninputs:
         raise DataError(

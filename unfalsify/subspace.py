@@ -50,10 +50,12 @@ from ._common import (
 )
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from synthesis._repr import result
 
 __all__ = ["SubspaceProblem", "SubspaceResult", "subspace_unfalsify", "subspace_data"]
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class SubspaceResult:
     """Solution of the subspace unfalsification program (7.5).
@@ -160,6 +162,7 @@ def _l_value(L, L_fixed, Lscale, i) -> np.ndarray:
     return np.asarray(L.value, float) * Lscale
 
 
+@result
 @dataclass(frozen=True, eq=False)
 class SubspaceProblem:
     """Program (7.5) on given data: validation, scaling, the fixed predictor and the bounds.
