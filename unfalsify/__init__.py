@@ -11,7 +11,7 @@ from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_un
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .model import predictor_model
-from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, step_metrics
+from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics
 from .robust import (
     AdditiveRobustness,
     DesignSearch,
@@ -56,6 +56,7 @@ __all__ = [
     "StepMetrics",
     "certify_loop",
     "closed_loop_ry",
+    "loop_parts",
     "step_metrics",
     "AdditiveRobustness",
     "DesignSearch",

@@ -36,11 +36,11 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis._validation import DataError
+from synthesis._validation import DataError, as_discrete_system, check_same_dt
 from synthesis import NormBracket, hinf_norm
 from synthesis._repr import result
 
-__all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "step_metrics"]
+__all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "loop_parts", "step_metrics"]
 
 #: Default performance floor: mean |r − y| over the last quarter of a unit step.
 TRACKING_FLOOR = 0.1
@@ -124,25 +124,29 @@ class LoopCertificate:
         return float(1.0 / self.norm.upper) if self.norm.upper > 0 else float("inf")
 
 
-def _split(plant, controller):
-    P = control.ss(plant)
-    C = control.ss(controller)
+def loop_parts(plant, controller):
+    """Checked ``(P, C, l)`` of a loop ``y = P u``, ``u = C [r; y]`` (discrete, one sample time, matching sizes).
+
+    Raises
+    ------
+    DataError
+        Continuous-time or non-finite systems, different sample times, a controller without
+        inputs ``[r; y]`` (``2l``) and the plant's inputs as outputs.
+    """
+    P = as_discrete_system(plant, "plant")
+    C = as_discrete_system(controller, "controller")
+    check_same_dt(P, C, "plant", "controller")
     l = P.noutputs
     if C.ninputs != 2 * l or C.noutputs != P.ninputs:
         raise DataError(
             f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s), got {C.ninputs} input(s) and "
             f"{C.noutputs} output(s); pass the controller of synthesis.hinf_design (inputs [r; y])")
-    if not (P.isdtime() and C.isdtime()):
-        raise DataError("plant and controller must both be discrete-time systems")
-    if P.dt is not True and C.dt is not True and not np.isclose(float(P.dt), float(C.dt), rtol=1e-9, atol=0):
-        raise DataError(f"plant has sample time {P.dt} but the controller {C.dt}: design the controller at the data's "
-                        "sample time (pass dt= to the design)")
     return P, C, l
 
 
 def closed_loop_ry(plant, controller) -> control.StateSpace:
     """Noise-free closed loop ``r → y`` of ``y = P u``, ``u = C_r r + C_y y`` (controller inputs ``[r; y]``)."""
-    P, C, l = _split(plant, controller)
+    P, C, l = loop_parts(plant, controller)
     return control.feedback(P, C[:, l:], sign=+1) * C[:, :l]
 
 
@@ -202,7 +206,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
             raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
     if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
         raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
-    P, C, l = _split(model, controller)
+    P, C, l = loop_parts(model, controller)
     M = control.feedback(C[:, l:], P, sign=+1)
     Am = np.asarray(M.A, float)
     rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0

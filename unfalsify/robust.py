@@ -56,10 +56,10 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis._validation import DataError, as_discrete_system, check_horizon, check_same_dt
+from synthesis._validation import DataError, check_horizon
 
 from ._common import SolverWarning, UnfalsificationError, check_sigma
-from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop
+from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop, loop_parts
 from .model import predictor_model
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from synthesis._repr import result
@@ -686,15 +686,7 @@ def additive_channel(plant, controller) -> control.StateSpace:
     DataError
         The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
     """
-    P = as_discrete_system(plant, "plant")
-    C = as_discrete_system(controller, "controller")
-    check_same_dt(P, C, "plant", "controller")
-    l = P.noutputs
-    if C.ninputs != 2 * l or C.noutputs != P.ninputs:
-        raise DataError(
-            f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s), got {C.ninputs} input(s) and "
-            f"{C.noutputs} output(s); pass the controller of synthesis.hinf_design (inputs [r; y])"
-        )
+    P, C, l = loop_parts(plant, controller)
     return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
 
 
