@@ -21,6 +21,7 @@ transpose of the first block row of the symmetric ``ZZᵀ``).  Time
 from __future__ import annotations
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided, sliding_window_view
 
 from ._validation import as_signal, check_horizon
 
@@ -45,8 +46,13 @@ def hankel_order(i: int, m: int, l: int) -> np.ndarray:
     return perm
 
 
-def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
-    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns."""
+def _interleaved_gram_loop(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` by the block-row loop of (2.8)–(2.9) (the route before the vectorised one).
+
+    Kept as the reference for :func:`_interleaved_gram` (tests) and as the baseline of
+    ``python -m experiments bench-predictor``: ``rows`` BLAS products of ``c × j`` slices and
+    ``rows − 1`` Python iterations of the recursion.
+    """
     c = z.shape[1]
     N = rows * c
     G = np.empty((N, N))
@@ -67,6 +73,80 @@ def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
         G[lower] = G.T[lower]
     # diagonal blocks are symmetric in exact arithmetic; make them so in floating point.
     return 0.5 * (G + G.T)
+
+
+def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
+    """``S[a, b, s] = Σ_{t<j} z_{t,a} z_{t+s,b}`` for ``s < rows``: the first block row of ``ZZᵀ``.
+
+    With block length ``P = rows`` and ``Q = ⌊(j−1)/P⌋`` whole blocks, the rows
+    ``Z_b[q] = [z_{qP} … z_{qP+P−1}]`` and ``Z_n[q] = Z_b[q+1]`` are free reshapes of the signal,
+    and the two matrix products ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``) hold every product
+    ``z_{qP+p} z_{qP+p+s}ᵀ`` summed over ``q``: ``S[s] = Σ_p C[p, p+s]`` (a skewed sum).  The at
+    most ``P`` columns ``t ≥ QP`` are added by one more product.  This does twice the
+    multiplications of ``rows`` separate lag products, but as two level-3 BLAS calls instead of
+    ``rows`` memory-bound ``c × j`` products (each streaming the whole signal).
+    """
+    c = z.shape[1]
+    P = rows
+    Q = (j - 1) // P
+    S = np.zeros((c, c, rows))
+    if Q > 0:
+        Zb = z[: Q * P].reshape(Q, P * c)
+        Zn = z[P : (Q + 1) * P].reshape(Q, P * c)
+        C = np.empty((P, c, 2 * P, c))  # C[p, a, p', b]
+        C2 = C.reshape(P * c, 2 * P * c)
+        np.matmul(Zb.T, Zb, out=C2[:, : P * c])
+        np.matmul(Zb.T, Zn, out=C2[:, P * c :])
+        st = C.strides  # skewed view V[p, a, b, s] = C[p, a, p + s, b]  (p + s < 2P)
+        V = as_strided(C, shape=(P, c, c, rows), strides=(st[0] + st[2], st[1], st[3], st[2]), writeable=False)
+        S += V.sum(axis=0)
+    t0 = Q * P
+    if t0 < j:
+        win = sliding_window_view(z[t0 : j + rows - 1], rows, axis=0)  # win[t, b, s] = z_{t0+t+s, b}
+        S += np.tensordot(z[t0:j], win, axes=(0, 0))
+    return S
+
+
+def _channel_major_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` with rows and columns ordered channel-major: index ``a·rows + r`` is channel ``a`` of block row ``r``.
+
+    The recursion (2.8)–(2.9) unrolled: for ``s ≥ r`` the ``(a, b)`` entry of block ``(r, s)`` is
+    ``S[a, b, s−r] + Σ_{k<r} (z_{j+k,a} z_{j+k+s−r,b} − z_{k,a} z_{k+s−r,b})``, i.e. the lag
+    products :func:`_lag_products` plus cumulative sums over ``k`` of products of the first and
+    the last ``2·rows`` samples — the additions of the block-row loop, in the same order, with
+    no Python loop over the horizon (each channel pair is a contiguous ``rows × rows`` array).
+    The lower block triangle follows by symmetry.
+    """
+    c = z.shape[1]
+    S = _lag_products(z, j, rows)
+    # head z_0 … and tail z_j … (zero padded: products past the data only reach discarded entries)
+    h = np.zeros((2 * rows - 1, c))
+    t = np.zeros((2 * rows - 1, c))
+    h[: min(2 * rows - 1, z.shape[0])] = z[: 2 * rows - 1]
+    tail = z[j : j + 2 * rows - 1]
+    t[: tail.shape[0]] = tail
+    blocks = np.empty((c, c, rows, rows))  # blocks[a, b, r, d]: entry (a, b) of block (r, r + d)
+    blocks[:, :, 0, :] = S
+    if rows > 1:
+        # shifted[b, k, d] = x_{k+d, b} for k < rows − 1 (a Hankel view)
+        ht = sliding_window_view(h, rows, axis=0)[: rows - 1].transpose(1, 0, 2)
+        tt = sliding_window_view(t, rows, axis=0)[: rows - 1].transpose(1, 0, 2)
+        corr = t[: rows - 1].T[:, None, :, None] * tt[None] - h[: rows - 1].T[:, None, :, None] * ht[None]
+        np.cumsum(corr, axis=2, out=blocks[:, :, 1:, :])
+        blocks[:, :, 1:, :] += S[:, :, None, :]
+    blocks[:, :, :, 0] *= 0.5  # diagonal blocks are added to their transpose below
+    F = np.zeros((c, rows, c, 2 * rows))  # F[a, r, b, s]
+    st = F.strides  # skewed view W[a, b, r, d] = F[a, r, b, r + d]; r + d >= rows lands in the discarded half
+    as_strided(F, shape=(c, c, rows, rows), strides=(st[0], st[2], st[1] + st[3], st[3]))[...] = blocks
+    U = F[:, :, :, :rows].reshape(c * rows, c * rows)
+    return U + U.T
+
+
+def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns (interleaved order)."""
+    c = z.shape[1]
+    N = rows * c
+    return _channel_major_gram(z, rows, j).reshape(c, rows, c, rows).transpose(1, 0, 3, 2).reshape(N, N)
 
 
 def hankel_gram(u, y, i: int) -> np.ndarray:
@@ -94,6 +174,7 @@ def hankel_gram(u, y, i: int) -> np.ndarray:
     i = check_horizon(i, n)
     j = n - 2 * i + 1
     z = np.ascontiguousarray(np.hstack([u, y]))
-    G = _interleaved_gram(z, 2 * i, j)
+    G = _channel_major_gram(z, 2 * i, j)
     perm = hankel_order(i, m, l)
-    return G[np.ix_(perm, perm)]
+    perm = (perm % (m + l)) * (2 * i) + perm // (m + l)  # interleaved index r·c + ch → channel-major ch·2i + r
+    return G.take(perm, axis=0).take(perm, axis=1)

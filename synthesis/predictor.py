@@ -14,7 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.linalg import lapack
 
+from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, as_signal, check_horizon
 from .hankel import hankel_gram
 
@@ -42,7 +44,9 @@ class Predictor:
     n_columns : int
         The thesis's ``j = n - 2i + 1`` (number of prediction problems).
     singular_values : ndarray
-        Singular values of the regressor factor ``[R11 0; R21 R22]`` (§2.2), descending.
+        Singular values of the regressor factor ``[R11 0; R21 R22]`` (§2.2), descending.  On the
+        fast (well-conditioned) Cholesky path they are not needed for the predictor and are
+        computed on first access (an SVD of the ``i(2m+l)``-square factor), then cached.
     rank : int
         Numerical rank ``q`` kept in the pseudo-inverse.
     method : str
@@ -52,6 +56,11 @@ class Predictor:
         input is persistently exciting of order ``2mi``); ``None`` when not computed.
     rcond : float or None
         Relative tolerance that decided ``rank`` (singular values ``<= rcond * σ₁`` discarded).
+    solver : str or None
+        How ``[Lw Lu]`` was obtained from the factor ``R``: ``"triangular"`` (``R3 R1⁻¹``, taken
+        when ``R1`` is certified well conditioned, ``κ₂(R1) ≤ κ̄ < 1/(2 rcond)`` with
+        ``κ̄`` a rigorous bound from norms of ``R1`` and ``R1⁻¹``) or
+        ``"spectral"`` (the rank-revealing pseudo-inverse of §2.2); ``None`` for ``"lstsq"``.
     """
 
     Lw: np.ndarray
@@ -60,11 +69,12 @@ class Predictor:
     m: int
     l: int
     n_columns: int
-    singular_values: np.ndarray
+    singular_values: np.ndarray = _LazyField()
     rank: int
     method: str
     input_rank: int | None = None
     rcond: float | None = None
+    solver: str | None = None
 
     @property
     def n_regressors(self) -> int:
@@ -237,20 +247,70 @@ def _input_rank_from_factor(R: np.ndarray, i: int, m: int, l: int, rcond: float,
     return _rank(s, rcond)
 
 
-def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3) -> Predictor:
+def _factor_singular_values(R1: np.ndarray) -> np.ndarray:
+    """Singular values of the regressor factor ``R1`` (deferred on the triangular path)."""
+    return np.linalg.svd(R1, compute_uv=False)
+
+
+#: Margin of the triangular path's certificate ``κ_F(R1) · rcond < 1/_CERT_MARGIN`` over the
+#: rounding errors of the computed inverse (relative ``O(κ eps)``, far below a factor 2).
+_CERT_MARGIN = 2.0
+
+
+def _norm2_bound(X: np.ndarray) -> float:
+    """Rigorous upper bound of ``‖X‖₂``: ``min(‖X‖_F, √(‖X‖₁‖X‖_∞))``."""
+    a = np.abs(X)
+    return float(min(np.sqrt(np.sum(a * a)), np.sqrt(a.sum(axis=0).max() * a.sum(axis=1).max())))
+
+
+def _solve_triangular_certified(R: np.ndarray, n_reg: int, rcond: float):
+    """``[Lw Lu] = R3 R1⁻¹`` if ``R1`` is certified well conditioned, else ``None``.
+
+    ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  With its
+    inverse ``R1⁻¹`` (LAPACK ``dtrtri``, ``n³/3`` flops) the rigorous bound
+    ``‖X‖₂ ≤ min(‖X‖_F, √(‖X‖₁‖X‖_∞))`` of both gives ``κ₂(R1) = σ₁/σ_min ≤ κ̄``.  When that bound is below
+    ``1 / (2 rcond)``, no singular value falls below ``rcond·σ₁``: the rank-revealing
+    pseudo-inverse of §2.2 keeps all of them (``q = i(2m+l)``) and equals ``R3 R1⁻¹``, its
+    input part ``[U_p; U_f]`` (a subset of rows, whose singular values interlace) has full rank
+    ``2mi`` by the same bound, and one matrix product replaces the eigendecomposition.
+    """
+    R1 = R[:n_reg, :n_reg]
+    inv, info = lapack.dtrtri(R1, lower=1)
+    if info != 0:
+        return None
+    kappa = _norm2_bound(R1) * _norm2_bound(inv)
+    if not (np.isfinite(kappa) and kappa * rcond * _CERT_MARGIN < 1.0):
+        return None
+    return R[n_reg:, :n_reg] @ inv
+
+
+def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto") -> Predictor:
+    """Predictor from a lower-triangular factor ``R`` of ``A`` (``A = R Qᵀ``, (2.7)).
+
+    ``route="auto"``: for the Gram methods (``"cholesky"``, ``"recursive"``) try
+    :func:`_solve_triangular_certified` first and fall back to the rank-revealing spectral
+    pseudo-inverse (:func:`_solve_from_r`) when ``R1`` is not certified well conditioned;
+    ``"spectral"`` always takes the rank-revealing route (``"qr"`` always does).
+    """
     n_reg = i * (2 * m + l)
     squared = method in _GRAM_METHODS
+    if squared and route == "auto":
+        L = _solve_triangular_certified(R, n_reg, rcond)
+        if L is not None:
+            Lw, Lu = _split(L, i, m, l)
+            sv = _Deferred(_factor_singular_values, R[:n_reg, :n_reg])
+            return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
     L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
     Lw, Lu = _split(L, i, m, l)
-    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond))
+    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral")
 
 
-def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3) -> Predictor:
+def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="auto") -> Predictor:
     """Predictor from the Gram matrix ``AAᵀ`` (A-row order): ``R = chol(AAᵀ)`` then §2.2."""
     R = _psd_cholesky(G)
-    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1)
+    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route)
 
 
 def _split(L: np.ndarray, i: int, m: int, l: int):
@@ -271,10 +331,15 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     method : {"cholesky", "qr", "lstsq"}
         ``"cholesky"`` (default): ``R = chol(AAᵀ)`` with ``AAᵀ`` built by the Hankel recursions
         (2.8)–(2.9) in ``O(ij + i²)`` time and ``O(i² + j)`` memory, never forming the Hankel
-        matrices (§2.3), then the pseudo-inverse of §2.2 (its ``U``, ``Σ`` taken from the
-        eigendecomposition of ``R1 R1ᵀ``, equivalent to the SVD of ``R1`` at the precision a
-        Gram matrix carries).  A semidefinite ``AAᵀ`` (rank-deficient data) is factored
-        through its clipped eigendecomposition when LAPACK's Cholesky breaks down.
+        matrices (§2.3).  When the regressor factor ``R1`` is certified well conditioned
+        (a rigorous bound of ``κ₂(R1)`` from norms of ``R1`` and ``R1⁻¹`` below ``1/(2·rcond)``, so the pseudo-inverse of §2.2 would keep every
+        singular value) ``[Lw Lu] = R3 R1⁻¹`` by one triangular inversion and one product
+        (``solver="triangular"``).  Otherwise — ill-conditioned or rank-deficient data — the
+        rank-revealing pseudo-inverse of §2.2 is used (``solver="spectral"``; its ``U``, ``Σ``
+        from the eigendecomposition of ``R1 R1ᵀ``, equivalent to the SVD of ``R1`` at the
+        precision a Gram matrix carries) and a :class:`PersistenceWarning` names the rank.  A
+        semidefinite ``AAᵀ`` is factored through its clipped eigendecomposition when LAPACK's
+        Cholesky breaks down.
         ``"qr"``: QR of ``A = [W_p; U_f; Y_f]`` (2.7) and the SVD pseudo-inverse of §2.2
         (``O(i²j)`` time, ``O(ij)`` memory).
         ``"lstsq"``: ``numpy.linalg.lstsq`` on the explicit Hankel matrices (a plain reference).
@@ -379,9 +444,12 @@ def _psd_cholesky(G: np.ndarray) -> np.ndarray:
     negative rounding noise) to zero, followed by a QR of ``F = V √Λ`` to restore triangular
     form (``G ≈ F Fᵀ = L Lᵀ``).  An all-zero ``G`` gives ``L = 0``.
     """
-    try:
-        return np.linalg.cholesky(G)
-    except np.linalg.LinAlgError:
+    L, info = lapack.dpotrf(G, lower=1, clean=1)
+    if info == 0:
+        return L
+    if info < 0:  # pragma: no cover - an argument error, not a property of the data
+        raise ValueError(f"LAPACK dpotrf: illegal argument {-info}")
+    else:
         w, V = np.linalg.eigh(G)
         tol = G.shape[0] * _EPS * max(w.max(initial=0.0), 0.0)
         w = np.where(w > tol, w, 0.0)
