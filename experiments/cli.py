@@ -36,6 +36,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "adaptive": ("experiments.adaptive", "run", "§6.3 adaptive simulation"),
     "chapter7": ("experiments.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
+    "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
 }
 
