@@ -123,19 +123,21 @@ def _rows_like(M, rows: int, name: str) -> np.ndarray:
 
 
 def _qr_u(Mu):
-    """Thin QR of M_u with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues)."""
-    Q, R = np.linalg.qr(Mu, mode="reduced")
+    """QR of M_u with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues).
+
+    Returns ``Q`` (orthonormal basis of range(M_u)), ``R`` (square upper triangular) and ``Qc``,
+    an orthonormal basis of its orthogonal complement (the last columns of the complete QR).
+    """
+    k = Mu.shape[1]
+    Qf, Rf = np.linalg.qr(Mu, mode="complete")
+    Q, Qc, R = Qf[:, :k], Qf[:, k:], Rf[:k]
     d = np.abs(np.diag(R))
     scale = max(np.linalg.norm(Mu), np.finfo(float).tiny)  # Frobenius: cheap upper bound on ‖M_u‖₂
     if Mu.shape[0] < Mu.shape[1] or d.min() <= max(Mu.shape) * np.finfo(float).eps * scale:
         raise DataError(
             "M_u does not have full column rank, so M_uᵀM_u is singular and the minimisation over u has no "
             "unique solution; check that W2 has a full-rank feedthrough (relative degree 0)")
-    return Q, R
-
-
-def _project_out(Q, M):
-    return M - Q @ (Q.T @ M)
+    return Q, R, Qc
 
 
 #: Safety factor of :func:`feasibility_threshold` over the first-order error estimate.
@@ -148,7 +150,8 @@ class _Saddle:
 
     Q: np.ndarray
     R: np.ndarray
-    U: np.ndarray
+    Qc: np.ndarray  # orthonormal basis of range(M_u)^⊥
+    U: np.ndarray  # left singular vectors of Qcᵀ M_d: (I − P_u) M_d = (Qc U) diag(s) Vt
     s: np.ndarray
     Vt: np.ndarray
     gamma_min: float
@@ -185,15 +188,20 @@ def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
 
 
 def _saddle(Md, Mu) -> _Saddle:
-    """QR of ``M_u`` and SVD of ``(I − P_u) M_d``: γ_min and its threshold from one computation."""
-    Q, R = _qr_u(Mu)
-    if Md.shape[1]:
-        U, s, Vt = np.linalg.svd(_project_out(Q, Md), full_matrices=False)
+    """QR of ``M_u`` and SVD of ``(I − P_u) M_d``: γ_min and its threshold from one computation.
+
+    ``(I − P_u) M_d = Qc (Qcᵀ M_d)`` with ``Qc`` orthonormal, so the SVD is taken of the smaller
+    ``Qcᵀ M_d`` (``rows − dim u`` rows; same singular values and right vectors).
+    """
+    Q, R, Qc = _qr_u(Mu)
+    if Md.shape[1] and Qc.shape[1]:
+        U, s, Vt = np.linalg.svd(Qc.T @ Md, full_matrices=False)
         gmin = float(s[0]) if s.size else 0.0
     else:
-        U, s, Vt = np.zeros((Md.shape[0], 0)), np.zeros(0), np.zeros((0, 0))
+        U, s, Vt = np.zeros((Qc.shape[1], 0)), np.zeros(0), np.zeros((0, Md.shape[1]))
         gmin = 0.0
-    return _Saddle(Q=Q, R=R, U=U, s=s, Vt=Vt, gamma_min=gmin, threshold=feasibility_threshold(Md, Mu, gmin))
+    return _Saddle(Q=Q, R=R, Qc=Qc, U=U, s=s, Vt=Vt, gamma_min=gmin,
+                   threshold=feasibility_threshold(Md, Mu, gmin))
 
 
 def minimax_gamma_min(Md, Mu) -> float:
@@ -257,13 +265,13 @@ def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
             f"gamma = {gamma:.6g} is within 3% of gamma_min = {gmin:.6g}: the gains are close to singular and "
             "the loop went unstable there in §5.4.4; prefer gamma >= 1.1 gamma_min",
             NearGammaMinWarning, stacklevel=3)
-    Mxt = _project_out(sd.Q, Mx)
     if np.isinf(gamma) or Md.shape[1] == 0:
         d_gain = np.zeros((Md.shape[1], Mx.shape[1]))
     else:
-        # (γ²I − VS²Vᵀ)⁻¹ V S Uᵀ = V diag(s / (γ² − s²)) Uᵀ, with γ² − s² = (γ − s)(γ + s) kept accurate.
+        # (γ²I − VS²Vᵀ)⁻¹ V S Uᵀ = V diag(s / (γ² − s²)) Uᵀ, with γ² − s² = (γ − s)(γ + s) kept accurate;
+        # the left vectors of M̃_d are Qc U, and (Qc U)ᵀ M̃_x = Uᵀ Qcᵀ M_x (Qcᵀ P_u = 0).
         s = sd.s
         coef = s / ((gamma - s) * (gamma + s))
-        d_gain = sd.Vt.T @ (coef[:, None] * (sd.U.T @ Mxt))
-    u_gain = -solve_triangular(sd.R, sd.Q.T @ (Md @ d_gain + Mx), lower=False)
+        d_gain = sd.Vt.T @ (coef[:, None] * (sd.U.T @ (sd.Qc.T @ Mx)))
+    u_gain = -solve_triangular(sd.R, sd.Q.T @ (Md @ d_gain + Mx), lower=False, check_finite=False)
     return MinimaxSolution(gamma=gamma, gamma_min=gmin, u_gain=u_gain, d_gain=d_gain)
