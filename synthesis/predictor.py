@@ -257,42 +257,53 @@ def _factor_singular_values(R1: np.ndarray) -> np.ndarray:
 #: the power-iteration estimate (a lower bound of ``κ₂``, within a few per cent after
 #: :data:`_POWER_STEPS` steps on the §6.3 data) it also covers the estimate's shortfall.
 _CERT_MARGIN = 2.0
-#: Block power-iteration steps (4 start vectors) of :func:`_norm2_estimate` for ``R1`` (whose
-#: dominant singular value is well separated) and for ``R1⁻¹``.
-_POWER_STEPS = (3, 5)
+#: Block power-iteration steps of :func:`_norm2_estimate` for ``R1`` (whose dominant singular
+#: value is well separated) and ``R1⁻¹``: from 4 pseudo-random start vectors, and when warm
+#: started from the previous dominant vectors (recursive predictor, §2.3.1: the window changes
+#: little between updates).
+_POWER_STEPS = {"cold": (3, 5), "warm": (1, 3)}
 _START_VECTORS: dict = {}
 
 
-def _norm2_estimate(X: np.ndarray, steps: int) -> float:
-    """``‖X‖₂`` from below by block power iteration on ``XᵀX`` (4 fixed pseudo-random start vectors).
-
-    Deterministic (the start block is seeded and cached per size).  The largest Rayleigh quotient
-    never exceeds ``‖X‖₂²``; from a random start it is within a few per cent of it after a handful of
-    steps unless the start is (improbably) deficient in the dominant direction.
-    """
-    n = X.shape[1]
+def _start_block(n: int) -> np.ndarray:
     V = _START_VECTORS.get(n)
     if V is None:
         V = _START_VECTORS.setdefault(n, np.random.default_rng(12).standard_normal((n, 4)))
+    return V
+
+
+def _norm2_estimate(X: np.ndarray, steps: int, V: np.ndarray):
+    """``‖X‖₂`` from below by block power iteration on ``XᵀX`` from the start block ``V``.
+
+    Returns the estimate and the iterate with the largest Rayleigh quotient (a warm start for the
+    next call).  The Rayleigh quotient never exceeds ``‖X‖₂²``; from a random start it is within a
+    few per cent of it after a handful of steps unless the start is (improbably) deficient in the
+    dominant direction.  Deterministic: the random part of the start is seeded and cached per size.
+    """
     for _ in range(steps):
         V = X.T @ (X @ V)
         V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
     W = X @ V
-    return float(np.sqrt(np.einsum("ij,ij->j", W, W).max()))
+    q = np.einsum("ij,ij->j", W, W)
+    k = int(np.argmax(q))
+    return float(np.sqrt(q[k])), V[:, k].copy()
 
 
-def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float):
+def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dict | None = None):
     """``[Lw Lu] = R3 R1⁻¹`` if ``R1`` is well conditioned relative to ``rcond``, else ``None``.
 
     ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  With its
     inverse ``R1⁻¹`` (LAPACK ``dtrtri``, ``n³/3`` flops) the condition number ``κ₂(R1) = σ₁/σ_min``
     is bounded, first rigorously (``‖X‖₂ ≤ ‖X‖_F`` for ``R1`` and ``R1⁻¹``), and, if that bound
     is too loose (it overestimates ``κ₂`` about 10× on the closed-loop data of §6.3), estimated by
-    block power iteration on both (:func:`_norm2_estimate`, a lower bound within a few per cent).  When ``κ₂ · rcond``
-    is below ``1/2`` no singular value falls below ``rcond·σ₁``: the rank-revealing pseudo-inverse
-    of §2.2 keeps all of them (``q = i(2m+l)``) and equals ``R3 R1⁻¹``; its input part
-    ``[U_p; U_f]`` (a subset of rows, whose singular values interlace) has full rank ``2mi`` by
-    the same bound; and one matrix product replaces the eigendecomposition.
+    block power iteration on both (:func:`_norm2_estimate`, a lower bound within a few per cent on
+    those data; ``warm``, a dict the caller keeps between calls, carries the dominant vectors
+    over so that fewer steps are needed).  When ``κ₂ · rcond`` is below ``1/2`` no singular value
+    falls below ``rcond·σ₁``: the rank-revealing pseudo-inverse of §2.2 keeps all of them
+    (``q = i(2m+l)``) and equals ``R3 R1⁻¹``; its input part ``[U_p; U_f]`` (a subset of rows,
+    whose singular values interlace) has full rank ``2mi`` by the same bound; and one matrix
+    product replaces the eigendecomposition.  An underestimate can only matter within the factor
+    2 of the tolerance, where keeping or dropping the smallest singular value are both defensible.
     """
     R1 = R[:n_reg, :n_reg]
     inv, info = lapack.dtrtri(R1, lower=1)
@@ -301,13 +312,22 @@ def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float):
     limit = 1.0 / (rcond * _CERT_MARGIN) if rcond > 0 else np.inf
     kappa = float(np.linalg.norm(R1)) * float(np.linalg.norm(inv))  # ‖·‖₂ ≤ ‖·‖_F: a rigorous bound
     if not (np.isfinite(kappa) and kappa < limit):
-        kappa = _norm2_estimate(R1, _POWER_STEPS[0]) * _norm2_estimate(inv, _POWER_STEPS[1])
+        V0 = _start_block(n_reg)
+        prev = warm.get(n_reg) if warm is not None else None
+        steps = _POWER_STEPS["cold" if prev is None else "warm"]
+        V1 = V0 if prev is None else np.column_stack([prev[0], V0[:, 1:]])
+        V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
+        s1, v1 = _norm2_estimate(R1, steps[0], V1)
+        si, vi = _norm2_estimate(inv, steps[1], V2)
+        if warm is not None:
+            warm[n_reg] = (v1, vi)
+        kappa = s1 * si
         if not (np.isfinite(kappa) and kappa < limit):
             return None
     return R[n_reg:, :n_reg] @ inv
 
 
-def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto") -> Predictor:
+def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
     """Predictor from a lower-triangular factor ``R`` of ``A`` (``A = R Qᵀ``, (2.7)).
 
     ``route="auto"``: for the Gram methods (``"cholesky"``, ``"recursive"``) try
@@ -318,7 +338,7 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
     n_reg = i * (2 * m + l)
     squared = method in _GRAM_METHODS
     if squared and route == "auto":
-        L = _solve_triangular_checked(R, n_reg, rcond)
+        L = _solve_triangular_checked(R, n_reg, rcond, warm)
         if L is not None:
             Lw, Lu = _split(L, i, m, l)
             sv = _Deferred(_factor_singular_values, R[:n_reg, :n_reg])
@@ -330,10 +350,10 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
     return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral")
 
 
-def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="auto") -> Predictor:
+def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
     """Predictor from the Gram matrix ``AAᵀ`` (A-row order): ``R = chol(AAᵀ)`` then §2.2."""
     R = _psd_cholesky(G)
-    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route)
+    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm)
 
 
 def _split(L: np.ndarray, i: int, m: int, l: int):

@@ -96,6 +96,7 @@ class RecursivePredictor:
         self._start = 0
         self._end = 0
         self._S = np.zeros((self._N, self._N))  # Gram AAᵀ, or its upper Cholesky factor R (AAᵀ = RᵀR)
+        self._warm: dict = {}  # dominant vectors of R1 and R1⁻¹ from the last predictor() (conditioning check)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -214,8 +215,8 @@ class RecursivePredictor:
         i, m, l, j = self.horizon, self.m, self.l, self._j
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
-            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
-        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3)
+            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
+        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:
