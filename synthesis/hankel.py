@@ -107,39 +107,51 @@ def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
     return S
 
 
-def _channel_major_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
-    """``ZZᵀ`` with rows and columns ordered channel-major: index ``a·rows + r`` is channel ``a`` of block row ``r``.
+def _upper_block_skew(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """Array ``F[a, r, b, s]`` (shape ``(c, rows, c, 2·rows)``) holding ``[ZZᵀ]`` for ``s ≥ r`` (``s < rows``).
 
     The recursion (2.8)–(2.9) unrolled: for ``s ≥ r`` the ``(a, b)`` entry of block ``(r, s)`` is
     ``S[a, b, s−r] + Σ_{k<r} (z_{j+k,a} z_{j+k+s−r,b} − z_{k,a} z_{k+s−r,b})``, i.e. the lag
-    products :func:`_lag_products` plus cumulative sums over ``k`` of products of the first and
-    the last ``2·rows`` samples — the additions of the block-row loop, in the same order, with
-    no Python loop over the horizon (each channel pair is a contiguous ``rows × rows`` array).
-    The lower block triangle follows by symmetry.
+    products :func:`_lag_products` followed by a cumulative sum over ``k`` of products of the first
+    and the last ``2·rows`` samples — the additions of the block-row loop, in the same order, with
+    no Python loop over the horizon.  The sum is written through a skewed view straight into
+    ``F[a, r, b, r + d]``; entries ``s ≥ rows`` are scratch.  Diagonal blocks are halved (the
+    caller adds the transpose).  Entries ``s < r`` are zero.
     """
     c = z.shape[1]
     S = _lag_products(z, j, rows)
-    # head z_0 … and tail z_j … (zero padded: products past the data only reach discarded entries)
+    # head z_0 … and tail z_j … (zero padded: products past the data only reach scratch entries)
     h = np.zeros((2 * rows - 1, c))
     t = np.zeros((2 * rows - 1, c))
     h[: min(2 * rows - 1, z.shape[0])] = z[: 2 * rows - 1]
     tail = z[j : j + 2 * rows - 1]
     t[: tail.shape[0]] = tail
-    blocks = np.empty((c, c, rows, rows))  # blocks[a, b, r, d]: entry (a, b) of block (r, r + d)
-    blocks[:, :, 0, :] = S
+    X = np.empty((c, c, rows, rows))  # X[a, b, 0, d] = S[a, b, d]; X[a, b, k+1, d] = t_{k,a} t_{k+d,b} − h_{k,a} h_{k+d,b}
+    X[:, :, 0, :] = S
     if rows > 1:
-        # shifted[b, k, d] = x_{k+d, b} for k < rows − 1 (a Hankel view)
-        ht = sliding_window_view(h, rows, axis=0)[: rows - 1].transpose(1, 0, 2)
+        ht = sliding_window_view(h, rows, axis=0)[: rows - 1].transpose(1, 0, 2)  # [b, k, d] = h_{k+d, b}
         tt = sliding_window_view(t, rows, axis=0)[: rows - 1].transpose(1, 0, 2)
-        corr = t[: rows - 1].T[:, None, :, None] * tt[None] - h[: rows - 1].T[:, None, :, None] * ht[None]
-        np.cumsum(corr, axis=2, out=blocks[:, :, 1:, :])
-        blocks[:, :, 1:, :] += S[:, :, None, :]
-    blocks[:, :, :, 0] *= 0.5  # diagonal blocks are added to their transpose below
-    F = np.zeros((c, rows, c, 2 * rows))  # F[a, r, b, s]
-    st = F.strides  # skewed view W[a, b, r, d] = F[a, r, b, r + d]; r + d >= rows lands in the discarded half
-    as_strided(F, shape=(c, c, rows, rows), strides=(st[0], st[2], st[1] + st[3], st[3]))[...] = blocks
-    U = F[:, :, :, :rows].reshape(c * rows, c * rows)
+        np.multiply(t[: rows - 1].T[:, None, :, None], tt[None], out=X[:, :, 1:, :])
+        X[:, :, 1:, :] -= h[: rows - 1].T[:, None, :, None] * ht[None]
+    F = np.zeros((c, rows, c, 2 * rows))
+    st = F.strides  # skewed view W[a, b, r, d] = F[a, r, b, r + d]
+    W = as_strided(F, shape=(c, c, rows, rows), strides=(st[0], st[2], st[1] + st[3], st[3]))
+    np.cumsum(X, axis=2, out=W)
+    W[:, :, :, 0] *= 0.5  # diagonal blocks are added to their transpose by the caller
+    return F
+
+
+def _gram_from_skew(F: np.ndarray, rows: int, order: np.ndarray) -> np.ndarray:
+    """Symmetric ``ZZᵀ`` from :func:`_upper_block_skew`, rows and columns in ``order`` (channel-major indices)."""
+    a, r = np.divmod(order, rows)
+    U = F[a[:, None], r[:, None], a[None, :], r[None, :]]  # one gather from the strided upper part
     return U + U.T
+
+
+def _channel_major_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` ordered channel-major: index ``a·rows + r`` is channel ``a`` of block row ``r``."""
+    c = z.shape[1]
+    return _gram_from_skew(_upper_block_skew(z, rows, j), rows, np.arange(c * rows))
 
 
 def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
@@ -174,7 +186,6 @@ def hankel_gram(u, y, i: int) -> np.ndarray:
     i = check_horizon(i, n)
     j = n - 2 * i + 1
     z = np.ascontiguousarray(np.hstack([u, y]))
-    G = _channel_major_gram(z, 2 * i, j)
     perm = hankel_order(i, m, l)
     perm = (perm % (m + l)) * (2 * i) + perm // (m + l)  # interleaved index r·c + ch → channel-major ch·2i + r
-    return G.take(perm, axis=0).take(perm, axis=1)
+    return _gram_from_skew(_upper_block_skew(z, 2 * i, j), 2 * i, perm)
