@@ -304,11 +304,26 @@ def test_bench_predictor_quick(tmp_path):
     from experiments.cli import Options
 
     summary = run(Options(quick=True, out=tmp_path))
-    assert (tmp_path / "bench_predictor.md").exists()
-    assert (tmp_path / "bench_predictor.json").exists()
-    assert summary["batch"] and summary["recursive"]
+    for name in ("bench_predictor.md", "bench_predictor.json", "bench_predictor.csv", "bench_predictor.png"):
+        assert (tmp_path / name).exists(), name
+    assert summary["batch"] and summary["recursive"] and summary["scaling"]
+    assert summary["peak_gflops"] > 0 and set(summary["scaling_exponents"]) >= {"cholesky vs j", "cholesky vs i"}
     for row in summary["batch"]:
-        assert row["qr_s"] > 0 and row["cholesky_s"] > 0 and row["max_rel_diff"] < 1e-6
+        assert row["qr_s"] is None or row["qr_s"] > 0
+        assert row["cholesky_s"] > 0 and row["before_s"] > 0 and row["max_rel_diff"] < 1e-6
+        assert row["solver"] in ("triangular", "spectral") and 0 < row["peak_fraction_minimal"]
+    assert any(row["m"] == 2 for row in summary["batch"])  # a MIMO case
+    header = (tmp_path / "bench_predictor.csv").read_text().splitlines()[0]
+    assert "cholesky_s" in header and "peak_fraction_dense_equivalent" in header
+
+
+def test_legacy_route_of_the_benchmark_equals_fit_predictor():
+    from experiments.bench_predictor import _legacy_fit
+
+    u, y = noisy_mimo(seed=16, n=500)
+    Lw, Lu = _legacy_fit(u, y, 4)
+    p = fit_predictor(u, y, 4)
+    assert rel(np.hstack([Lw, Lu]), np.hstack([p.Lw, p.Lu])) < 1e-10
 
 
 @pytest.mark.parametrize("method", METHODS)
