@@ -280,11 +280,16 @@ def _norm2_estimate(X: np.ndarray, steps: int, V: np.ndarray):
     few per cent of it after a handful of steps unless the start is (improbably) deficient in the
     dominant direction.  Deterministic: the random part of the start is seeded and cached per size.
     """
-    for _ in range(steps):
-        V = X.T @ (X @ V)
+    with np.errstate(all="ignore"):  # a zero or non-finite iterate only makes the estimate NaN
         V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
-    W = X @ V
-    q = np.einsum("ij,ij->j", W, W)
+        for _ in range(steps):
+            V = X @ V  # normalised every half step: no overflow for any finite X
+            V = X.T @ (V / np.sqrt(np.einsum("ij,ij->j", V, V)))
+            V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
+        W = X @ V
+        q = np.einsum("ij,ij->j", W, W)
+    if not np.all(np.isfinite(q)):
+        return float("nan"), None
     k = int(np.argmax(q))
     return float(np.sqrt(q[k])), V[:, k].copy()
 
@@ -310,8 +315,11 @@ def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dic
     if info != 0 or not np.all(np.isfinite(np.diagonal(inv))):
         return None
     limit = 1.0 / (rcond * _CERT_MARGIN) if rcond > 0 else np.inf
-    kappa = float(np.linalg.norm(R1)) * float(np.linalg.norm(inv))  # ‖·‖₂ ≤ ‖·‖_F: a rigorous bound
-    if not (np.isfinite(kappa) and kappa < limit):
+    with np.errstate(over="ignore"):
+        kappa = float(np.linalg.norm(R1)) * float(np.linalg.norm(inv))  # ‖·‖₂ ≤ ‖·‖_F: a rigorous bound
+    if not np.isfinite(kappa):
+        return None
+    if not kappa < limit:
         V0 = _start_block(n_reg)
         prev = warm.get(n_reg) if warm is not None else None
         steps = _POWER_STEPS["cold" if prev is None else "warm"]
@@ -319,7 +327,7 @@ def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dic
         V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
         s1, v1 = _norm2_estimate(R1, steps[0], V1)
         si, vi = _norm2_estimate(inv, steps[1], V2)
-        if warm is not None:
+        if warm is not None and v1 is not None and vi is not None:
             warm[n_reg] = (v1, vi)
         kappa = s1 * si
         if not (np.isfinite(kappa) and kappa < limit):
