@@ -157,25 +157,31 @@ def run(opts) -> dict:
         i, period, n_updates, repeats = 16, 10, 40, 5
     else:
         i, period, n_updates, repeats = 64, 50, N_UPDATES, 51
+    load_start = os.getloadavg()[0]
     ad, W1, W2, policy = _closed_loop(i, period, n_updates, opts.seed)
     hist = ad.history[1:]  # the initial design is not an update
     sec = np.array([h.seconds for h in hist])
+    cpu = np.array([h.cpu_seconds for h in hist])
     names = [p for p, _ in hist[0].phases]
     phases = {p: np.array([dict(h.phases)[p] for h in hist]) for p in names}
     comp = _components(ad, W1, W2, policy, repeats)
-    stats = {"total": _pct(sec), **{p: _pct(v) for p, v in phases.items()}}
+    stats = {"total": _pct(sec), **{p: _pct(v) for p, v in phases.items()}, "total, CPU time": _pct(cpu)}
+    load = os.getloadavg()[0]
     n_warned = sum(1 for h in hist if h.warnings)
 
     out = opts.out
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "bench_adaptive.csv", ["step", "n_columns", "seconds", *[f"{p}_s" for p in names], "gamma_min"],
-              [[h.step, h.n_columns, h.seconds, *[dict(h.phases)[p] for p in names], h.gamma_min] for h in hist])
+    write_csv(out / "bench_adaptive.csv",
+              ["step", "n_columns", "seconds", *[f"{p}_s" for p in names], "cpu_seconds", "gamma_min"],
+              [[h.step, h.n_columns, h.seconds, *[dict(h.phases)[p] for p in names], h.cpu_seconds, h.gamma_min]
+               for h in hist])
     fig = _figure(out, sec * 1e3, {p: v * 1e3 for p, v in phases.items()}, GOAL_P99_S * 1e3)
 
     checks = {}
     if not opts.quick:
         checks = {
-            f"p99 < {GOAL_P99_S * 1e3:g} ms at i = 64": stats["total"]["p99"] < GOAL_P99_S,
+            f"p99 < {GOAL_P99_S * 1e3:g} ms at i = 64 (wall time)": stats["total"]["p99"] < GOAL_P99_S,
+            f"p99 < {GOAL_P99_S * 1e3:g} ms at i = 64 (CPU time of the update)": stats["total, CPU time"]["p99"] < GOAL_P99_S,
             "adaptive gamma_min and gains equal a batch design (1e-9 relative)":
                 comp["agreement"]["gamma_min_rel"] <= 1e-9 and comp["agreement"]["gain_rel"] <= 1e-9,
         }
@@ -184,8 +190,10 @@ def run(opts) -> dict:
         f"Collocated three-disk plant (y1) at 64 Hz, {INIT_SECONDS:g} s white-noise excitation, i = {i}, growing "
         f"window, update every {period} samples, γ = γ_min + {GAMMA_OFFSET}, {n_updates} updates in closed loop "
         f"(window {hist[0].n_columns} → {hist[-1].n_columns} columns); seed {opts.seed}; "
-        f"OPENBLAS_NUM_THREADS={_blas_threads()}. Wall time per update = push of the new samples + predictor + "
-        "performance map + γ_min + gains (AdaptiveUpdate.seconds/phases)."
+        f"OPENBLAS_NUM_THREADS={_blas_threads()}; 1-min load average {load_start:.2f} → {load:.2f} on "
+        f"{os.cpu_count()} cores. Wall time per update = push of the new samples + predictor + "
+        "performance map + γ_min + gains (AdaptiveUpdate.seconds/phases); CPU time = the same interval's CPU time "
+        "of the thread (AdaptiveUpdate.cpu_seconds: the work without the waiting on a shared machine)."
         + (" **Quick mode: small sizes, numbers not meaningful.**" if opts.quick else ""))
     rep.section("Time per update")
     rep.text(format_table(["phase", "p50 [ms]", "p99 [ms]", "max [ms]", "mean [ms]"],
@@ -205,7 +213,7 @@ def run(opts) -> dict:
     rep.figure(fig, "Update times: histogram and percentiles")
     summary = {
         "i": i, "period": period, "n_updates": len(hist), "quick": bool(opts.quick), "seed": opts.seed,
-        "openblas_num_threads": _blas_threads(), "stats_s": stats, "breakdown_s": comp["seconds"],
+        "openblas_num_threads": _blas_threads(), "loadavg": [load_start, load], "stats_s": stats, "breakdown_s": comp["seconds"],
         "agreement": a, "targets": {k: bool(v) for k, v in checks.items()}, "warned_updates": n_warned,
         "files": ["bench_adaptive.md", "bench_adaptive.json", "bench_adaptive.csv", "bench_adaptive.png"],
     }

@@ -75,6 +75,11 @@ class AdaptiveUpdate:
         Columns ``j`` of the data window behind the design.
     warnings : tuple of str
         Warnings raised while computing it (e.g. a rank-deficient window).
+    cpu_seconds : float
+        CPU time of the calling thread during the update (``time.thread_time``): the work
+        itself, without the time the operating system gave to other processes (on a shared
+        machine the wall time is this plus waiting).  Multi-threaded BLAS work in other
+        threads is not included.
     phases : tuple of (str, float)
         Where :attr:`seconds` went: ``("push", s)`` (new samples into the recursive
         predictor), ``("predictor", s)`` (``L_w``, ``L_u`` from the Gram, §2.3.1) and
@@ -88,6 +93,7 @@ class AdaptiveUpdate:
     n_columns: int
     warnings: tuple = ()
     phases: tuple = ()
+    cpu_seconds: float = float("nan")
 
 
 class AdaptiveHinf:
@@ -151,7 +157,7 @@ class AdaptiveHinf:
         # observability blocks once (§5.3: only (Lw, Lu) change)
         rp = predictor
         self._plan = _map_plan(rp.horizon, rp.m, rp.l, W1, W2, **self._design_kwargs)
-        design, record = self._design(step=0, t0=time.perf_counter())
+        design, record = self._design(step=0, t0=time.perf_counter(), c0=time.thread_time())
         self.controller = RecedingHorizonController(design)
         self.controller.reset(u_past, y_past)
         self.history.append(record)
@@ -170,7 +176,7 @@ class AdaptiveHinf:
         return cls(pred, W1, W2, period=period, policy=policy, u_past=u, y_past=y, **design_kwargs)
 
     # ------------------------------------------------------------------ adaptation
-    def _design(self, step: int, t0: float, t_push: float = 0.0):
+    def _design(self, step: int, t0: float, t_push: float = 0.0, c0: float | None = None):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             t1 = time.perf_counter()
@@ -179,6 +185,7 @@ class AdaptiveHinf:
             Lw, Lu, *_ = _predictor_parts(pred)
             design = _design_from_plan(pred, Lw, Lu, self._plan, self.policy)
         t3 = time.perf_counter()
+        cpu = time.thread_time() - c0 if c0 is not None else float("nan")
         seconds = t3 - t0
         phases = (("push", t_push), ("predictor", t2 - t1), ("design", t3 - t2))
         msgs = tuple(f"{w.category.__name__}: {w.message}" for w in caught)
@@ -189,17 +196,17 @@ class AdaptiveHinf:
                 "AdaptiveHinf.history)", caught[0].category, stacklevel=3)
         record = AdaptiveUpdate(step=step, gamma_min=float(design.gamma_min), gamma=float(design.gamma),
                                 seconds=seconds, n_columns=int(self.recursive.n_columns), warnings=msgs,
-                                phases=phases)
+                                phases=phases, cpu_seconds=cpu)
         return design, record
 
     def update(self) -> AdaptiveUpdate:
         """Push the buffered samples into the predictor, recompute and swap in the gains now."""
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         if self._u_buf:
             self.recursive.push(np.vstack(self._u_buf), np.vstack(self._y_buf))
             self._u_buf.clear()
             self._y_buf.clear()
-        design, record = self._design(step=self.samples_seen, t0=t0, t_push=time.perf_counter() - t0)
+        design, record = self._design(step=self.samples_seen, t0=t0, t_push=time.perf_counter() - t0, c0=c0)
         self.controller.set_design(design)
         self.history.append(record)
         return record

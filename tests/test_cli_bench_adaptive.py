@@ -40,6 +40,7 @@ def test_csv_has_one_row_per_update(run_dir):
     assert np.all(np.diff(data[:, 0]) == s["period"])
     # the phases never exceed the recorded total
     assert np.all(data[:, 3:6].sum(axis=1) <= data[:, 2] * (1 + 1e-9) + 1e-9)
+    assert rows[0][6] == "cpu_seconds" and np.all(data[:, 6] > 0)
 
 
 def test_adaptive_design_equals_batch_design(run_dir):
