@@ -295,8 +295,8 @@ def _norm2_estimate(X: np.ndarray, steps: int, V: np.ndarray):
     return float(np.sqrt(q[k])), V[:, k].copy()
 
 
-def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dict | None = None):
-    """``[Lw Lu] = R3 R1⁻¹`` if ``R1`` is well conditioned relative to ``rcond``, else ``None``.
+def _checked_inverse(R1: np.ndarray, rcond: float, warm: dict | None = None):
+    """``R1⁻¹`` if the lower-triangular ``R1`` is well conditioned relative to ``rcond``, else ``None``.
 
     ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  With its
     inverse ``R1⁻¹`` (LAPACK ``dtrtri``, ``n³/3`` flops) the condition number ``κ₂(R1) = σ₁/σ_min``
@@ -307,12 +307,12 @@ def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dic
     over so that fewer steps are needed).  When ``κ₂ · rcond`` is below ``1/1.25`` no singular value
     falls below ``rcond·σ₁``: the rank-revealing pseudo-inverse of §2.2 keeps all of them
     (``q = i(2m+l)``) and equals ``R3 R1⁻¹``; its input part ``[U_p; U_f]`` (a subset of rows,
-    whose singular values interlace) has full rank ``2mi`` by the same bound; and one matrix
-    product replaces the eigendecomposition.  An underestimate can only matter within a factor
+    whose singular values interlace) has full rank ``2mi`` by the same bound; and products with
+    ``R1⁻¹`` replace the eigendecomposition.  An underestimate can only matter within a factor
     1.25 of the tolerance, where keeping or dropping the smallest singular value are both
     defensible (both are computed accurately there: ``κ₂² eps ≪ 1``).
     """
-    R1 = R[:n_reg, :n_reg]
+    n_reg = R1.shape[0]
     inv, info = lapack.dtrtri(R1, lower=1)
     if info != 0 or not np.all(np.isfinite(np.diagonal(inv))):
         return None
@@ -334,25 +334,30 @@ def _solve_triangular_checked(R: np.ndarray, n_reg: int, rcond: float, warm: dic
         kappa = s1 * si
         if not (np.isfinite(kappa) and kappa < limit):
             return None
-    return R[n_reg:, :n_reg] @ inv
+    return inv
+
+
+def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
+    n_reg = i * (2 * m + l)
+    Lw, Lu = _split(L, i, m, l)
+    sv = _Deferred(_factor_singular_values, R1)
+    return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
 
 
 def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
     """Predictor from a lower-triangular factor ``R`` of ``A`` (``A = R Qᵀ``, (2.7)).
 
     ``route="auto"``: for the Gram methods (``"cholesky"``, ``"recursive"``) try
-    :func:`_solve_triangular_checked` first and fall back to the rank-revealing spectral
+    :func:`_checked_inverse` first and fall back to the rank-revealing spectral
     pseudo-inverse (:func:`_solve_from_r`) when ``R1`` is not found well conditioned;
     ``"spectral"`` always takes the rank-revealing route (``"qr"`` always does).
     """
     n_reg = i * (2 * m + l)
     squared = method in _GRAM_METHODS
     if squared and route == "auto":
-        L = _solve_triangular_checked(R, n_reg, rcond, warm)
-        if L is not None:
-            Lw, Lu = _split(L, i, m, l)
-            sv = _Deferred(_factor_singular_values, R[:n_reg, :n_reg])
-            return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
+        inv = _checked_inverse(R[:n_reg, :n_reg], rcond, warm)
+        if inv is not None:
+            return _triangular_predictor(R[n_reg:, :n_reg] @ inv, R[:n_reg, :n_reg], i, m, l, j, rcond, method)
     L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
@@ -361,7 +366,22 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
 
 
 def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
-    """Predictor from the Gram matrix ``AAᵀ`` (A-row order): ``R = chol(AAᵀ)`` then §2.2."""
+    """Predictor from the Gram matrix ``AAᵀ`` (A-row order): ``R = chol(AAᵀ)`` then §2.2.
+
+    Triangular route (``route="auto"``): only the regressor block is factored,
+    ``G11 = R1 R1ᵀ`` (``n = i(2m+l)``, not the whole ``2i(m+l)``), and
+    ``[Lw Lu] = R3 R1⁻¹ = (G31 R1⁻ᵀ) R1⁻¹`` — the ``R3`` a full Cholesky factor would hold, without
+    factoring the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``.
+    """
+    n_reg = i * (2 * m + l)
+    if method in _GRAM_METHODS and route == "auto":
+        R1, info = lapack.dpotrf(G[:n_reg, :n_reg], lower=1, clean=1)
+        if info == 0:
+            inv = _checked_inverse(R1, rcond, warm)
+            if inv is not None:
+                L = (G[n_reg:, :n_reg] @ inv.T) @ inv
+                return _triangular_predictor(L, R1, i, m, l, j, rcond, method)
+        route = "spectral"  # R1 is not (well) conditioned: the full factor's triangular route would refuse too
     R = _psd_cholesky(G)
     return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm)
 
