@@ -18,16 +18,22 @@ _MISSING = object()
 
 
 class _Deferred:
-    """Recipe ``fn(*args)`` for a :class:`_LazyField` value (picklable when ``fn`` is a module-level function)."""
+    """Recipe ``fn(*args)`` for a :class:`_LazyField` value (picklable when ``fn`` is a module-level function).
 
-    __slots__ = ("fn", "args")
+    With ``with_owner=True`` the recipe is ``fn(owner, *args)``, ``owner`` being the instance whose
+    field is read: a value computed from the result itself needs no reference to it (a reference
+    cycle would keep every result alive until the cyclic garbage collector runs).
+    """
 
-    def __init__(self, fn, *args):
+    __slots__ = ("fn", "args", "with_owner")
+
+    def __init__(self, fn, *args, with_owner: bool = False):
         self.fn = fn
         self.args = args
+        self.with_owner = with_owner
 
-    def __call__(self):
-        return self.fn(*self.args)
+    def __call__(self, owner=None):
+        return self.fn(owner, *self.args) if self.with_owner else self.fn(*self.args)
 
     def __repr__(self) -> str:
         return f"<deferred {getattr(self.fn, '__name__', self.fn)!s}>"
@@ -53,7 +59,7 @@ class _LazyField:
             return self._default
         value = obj.__dict__[self._slot]
         if isinstance(value, _Deferred):
-            value = value()
+            value = value(obj)
             obj.__dict__[self._slot] = value
         return value
 

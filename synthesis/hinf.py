@@ -397,7 +397,6 @@ def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
                         f"(i, m, l) = {(plan.i, plan.m, plan.l)}")
     pm = plan.fill(Lw, Lu)
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
-    controller = _Deferred(lti_controller, None)
     unc = plan.unc
     design = HinfDesign(
         predictor=pred, W1=plan.W1, W2=plan.W2,
@@ -405,9 +404,8 @@ def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
         horizon=plan.i, m=plan.m, l=plan.l, causal=plan.causal, dt=plan.dt,
         gamma=sol.gamma, gamma_min=sol.gamma_min, gain=sol.u_gain, disturbance_gain=sol.d_gain,
         columns=pm.columns, disturbances=pm.disturbances, weight_states=plan.weight_states,
-        controller=controller,
+        controller=_Deferred(lti_controller, with_owner=True),
     )
-    controller.args = (design,)
     return design
 
 
