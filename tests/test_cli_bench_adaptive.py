@@ -26,6 +26,9 @@ def test_files_and_summary(run_dir):
         assert 0 <= st["p50"] <= st["p99"] <= st["max"]
     assert s["stats_s"]["total"]["max"] > 0
     assert "route before (spectral + hinf_design + StateSpace)" in s["breakdown_s"]
+    # the same closed loop redesigned by the route before: same γ_min history to rounding
+    assert s["stats_before_s"]["total"]["p50"] > 0
+    assert s["gamma_min_max_rel_diff_vs_before"] < 1e-6
     md = (run_dir / "bench_adaptive.md").read_text()
     assert "p99" in md and "Breakdown" in md and "bench_adaptive.png" in md
 
