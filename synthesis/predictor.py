@@ -252,10 +252,9 @@ def _factor_singular_values(R1: np.ndarray) -> np.ndarray:
     return np.linalg.svd(R1, compute_uv=False)
 
 
-#: Margin of the triangular path: it is taken when ``κ̂₂(R1) · rcond < 1/_CERT_MARGIN``.  With the
-#: rigorous bound it covers the rounding errors of the computed inverse (relative ``O(κ eps)``); with
+#: Margin of the triangular path: it is taken when ``κ̂₂(R1) · rcond < 1/_CERT_MARGIN``, ``κ̂₂`` being
 #: the power-iteration estimate (a lower bound of ``κ₂``: worst estimate/true 0.92 over the 300
-#: warm-started updates of the §6.3 benchmark, 0.95 cold) it covers a shortfall of up to 20 %.
+#: warm-started updates of the §6.3 benchmark, 0.95 cold); it covers a shortfall of up to 20 %.
 #: (With 2 instead, the first §6.3 windows, κ₂·rcond ≈ 0.4–0.5, fell back to the 4× slower route.)
 _CERT_MARGIN = 1.25
 #: Block power-iteration steps of :func:`_norm2_estimate` for ``R1`` (whose dominant singular
@@ -273,21 +272,23 @@ def _start_block(n: int) -> np.ndarray:
     return V
 
 
-def _norm2_estimate(X: np.ndarray, steps: int, V: np.ndarray):
+def _norm2_estimate(apply, apply_t, steps: int, V: np.ndarray):
     """``‖X‖₂`` from below by block power iteration on ``XᵀX`` from the start block ``V``.
 
-    Returns the estimate and the iterate with the largest Rayleigh quotient (a warm start for the
-    next call).  The Rayleigh quotient never exceeds ``‖X‖₂²``; from a random start it is within a
-    few per cent of it after a handful of steps unless the start is (improbably) deficient in the
-    dominant direction.  Deterministic: the random part of the start is seeded and cached per size.
+    ``apply(V) = X V`` and ``apply_t(W) = Xᵀ W`` (for ``X = R1⁻¹`` two triangular solves, so the
+    inverse is never formed).  Returns the estimate and the iterate with the largest Rayleigh
+    quotient (a warm start for the next call).  The Rayleigh quotient never exceeds ``‖X‖₂²``;
+    from a random start it is within a few per cent of it after a handful of steps unless the
+    start is (improbably) deficient in the dominant direction.  Deterministic: the random part of
+    the start is seeded and cached per size.
     """
     with np.errstate(all="ignore"):  # a zero or non-finite iterate only makes the estimate NaN
         V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
         for _ in range(steps):
-            V = X @ V  # normalised every half step: no overflow for any finite X
-            V = X.T @ (V / np.sqrt(np.einsum("ij,ij->j", V, V)))
+            V = apply(V)  # normalised every half step: no overflow for any finite X
+            V = apply_t(V / np.sqrt(np.einsum("ij,ij->j", V, V)))
             V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
-        W = X @ V
+        W = apply(V)
         q = np.einsum("ij,ij->j", W, W)
     if not np.all(np.isfinite(q)):
         return float("nan"), None
@@ -295,46 +296,44 @@ def _norm2_estimate(X: np.ndarray, steps: int, V: np.ndarray):
     return float(np.sqrt(q[k])), V[:, k].copy()
 
 
-def _checked_inverse(R1: np.ndarray, rcond: float, warm: dict | None = None):
-    """``R1⁻¹`` if the lower-triangular ``R1`` is well conditioned relative to ``rcond``, else ``None``.
+def _trsolve(R1, B, trans: int = 0):
+    """``R1⁻¹ B`` (``trans=1``: ``R1⁻ᵀ B``) for lower-triangular ``R1`` (LAPACK ``dtrtrs``); NaN if singular."""
+    X, info = lapack.dtrtrs(R1, B, lower=1, trans=trans)
+    return X if info == 0 else np.full(np.shape(B), np.nan)
 
-    ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  With its
-    inverse ``R1⁻¹`` (LAPACK ``dtrtri``, ``n³/3`` flops) the condition number ``κ₂(R1) = σ₁/σ_min``
-    is bounded, first rigorously (``‖X‖₂ ≤ ‖X‖_F`` for ``R1`` and ``R1⁻¹``), and, if that bound
-    is too loose (it overestimates ``κ₂`` about 10× on the closed-loop data of §6.3), estimated by
-    block power iteration on both (:func:`_norm2_estimate`, a lower bound within a few per cent on
-    those data; ``warm``, a dict the caller keeps between calls, carries the dominant vectors
-    over so that fewer steps are needed).  When ``κ₂ · rcond`` is below ``1/1.25`` no singular value
-    falls below ``rcond·σ₁``: the rank-revealing pseudo-inverse of §2.2 keeps all of them
-    (``q = i(2m+l)``) and equals ``R3 R1⁻¹``; its input part ``[U_p; U_f]`` (a subset of rows,
-    whose singular values interlace) has full rank ``2mi`` by the same bound; and products with
-    ``R1⁻¹`` replace the eigendecomposition.  An underestimate can only matter within a factor
-    1.25 of the tolerance, where keeping or dropping the smallest singular value are both
-    defensible (both are computed accurately there: ``κ₂² eps ≪ 1``).
+
+def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) -> bool:
+    """True if the lower-triangular ``R1`` is well conditioned relative to ``rcond``.
+
+    ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  Its condition
+    number ``κ₂(R1) = σ₁/σ_min`` is estimated by block power iteration on ``R1`` and on ``R1⁻¹``
+    (:func:`_norm2_estimate`; ``R1⁻¹`` applied by triangular solves, ``O(n²)`` per step, never
+    formed; a lower bound within a few per cent on the §6.3 data; ``warm``, a dict the caller
+    keeps between calls, carries the dominant vectors over so that fewer steps are needed).
+    When ``κ₂ · rcond`` is below ``1/1.25`` no singular value falls below ``rcond·σ₁``: the
+    rank-revealing pseudo-inverse of §2.2 keeps all of them (``q = i(2m+l)``) and equals
+    ``R3 R1⁻¹``; its input part ``[U_p; U_f]`` (a subset of rows, whose singular values
+    interlace) has full rank ``2mi`` by the same bound; and two triangular solves replace the
+    eigendecomposition.  An underestimate can only matter within a factor 1.25 of the tolerance,
+    where keeping or dropping the smallest singular value are both defensible (both are computed
+    accurately there: ``κ₂² eps ≪ 1``).
     """
     n_reg = R1.shape[0]
-    inv, info = lapack.dtrtri(R1, lower=1)
-    if info != 0 or not np.all(np.isfinite(np.diagonal(inv))):
-        return None
+    d = np.abs(np.diagonal(R1))
+    if not (d.size and d.min() > 0 and np.all(np.isfinite(d))):
+        return False
     limit = 1.0 / (rcond * _CERT_MARGIN) if rcond > 0 else np.inf
-    with np.errstate(over="ignore"):
-        kappa = float(np.linalg.norm(R1)) * float(np.linalg.norm(inv))  # ‖·‖₂ ≤ ‖·‖_F: a rigorous bound
-    if not np.isfinite(kappa):
-        return None
-    if not kappa < limit:
-        V0 = _start_block(n_reg)
-        prev = warm.get(n_reg) if warm is not None else None
-        steps = _POWER_STEPS["cold" if prev is None else "warm"]
-        V1 = V0 if prev is None else np.column_stack([prev[0], V0[:, 1:]])
-        V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
-        s1, v1 = _norm2_estimate(R1, steps[0], V1)
-        si, vi = _norm2_estimate(inv, steps[1], V2)
-        if warm is not None and v1 is not None and vi is not None:
-            warm[n_reg] = (v1, vi)
-        kappa = s1 * si
-        if not (np.isfinite(kappa) and kappa < limit):
-            return None
-    return inv
+    V0 = _start_block(n_reg)
+    prev = warm.get(n_reg) if warm is not None else None
+    steps = _POWER_STEPS["cold" if prev is None else "warm"]
+    V1 = V0 if prev is None else np.column_stack([prev[0], V0[:, 1:]])
+    V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
+    s1, v1 = _norm2_estimate(lambda V: R1 @ V, lambda W: R1.T @ W, steps[0], V1)
+    si, vi = _norm2_estimate(lambda V: _trsolve(R1, V, 1), lambda W: _trsolve(R1, W, 0), steps[1], V2)
+    if warm is not None and v1 is not None and vi is not None:
+        warm[n_reg] = (v1, vi)
+    kappa = s1 * si
+    return bool(np.isfinite(kappa) and kappa < limit)
 
 
 def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
@@ -348,16 +347,17 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
     """Predictor from a lower-triangular factor ``R`` of ``A`` (``A = R Qᵀ``, (2.7)).
 
     ``route="auto"``: for the Gram methods (``"cholesky"``, ``"recursive"``) try
-    :func:`_checked_inverse` first and fall back to the rank-revealing spectral
+    :func:`_well_conditioned` first and fall back to the rank-revealing spectral
     pseudo-inverse (:func:`_solve_from_r`) when ``R1`` is not found well conditioned;
     ``"spectral"`` always takes the rank-revealing route (``"qr"`` always does).
     """
     n_reg = i * (2 * m + l)
     squared = method in _GRAM_METHODS
     if squared and route == "auto":
-        inv = _checked_inverse(R[:n_reg, :n_reg], rcond, warm)
-        if inv is not None:
-            return _triangular_predictor(R[n_reg:, :n_reg] @ inv, R[:n_reg, :n_reg], i, m, l, j, rcond, method)
+        R1 = np.asfortranarray(R[:n_reg, :n_reg])
+        if _well_conditioned(R1, rcond, warm):
+            L = _trsolve(R1, R[n_reg:, :n_reg].T, trans=1).T  # R3 R1⁻¹
+            return _triangular_predictor(L, R1, i, m, l, j, rcond, method)
     L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
@@ -370,17 +370,17 @@ def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="a
 
     Triangular route (``route="auto"``): only the regressor block is factored,
     ``G11 = R1 R1ᵀ`` (``n = i(2m+l)``, not the whole ``2i(m+l)``), and
-    ``[Lw Lu] = R3 R1⁻¹ = (G31 R1⁻ᵀ) R1⁻¹`` — the ``R3`` a full Cholesky factor would hold, without
-    factoring the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``.
+    ``[Lw Lu]ᵀ = G11⁻¹ G13 = R1⁻ᵀ R1⁻¹ G13`` by two triangular solves (LAPACK ``dpotrs``) — i.e.
+    ``R3 R1⁻¹`` with the ``R3 = G31 R1⁻ᵀ`` a full Cholesky factor would hold, without factoring
+    the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``.
     """
     n_reg = i * (2 * m + l)
     if method in _GRAM_METHODS and route == "auto":
         R1, info = lapack.dpotrf(G[:n_reg, :n_reg], lower=1, clean=1)
-        if info == 0:
-            inv = _checked_inverse(R1, rcond, warm)
-            if inv is not None:
-                L = (G[n_reg:, :n_reg] @ inv.T) @ inv
-                return _triangular_predictor(L, R1, i, m, l, j, rcond, method)
+        if info == 0 and _well_conditioned(R1, rcond, warm):
+            X, info = lapack.dpotrs(R1, G[n_reg:, :n_reg].T, lower=1)
+            if info == 0:
+                return _triangular_predictor(X.T, R1, i, m, l, j, rcond, method)
         route = "spectral"  # R1 is not (well) conditioned: the full factor's triangular route would refuse too
     R = _psd_cholesky(G)
     return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm)
