@@ -6,12 +6,18 @@ matrix with ``2i`` block rows ``z_r … z_{r+j-1}``; ``A`` is a row permutation 
 ``Z`` (and of the thesis's ``B = [U; Y]``), so ``AAᵀ`` is a symmetric permutation
 of ``ZZᵀ``.  ``ZZᵀ`` is computed as in (2.8)–(2.9):
 
-1. the first block row ``[ZZᵀ]_{0,s} = Σ_t z_t z_{s+t}ᵀ`` by ``2i`` BLAS products of
-   shifted slices of the raw signal, each of length ``j`` (``O(ij)`` time, no copies);
+1. the first block row ``[ZZᵀ]_{0,s} = Σ_t z_t z_{s+t}ᵀ`` (the lag products) by two
+   matrix products of free reshapes of the raw signal (:func:`_lag_products`, ``O(ij)``
+   time at level-3 BLAS speed, no copies of the signal);
 2. every further block row from the one above it,
-   ``[ZZᵀ]_{r,s} = [ZZᵀ]_{r-1,s-1} − z_{r-1} z_{s-1}ᵀ + z_{r+j-1} z_{s+j-1}ᵀ``,
-   one vectorised row of blocks at a time (``2i`` numpy operations, ``O(i²)`` work);
-3. the lower block triangle by symmetry.
+   ``[ZZᵀ]_{r,s} = [ZZᵀ]_{r-1,s-1} − z_{r-1} z_{s-1}ᵀ + z_{r+j-1} z_{s+j-1}ᵀ``, unrolled into
+   cumulative sums over ``r`` of products of the first and last ``2i`` samples, all block
+   rows at once (:func:`_upper_block_skew`, ``O(i²)`` work, no Python loop over ``i``);
+3. the lower block triangle by symmetry, and the row order of ``A`` by one gather.
+
+(The block-row loop that step 2 replaces, ``2i`` BLAS products of ``c × j`` slices for step 1
+and one vectorised row of blocks per iteration, is kept as ``_interleaved_gram_loop``: the
+reference in the tests and the "before" route of ``bench-predictor``.)
 
 Because ``z`` interleaves ``u`` and ``y`` the single recursion covers ``UUᵀ``,
 ``YYᵀ`` and ``UYᵀ`` at once (the first block *column* needed by (2.9) is the

@@ -57,10 +57,10 @@ class Predictor:
     rcond : float or None
         Relative tolerance that decided ``rank`` (singular values ``<= rcond * σ₁`` discarded).
     solver : str or None
-        How ``[Lw Lu]`` was obtained from the factor ``R``: ``"triangular"`` (``R3 R1⁻¹``, taken
-        when ``R1`` is well conditioned: ``κ₂(R1) < 0.8/rcond`` by a rigorous bound or a
-        power-iteration estimate from ``R1`` and ``R1⁻¹``) or
-        ``"spectral"`` (the rank-revealing pseudo-inverse of §2.2); ``None`` for ``"lstsq"``.
+        How ``[Lw Lu]`` was obtained from the factor ``R``: ``"triangular"`` (``R3 R1⁻¹`` by
+        triangular solves, taken when ``R1`` is well conditioned: a power-iteration estimate of
+        ``κ₂(R1)`` below ``0.8/rcond``) or ``"spectral"`` (the rank-revealing pseudo-inverse of
+        §2.2); ``None`` for ``"lstsq"``.
     """
 
     Lw: np.ndarray
@@ -404,10 +404,10 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     method : {"cholesky", "qr", "lstsq"}
         ``"cholesky"`` (default): ``R = chol(AAᵀ)`` with ``AAᵀ`` built by the Hankel recursions
         (2.8)–(2.9) in ``O(ij + i²)`` time and ``O(i² + j)`` memory, never forming the Hankel
-        matrices (§2.3).  When the regressor factor ``R1`` is well conditioned
-        (``κ₂(R1) < 0.8/rcond`` by a rigorous bound or a power-iteration estimate, so the pseudo-inverse of §2.2 would keep every
-        singular value) ``[Lw Lu] = R3 R1⁻¹`` by one triangular inversion and one product
-        (``solver="triangular"``).  Otherwise — ill-conditioned or rank-deficient data — the
+        matrices (§2.3).  When the regressor factor ``R1`` is well conditioned (a power-iteration
+        estimate of ``κ₂(R1)`` below ``0.8/rcond``, so the pseudo-inverse of §2.2 would keep every
+        singular value), ``[Lw Lu] = R3 R1⁻¹`` by a Cholesky factor of the regressor block
+        ``G11`` and two triangular solves (``solver="triangular"``).  Otherwise — ill-conditioned or rank-deficient data — the
         rank-revealing pseudo-inverse of §2.2 is used (``solver="spectral"``; its ``U``, ``Σ``
         from the eigendecomposition of ``R1 R1ᵀ``, equivalent to the SVD of ``R1`` at the
         precision a Gram matrix carries) and a :class:`PersistenceWarning` names the rank.  A
