@@ -132,7 +132,7 @@ def _components(ad, W1, W2, policy, repeats: int) -> dict:
             return d.controller
 
         t = {
-            "predictor() (certified triangular)": median_time(rp.predictor, repeats),
+            "predictor() (triangular route)": median_time(rp.predictor, repeats),
             "predictor, rank-revealing route": median_time(
                 lambda: _predictor_from_gram(G, i, m, l, j, tol, "recursive", route="spectral"), repeats),
             "map fill (2 products)": median_time(lambda: plan.fill(Lw, Lu), repeats),
