@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "robust-pipeline": ("experiments.robust_pipeline", "run",
                         "§7.4 pipeline on plants it was not designed on: certified or not, checked on the true plant"),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
+    "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
 }

@@ -24,7 +24,7 @@ import numpy as np
 
 from ._validation import DataError, as_signal
 from .controller import RecedingHorizonController
-from .hinf import hinf_design
+from .hinf import _design_from_plan, _map_plan, _predictor_parts
 from .recursive import RecursivePredictor
 from ._repr import result
 
@@ -77,6 +77,15 @@ class AdaptiveUpdate:
         Columns ``j`` of the data window behind the design.
     warnings : tuple of str
         Warnings raised while computing it (e.g. a rank-deficient window).
+    cpu_seconds : float
+        CPU time of the calling thread during the update (``time.thread_time``): the work
+        itself, without the time the operating system gave to other processes (on a shared
+        machine the wall time is this plus waiting).  Multi-threaded BLAS work in other
+        threads is not included.
+    phases : tuple of (str, float)
+        Where :attr:`seconds` went: ``("push", s)`` (new samples into the recursive
+        predictor), ``("predictor", s)`` (``L_w``, ``L_u`` from the Gram, §2.3.1) and
+        ``("design", s)`` (performance map, ``γ_min``, policy and gains (5.1)–(5.2)).
     """
 
     step: int
@@ -85,6 +94,8 @@ class AdaptiveUpdate:
     seconds: float
     n_columns: int
     warnings: tuple = ()
+    phases: tuple = ()
+    cpu_seconds: float = float("nan")
 
 
 class AdaptiveHinf:
@@ -104,7 +115,12 @@ class AdaptiveHinf:
         Data immediately before the first controlled sample (at least ``i`` samples), used
         to initialise the controller's past-data window (§5.1 comment 6); zeros otherwise.
     **design_kwargs
-        Passed to :func:`~synthesis.hinf_design` (``causal=``, ``uncertainty=``).
+        Passed to :func:`~synthesis.hinf_design` (``causal=``, ``uncertainty=``, ``dt=``).  The
+        weights are validated and their Toeplitz / observability blocks built once, here; each
+        update computes only the predictor, the predictor terms of the performance map and the
+        saddle point, so every design equals ``hinf_design(predictor, W1, W2, gamma=policy,
+        **design_kwargs)`` on the same data window.  Its ``controller`` (``StateSpace``) is
+        built only if read.
 
     Attributes
     ----------
@@ -139,7 +155,11 @@ class AdaptiveHinf:
         self._u_buf: list[np.ndarray] = []
         self._y_buf: list[np.ndarray] = []
         self._warned = False
-        design, record = self._design(step=0, t0=time.perf_counter())
+        # the weights do not change between updates: validate them and build their Toeplitz /
+        # observability blocks once (§5.3: only (Lw, Lu) change)
+        rp = predictor
+        self._plan = _map_plan(rp.horizon, rp.m, rp.l, W1, W2, **self._design_kwargs)
+        design, record = self._design(step=0, t0=time.perf_counter(), c0=time.thread_time())
         self.controller = RecedingHorizonController(design)
         self.controller.reset(u_past, y_past)
         self.history.append(record)
@@ -158,12 +178,18 @@ class AdaptiveHinf:
         return cls(pred, W1, W2, period=period, policy=policy, u_past=u, y_past=y, **design_kwargs)
 
     # ------------------------------------------------------------------ adaptation
-    def _design(self, step: int, t0: float):
+    def _design(self, step: int, t0: float, t_push: float = 0.0, c0: float | None = None):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            t1 = time.perf_counter()
             pred = self.recursive.predictor()
-            design = hinf_design(pred, self.W1, self.W2, gamma=self.policy, **self._design_kwargs)
-        seconds = time.perf_counter() - t0
+            t2 = time.perf_counter()
+            Lw, Lu, *_ = _predictor_parts(pred)
+            design = _design_from_plan(pred, Lw, Lu, self._plan, self.policy)
+        t3 = time.perf_counter()
+        cpu = time.thread_time() - c0 if c0 is not None else float("nan")
+        seconds = t3 - t0
+        phases = (("push", t_push), ("predictor", t2 - t1), ("design", t3 - t2))
         msgs = tuple(f"{w.category.__name__}: {w.message}" for w in caught)
         if caught and not self._warned:
             self._warned = True
@@ -171,17 +197,18 @@ class AdaptiveHinf:
                 f"adaptive update at step {step}: {msgs[0]} (further update warnings are only recorded in "
                 "AdaptiveHinf.history)", caught[0].category, stacklevel=3)
         record = AdaptiveUpdate(step=step, gamma_min=float(design.gamma_min), gamma=float(design.gamma),
-                                seconds=seconds, n_columns=int(self.recursive.n_columns), warnings=msgs)
+                                seconds=seconds, n_columns=int(self.recursive.n_columns), warnings=msgs,
+                                phases=phases, cpu_seconds=cpu)
         return design, record
 
     def update(self) -> AdaptiveUpdate:
         """Push the buffered samples into the predictor, recompute and swap in the gains now."""
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         if self._u_buf:
             self.recursive.push(np.vstack(self._u_buf), np.vstack(self._y_buf))
             self._u_buf.clear()
             self._y_buf.clear()
-        design, record = self._design(step=self.samples_seen, t0=t0)
+        design, record = self._design(step=self.samples_seen, t0=t0, t_push=time.perf_counter() - t0, c0=c0)
         self.controller.set_design(design)
         self.history.append(record)
         return record

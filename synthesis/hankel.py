@@ -6,12 +6,18 @@ matrix with ``2i`` block rows ``z_r … z_{r+j-1}``; ``A`` is a row permutation 
 ``Z`` (and of the thesis's ``B = [U; Y]``), so ``AAᵀ`` is a symmetric permutation
 of ``ZZᵀ``.  ``ZZᵀ`` is computed as in (2.8)–(2.9):
 
-1. the first block row ``[ZZᵀ]_{0,s} = Σ_t z_t z_{s+t}ᵀ`` by ``2i`` BLAS products of
-   shifted slices of the raw signal, each of length ``j`` (``O(ij)`` time, no copies);
+1. the first block row ``[ZZᵀ]_{0,s} = Σ_t z_t z_{s+t}ᵀ`` (the lag products) by two
+   matrix products of free reshapes of the raw signal (:func:`_lag_products`, ``O(ij)``
+   time at level-3 BLAS speed, no copies of the signal);
 2. every further block row from the one above it,
-   ``[ZZᵀ]_{r,s} = [ZZᵀ]_{r-1,s-1} − z_{r-1} z_{s-1}ᵀ + z_{r+j-1} z_{s+j-1}ᵀ``,
-   one vectorised row of blocks at a time (``2i`` numpy operations, ``O(i²)`` work);
-3. the lower block triangle by symmetry.
+   ``[ZZᵀ]_{r,s} = [ZZᵀ]_{r-1,s-1} − z_{r-1} z_{s-1}ᵀ + z_{r+j-1} z_{s+j-1}ᵀ``, unrolled into
+   cumulative sums over ``r`` of products of the first and last ``2i`` samples, all block
+   rows at once (:func:`_upper_block_skew`, ``O(i²)`` work, no Python loop over ``i``);
+3. the lower block triangle by symmetry, and the row order of ``A`` by one gather.
+
+(The block-row loop that step 2 replaces, ``2i`` BLAS products of ``c × j`` slices for step 1
+and one vectorised row of blocks per iteration, is kept as ``_interleaved_gram_loop``: the
+reference in the tests and the "before" route of ``bench-predictor``.)
 
 Because ``z`` interleaves ``u`` and ``y`` the single recursion covers ``UUᵀ``,
 ``YYᵀ`` and ``UYᵀ`` at once (the first block *column* needed by (2.9) is the
@@ -21,6 +27,7 @@ transpose of the first block row of the symmetric ``ZZᵀ``).  Time
 from __future__ import annotations
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided, sliding_window_view
 
 from ._validation import as_signal, check_horizon
 
@@ -45,8 +52,13 @@ def hankel_order(i: int, m: int, l: int) -> np.ndarray:
     return perm
 
 
-def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
-    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns."""
+def _interleaved_gram_loop(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` by the block-row loop of (2.8)–(2.9) (the route before the vectorised one).
+
+    Kept as the reference for :func:`_interleaved_gram` (tests) and as the baseline of
+    ``python -m experiments bench-predictor``: ``rows`` BLAS products of ``c × j`` slices and
+    ``rows − 1`` Python iterations of the recursion.
+    """
     c = z.shape[1]
     N = rows * c
     G = np.empty((N, N))
@@ -67,6 +79,92 @@ def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
         G[lower] = G.T[lower]
     # diagonal blocks are symmetric in exact arithmetic; make them so in floating point.
     return 0.5 * (G + G.T)
+
+
+def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
+    """``S[a, b, s] = Σ_{t<j} z_{t,a} z_{t+s,b}`` for ``s < rows``: the first block row of ``ZZᵀ``.
+
+    With block length ``P = rows`` and ``Q = ⌊(j−1)/P⌋`` whole blocks, the rows
+    ``Z_b[q] = [z_{qP} … z_{qP+P−1}]`` and ``Z_n[q] = Z_b[q+1]`` are free reshapes of the signal,
+    and the two matrix products ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``) hold every product
+    ``z_{qP+p} z_{qP+p+s}ᵀ`` summed over ``q``: ``S[s] = Σ_p C[p, p+s]`` (a skewed sum).  The at
+    most ``P`` columns ``t ≥ QP`` are added by one more product.  This does twice the
+    multiplications of ``rows`` separate lag products, but as two level-3 BLAS calls instead of
+    ``rows`` memory-bound ``c × j`` products (each streaming the whole signal).
+    """
+    c = z.shape[1]
+    P = rows
+    Q = (j - 1) // P
+    S = np.zeros((c, c, rows))
+    if Q > 0:
+        Zb = z[: Q * P].reshape(Q, P * c)
+        Zn = z[P : (Q + 1) * P].reshape(Q, P * c)
+        C = np.empty((P, c, 2 * P, c))  # C[p, a, p', b]
+        C2 = C.reshape(P * c, 2 * P * c)
+        np.matmul(Zb.T, Zb, out=C2[:, : P * c])
+        np.matmul(Zb.T, Zn, out=C2[:, P * c :])
+        st = C.strides  # skewed view V[p, a, b, s] = C[p, a, p + s, b]  (p + s < 2P)
+        V = as_strided(C, shape=(P, c, c, rows), strides=(st[0] + st[2], st[1], st[3], st[2]), writeable=False)
+        S += V.sum(axis=0)
+    t0 = Q * P
+    if t0 < j:
+        win = sliding_window_view(z[t0 : j + rows - 1], rows, axis=0)  # win[t, b, s] = z_{t0+t+s, b}
+        S += np.tensordot(z[t0:j], win, axes=(0, 0))
+    return S
+
+
+def _upper_block_skew(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """Array ``F[a, r, b, s]`` (shape ``(c, rows, c, 2·rows)``) holding ``[ZZᵀ]`` for ``s ≥ r`` (``s < rows``).
+
+    The recursion (2.8)–(2.9) unrolled: for ``s ≥ r`` the ``(a, b)`` entry of block ``(r, s)`` is
+    ``S[a, b, s−r] + Σ_{k<r} (z_{j+k,a} z_{j+k+s−r,b} − z_{k,a} z_{k+s−r,b})``, i.e. the lag
+    products :func:`_lag_products` followed by a cumulative sum over ``k`` of products of the first
+    and the last ``2·rows`` samples — the additions of the block-row loop, in the same order, with
+    no Python loop over the horizon.  The sum is written through a skewed view straight into
+    ``F[a, r, b, r + d]``; entries ``s ≥ rows`` are scratch.  Diagonal blocks are halved (the
+    caller adds the transpose).  Entries ``s < r`` are zero.
+    """
+    c = z.shape[1]
+    S = _lag_products(z, j, rows)
+    # head z_0 … and tail z_j … (zero padded: products past the data only reach scratch entries)
+    h = np.zeros((2 * rows - 1, c))
+    t = np.zeros((2 * rows - 1, c))
+    h[: min(2 * rows - 1, z.shape[0])] = z[: 2 * rows - 1]
+    tail = z[j : j + 2 * rows - 1]
+    t[: tail.shape[0]] = tail
+    X = np.empty((c, c, rows, rows))  # X[a, b, 0, d] = S[a, b, d]; X[a, b, k+1, d] = t_{k,a} t_{k+d,b} − h_{k,a} h_{k+d,b}
+    X[:, :, 0, :] = S
+    if rows > 1:
+        ht = sliding_window_view(h, rows, axis=0)[: rows - 1].transpose(1, 0, 2)  # [b, k, d] = h_{k+d, b}
+        tt = sliding_window_view(t, rows, axis=0)[: rows - 1].transpose(1, 0, 2)
+        np.multiply(t[: rows - 1].T[:, None, :, None], tt[None], out=X[:, :, 1:, :])
+        X[:, :, 1:, :] -= h[: rows - 1].T[:, None, :, None] * ht[None]
+    F = np.zeros((c, rows, c, 2 * rows))
+    st = F.strides  # skewed view W[a, b, r, d] = F[a, r, b, r + d]
+    W = as_strided(F, shape=(c, c, rows, rows), strides=(st[0], st[2], st[1] + st[3], st[3]))
+    np.cumsum(X, axis=2, out=W)
+    W[:, :, :, 0] *= 0.5  # diagonal blocks are added to their transpose by the caller
+    return F
+
+
+def _gram_from_skew(F: np.ndarray, rows: int, order: np.ndarray) -> np.ndarray:
+    """Symmetric ``ZZᵀ`` from :func:`_upper_block_skew`, rows and columns in ``order`` (channel-major indices)."""
+    a, r = np.divmod(order, rows)
+    U = F[a[:, None], r[:, None], a[None, :], r[None, :]]  # one gather from the strided upper part
+    return U + U.T
+
+
+def _channel_major_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` ordered channel-major: index ``a·rows + r`` is channel ``a`` of block row ``r``."""
+    c = z.shape[1]
+    return _gram_from_skew(_upper_block_skew(z, rows, j), rows, np.arange(c * rows))
+
+
+def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
+    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns (interleaved order)."""
+    c = z.shape[1]
+    N = rows * c
+    return _channel_major_gram(z, rows, j).reshape(c, rows, c, rows).transpose(1, 0, 3, 2).reshape(N, N)
 
 
 def hankel_gram(u, y, i: int) -> np.ndarray:
@@ -94,6 +192,6 @@ def hankel_gram(u, y, i: int) -> np.ndarray:
     i = check_horizon(i, n)
     j = n - 2 * i + 1
     z = np.ascontiguousarray(np.hstack([u, y]))
-    G = _interleaved_gram(z, 2 * i, j)
     perm = hankel_order(i, m, l)
-    return G[np.ix_(perm, perm)]
+    perm = (perm % (m + l)) * (2 * i) + perm // (m + l)  # interleaved index r·c + ch → channel-major ch·2i + r
+    return _gram_from_skew(_upper_block_skew(z, 2 * i, j), 2 * i, perm)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
+from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, check_level, check_sample_time
 from .controller import WeightState, lti_controller
 from .minimax import minimax_gamma_min, solve_minimax
@@ -98,7 +99,9 @@ class HinfDesign:
         Worst-case disturbance ``d_wc = disturbance_gain @ v``, ``d`` laid out as in :attr:`disturbances`.
     controller : control.StateSpace
         The LTI controller (5.3)–(5.4): inputs ``[r; y]``, output ``u``, state
-        ``[u_p; y_p; x_w1; x_w2; (x_w3)]``, sample time :attr:`dt`.
+        ``[u_p; y_p; x_w1; x_w2; (x_w3)]``, sample time :attr:`dt`.  Built on first access
+        (python-control object construction costs about as much as the gains at i = 64, and
+        the receding-horizon and adaptive controllers of §5.1/§5.3 need only :attr:`gain`).
     columns, disturbances : tuple of (name, size)
     weight_states : tuple of WeightState
         The weight states the controller runs (``x_w4`` is not one: it is driven by the
@@ -123,7 +126,7 @@ class HinfDesign:
     columns: tuple
     disturbances: tuple
     weight_states: tuple
-    controller: control.StateSpace | None = None
+    controller: control.StateSpace | None = _LazyField(default=None)
 
     @property
     def first_gain(self) -> np.ndarray:
@@ -185,6 +188,64 @@ def _weights(pred_m, pred_l, W1, W2, uncertainty, data_dt=None):
     if unc is not None:
         unc = (fix(unc[0]), fix(unc[1]))
     return W1, W2, unc, dt
+
+
+@dataclass(frozen=True, eq=False)
+class _MapPlan:
+    """The parts of a law that do not depend on the predictor, computed once per weights and horizon.
+
+    The performance map is affine in ``(L_w, L_u)``: ``template`` is the map at ``L_w = 0``,
+    ``L_u = 0`` (Markov Toeplitz and observability blocks of the weights, (3.10)–(3.12)), and
+    :meth:`fill` adds the predictor terms ``−H1 L_u``, ``−H1 L_w`` (and ``H3 L_u``, ``H3 L_w``
+    for the multiplicative law, (3.49)) — two matrix products per update in the adaptive loop of
+    §5.3 instead of rebuilding the Toeplitz matrices.
+    """
+
+    i: int
+    m: int
+    l: int
+    causal: bool
+    kind: object
+    W1: control.StateSpace
+    W2: control.StateSpace
+    unc: tuple | None
+    dt: object
+    template: PerformanceMap
+    H1: np.ndarray
+    H3: np.ndarray | None  # multiplicative law only
+    wp_col: int  # first column of w_p in M_x
+    weight_states: tuple
+
+    def fill(self, Lw: np.ndarray, Lu: np.ndarray) -> PerformanceMap:
+        """The performance map for the predictor ``(L_w, L_u)`` (equal to :func:`_build_map`'s)."""
+        t = self.template
+        p1 = self.H1.shape[0]
+        Mu = t.Mu.copy()
+        Mx = t.Mx.copy()
+        wp = slice(self.wp_col, self.wp_col + Lw.shape[1])
+        Mu[:p1] += -self.H1 @ Lu
+        Mx[:p1, wp] += -self.H1 @ Lw
+        if self.H3 is not None:
+            p3 = self.H3.shape[0]
+            Mu[-p3:] += self.H3 @ Lu
+            Mx[-p3:, wp] += self.H3 @ Lw
+        return PerformanceMap(t.Md, Mu, Mx, t.disturbances, t.columns)
+
+
+def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _MapPlan:
+    """Validate the weights and build the predictor-independent :class:`_MapPlan` of a law."""
+    W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty, dt)
+    kind = type(uncertainty) if unc else None
+    zero_w, zero_u = np.zeros((i * l, i * (m + l))), np.zeros((i * l, i * m))
+    template = _build_map(zero_w, zero_u, i, m, l, W1s, W2s, kind, unc, bool(causal))
+    template.Md.flags.writeable = False  # shared by every map filled from this plan
+    H3 = markov_toeplitz(unc[0], i) if kind is Multiplicative else None
+    ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]
+    if unc is not None:
+        ws.append(_weight_state("x_w3", unc[0], "y" if kind is Multiplicative else "u"))
+    return _MapPlan(i=i, m=m, l=l, causal=bool(causal), kind=kind, W1=W1s, W2=W2s, unc=unc, dt=dt,
+                    template=template, H1=markov_toeplitz(W1s, i), H3=H3, wp_col=l if causal else 0,
+                    weight_states=tuple(ws))
 
 
 def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
@@ -319,26 +380,36 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         If ``gamma < 1.03 γ_min``.
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty, dt)
-    kind = type(uncertainty) if unc else None
-    pm = _build_map(Lw, Lu, i, m, l, W1s, W2s, kind, unc, bool(causal))
+    plan = _map_plan(i, m, l, W1, W2, causal=causal, uncertainty=uncertainty, dt=dt)
     if gamma is None:
         ratio = check_level(gamma_ratio, "gamma_ratio")
         gamma = lambda g0: ratio * g0 if g0 > 0 else np.inf  # noqa: E731 - a γ policy
     elif not callable(gamma):
         gamma = _real(gamma, "gamma")
+    return _design_from_plan(pred, Lw, Lu, plan, gamma)
+
+
+def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
+    """The design for ``pred`` (already checked: ``Lw``, ``Lu``) from a :class:`_MapPlan`.
+
+    The map is :meth:`_MapPlan.fill`, the gains :func:`solve_minimax` (one factorisation for
+    ``γ_min``, the policy and the gains); the ``control.StateSpace`` is deferred.
+    """
+    if (Lw.shape, Lu.shape) != ((plan.i * plan.l, plan.i * (plan.m + plan.l)), (plan.i * plan.l, plan.i * plan.m)):
+        raise DataError(f"predictor shapes Lw {Lw.shape}, Lu {Lu.shape} do not match the plan's "
+                        f"(i, m, l) = {(plan.i, plan.m, plan.l)}")
+    pm = plan.fill(Lw, Lu)
     sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
-    ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]
-    if unc is not None:
-        ws.append(_weight_state("x_w3", unc[0], "y" if kind is Multiplicative else "u"))
+    unc = plan.unc
     design = HinfDesign(
-        predictor=pred, W1=W1s, W2=W2s,
-        uncertainty=None if unc is None else kind(unc[0], unc[1]),
-        horizon=i, m=m, l=l, causal=bool(causal), dt=dt,
+        predictor=pred, W1=plan.W1, W2=plan.W2,
+        uncertainty=None if unc is None else plan.kind(unc[0], unc[1]),
+        horizon=plan.i, m=plan.m, l=plan.l, causal=plan.causal, dt=plan.dt,
         gamma=sol.gamma, gamma_min=sol.gamma_min, gain=sol.u_gain, disturbance_gain=sol.d_gain,
-        columns=pm.columns, disturbances=pm.disturbances, weight_states=tuple(ws),
+        columns=pm.columns, disturbances=pm.disturbances, weight_states=plan.weight_states,
+        controller=_Deferred(lti_controller, with_owner=True),
     )
-    return dataclasses.replace(design, controller=lti_controller(design))
+    return design
 
 
 def _real(value, name: str) -> float:

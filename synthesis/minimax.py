@@ -38,7 +38,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from scipy.linalg import lapack, solve_triangular
 
 from ._validation import DataError
 from ._repr import result
@@ -125,19 +125,34 @@ def _rows_like(M, rows: int, name: str) -> np.ndarray:
 
 
 def _qr_u(Mu):
-    """Thin QR of M_u with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues)."""
-    Q, R = np.linalg.qr(Mu, mode="reduced")
+    """Householder QR of M_u (LAPACK ``dgeqrf``) with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues).
+
+    Returns the reflectors ``(qr, tau)`` of ``M_u = Q_full [R; 0]`` and the square ``R``; the first
+    ``dim u`` columns of ``Q_full`` span range(M_u), the others (``Qc``) its orthogonal complement.
+    ``Q_full`` is never formed: :func:`_apply_qt` applies ``Q_fullᵀ`` to the other blocks.
+    """
+    k = Mu.shape[1]
+    qr, tau, _, info = lapack.dgeqrf(Mu)
+    if info != 0:  # pragma: no cover - an argument error, not a property of the data
+        raise ValueError(f"LAPACK dgeqrf: illegal argument {-info}")
+    R = np.triu(qr[:k, :k])
     d = np.abs(np.diag(R))
     scale = max(np.linalg.norm(Mu), np.finfo(float).tiny)  # Frobenius: cheap upper bound on ‖M_u‖₂
     if Mu.shape[0] < Mu.shape[1] or d.min() <= max(Mu.shape) * np.finfo(float).eps * scale:
         raise DataError(
             "M_u does not have full column rank, so M_uᵀM_u is singular and the minimisation over u has no "
             "unique solution; check that W2 has a full-rank feedthrough (relative degree 0)")
-    return Q, R
+    return qr, tau, R
 
 
-def _project_out(Q, M):
-    return M - Q @ (Q.T @ M)
+def _apply_qt(qr, tau, M):
+    """``Q_fullᵀ M`` (LAPACK ``dormqr``): rows ``:dim u`` are ``Qᵀ M``, the rest ``Qcᵀ M``."""
+    if M.shape[1] == 0:
+        return np.zeros(M.shape)
+    out, _, info = lapack.dormqr("L", "T", qr, tau, M, max(1, 64 * M.shape[1]))
+    if info != 0:  # pragma: no cover
+        raise ValueError(f"LAPACK dormqr: illegal argument {-info}")
+    return out
 
 
 #: Safety factor of :func:`feasibility_threshold` over the first-order error estimate.
@@ -148,9 +163,11 @@ _THRESHOLD_SAFETY = 8.0
 class _Saddle:
     """The factorisations every γ decision and every gain is computed from (computed once)."""
 
-    Q: np.ndarray
     R: np.ndarray
-    U: np.ndarray
+    QtMd: np.ndarray  # Qᵀ M_d (Q: orthonormal basis of range(M_u))
+    QtMx: np.ndarray | None  # Qᵀ M_x  (None when only γ_min is wanted)
+    QcMx: np.ndarray | None  # Qcᵀ M_x (Qc: orthonormal basis of range(M_u)^⊥)
+    U: np.ndarray  # left singular vectors of Qcᵀ M_d: (I − P_u) M_d = (Qc U) diag(s) Vt
     s: np.ndarray
     Vt: np.ndarray
     gamma_min: float
@@ -186,16 +203,29 @@ def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
     return float(gamma_min + tau)
 
 
-def _saddle(Md, Mu) -> _Saddle:
-    """QR of ``M_u`` and SVD of ``(I − P_u) M_d``: γ_min and its threshold from one computation."""
-    Q, R = _qr_u(Mu)
-    if Md.shape[1]:
-        U, s, Vt = np.linalg.svd(_project_out(Q, Md), full_matrices=False)
+def _saddle(Md, Mu, Mx=None) -> _Saddle:
+    """QR of ``M_u`` and SVD of ``(I − P_u) M_d``: γ_min and its threshold from one computation.
+
+    ``(I − P_u) M_d = Qc (Qcᵀ M_d)`` with ``Qc`` orthonormal, so the SVD is taken of the smaller
+    ``Qcᵀ M_d`` (``rows − dim u`` rows; same singular values and right vectors).  The Householder
+    reflectors are applied to ``M_d`` and (for the gains) ``M_x`` separately, so that γ_min does
+    not depend on whether ``M_x`` is given (:func:`minimax_gamma_min` equals the γ_min of
+    :func:`solve_minimax` to the last bit).
+    """
+    qr, tau, R = _qr_u(Mu)
+    k, nd = Mu.shape[1], Md.shape[1]
+    T = _apply_qt(qr, tau, Md)
+    TX = None if Mx is None else _apply_qt(qr, tau, Mx)
+    X = T[k:]
+    if nd and X.shape[0]:
+        U, s, Vt = np.linalg.svd(X, full_matrices=False)
         gmin = float(s[0]) if s.size else 0.0
     else:
-        U, s, Vt = np.zeros((Md.shape[0], 0)), np.zeros(0), np.zeros((0, 0))
+        U, s, Vt = np.zeros((X.shape[0], 0)), np.zeros(0), np.zeros((0, nd))
         gmin = 0.0
-    return _Saddle(Q=Q, R=R, U=U, s=s, Vt=Vt, gamma_min=gmin, threshold=feasibility_threshold(Md, Mu, gmin))
+    return _Saddle(R=R, QtMd=T[:k], QtMx=None if TX is None else TX[:k],
+                   QcMx=None if TX is None else TX[k:], U=U, s=s, Vt=Vt, gamma_min=gmin,
+                   threshold=feasibility_threshold(Md, Mu, gmin))
 
 
 def minimax_gamma_min(Md, Mu) -> float:
@@ -251,7 +281,7 @@ def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
         If ``gamma < 1.03 γ_min`` (§5.4.4).
     """
     Md, Mu, Mx = _check_maps(Md, Mu, Mx)
-    sd = _saddle(Md, Mu)
+    sd = _saddle(Md, Mu, Mx)
     gamma = _level(gamma, sd)
     gmin = sd.gamma_min
     if gamma < NEAR_GAMMA_MIN_RATIO * gmin:
@@ -259,13 +289,14 @@ def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
             f"gamma = {gamma:.6g} is within 3% of gamma_min = {gmin:.6g}: the gains are close to singular and "
             "the loop went unstable there in §5.4.4; prefer gamma >= 1.1 gamma_min",
             NearGammaMinWarning, stacklevel=3)
-    Mxt = _project_out(sd.Q, Mx)
     if np.isinf(gamma) or Md.shape[1] == 0:
         d_gain = np.zeros((Md.shape[1], Mx.shape[1]))
     else:
-        # (γ²I − VS²Vᵀ)⁻¹ V S Uᵀ = V diag(s / (γ² − s²)) Uᵀ, with γ² − s² = (γ − s)(γ + s) kept accurate.
+        # (γ²I − VS²Vᵀ)⁻¹ V S Uᵀ = V diag(s / (γ² − s²)) Uᵀ, with γ² − s² = (γ − s)(γ + s) kept accurate;
+        # the left vectors of M̃_d are Qc U, and (Qc U)ᵀ M̃_x = Uᵀ Qcᵀ M_x (Qcᵀ P_u = 0).
         s = sd.s
         coef = s / ((gamma - s) * (gamma + s))
-        d_gain = sd.Vt.T @ (coef[:, None] * (sd.U.T @ Mxt))
-    u_gain = -solve_triangular(sd.R, sd.Q.T @ (Md @ d_gain + Mx), lower=False)
+        d_gain = sd.Vt.T @ (coef[:, None] * (sd.U.T @ sd.QcMx))
+    # u_opt = −R⁻¹ Qᵀ (M_d d_wc + M_x x)
+    u_gain = -solve_triangular(sd.R, sd.QtMd @ d_gain + sd.QtMx, lower=False, check_finite=False)
     return MinimaxSolution(gamma=gamma, gamma_min=gmin, u_gain=u_gain, d_gain=d_gain)

@@ -12,7 +12,8 @@ Two summaries are available (``track=``):
 
 ``"gram"`` (default)
     The Gram matrix ``AAᵀ`` itself, updated by ``AAᵀ += a_new a_newᵀ`` and
-    ``AAᵀ −= a_old a_oldᵀ`` (one BLAS rank-k product per pushed chunk); ``predictor()``
+    ``AAᵀ −= a_old a_oldᵀ`` (one in-place BLAS rank-k update ``dsyrk`` of the lower triangle per
+    pushed chunk: half the arithmetic of a full product, no temporary); ``predictor()``
     factors it with the same rank-revealing Cholesky as :func:`fit_predictor`.  This is
     exact, cannot lose definiteness (there is no square root to take), copes with the
     singular Gram of a short or not persistently exciting window (§6.3 starts from
@@ -39,6 +40,7 @@ import warnings
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.linalg import blas
 
 from ._validation import DataError, as_signal, check_horizon
 from .cholesky import DowndateError, choldowndate, cholupdate
@@ -46,6 +48,18 @@ from .hankel import hankel_gram, hankel_order
 from .predictor import Predictor, _predictor_from_factor, _predictor_from_gram, _psd_cholesky, _resolve_rcond
 
 __all__ = ["RecursivePredictor", "RefactorWarning"]
+
+
+def _syrk_lower(S: np.ndarray, cols: np.ndarray, alpha: float) -> None:
+    """``S += alpha · colsᵀ cols`` on the lower triangle of the C-ordered ``S``, in place (BLAS ``dsyrk``).
+
+    ``S.T`` is Fortran-ordered, so BLAS updates it without a copy; its upper triangle is ``S``'s
+    lower one.  ``S``'s strict upper triangle is left stale: readers use the lower triangle
+    (LAPACK ``dpotrf``/``eigh`` with ``lower``) or symmetrise (:attr:`RecursivePredictor.gram`).
+    """
+    out = blas.dsyrk(alpha, np.ascontiguousarray(cols).T, beta=1.0, c=S.T, trans=0, lower=0, overwrite_c=1)
+    if not np.shares_memory(out, S):  # pragma: no cover - S is always C-contiguous here
+        S[...] = out.T
 
 
 class RefactorWarning(RuntimeWarning):
@@ -96,6 +110,7 @@ class RecursivePredictor:
         self._start = 0
         self._end = 0
         self._S = np.zeros((self._N, self._N))  # Gram AAᵀ, or its upper Cholesky factor R (AAᵀ = RᵀR)
+        self._warm: dict = {}  # dominant vectors of R1 and R1⁻¹ from the last predictor() (conditioning check)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -148,7 +163,7 @@ class RecursivePredictor:
     def gram(self) -> np.ndarray:
         """Current ``AAᵀ`` in the row order of (2.7) (a copy)."""
         if self.track == "gram":
-            return self._S.copy()
+            return np.tril(self._S) + np.tril(self._S, -1).T  # only the lower triangle is kept current
         return self._S.T @ self._S
 
     # ------------------------------------------------------------------ operations
@@ -182,9 +197,9 @@ class RecursivePredictor:
         self._j -= drop
         self._since_refresh += k
         if self.track == "gram":
-            self._S += new_cols.T @ new_cols
+            _syrk_lower(self._S, new_cols, 1.0)
             if drop:
-                self._S -= old_cols.T @ old_cols
+                _syrk_lower(self._S, old_cols, -1.0)
         else:
             for a in new_cols:
                 cholupdate(self._S, a, lower=False, overwrite=True)
@@ -214,8 +229,8 @@ class RecursivePredictor:
         i, m, l, j = self.horizon, self.m, self.l, self._j
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
-            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3)
-        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3)
+            return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
+        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:

@@ -107,3 +107,55 @@ def test_fixed_gamma_is_refused_with_the_policy_named():
     for kw in (dict(gamma=3.0), dict(gamma_ratio=1.2)):
         with pytest.raises(ValueError, match="GammaPolicy"):
             AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=10, **kw)
+
+
+# ------------------------------------------------------------------ fast redesign path (issue 12)
+@pytest.mark.parametrize("kw, window", [
+    (dict(), None),
+    (dict(causal=True), 120),
+    (dict(uncertainty=synthesis.Multiplicative(0.2, 0.5)), None),
+    (dict(uncertainty=synthesis.Additive(0.1, 0.3)), 150),
+])
+def test_every_update_equals_a_batch_design_on_the_same_window(kw, window):
+    """The cached weight blocks and the deferred StateSpace change nothing: γ_min and the gains of
+    every update equal hinf_design on the predictor of the same data window (1e-9 relative)."""
+    u0, y0 = _init_data(seed=2)
+    W1, W2 = _weights()
+    policy = GammaPolicy("ratio", 0.2)
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=25, window=window, policy=policy, **kw)
+    d = collect_data(servo(), prbs(100, seed=7), process_noise=0.05, sensor_noise=0.05, seed=8)
+    r = step_sequence(100, [1.0, -1.0], hold=30)
+    checked = 0
+    for k in range(100):
+        ad.control(r[k])
+        ad.observe(d.u[k], d.y[k], r[k])
+        if ad.samples_seen % 25 == 0:
+            batch = synthesis.hinf_design(ad.recursive.predictor(), W1, W2, gamma=policy, **kw)
+            live = ad.design
+            assert live.gamma_min == pytest.approx(batch.gamma_min, rel=1e-9, abs=0)
+            assert live.gamma == pytest.approx(batch.gamma, rel=1e-9, abs=0)
+            assert np.linalg.norm(live.gain - batch.gain) <= 1e-9 * np.linalg.norm(batch.gain)
+            assert live.columns == batch.columns and live.disturbances == batch.disturbances
+            checked += 1
+    assert checked == 4 and len(ad.history) == 5
+    # the StateSpace is built when read, and is the LTI controller (5.3)-(5.4) of the gains in force
+    K = ad.design.controller
+    K_ref = synthesis.lti_controller(ad.design)
+    for a, b in ((K.A, K_ref.A), (K.B, K_ref.B), (K.C, K_ref.C), (K.D, K_ref.D)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert ad.design.controller is K  # cached
+
+
+def test_update_phases_add_up():
+    u0, y0 = _init_data(seed=3)
+    W1, W2 = _weights()
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=20)
+    d = collect_data(servo(), prbs(40, seed=9), sensor_noise=0.05, seed=10)
+    for k in range(40):
+        ad.control(0.0)
+        ad.observe(d.u[k], d.y[k], 0.0)
+    for h in ad.history[1:]:
+        names = [p for p, _ in h.phases]
+        assert names == ["push", "predictor", "design"]
+        total = sum(t for _, t in h.phases)
+        assert all(t >= 0 for _, t in h.phases) and total <= h.seconds * (1 + 1e-9) + 1e-9

@@ -363,3 +363,23 @@ def test_data_sample_time_is_checked_against_the_weights():
     # static weights take the data's sample time (without it the controller's dt is unspecified)
     assert hinf_design(pred, 2.0, 0.5).controller.dt is True
     assert hinf_design(pred, 2.0, 0.5, dt=0.05).controller.dt == 0.05
+
+
+# ------------------------------------------------------------------ cached weight blocks (issue 12)
+@pytest.mark.parametrize("kw", [dict(), dict(causal=True), dict(uncertainty=Multiplicative(0.3, 0.4)),
+                                dict(uncertainty=Additive(0.2, 0.5), causal=True)])
+def test_map_plan_fill_equals_the_map_built_from_scratch(case, kw):
+    from synthesis.hinf import _map_plan, performance_map
+
+    pred, W1, W2 = case[:3]
+    if pred.m == 2:  # scalar uncertainty weights → identity blocks of the right size
+        kw = {k: (type(v)(v.W3 * np.eye(2), v.W4 * np.eye(2)) if k == "uncertainty" else v) for k, v in kw.items()}
+    plan = _map_plan(pred.horizon, pred.m, pred.l, W1, W2, **kw)
+    ref = performance_map(pred, W1, W2, **kw)
+    got = plan.fill(pred.Lw, pred.Lu)
+    for a, b in ((got.Md, ref.Md), (got.Mu, ref.Mu), (got.Mx, ref.Mx)):
+        np.testing.assert_array_equal(a, b)
+    assert got.columns == ref.columns and got.disturbances == ref.disturbances
+    # the template is not modified by filling
+    again = plan.fill(pred.Lw, pred.Lu)
+    np.testing.assert_array_equal(again.Mu, ref.Mu)

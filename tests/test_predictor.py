@@ -304,11 +304,26 @@ def test_bench_predictor_quick(tmp_path):
     from experiments.cli import Options
 
     summary = run(Options(quick=True, out=tmp_path))
-    assert (tmp_path / "bench_predictor.md").exists()
-    assert (tmp_path / "bench_predictor.json").exists()
-    assert summary["batch"] and summary["recursive"]
+    for name in ("bench_predictor.md", "bench_predictor.json", "bench_predictor.csv", "bench_predictor.png"):
+        assert (tmp_path / name).exists(), name
+    assert summary["batch"] and summary["recursive"] and summary["scaling"]
+    assert summary["peak_gflops"] > 0 and set(summary["scaling_exponents"]) >= {"cholesky vs j", "cholesky vs i"}
     for row in summary["batch"]:
-        assert row["qr_s"] > 0 and row["cholesky_s"] > 0 and row["max_rel_diff"] < 1e-6
+        assert row["qr_s"] is None or row["qr_s"] > 0
+        assert row["cholesky_s"] > 0 and row["before_s"] > 0 and row["max_rel_diff"] < 1e-6
+        assert row["solver"] in ("triangular", "spectral") and 0 < row["peak_fraction_minimal"]
+    assert any(row["m"] == 2 for row in summary["batch"])  # a MIMO case
+    header = (tmp_path / "bench_predictor.csv").read_text().splitlines()[0]
+    assert "cholesky_s" in header and "peak_fraction_dense_equivalent" in header
+
+
+def test_legacy_route_of_the_benchmark_equals_fit_predictor():
+    from experiments.bench_predictor import _legacy_fit
+
+    u, y = noisy_mimo(seed=16, n=500)
+    Lw, Lu = _legacy_fit(u, y, 4)
+    p = fit_predictor(u, y, 4)
+    assert rel(np.hstack([Lw, Lu]), np.hstack([p.Lw, p.Lu])) < 1e-10
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -333,3 +348,92 @@ def test_block_hankel_and_predict_validate_input():
     p = fit_predictor(*noisy_mimo(seed=12, n=200), 3)
     with pytest.raises(DataError, match="finite"):
         p.predict(np.full(12, np.nan), np.zeros(6))
+
+
+# ----------------------------------------------------------------------------- fast path and its fallback (issue 12)
+def test_well_conditioned_data_take_the_triangular_route_and_equal_lstsq():
+    u, y = noisy_mimo(seed=12, n=800)
+    i = 4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PersistenceWarning)
+        p = fit_predictor(u, y, i)
+    assert p.solver == "triangular"
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    Phi = np.vstack([Up, Yp, Uf])
+    ref = np.linalg.lstsq(Phi.T, Yf.T, rcond=None)[0].T
+    assert rel(np.hstack([p.Lw, p.Lu]), ref) < 1e-9
+    assert p.rank == p.n_regressors and p.input_rank == 2 * 2 * i
+    # the singular values are computed on first access, and are those of the regressor
+    np.testing.assert_allclose(p.singular_values, np.linalg.svd(Phi, compute_uv=False), rtol=1e-8)
+    # ... and agree with the rank-revealing route on the same data
+    from synthesis.hankel import hankel_gram as hg
+    from synthesis.predictor import _predictor_from_gram
+
+    q = _predictor_from_gram(hg(u, y, i), i, 2, 2, p.n_columns, p.rcond, "cholesky", route="spectral")
+    assert q.solver == "spectral" and q.rank == p.rank and q.input_rank == p.input_rank
+    assert rel(np.hstack([p.Lw, p.Lu]), np.hstack([q.Lw, q.Lu])) < 1e-10
+
+
+@pytest.mark.parametrize("case", ["not_pe", "noise_free", "few_columns"])
+def test_rank_deficient_data_fall_back_to_the_spectral_route_and_warn(case):
+    rng = np.random.default_rng(13)
+    if case == "not_pe":
+        n, i = 400, 4
+        u = np.sin(0.3 * np.arange(n))
+        y = np.convolve(u, [0.0, 0.8, 0.3])[:n] + 0.1 * rng.standard_normal(n)
+        ref_rcond = 1e-6
+    elif case == "noise_free":
+        n, i = 400, 6
+        u = rng.standard_normal(n)
+        y = np.convolve(u, [0.0, 1.0, 0.5])[:n]
+        ref_rcond = 1e-6
+    else:
+        i = 5
+        n = 2 * i - 1 + 10  # j = 10 < i(2m+l) = 15
+        u, y = rng.standard_normal(n), rng.standard_normal(n)
+        ref_rcond = None
+    with pytest.warns(PersistenceWarning):
+        p = fit_predictor(u, y, i)
+    assert p.solver == "spectral" and p.rank < p.n_regressors
+    Up, Yp, Uf, Yf = data_matrices(u, y, i)
+    Phi = np.vstack([Up, Yp, Uf])
+    ref = (np.linalg.pinv(Phi.T, rcond=ref_rcond) if ref_rcond else np.linalg.pinv(Phi.T)) @ Yf.T
+    assert rel(np.hstack([p.Lw, p.Lu]), ref.T) < 1e-6
+    lst = np.linalg.lstsq(Phi.T, Yf.T, rcond=p.rcond)[0].T
+    assert rel(np.hstack([p.Lw, p.Lu]), lst) < 1e-6
+
+
+def test_qr_and_lstsq_keep_their_routes():
+    u, y = noisy_mimo(seed=14, n=300)
+    assert fit_predictor(u, y, 3, method="qr").solver == "spectral"
+    assert fit_predictor(u, y, 3, method="lstsq").solver is None
+
+
+def test_deferred_singular_values_are_frozen_and_picklable():
+    import dataclasses
+    import pickle
+
+    u, y = noisy_mimo(seed=15, n=300)
+    p = fit_predictor(u, y, 3)
+    assert p.solver == "triangular"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.singular_values = np.zeros(3)
+    q = pickle.loads(pickle.dumps(p))
+    np.testing.assert_array_equal(q.singular_values, p.singular_values)
+    np.testing.assert_array_equal(q.Lw, p.Lw)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.singular_values = np.zeros(3)  # also after evaluation
+
+
+@pytest.mark.parametrize("rows, c, j", [(1, 1, 1), (2, 1, 1), (3, 2, 2), (4, 3, 5), (5, 2, 9), (8, 1, 8),
+                                        (8, 2, 17), (6, 4, 100), (16, 2, 33)])
+def test_vectorised_gram_equals_block_row_loop_and_explicit_product(rows, c, j):
+    from synthesis.hankel import _interleaved_gram, _interleaved_gram_loop
+
+    z = np.random.default_rng(rows * 100 + c * 10 + j).standard_normal((j + rows - 1, c))
+    Z = np.vstack([z[r : r + j].T for r in range(rows)])  # interleaved block Hankel, explicit
+    ref = Z @ Z.T
+    G = _interleaved_gram(z, rows, j)
+    assert np.array_equal(G, G.T)
+    np.testing.assert_allclose(G, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+    np.testing.assert_allclose(G, _interleaved_gram_loop(z, rows, j), rtol=0, atol=1e-13 * np.abs(ref).max())
