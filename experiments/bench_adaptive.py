@@ -272,6 +272,7 @@ def run(opts) -> dict:
     summary["seconds"] = time.perf_counter() - t_start
     rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
     md = rep.write(out / "bench_adaptive.md")
+    summary["report"] = str(md)
     write_json(out / "bench_adaptive.json", summary)
     print(md.read_text())
     return summary
