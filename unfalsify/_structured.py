@@ -285,6 +285,8 @@ class _Solver:
                         break
                     phi0 = self._phi(t, H, d, svd[1], r)
                     a = self._max_step(H, d, dh, dlt, r, svd)
+                    if lam2 > 1.0:  # damped Newton: stay inside the Dikin ellipsoid (no dive into a corner)
+                        a = min(a, 1.0 / (1.0 + np.sqrt(lam2)))
                     for _ls in range(60):
                         Hn, dn = H + a * dh, d + a * dlt
                         svdn = self._svd(Hn)
