@@ -49,7 +49,7 @@ EARLIER_TIMINGS = "ARX conditioned n = 20 → 0.2 s, 40 → 3.2 s, 80 → 78 s, 
 
 
 #: wall-clock limit handed to the structured solver (it then returns its certified bracket)
-STRUCTURED_LIMIT_S = 900.0
+STRUCTURED_LIMIT_S = 240.0
 QUICK_STRUCTURED_LIMIT_S = 30.0
 #: L optimised: the Newton system carries a rank-3i² correction whose factors take ~3·8·i·j·3i² bytes;
 #: sizes above this are reported as skipped rather than run out of memory

@@ -81,7 +81,7 @@ def _corr_hessian(S11, S21, S22, m):
 
 
 class _Solver:
-    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, max_newton=400):
+    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, max_newton=5000):
         self.f = form
         self.m, self.j = form.m, form.j
         self.tol = tol
