@@ -14,10 +14,10 @@ import contextlib
 import importlib
 import json
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Options", "COMMANDS", "main", "output_dir", "summary_text"]
+__all__ = ["Options", "COMMANDS", "EXTRA_ARGS", "main", "output_dir", "summary_text"]
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,8 @@ class Options:
     json: bool = False
     out: Path = Path("results")
     seed: int = 0
+    #: values of a subcommand's own arguments (``EXTRA_ARGS``), by destination name
+    extra: dict = field(default_factory=dict)
 
 
 #: name -> ("module", "function", "one-line help")
@@ -45,6 +47,14 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
 }
 
+#: per-subcommand extra arguments: name -> ((flag, argparse keyword arguments), ...)
+EXTRA_ARGS: dict[str, tuple[tuple[str, dict], ...]] = {
+    "bench-unfalsify": (
+        ("--backend", dict(choices=("cvxpy", "structured", "both"), default="cvxpy",
+                           help="unfalsification backend to time (default: cvxpy)")),
+    ),
+}
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments", description=__doc__.splitlines()[0])
@@ -55,6 +65,8 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--json", action="store_true", help="print the summary as JSON")
         s.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
         s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+        for flag, kwargs in EXTRA_ARGS.get(name, ()):
+            s.add_argument(flag, **kwargs)
     return p
 
 
@@ -70,7 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     mod = importlib.import_module(module)
     run = getattr(mod, func)
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
-    opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed)
+    extra = {flag.lstrip("-").replace("-", "_"): None for flag, _ in EXTRA_ARGS.get(args.command, ())}
+    extra = {k: getattr(args, k) for k in extra}
+    opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed,
+                   extra=extra)
     opts.out.mkdir(parents=True, exist_ok=True)
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():

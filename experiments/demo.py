@@ -68,7 +68,7 @@ def run(opts) -> dict:
     rep.text(
         f"Subspace unfalsification (7.5) with i = {c7['horizon']}, j = {c7['columns']}, σ = {c7['sigma']}: "
         f"δ = {c7['delta']:.4g} ({c7['subspace']['status']}, {c7['subspace']['solve_time']:.1f} s). "
-        f"ARX (7.4): " + "; ".join(f"{a['form']} n = {a['n']}: δ = {a['delta']:.4g} ({a['status']}, "
+        f"ARX (7.4): " + "; ".join(f"{a['form']} ({a.get('backend', 'cvxpy')}) n = {a['n']}: δ = {a['delta']:.4g} ({a['status']}, "
                                    f"cond T(u) = {a['cond_Tu']:.2g})" for a in c7["arx"]) + ".\n\n"
         f"γ_min (nominal) = {d['gamma_min_nominal']:.4g}, γ_min_a (robust, W3 = {d['w3_gain']:.3g}, W4 = 1) = "
         f"{d['gamma_min_a']:.4g}; the robust design covers ‖P_Δ‖∞ < {d['covered_delta']:.3g} "

@@ -2,6 +2,8 @@ import pytest
 """Smoke test of ``python -m experiments bench-unfalsify --quick``."""
 import json
 
+import pytest
+
 from experiments.bench_unfalsify import run
 from experiments.cli import Options, main
 
@@ -38,3 +40,31 @@ def test_json_flag_prints_only_json(tmp_path, capsys):
     data = json.loads(out.out)
     assert data == json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())
     assert "Chapter 7 unfalsification LMIs" in out.err  # the report text went to stderr instead
+
+
+@pytest.mark.slow
+def test_bench_unfalsify_structured_quick(tmp_path):
+    # ``--backend structured --quick``: every row certified and verified, the ARX comparison agrees,
+    # CSV and the scaling PNG are written
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--out", str(tmp_path)]) == 0
+    out = tmp_path / "bench_unfalsify"
+    data = json.loads((out / "bench_unfalsify.json").read_text())
+    assert data["backend"] == "structured" and "series" not in data  # the cvxpy series did not run
+    st = data["structured"]
+    for s in st["series"]:
+        for r in s["rows"]:
+            assert r["status"] == "optimal" and r["verify"] is True
+            assert r["lower"] <= r["upper"] and r["relative_gap"] <= s["tol"]
+            assert r["peak_rss_mb"] > 0
+    assert st["comparison"]["delta_difference"] <= 1e-5 * st["comparison"]["cvxpy"]["delta"]
+    assert (out / "bench_unfalsify_structured.csv").read_text().count("\n") == 1 + sum(
+        len(s["rows"]) for s in st["series"])
+    assert (out / "bench_unfalsify_scaling.png").stat().st_size > 1000
+    assert "Fitted exponents" in (out / "bench_unfalsify.md").read_text()
+
+
+def test_cli_extra_arguments_are_per_command(tmp_path):
+    with pytest.raises(SystemExit):  # --backend belongs to bench-unfalsify only
+        main(["bench-norms", "--quick", "--backend", "structured", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit):
+        main(["bench-unfalsify", "--backend", "nope", "--out", str(tmp_path)])

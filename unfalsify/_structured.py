@@ -81,7 +81,7 @@ def _corr_hessian(S11, S21, S22, m):
 
 
 class _Solver:
-    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, max_newton=400):
+    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, max_newton=5000):
         self.f = form
         self.m, self.j = form.m, form.j
         self.tol = tol
@@ -285,6 +285,8 @@ class _Solver:
                         break
                     phi0 = self._phi(t, H, d, svd[1], r)
                     a = self._max_step(H, d, dh, dlt, r, svd)
+                    if lam2 > 1.0:  # damped Newton: stay inside the Dikin ellipsoid (no dive into a corner)
+                        a = min(a, 1.0 / (1.0 + np.sqrt(lam2)))
                     for _ls in range(60):
                         Hn, dn = H + a * dh, d + a * dlt
                         svdn = self._svd(Hn)
