@@ -59,7 +59,9 @@ class _LazyField:
             return self._default
         value = obj.__dict__[self._slot]
         if isinstance(value, _Deferred):
-            value = value(obj)
+            from ._repr import _readonly
+
+            value = _readonly(value(obj))  # as the eager fields of a @result class
             obj.__dict__[self._slot] = value
         return value
 

@@ -133,10 +133,15 @@ def result(cls):
     names = [f.name for f in dataclasses.fields(cls)]
     original_init = cls.__init__
 
+    from ._lazy import _LazyField
+
+    # deferred fields are made read-only when they are computed (reading them here would compute them)
+    eager = [n for n in names if not isinstance(cls.__dict__.get(n), _LazyField)]
+
     @functools.wraps(original_init)
     def __init__(self, *args, **kwargs):
         original_init(self, *args, **kwargs)
-        for name in names:
+        for name in eager:
             value = getattr(self, name)
             frozen = _readonly(value)
             if frozen is not value:

@@ -103,3 +103,19 @@ def test_helpers():
     assert values_equal(G, control.ss(0.5, 1, 1, 0, 1.0)) and not values_equal(G, control.ss(0.5, 1, 1, 0, 0.5))
     assert short_repr(G) == "<StateSpace: 1 output(s), 1 input(s), 1 state(s), dt=1.0>"
     assert short_repr(tuple(range(10))).endswith("… (10 items))")
+
+
+def test_deferred_fields_are_read_only_once_computed_and_not_computed_by_the_constructor():
+    import numpy as np
+
+    from synthesis import fit_predictor
+    from synthesis._lazy import _is_pending
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(400)
+    y = np.convolve(u, [0.0, 0.5, 0.2])[:400] + 0.01 * rng.standard_normal(400)
+    p = fit_predictor(u, y, 5)
+    if p.solver == "triangular":  # the fast route defers its SVD; the constructor must not force it
+        assert _is_pending(p, "singular_values")
+    sv = p.singular_values
+    assert not sv.flags.writeable and not p.Lw.flags.writeable
