@@ -12,7 +12,7 @@ import contextlib
 import importlib
 import json
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["Options", "COMMANDS", "main", "output_dir"]
@@ -26,10 +26,14 @@ class Options:
     json: bool = False
     out: Path = Path("results")
     seed: int = 0
+    #: values of the subcommand's own options (the argparse specs of its ``COMMANDS`` entry), by ``dest``
+    extra: dict = field(default_factory=dict)
 
 
-#: name -> ("module", "function", "one-line help")
-COMMANDS: dict[str, tuple[str, str, str]] = {
+#: name -> ("module", "function", "one-line help"[, extra options]).  The optional fourth element is a
+#: tuple of argparse specs ``(("--flag", ...), {add_argument kwargs, with "dest"})`` for options of that
+#: subcommand only; their values reach ``run`` as ``opts.extra[dest]``.
+COMMANDS: dict[str, tuple] = {
     "demo": ("experiments.demo", "run", "quick Chapter 7 pipeline + Table 5.1, markdown report (the README's main job)"),
     "design-example": ("experiments.design_example", "run", "§5.4 design example: Tables 5.1-5.5 and figures"),
     "noncollocated": ("experiments.noncollocated", "run", "§6.2 non-collocated three-disk design"),
@@ -40,18 +44,38 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
+    "sweep": ("experiments.sweep", "run",
+              "Monte Carlo sweep of the §7.4 pipeline (plants × seeds × (i, j) × σ), one case per task on "
+              "local processes or a Dask cluster",
+              ((("--workers",), dict(dest="workers", type=int, default=None,
+                                     help="local worker processes (default: the number of cores)")),
+               (("--scheduler",), dict(dest="scheduler", default=None, metavar="ADDRESS",
+                                       help="address of a running Dask scheduler, e.g. tcp://127.0.0.1:8786")),
+               (("--timeout",), dict(dest="timeout", type=float, default=30.0,
+                                     help="seconds to wait for the scheduler (default: 30)")),
+               (("--resume",), dict(dest="resume", action="store_true",
+                                    help="skip the cases already finished in the report under --out")))),
 }
+
+
+def _entry(name: str) -> tuple[str, str, str, tuple]:
+    """``COMMANDS[name]`` as (module, function, help, extra option specs)."""
+    module, func, help_, *rest = COMMANDS[name]
+    return module, func, help_, tuple(rest[0]) if rest else ()
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="NAME")
-    for name, (_, _, help_) in COMMANDS.items():
+    for name in COMMANDS:
+        _, _, help_, extra = _entry(name)
         s = sub.add_parser(name, help=help_, description=help_)
         s.add_argument("--quick", action="store_true", help="small sizes, for tests and smoke runs")
         s.add_argument("--json", action="store_true", help="print the summary as JSON")
         s.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
         s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+        for flags, kwargs in extra:
+            s.add_argument(*flags, **kwargs)
     return p
 
 
@@ -63,10 +87,11 @@ def output_dir(out: Path, command: str) -> Path:
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
     args = _parser().parse_args(argv)
-    module, func, _ = COMMANDS[args.command]
+    module, func, _, extra = _entry(args.command)
     run = getattr(importlib.import_module(module), func)
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
-    opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed)
+    opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed,
+                   extra={kw["dest"]: getattr(args, kw["dest"]) for _, kw in extra})
     opts.out.mkdir(parents=True, exist_ok=True)
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
