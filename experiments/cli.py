@@ -44,6 +44,10 @@ COMMANDS: dict[str, tuple] = {
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
+    "bench-split": ("experiments.bench_split", "run",
+                    "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",
+                    ((("--workers",), dict(dest="workers", type=int, default=2,
+                                           help="worker processes of the parallel run (default: 2)")),)),
     "sweep": ("experiments.sweep", "run",
               "Monte Carlo sweep of the §7.4 pipeline (plants × seeds × (i, j) × σ), one case per task on "
               "local processes or a Dask cluster",
