@@ -72,7 +72,7 @@ def run(opts) -> dict:
     rel = abs(res[n_workers]["delta"] - ref.delta) / ref.delta
     rep = Report("Column split of (7.5) on local workers")
     rep.text(__doc__.split("\n\n", 1)[1].replace("\n", " "))
-    rep.table(["solve", "seconds", "δ", "certified lower bound", "certificate verifies"], rows, floatfmt=".6g")
+    rep.table(["solve", "seconds", "δ", "certified lower bound", "certificate verifies"], rows, floatfmt=".9g")
     rep.section("Result", f"(i, j) = ({i}, {j}): speed-up {speedup:.2f}× on {n_workers} workers over 1; "
                           f"|δ_split − δ_serial|/δ_serial = {rel:.2e}; δ identical on 1 and {n_workers} workers: "
                           f"{res[1]['delta'] == res[n_workers]['delta']}.")
