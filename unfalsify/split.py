@@ -45,7 +45,7 @@ from synthesis._validation import DataError
 
 from ._toeplitz import toeplitz_matrix, toeplitz_norm
 
-__all__ = ["solve_column", "solve_columns", "split_solve", "solve_split_problem", "SPLIT_RTOL"]
+__all__ = ["split_solve"]  # solve_columns (the task), solve_column and solve_split_problem are helpers
 
 #: Default relative width of the final bracket on δ*.
 SPLIT_RTOL = 1e-8
