@@ -220,3 +220,15 @@ def test_split_column_slope_matches_finite_difference():
     a, c = solve_column(u, b, 0.5, 1e-12), solve_column(u, b, 0.5 + 1e-6, 1e-12)
     assert c["f"] <= a["f"]  # non-increasing in δ
     assert abs((c["f"] - a["f"]) / 1e-6 - a["df"]) <= 1e-4 * abs(a["df"])
+
+
+@pytest.mark.parametrize("dask", [False, True])
+def test_local_executors_run_workers_with_one_blas_thread(dask, monkeypatch):
+    if dask and distributed is None:
+        pytest.skip("dask.distributed not installed: pip install -e '.[distributed]'")
+    if not dask:
+        monkeypatch.setattr(sw, "_have_distributed", lambda: False)
+    with sw.make_executor(1) as (ex, info):
+        assert info["kind"] == ("dask-local" if dask else "process-pool")
+        assert ex.submit(os.getenv, "OPENBLAS_NUM_THREADS").result() == "1"
+    assert os.environ.get("OPENBLAS_NUM_THREADS") == ("1" if os.environ.get("OPENBLAS_NUM_THREADS") else None)
