@@ -17,7 +17,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Options", "COMMANDS", "EXTRA_ARGS", "main", "output_dir", "summary_text"]
+__all__ = ["Options", "COMMANDS", "main", "output_dir", "summary_text"]
 
 
 @dataclass(frozen=True)
@@ -28,12 +28,14 @@ class Options:
     json: bool = False
     out: Path = Path("results")
     seed: int = 0
-    #: values of a subcommand's own arguments (``EXTRA_ARGS``), by destination name
+    #: values of the subcommand's own options (the argparse specs of its ``COMMANDS`` entry), by ``dest``
     extra: dict = field(default_factory=dict)
 
 
-#: name -> ("module", "function", "one-line help")
-COMMANDS: dict[str, tuple[str, str, str]] = {
+#: name -> ("module", "function", "one-line help"[, extra options]).  The optional fourth element is a
+#: tuple of argparse specs ``(("--flag", ...), {add_argument kwargs, with "dest"})`` for options of that
+#: subcommand only; their values reach ``run`` as ``opts.extra[dest]``.
+COMMANDS: dict[str, tuple] = {
     "demo": ("experiments.demo", "run", "quick Chapter 7 pipeline + Table 5.1, markdown report (the README's main job)"),
     "design-example": ("experiments.design_example", "run", "§5.4 design example: Tables 5.1-5.5 and figures"),
     "noncollocated": ("experiments.noncollocated", "run", "§6.2 non-collocated three-disk design"),
@@ -43,30 +45,47 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                         "§7.4 pipeline on plants it was not designed on: certified or not, checked on the true plant"),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
-    "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size"),
+    "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",
+                        ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
+                                               default="cvxpy", help="unfalsification backend to time "
+                                                                     "(default: cvxpy)")),)),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
+    "bench-split": ("experiments.bench_split", "run",
+                    "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",
+                    ((("--workers",), dict(dest="workers", type=int, default=2,
+                                           help="worker processes of the parallel run (default: 2)")),)),
+    "sweep": ("experiments.sweep", "run",
+              "Monte Carlo sweep of the §7.4 pipeline (plants × seeds × (i, j) × σ), one case per task on "
+              "local processes or a Dask cluster",
+              ((("--workers",), dict(dest="workers", type=int, default=None,
+                                     help="local worker processes (default: the number of cores)")),
+               (("--scheduler",), dict(dest="scheduler", default=None, metavar="ADDRESS",
+                                       help="address of a running Dask scheduler, e.g. tcp://127.0.0.1:8786")),
+               (("--timeout",), dict(dest="timeout", type=float, default=30.0,
+                                     help="seconds to wait for the scheduler (default: 30)")),
+               (("--resume",), dict(dest="resume", action="store_true",
+                                    help="skip the cases already finished in the report under --out")))),
 }
 
-#: per-subcommand extra arguments: name -> ((flag, argparse keyword arguments), ...)
-EXTRA_ARGS: dict[str, tuple[tuple[str, dict], ...]] = {
-    "bench-unfalsify": (
-        ("--backend", dict(choices=("cvxpy", "structured", "both"), default="cvxpy",
-                           help="unfalsification backend to time (default: cvxpy)")),
-    ),
-}
+
+def _entry(name: str) -> tuple[str, str, str, tuple]:
+    """``COMMANDS[name]`` as (module, function, help, extra option specs)."""
+    module, func, help_, *rest = COMMANDS[name]
+    return module, func, help_, tuple(rest[0]) if rest else ()
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="NAME")
-    for name, (_, _, help_) in COMMANDS.items():
+    for name in COMMANDS:
+        _, _, help_, extra = _entry(name)
         s = sub.add_parser(name, help=help_, description=help_)
         s.add_argument("--quick", action="store_true", help="small sizes, for tests and smoke runs")
         s.add_argument("--json", action="store_true", help="print the summary as JSON")
         s.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
         s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-        for flag, kwargs in EXTRA_ARGS.get(name, ()):
-            s.add_argument(flag, **kwargs)
+        for flags, kwargs in extra:
+            s.add_argument(*flags, **kwargs)
     return p
 
 
@@ -78,14 +97,12 @@ def output_dir(out: Path, command: str) -> Path:
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
     args = _parser().parse_args(argv)
-    module, func, _ = COMMANDS[args.command]
+    module, func, _, extra = _entry(args.command)
     mod = importlib.import_module(module)
     run = getattr(mod, func)
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
-    extra = {flag.lstrip("-").replace("-", "_"): None for flag, _ in EXTRA_ARGS.get(args.command, ())}
-    extra = {k: getattr(args, k) for k in extra}
     opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed,
-                   extra=extra)
+                   extra={kw["dest"]: getattr(args, kw["dest"]) for _, kw in extra})
     opts.out.mkdir(parents=True, exist_ok=True)
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():

@@ -34,15 +34,16 @@ from tqdm import tqdm
 
 import synthesis
 import unfalsify as uf
+from synthesis._validation import DataError
 
 from ._servo import design_weights
 from .chapter7 import worst_phase_allpass
-from .plants import nonminimum_phase, resonant, servo, third_order
+from .plants import PLANT_CATALOGUE, nonminimum_phase, resonant, servo, third_order
 from .report import Report, finish_report, write_csv, write_json
 from .signals import prbs
 from .simulate import collect_data
 
-__all__ = ["run", "run_case", "PIPELINE_PLANTS", "Config"]
+__all__ = ["run", "run_case", "plant_and_weights", "PIPELINE_PLANTS", "Config"]
 
 #: The 10 Hz plants of this experiment: name -> factory.
 PIPELINE_PLANTS = {
@@ -88,13 +89,36 @@ def _true_loop(P, K, delta: float, tracking_floor: float) -> dict:
     return out
 
 
+def plant_and_weights(plant: str):
+    """``(P, W1, W2)`` for a key of :data:`PIPELINE_PLANTS` or :data:`experiments.plants.PLANT_CATALOGUE`.
+
+    The 10 Hz plants use the §5.4 weights W11/W21; the 64 Hz three-disk plant the Ch. 6 weights of
+    :mod:`experiments._torsional` (collocated ``y1``: §6.3; ``y3``: §6.2).
+    """
+    if plant in PIPELINE_PLANTS:
+        P = PIPELINE_PLANTS[plant]()
+    elif plant in PLANT_CATALOGUE:
+        P = PLANT_CATALOGUE[plant][0]()
+    else:
+        raise DataError(f"unknown plant {plant!r}; use one of {sorted(set(PIPELINE_PLANTS) | set(PLANT_CATALOGUE))}")
+    if plant.startswith("three_disk"):
+        from ._torsional import weights
+
+        W1, W2 = weights("noncollocated" if plant.endswith("y3") else "collocated", float(P.dt))
+    else:
+        W = design_weights(float(P.dt))
+        W1, W2 = W["W11"], W["W21"]
+    return P, W1, W2
+
+
 def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) -> dict:
     """One run of the pipeline and its true-plant check; a JSON-serialisable dict.
 
     Parameters
     ----------
     plant : str
-        A key of :data:`PIPELINE_PLANTS`.
+        A key of :data:`PIPELINE_PLANTS` or :data:`experiments.plants.PLANT_CATALOGUE` (weights by
+        :func:`plant_and_weights`).
     seed : int
         Seeds the PRBS (``seed``) and the noises (``seed + 100``).
     i, j : int
@@ -102,10 +126,8 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     sigma_ratio : float
         σ of (7.5) as a fraction of the predictor's residual rms on the window.
     """
-    P = PIPELINE_PLANTS[plant]()
+    P, W1, W2 = plant_and_weights(plant)
     dt = float(P.dt)
-    W = design_weights()
-    W1, W2 = W["W11"], W["W21"]
     data = collect_data(P, prbs(RECORD, seed=seed), process_noise=NOISE, sensor_noise=NOISE, seed=seed + 100)
     u, y = data.u[:, 0], data.y[:, 0]
     n = 2 * i + j - 1

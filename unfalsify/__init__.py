@@ -2,7 +2,8 @@
 
 * :func:`unfalsified_gain` -- Theorem 7.1 (smallest H∞ gain explaining SISO data);
 * :func:`arx_unfalsify` -- ARX uncertainty model, program (7.4);
-* :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5);
+* :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5) (``executor=``: split by columns,
+  :func:`split_solve`);
 * :func:`robust_design_from_data` -- §7.4 steps 1–5 (δ → additive-uncertainty H∞ design).
 """
 from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
@@ -10,6 +11,7 @@ from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
+from .split import split_solve
 from .model import predictor_model
 from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics
 from .robust import (
@@ -51,6 +53,7 @@ __all__ = [
     "SubspaceResult",
     "subspace_data",
     "subspace_unfalsify",
+    "split_solve",
     "predictor_model",
     "LoopCertificate",
     "StepMetrics",

@@ -378,6 +378,7 @@ def subspace_unfalsify(
     tol: float = 1e-6,
     time_limit: float | None = None,
     progress: bool = True,
+    executor=None,
 ) -> SubspaceResult:
     """Smallest δ bounding the column operators ``Δ_k`` that unfalsify the subspace model: (7.5).
 
@@ -403,6 +404,11 @@ def subspace_unfalsify(
         See :func:`unfalsify.arx_unfalsify`.
     tol, time_limit, progress
         Structured backend, as for :func:`unfalsify.arx_unfalsify`.
+    executor : concurrent.futures.Executor, optional
+        With ``predictor`` fixed, (7.5) splits by columns: blocks of columns are solved as tasks
+        on this executor (local processes, ``distributed.Client.get_executor()``, …) and the
+        one-dimensional outer problem in δ here (:mod:`unfalsify.split`); ``backend`` is then
+        ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate as serial.
 
     Returns
     -------
@@ -441,7 +447,14 @@ def subspace_unfalsify(
             IllConditionedWarning,
             stacklevel=2,
         )
-    if backend == "cvxpy":
+    if executor is not None:
+        if predictor is None or form != "conditioned":
+            raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
+                            "form='conditioned': pass predictor=... (e.g. synthesis.fit_predictor(u, y, i))")
+        from .split import solve_split_problem
+
+        out, backend = solve_split_problem(P, executor), "split"
+    elif backend == "cvxpy":
         out = _solve_cvxpy(P, form, eliminate_L, solver, solver_options)
     else:
         out = _solve_structured(P, float(tol), time_limit, progress)
