@@ -132,6 +132,7 @@ def test_certificate_refuses_mismatched_systems(designed):
 
 # ------------------------------------------------------------------------------------------------
 # the pipeline on plants it was not designed on: the invariant, on the true plant
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", ["third_order", "resonant", "nonminimum_phase", "servo"])
 def test_pipeline_invariant_on_true_plants(plant):
     runs = [run_case(plant, seed, 10, 30) for seed in (0, 1)]
