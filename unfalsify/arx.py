@@ -366,14 +366,19 @@ def _solve_structured(P: ArxProblem, tol: float, time_limit, progress: bool) -> 
                 problem=None, v=v, W=W)
 
 
-def _finish_structured(status: str, what: str, cert_gap: float) -> None:
+def _finish_structured(status: str, what: str, cert, delta: float) -> float:
+    """δ of a structured solve (NaN unless it ended with a bracket) and the warning for a non-optimal status."""
+    if status not in ("optimal", "time_limit", "interrupted") or not np.isfinite(cert.upper_bound):
+        delta = float("nan")
     if status != "optimal":
+        gap = cert.relative_gap
         warnings.warn(
             f"{what}: structured backend stopped with status '{status}'"
-            + (f"; the certified bracket has relative gap {cert_gap:.3g}" if np.isfinite(cert_gap) else ""),
+            + (f"; the certified bracket has relative gap {gap:.3g}" if np.isfinite(gap) else ""),
             SolverWarning,
             stacklevel=3,
         )
+    return delta
 
 
 def arx_unfalsify(
@@ -462,9 +467,7 @@ def arx_unfalsify(
     cert = certify(P, out["delta"], out["h"], out["theta"], out["v"], out["W"])
     delta = out["delta"]
     if backend == "structured":
-        if out["status"] not in ("optimal", "time_limit", "interrupted") or not np.isfinite(cert.upper_bound):
-            delta = float("nan")
-        _finish_structured(out["status"], f"ARX unfalsification (n={P.n})", cert.relative_gap)
+        delta = _finish_structured(out["status"], f"ARX unfalsification (n={P.n})", cert, delta)
     Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
     xi = (Phi @ out["theta"] if P.na + P.nb else 0.0) + Y - _conv_cols(P.u[:, None], out["h"][:, None])[:, 0]
     return ArxResult(

@@ -463,9 +463,7 @@ def subspace_unfalsify(
     cert = certify(P, out["delta"], out["H"], out["L"], out["v"], out["W"])
     delta = out["delta"]
     if backend == "structured":
-        if out["status"] not in ("optimal", "time_limit", "interrupted") or not np.isfinite(cert.upper_bound):
-            delta = float("nan")
-        _finish_structured(out["status"], f"subspace unfalsification (i={i}, j={j})", cert.relative_gap)
+        delta = _finish_structured(out["status"], f"subspace unfalsification (i={i}, j={j})", cert, delta)
     L_out = out["L"]
     return SubspaceResult(
         delta=delta,
