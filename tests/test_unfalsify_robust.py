@@ -31,9 +31,9 @@ def setup():
     u, y = data.u[:n], data.y[:n]
     A, Uf, Yf = uf.subspace_data(u, y, I)
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
-    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred,
-                                     predictor_for=lambda h: synthesis.fit_predictor(data.u, data.y, h))
-    return dict(W1=W1, W2=W2, pred=pred, u=u, y=y, res=res, plant=servo())
+    pfor = lambda h: synthesis.fit_predictor(data.u, data.y, h)  # noqa: E731 - reference models at other horizons
+    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, predictor_for=pfor)
+    return dict(W1=W1, W2=W2, pred=pred, u=u, y=y, res=res, plant=servo(), pfor=pfor)
 
 
 def test_unfalsification_is_certified_and_positive(setup):
@@ -143,7 +143,7 @@ def test_zero_delta_gives_the_nominal_design(setup):
 
     unf = dataclasses.replace(setup["res"].unfalsification, delta=0.0)
     r0 = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], 0.01,
-                                    predictor=setup["pred"], unfalsification=unf)
+                                    predictor=setup["pred"], unfalsification=unf, predictor_for=setup["pfor"])
     assert r0.w3_gain == 0.0
     # no uncertainty channel at all (W3 = 0 alone would keep W4's s → z_w1 path, Thm 3.7)
     assert r0.design.uncertainty is None
@@ -183,13 +183,13 @@ def test_uncertified_delta_is_raised_to_the_certified_value_and_warned(setup):
     assert not low.certificate.ok()
     with pytest.warns(uf.SolverWarning, match="not certified"):
         r = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], unf.sigma,
-                                       predictor=setup["pred"], unfalsification=low)
+                                       predictor=setup["pred"], unfalsification=low, predictor_for=setup["pfor"])
     assert r.delta == pytest.approx(unf.certificate.delta_certified, rel=1e-12)
     assert r.covered_delta == pytest.approx((1 + r.margin) * r.delta, rel=1e-8)
     with warnings.catch_warnings():  # a certified answer is used as is, silently
         warnings.simplefilter("error", uf.SolverWarning)
         r2 = uf.robust_design_from_data(setup["u"], setup["y"], I, setup["W1"], setup["W2"], unf.sigma,
-                                        predictor=setup["pred"], unfalsification=unf)
+                                        predictor=setup["pred"], unfalsification=unf, predictor_for=setup["pfor"])
     assert r2.delta == unf.delta
 
 
