@@ -60,6 +60,7 @@ def _close(a, b, rtol=1e-9):
 
 
 # --------------------------------------------------------------------------- sweep
+@pytest.mark.slow
 @needs_dask
 def test_sweep_on_cluster_equals_serial(client, tmp_path):
     serial = [sw.case_task(c) for c in CASES]
@@ -73,6 +74,7 @@ def test_sweep_on_cluster_equals_serial(client, tmp_path):
         assert {"plant", "seed", "i", "j", "sigma", "delta", "certified"} <= c.keys()
 
 
+@pytest.mark.slow
 @needs_dask
 def test_failing_case_is_reported_and_sweep_goes_on(client, tmp_path):
     cases = [sw.Case("no_such_plant", 0, 5, 20, 0.5), CASES[0]]
@@ -92,6 +94,7 @@ def _die_on_seed_1(case):
             "certified": False}
 
 
+@pytest.mark.slow
 def test_lost_worker_cases_reported_failed(tmp_path):
     cases = [sw.Case("servo", s, 5, 20, 0.5) for s in range(3)]
     import multiprocessing
@@ -122,6 +125,7 @@ def test_resume_skips_finished_cases(tmp_path):
     assert s["done"] == 3 and s["certified"] == 3
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_errors_in_time():
     pytest.importorskip("distributed", reason="dask.distributed not installed: pip install -e '.[distributed]'")
     with socket.socket() as sock:  # a closed loopback port
@@ -188,12 +192,14 @@ def _check_split(res, ref):
     assert cert.relative_gap < 1e-5
 
 
+@pytest.mark.slow
 def test_split_in_threads_equals_serial(small_problem):
     u, y, pred, ref = small_problem
     with cf.ThreadPoolExecutor(2) as ex:
         _check_split(uf.subspace_unfalsify(u, y, 4, 0.05, predictor=pred, executor=ex), ref)
 
 
+@pytest.mark.slow
 @needs_dask
 def test_split_on_cluster_equals_serial(client, small_problem):
     u, y, pred, ref = small_problem

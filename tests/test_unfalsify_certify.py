@@ -78,6 +78,7 @@ def designed():
     return P, pred, uf.predictor_model(pred, P.dt), K
 
 
+@pytest.mark.slow
 def test_certificate_small_gain_against_direct_evaluation(designed):
     _, _, Ph, K = designed
     cert = uf.certify_loop(Ph, K, 0.05)
