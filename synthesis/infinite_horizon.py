@@ -364,7 +364,7 @@ def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsil
         if not final:
             # inner bisection steps: the pencil test without the rounding allowance (half the cost); the
             # controller returned is built by a final attempt whose level is proven
-            if not _norm_below(sys, g * (1 + 1e-8), allowance=False):
+            if not _norm_below(sys, g * (1 + 1e-8), n_grid=2, allowance=False):
                 return None
             return Kd, sys, None, None
         br = hinf_norm(sys)  # proven upper side, with the allowance
