@@ -146,7 +146,10 @@ def loop_parts(plant, controller):
 
 def closed_loop_ry(plant, controller) -> control.StateSpace:
     """Noise-free closed loop ``r → y`` of ``y = P u``, ``u = C_r r + C_y y`` (controller inputs ``[r; y]``)."""
-    P, C, l = loop_parts(plant, controller)
+    return _closed_loop_ry(*loop_parts(plant, controller))
+
+
+def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     return control.feedback(P, C[:, l:], sign=+1) * C[:, :l]
 
 
@@ -216,7 +219,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
                                norm=None, small_gain=float("inf"), step=None, **common)
     bracket = hinf_norm(M, tol=tol)
     small_gain = float(delta) * bracket.upper if delta > 0 else 0.0
-    step = step_metrics(closed_loop_ry(P, C), int(step_samples))
+    step = step_metrics(_closed_loop_ry(P, C, l), int(step_samples))
     reason = ""
     if not math.isfinite(bracket.upper):
         reason = f"‖K(I+P̂K)⁻¹‖∞ not proven finite ({bracket.reason})"

@@ -44,6 +44,7 @@ so (:class:`NotCertifiedWarning`) when nothing certifies.  With a plant model in
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import numbers
@@ -508,22 +509,34 @@ def robust_design_from_data(
     if w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
 
+    # the search revisits horizons and (horizon, causal, γ ratio) triples with other W3 factors: fit each
+    # predictor and solve each fixed point once
+    predictors = {i: pred}
+
+    @functools.lru_cache(maxsize=None)
+    def fixed_point(h, cz, ratio):
+        if w3_rule == "thesis":
+            return 1.0 / delta
+        return additive_weight_fixed_point(predictor_at(h), W1, W2, delta, gamma_ratio=ratio, margin=margin,
+                                           causal=cz, dt=dt)
+
+    def predictor_at(h):
+        if h not in predictors:
+            predictors[h] = _predictor_at(h, u, y, predictor, predictor_for)
+        return predictors[h]
+
     def build(h, cz, ratio, factor):
-        p = pred if h == i else _predictor_at(h, u, y, predictor, predictor_for)
-        if w3_rule == "small-gain":
-            c = additive_weight_fixed_point(p, W1, W2, delta, gamma_ratio=ratio, margin=margin, causal=cz, dt=dt)
-        else:
-            c = 1.0 / delta
+        c = factor * fixed_point(h, cz, ratio)
         # δ = 0: no uncertainty at all, the nominal design.  (W3 = 0 alone would not do: W4 = I keeps
         # the channel s → z_w1 of Fig. 3.5, so γ_min_a(c → 0) stays above the nominal γ_min.)
-        return _design(p, W1, W2, delta, c=factor * c, gamma_ratio=ratio, causal=cz, dt=dt), factor * c
+        return _design(predictor_at(h), W1, W2, delta, c=c, gamma_ratio=ratio, causal=cz, dt=dt), c
 
     first, c0 = build(i, bool(causal), gamma_ratio, 1.0)
     model = predictor_model(pred, first.dt)
     ref_h = 2 * i if reference_horizon is None else int(reference_horizon)
     ref_model, ref_note = None, ""
     try:
-        ref_model = predictor_model(_predictor_at(ref_h, u, y, predictor, predictor_for), first.dt)
+        ref_model = predictor_model(predictor_at(ref_h), first.dt)
     except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
         ref_note = (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
                     "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)")
