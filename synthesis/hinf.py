@@ -33,7 +33,7 @@ import numpy as np
 from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, check_level, check_sample_time
 from .controller import WeightState, lti_controller
-from .minimax import minimax_gamma_min, solve_minimax
+from .minimax import _gains, _level, _saddle, _warn_near, minimax_gamma_min
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
 from ._repr import result
 
@@ -194,11 +194,15 @@ def _weights(pred_m, pred_l, W1, W2, uncertainty, data_dt=None):
 class _MapPlan:
     """The parts of a law that do not depend on the predictor, computed once per weights and horizon.
 
-    The performance map is affine in ``(L_w, L_u)``: ``template`` is the map at ``L_w = 0``,
-    ``L_u = 0`` (Markov Toeplitz and observability blocks of the weights, (3.10)–(3.12)), and
-    :meth:`fill` adds the predictor terms ``−H1 L_u``, ``−H1 L_w`` (and ``H3 L_u``, ``H3 L_w``
-    for the multiplicative law, (3.49)) — two matrix products per update in the adaptive loop of
-    §5.3 instead of rebuilding the Toeplitz matrices.
+    The performance map is affine in ``(L_w, L_u)`` through one fixed block ``B`` (the predictor
+    enters only as ``ŷ = L_w w_p + L_u u``, (3.20)): ``M_u = M_u⁰ + B L_u`` and the ``w_p`` columns
+    of ``M_x`` are ``B L_w``, with ``B = [−H1; 0]`` ((3.21), Thm 3.2, Thm 3.7) or ``[−H1; 0; H3]``
+    (multiplicative, (3.49)).  ``template`` is the map at ``L_w = 0``, ``L_u = 0`` (Markov Toeplitz
+    and observability blocks of the weights, (3.10)–(3.12)).  :meth:`fill` adds the predictor
+    terms — two matrix products per update in the adaptive loop of §5.3 instead of rebuilding the
+    Toeplitz matrices — and :func:`_design_from_plan` solves the game for the columns
+    ``reduced_Mx = [M_x without w_p | B]`` only (the saddle-point gains are linear in ``M_x``, so
+    the ``w_p`` gain is the ``B`` gain times ``L_w``: ``i·l`` columns solved instead of ``i(m+l)``).
     """
 
     i: int
@@ -215,21 +219,42 @@ class _MapPlan:
     H3: np.ndarray | None  # multiplicative law only
     wp_col: int  # first column of w_p in M_x
     weight_states: tuple
+    reduced_Mx: np.ndarray  # [M_x columns other than w_p | B], read-only
+
+    @property
+    def wp(self) -> slice:
+        """Columns of ``w_p`` in ``M_x`` (and in the gains)."""
+        return slice(self.wp_col, self.wp_col + self.i * (self.m + self.l))
+
+    def control_map(self, Lu: np.ndarray) -> np.ndarray:
+        """``M_u = M_u⁰ + B L_u`` (a new array)."""
+        Mu = self.template.Mu.copy()
+        p1 = self.H1.shape[0]
+        Mu[:p1] += -self.H1 @ Lu
+        if self.H3 is not None:
+            Mu[-self.H3.shape[0]:] += self.H3 @ Lu
+        return Mu
 
     def fill(self, Lw: np.ndarray, Lu: np.ndarray) -> PerformanceMap:
         """The performance map for the predictor ``(L_w, L_u)`` (equal to :func:`_build_map`'s)."""
         t = self.template
         p1 = self.H1.shape[0]
-        Mu = t.Mu.copy()
         Mx = t.Mx.copy()
-        wp = slice(self.wp_col, self.wp_col + Lw.shape[1])
-        Mu[:p1] += -self.H1 @ Lu
+        wp = self.wp
         Mx[:p1, wp] += -self.H1 @ Lw
         if self.H3 is not None:
-            p3 = self.H3.shape[0]
-            Mu[-p3:] += self.H3 @ Lu
-            Mx[-p3:, wp] += self.H3 @ Lw
-        return PerformanceMap(t.Md, Mu, Mx, t.disturbances, t.columns)
+            Mx[-self.H3.shape[0]:, wp] += self.H3 @ Lw
+        return PerformanceMap(t.Md, self.control_map(Lu), Mx, t.disturbances, t.columns)
+
+    def expand(self, G: np.ndarray, Lw: np.ndarray) -> np.ndarray:
+        """Gain on the columns of ``M_x`` from the gain ``G`` on :attr:`reduced_Mx`: ``w_p`` block ``G_B L_w``."""
+        wp, nb = self.wp, self.i * self.l
+        n_other = G.shape[1] - nb
+        out = np.empty((G.shape[0], self.template.Mx.shape[1]))
+        out[:, : wp.start] = G[:, : wp.start]
+        out[:, wp.stop:] = G[:, wp.start: n_other]
+        np.matmul(G[:, n_other:], Lw, out=out[:, wp])
+        return out
 
 
 def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _MapPlan:
@@ -238,14 +263,26 @@ def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _M
     kind = type(uncertainty) if unc else None
     zero_w, zero_u = np.zeros((i * l, i * (m + l))), np.zeros((i * l, i * m))
     template = _build_map(zero_w, zero_u, i, m, l, W1s, W2s, kind, unc, bool(causal))
-    template.Md.flags.writeable = False  # shared by every map filled from this plan
+    H1 = markov_toeplitz(W1s, i)
     H3 = markov_toeplitz(unc[0], i) if kind is Multiplicative else None
+    # B: the predictor-term block (module docstring of _MapPlan); the w_p columns of the template are 0
+    B = np.zeros((template.Mu.shape[0], i * l))
+    B[: H1.shape[0]] = -H1
+    if H3 is not None:
+        B[-H3.shape[0]:] = H3
+    wp_col = l if causal else 0
+    wp = slice(wp_col, wp_col + i * (m + l))
+    if np.any(template.Mx[:, wp]):  # pragma: no cover - a structural fact of _build_map
+        raise AssertionError("the w_p columns of the performance map must vanish at L_w = 0")
+    reduced = np.hstack([template.Mx[:, : wp.start], template.Mx[:, wp.stop:], B])
+    for a in (template.Md, reduced):
+        a.flags.writeable = False  # shared by every map filled from this plan
     ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]
     if unc is not None:
         ws.append(_weight_state("x_w3", unc[0], "y" if kind is Multiplicative else "u"))
     return _MapPlan(i=i, m=m, l=l, causal=bool(causal), kind=kind, W1=W1s, W2=W2s, unc=unc, dt=dt,
-                    template=template, H1=markov_toeplitz(W1s, i), H3=H3, wp_col=l if causal else 0,
-                    weight_states=tuple(ws))
+                    template=template, H1=H1, H3=H3, wp_col=wp_col, weight_states=tuple(ws),
+                    reduced_Mx=reduced)
 
 
 def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
@@ -392,21 +429,27 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
 def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
     """The design for ``pred`` (already checked: ``Lw``, ``Lu``) from a :class:`_MapPlan`.
 
-    The map is :meth:`_MapPlan.fill`, the gains :func:`solve_minimax` (one factorisation for
-    ``γ_min``, the policy and the gains); the ``control.StateSpace`` is deferred.
+    One saddle factorisation (:func:`synthesis.minimax._saddle`: QR of ``M_u = M_u⁰ + B L_u``,
+    ``γ_min``) for ``γ_min``, the policy and the gains; the gains are solved for
+    :attr:`_MapPlan.reduced_Mx` and expanded (:meth:`_MapPlan.expand`), so they equal
+    ``solve_minimax`` on the full map (:meth:`_MapPlan.fill`) to rounding and ``γ_min`` equals
+    :func:`gamma_min`'s to the last bit.  The ``control.StateSpace`` is deferred.
     """
     if (Lw.shape, Lu.shape) != ((plan.i * plan.l, plan.i * (plan.m + plan.l)), (plan.i * plan.l, plan.i * plan.m)):
         raise DataError(f"predictor shapes Lw {Lw.shape}, Lu {Lu.shape} do not match the plan's "
                         f"(i, m, l) = {(plan.i, plan.m, plan.l)}")
-    pm = plan.fill(Lw, Lu)
-    sol = solve_minimax(pm.Md, pm.Mu, pm.Mx, gamma)
+    sd = _saddle(plan.template.Md, plan.control_map(Lu), plan.reduced_Mx)
+    level = _level(gamma, sd)
+    _warn_near(level, sd.gamma_min, stacklevel=3)
+    u_gain, d_gain, _ = _gains(sd, level)
     unc = plan.unc
     design = HinfDesign(
         predictor=pred, W1=plan.W1, W2=plan.W2,
         uncertainty=None if unc is None else plan.kind(unc[0], unc[1]),
         horizon=plan.i, m=plan.m, l=plan.l, causal=plan.causal, dt=plan.dt,
-        gamma=sol.gamma, gamma_min=sol.gamma_min, gain=sol.u_gain, disturbance_gain=sol.d_gain,
-        columns=pm.columns, disturbances=pm.disturbances, weight_states=plan.weight_states,
+        gamma=level, gamma_min=sd.gamma_min, gain=plan.expand(u_gain, Lw),
+        disturbance_gain=plan.expand(d_gain, Lw), columns=plan.template.columns,
+        disturbances=plan.template.disturbances, weight_states=plan.weight_states,
         controller=_Deferred(lti_controller, with_owner=True),
     )
     return design

@@ -259,11 +259,12 @@ def _factor_singular_values(R1: np.ndarray) -> np.ndarray:
 #: warm-started updates of the §6.3 benchmark, 0.95 cold); it covers a shortfall of up to 20 %.
 #: (With 2 instead, the first §6.3 windows, κ₂·rcond ≈ 0.4–0.5, fell back to the 4× slower route.)
 _CERT_MARGIN = 1.25
-#: Block power-iteration steps of :func:`_norm2_estimate` for ``R1`` (whose dominant singular
-#: value is well separated) and ``R1⁻¹``: from 4 pseudo-random start vectors, and when warm
-#: started from the previous dominant vectors (recursive predictor, §2.3.1: the window changes
-#: little between updates).
-_POWER_STEPS = {"cold": (3, 5), "warm": (1, 3)}
+#: Products with ``S = R1 R1ᵀ`` and with ``S⁻¹`` in :func:`_eig_max_estimate` (block power iteration):
+#: from 4 pseudo-random start vectors, and when warm started from the previous dominant vectors
+#: (recursive predictor, §2.3.1: the window changes little between updates).  ``k`` products give
+#: the Rayleigh quotient of ``S^(2k−1)`` (ratio ``(λ₂/λ₁)^(2k−2)`` from a random start), as the
+#: ``k − 1`` steps on ``R1ᵀR1`` plus one half step of the route before (``(3, 5)`` / ``(1, 3)`` steps).
+_POWER_PRODUCTS = {"cold": (4, 6), "warm": (2, 4)}
 _START_VECTORS: dict = {}
 
 
@@ -274,28 +275,27 @@ def _start_block(n: int) -> np.ndarray:
     return V
 
 
-def _norm2_estimate(apply, apply_t, steps: int, V: np.ndarray):
-    """``‖X‖₂`` from below by block power iteration on ``XᵀX`` from the start block ``V``.
+def _eig_max_estimate(apply, products: int, V: np.ndarray):
+    """``λ_max(S)`` of a symmetric positive (semi)definite ``S`` from below, by block power iteration.
 
-    ``apply(V) = X V`` and ``apply_t(W) = Xᵀ W`` (for ``X = R1⁻¹`` two triangular solves, so the
-    inverse is never formed).  Returns the estimate and the iterate with the largest Rayleigh
-    quotient (a warm start for the next call).  The Rayleigh quotient never exceeds ``‖X‖₂²``;
-    from a random start it is within a few per cent of it after a handful of steps unless the
-    start is (improbably) deficient in the dominant direction.  Deterministic: the random part of
-    the start is seeded and cached per size.
+    ``apply(V) = S V``.  ``products`` (≥ 1) products with ``S``; the estimate is the largest
+    Rayleigh quotient ``vᵀSv / vᵀv`` of the columns before the last product, which never exceeds
+    ``λ_max``, and is within a few per cent of it after a handful of products from a random start
+    unless the start is (improbably) deficient in the dominant direction.  Columns are normalised
+    after every product (no overflow for any finite ``S``).  Returns the estimate and the column
+    with the largest quotient (a warm start for the next call); ``nan, None`` if an iterate is not
+    finite.  Deterministic: the random part of the start is seeded and cached per size.
     """
     with np.errstate(all="ignore"):  # a zero or non-finite iterate only makes the estimate NaN
         V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
-        for _ in range(steps):
-            V = apply(V)  # normalised every half step: no overflow for any finite X
-            V = apply_t(V / np.sqrt(np.einsum("ij,ij->j", V, V)))
-            V = V / np.sqrt(np.einsum("ij,ij->j", V, V))
-        W = apply(V)
-        q = np.einsum("ij,ij->j", W, W)
+        for _ in range(products - 1):
+            W = apply(V)
+            V = W / np.sqrt(np.einsum("ij,ij->j", W, W))
+        q = np.einsum("ij,ij->j", V, apply(V))
     if not np.all(np.isfinite(q)):
         return float("nan"), None
     k = int(np.argmax(q))
-    return float(np.sqrt(q[k])), V[:, k].copy()
+    return float(q[k]), V[:, k].copy()
 
 
 def _trsolve(R1, B, trans: int = 0):
@@ -304,14 +304,23 @@ def _trsolve(R1, B, trans: int = 0):
     return X if info == 0 else np.full(np.shape(B), np.nan)
 
 
+def _gram_inverse_apply(R1: np.ndarray):
+    """``V ↦ (R1 R1ᵀ)⁻¹ V`` by two triangular solves (LAPACK ``dpotrs``); NaN if ``R1`` is singular."""
+    def apply(V):
+        X, info = lapack.dpotrs(R1, V, lower=1)
+        return X if info == 0 else np.full(np.shape(V), np.nan)
+    return apply
+
+
 def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) -> bool:
     """True if the lower-triangular ``R1`` is well conditioned relative to ``rcond``.
 
     ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  Its condition
-    number ``κ₂(R1) = σ₁/σ_min`` is estimated by block power iteration on ``R1`` and on ``R1⁻¹``
-    (:func:`_norm2_estimate`; ``R1⁻¹`` applied by triangular solves, ``O(n²)`` per step, never
-    formed; a lower bound within a few per cent on the §6.3 data; ``warm``, a dict the caller
-    keeps between calls, carries the dominant vectors over so that fewer steps are needed).
+    number ``κ₂(R1) = σ₁/σ_min = √(λ_max(S) λ_max(S⁻¹))``, ``S = R1 R1ᵀ``, is estimated by block
+    power iteration on ``S`` and on ``S⁻¹`` (:func:`_eig_max_estimate`; ``S`` applied as ``R1 (R1ᵀ V)``,
+    ``S⁻¹`` by two triangular solves in one LAPACK call, ``O(n²)`` per vector, never formed; a lower bound within a
+    few per cent on the §6.3 data; ``warm``, a dict the caller keeps between calls, carries the
+    dominant vectors over so that fewer products are needed).
     When ``κ₂ · rcond`` is below ``1/1.25`` no singular value falls below ``rcond·σ₁``: the
     rank-revealing pseudo-inverse of §2.2 keeps all of them (``q = i(2m+l)``) and equals
     ``R3 R1⁻¹``; its input part ``[U_p; U_f]`` (a subset of rows, whose singular values
@@ -327,14 +336,15 @@ def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) ->
     limit = 1.0 / (rcond * _CERT_MARGIN) if rcond > 0 else np.inf
     V0 = _start_block(n_reg)
     prev = warm.get(n_reg) if warm is not None else None
-    steps = _POWER_STEPS["cold" if prev is None else "warm"]
+    products = _POWER_PRODUCTS["cold" if prev is None else "warm"]
     V1 = V0 if prev is None else np.column_stack([prev[0], V0[:, 1:]])
     V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
-    s1, v1 = _norm2_estimate(lambda V: R1 @ V, lambda W: R1.T @ W, steps[0], V1)
-    si, vi = _norm2_estimate(lambda V: _trsolve(R1, V, 1), lambda W: _trsolve(R1, W, 0), steps[1], V2)
+    l1, v1 = _eig_max_estimate(lambda V: R1 @ (R1.T @ V), products[0], V1)
+    li, vi = _eig_max_estimate(_gram_inverse_apply(R1), products[1], V2)
     if warm is not None and v1 is not None and vi is not None:
         warm[n_reg] = (v1, vi)
-    kappa = s1 * si
+    with np.errstate(all="ignore"):
+        kappa = np.sqrt(l1 * li)
     return bool(np.isfinite(kappa) and kappa < limit)
 
 
