@@ -152,8 +152,9 @@ class AdaptiveHinf:
         self._design_kwargs = dict(design_kwargs)
         self.samples_seen = 0
         self.history: list[AdaptiveUpdate] = []
-        self._u_buf: list[np.ndarray] = []
-        self._y_buf: list[np.ndarray] = []
+        # samples observed since the last update, [u y] per row (grown by doubling)
+        self._z_buf = np.empty((min(self.period, 256), predictor.m + predictor.l))
+        self._n_buf = 0
         self._warned = False
         # the weights do not change between updates: validate them and build their Toeplitz /
         # observability blocks once (§5.3: only (Lw, Lu) change)
@@ -204,10 +205,10 @@ class AdaptiveHinf:
     def update(self) -> AdaptiveUpdate:
         """Push the buffered samples into the predictor, recompute and swap in the gains now."""
         t0, c0 = time.perf_counter(), time.thread_time()
-        if self._u_buf:
-            self.recursive.push(np.vstack(self._u_buf), np.vstack(self._y_buf))
-            self._u_buf.clear()
-            self._y_buf.clear()
+        if self._n_buf:
+            # observe() stored the samples the controller validated (finite, right sizes)
+            self.recursive._push_samples(self._z_buf[: self._n_buf])
+            self._n_buf = 0
         design, record = self._design(step=self.samples_seen, t0=t0, t_push=time.perf_counter() - t0, c0=c0)
         self.controller.set_design(design)
         self.history.append(record)
@@ -225,10 +226,14 @@ class AdaptiveHinf:
 
     def observe(self, u_k, y_k, r_k=None) -> None:
         """Record ``u_k``, measured ``y_k`` and ``r_k``; update the design every ``period`` samples."""
-        self.controller.observe(u_k, y_k, r_k)
-        d = self.controller.design
-        self._u_buf.append(np.asarray(u_k, dtype=float).reshape(1, d.m))
-        self._y_buf.append(np.asarray(y_k, dtype=float).reshape(1, d.l))
+        self.controller.observe(u_k, y_k, r_k)  # validates u_k, y_k (finite, m and l values)
+        m = self.recursive.m
+        if self._n_buf == self._z_buf.shape[0]:
+            self._z_buf = np.vstack([self._z_buf, np.empty_like(self._z_buf)])
+        row = self._z_buf[self._n_buf]
+        row[:m] = np.reshape(np.asarray(u_k, dtype=float), -1)
+        row[m:] = np.reshape(np.asarray(y_k, dtype=float), -1)
+        self._n_buf += 1
         self.samples_seen += 1
         if self.samples_seen % self.period == 0:
             self.update()

@@ -220,6 +220,7 @@ class _MapPlan:
     wp_col: int  # first column of w_p in M_x
     weight_states: tuple
     reduced_Mx: np.ndarray  # [M_x columns other than w_p | B], read-only
+    b_is_reference: bool  # B = −(the r columns of [M_x | M_d]): Q_fullᵀB is read off Q_fullᵀ[M_x M_d]
 
     @property
     def wp(self) -> slice:
@@ -234,6 +235,26 @@ class _MapPlan:
         if self.H3 is not None:
             Mu[-self.H3.shape[0]:] += self.H3 @ Lu
         return Mu
+
+    def saddle(self, Lu: np.ndarray):
+        """:func:`synthesis.minimax._saddle` of ``(M_d, M_u, reduced_Mx)`` for the predictor's ``L_u``.
+
+        Without uncertainty and for :class:`Additive`, ``B = [−H1; 0]`` is minus the reference
+        columns of the map (``r`` is the first disturbance block, (3.21); its first ``l`` columns
+        are ``r_k`` in ``M_x`` for the causal law, Thm 3.2), so ``Q_fullᵀ B`` is minus columns of
+        ``Q_fullᵀ M_d`` and ``Q_fullᵀ M_x`` already computed: the reflectors are applied to ``M_d``
+        and the other ``M_x`` columns only (the result is bit-identical: Householder products are
+        odd in their argument).
+        """
+        Md, Mu = self.template.Md, self.control_map(Lu)
+        if not self.b_is_reference:
+            return _saddle(Md, Mu, self.reduced_Mx)
+        nb = self.i * self.l
+        sd = _saddle(Md, Mu, self.reduced_Mx[:, :-nb])
+        k = self.wp_col  # r_k columns (causal law) lead M_x
+        top = -np.hstack([sd.QtMx[:, :k], sd.QtMd])[:, :nb]
+        bottom = -np.hstack([sd.QcMx[:, :k], sd.X])[:, :nb]
+        return dataclasses.replace(sd, QtMx=np.hstack([sd.QtMx, top]), QcMx=np.hstack([sd.QcMx, bottom]))
 
     def fill(self, Lw: np.ndarray, Lu: np.ndarray) -> PerformanceMap:
         """The performance map for the predictor ``(L_w, L_u)`` (equal to :func:`_build_map`'s)."""
@@ -275,6 +296,7 @@ def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _M
     if np.any(template.Mx[:, wp]):  # pragma: no cover - a structural fact of _build_map
         raise AssertionError("the w_p columns of the performance map must vanish at L_w = 0")
     reduced = np.hstack([template.Mx[:, : wp.start], template.Mx[:, wp.stop:], B])
+    b_is_reference = bool(np.array_equal(B, -np.hstack([template.Mx[:, : wp.start], template.Md])[:, : i * l]))
     for a in (template.Md, reduced):
         a.flags.writeable = False  # shared by every map filled from this plan
     ws = [_weight_state("x_w1", W1s, "e"), _weight_state("x_w2", W2s, "u")]
@@ -282,7 +304,7 @@ def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _M
         ws.append(_weight_state("x_w3", unc[0], "y" if kind is Multiplicative else "u"))
     return _MapPlan(i=i, m=m, l=l, causal=bool(causal), kind=kind, W1=W1s, W2=W2s, unc=unc, dt=dt,
                     template=template, H1=H1, H3=H3, wp_col=wp_col, weight_states=tuple(ws),
-                    reduced_Mx=reduced)
+                    reduced_Mx=reduced, b_is_reference=b_is_reference)
 
 
 def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
@@ -429,7 +451,7 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
 def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
     """The design for ``pred`` (already checked: ``Lw``, ``Lu``) from a :class:`_MapPlan`.
 
-    One saddle factorisation (:func:`synthesis.minimax._saddle`: QR of ``M_u = M_u⁰ + B L_u``,
+    One saddle factorisation (:meth:`_MapPlan.saddle`: QR of ``M_u = M_u⁰ + B L_u``,
     ``γ_min``) for ``γ_min``, the policy and the gains; the gains are solved for
     :attr:`_MapPlan.reduced_Mx` and expanded (:meth:`_MapPlan.expand`), so they equal
     ``solve_minimax`` on the full map (:meth:`_MapPlan.fill`) to rounding and ``γ_min`` equals
@@ -438,7 +460,7 @@ def _design_from_plan(pred, Lw, Lu, plan: _MapPlan, gamma) -> HinfDesign:
     if (Lw.shape, Lu.shape) != ((plan.i * plan.l, plan.i * (plan.m + plan.l)), (plan.i * plan.l, plan.i * plan.m)):
         raise DataError(f"predictor shapes Lw {Lw.shape}, Lu {Lu.shape} do not match the plan's "
                         f"(i, m, l) = {(plan.i, plan.m, plan.l)}")
-    sd = _saddle(plan.template.Md, plan.control_map(Lu), plan.reduced_Mx)
+    sd = plan.saddle(Lu)
     level = _level(gamma, sd)
     _warn_near(level, sd.gamma_min, stacklevel=3)
     u_gain, d_gain, _ = _gains(sd, level)

@@ -132,16 +132,18 @@ def _rows_like(M, rows: int, name: str) -> np.ndarray:
 def _qr_u(Mu):
     """Householder QR of M_u (LAPACK ``dgeqrf``) with a check that M_uᵀM_u > 0 (the ``im`` positive eigenvalues).
 
-    Returns the reflectors ``(qr, tau)`` of ``M_u = Q_full [R; 0]`` and the square ``R``; the first
-    ``dim u`` columns of ``Q_full`` span range(M_u), the others (``Qc``) its orthogonal complement.
-    ``Q_full`` is never formed: :func:`_apply_qt` applies ``Q_fullᵀ`` to the other blocks.
+    Returns the reflectors ``(qr, tau)`` of ``M_u = Q_full [R; 0]`` and ``R`` as the leading square
+    block of ``qr`` (its upper triangle; the reflectors below are not read by the upper-triangular
+    solve of :func:`_gains`); the first ``dim u`` columns of ``Q_full`` span range(M_u), the others
+    (``Qc``) its orthogonal complement.  ``Q_full`` is never formed: :func:`_apply_qt` applies
+    ``Q_fullᵀ`` to the other blocks.
     """
     k = Mu.shape[1]
     qr, tau, _, info = lapack.dgeqrf(Mu)
     if info != 0:  # pragma: no cover - an argument error, not a property of the data
         raise ValueError(f"LAPACK dgeqrf: illegal argument {-info}")
-    R = np.triu(qr[:k, :k])
-    d = np.abs(np.diag(R))
+    R = qr[:k, :k]
+    d = np.abs(np.diagonal(R))
     scale = max(np.linalg.norm(Mu), np.finfo(float).tiny)  # Frobenius: cheap upper bound on ‖M_u‖₂
     if Mu.shape[0] < Mu.shape[1] or d.min() <= max(Mu.shape) * np.finfo(float).eps * scale:
         raise DataError(
@@ -168,7 +170,7 @@ _THRESHOLD_SAFETY = 8.0
 class _Saddle:
     """The factorisations every γ decision and every gain is computed from (computed once)."""
 
-    R: np.ndarray
+    R: np.ndarray  # upper triangle: R of M_u = Q R (below it: Householder vectors)
     QtMd: np.ndarray  # Qᵀ M_d (Q: orthonormal basis of range(M_u))
     QtMx: np.ndarray | None  # Qᵀ M_x  (None when only γ_min is wanted)
     QcMx: np.ndarray | None  # Qcᵀ M_x (Qc: orthonormal basis of range(M_u)^⊥)
@@ -282,7 +284,7 @@ _D_ROUTES = ("auto", "cholesky", "svd")
 def _d_gain_cholesky(sd: _Saddle, gamma: float):
     """``(γ²I − XᵀX)⁻¹ Xᵀ (Qcᵀ M_x)`` by Cholesky (LAPACK ``dpotrf``/``dpotrs``); ``None`` if not definite."""
     H = -sd.XtX  # lower triangle of −XᵀX
-    H[np.diag_indices_from(H)] += gamma * gamma
+    np.fill_diagonal(H, H.diagonal() + gamma * gamma)
     C, info = lapack.dpotrf(H, lower=1, overwrite_a=1, clean=0)
     if info != 0:
         return None

@@ -304,18 +304,20 @@ def _trsolve(R1, B, trans: int = 0):
     return X if info == 0 else np.full(np.shape(B), np.nan)
 
 
-def _gram_inverse_apply(R1: np.ndarray):
-    """``V ↦ (R1 R1ᵀ)⁻¹ V`` by two triangular solves (LAPACK ``dpotrs``); NaN if ``R1`` is singular."""
+def _gram_inverse_apply(F: np.ndarray, lower: bool):
+    """``V ↦ S⁻¹ V``, ``S = F Fᵀ`` (``lower``) or ``FᵀF``, by two triangular solves (LAPACK ``dpotrs``); NaN if singular."""
     def apply(V):
-        X, info = lapack.dpotrs(R1, V, lower=1)
+        X, info = lapack.dpotrs(F, V, lower=int(lower))
         return X if info == 0 else np.full(np.shape(V), np.nan)
     return apply
 
 
-def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) -> bool:
+def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None, *, lower: bool = True) -> bool:
     """True if the lower-triangular ``R1`` is well conditioned relative to ``rcond``.
 
-    ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)).  Its condition
+    ``R1 = [R11 0; R21 R22]`` is lower triangular (a Cholesky or QR factor, (2.7)); with
+    ``lower=False`` the argument is ``R1ᵀ`` (upper triangular, e.g. LAPACK's upper Cholesky factor
+    of ``G11``).  Its condition
     number ``κ₂(R1) = σ₁/σ_min = √(λ_max(S) λ_max(S⁻¹))``, ``S = R1 R1ᵀ``, is estimated by block
     power iteration on ``S`` and on ``S⁻¹`` (:func:`_eig_max_estimate`; ``S`` applied as ``R1 (R1ᵀ V)``,
     ``S⁻¹`` by two triangular solves in one LAPACK call, ``O(n²)`` per vector, never formed; a lower bound within a
@@ -339,8 +341,9 @@ def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) ->
     products = _POWER_PRODUCTS["cold" if prev is None else "warm"]
     V1 = V0 if prev is None else np.column_stack([prev[0], V0[:, 1:]])
     V2 = V0 if prev is None else np.column_stack([prev[1], V0[:, 1:]])
-    l1, v1 = _eig_max_estimate(lambda V: R1 @ (R1.T @ V), products[0], V1)
-    li, vi = _eig_max_estimate(_gram_inverse_apply(R1), products[1], V2)
+    apply_s = (lambda V: R1 @ (R1.T @ V)) if lower else (lambda V: R1.T @ (R1 @ V))
+    l1, v1 = _eig_max_estimate(apply_s, products[0], V1)
+    li, vi = _eig_max_estimate(_gram_inverse_apply(R1, lower), products[1], V2)
     if warm is not None and v1 is not None and vi is not None:
         warm[n_reg] = (v1, vi)
     with np.errstate(all="ignore"):
@@ -349,8 +352,9 @@ def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None) ->
 
 
 def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
+    """``L = [Lw Lu]`` (the fields are copied by the constructor); ``R1`` or its transpose, for the singular values."""
     n_reg = i * (2 * m + l)
-    Lw, Lu = _split(L, i, m, l)
+    Lw, Lu = L[:, : i * (m + l)], L[:, i * (m + l):]
     sv = _Deferred(_factor_singular_values, R1)
     return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
 
@@ -384,15 +388,17 @@ def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="a
     ``G11 = R1 R1ᵀ`` (``n = i(2m+l)``, not the whole ``2i(m+l)``), and
     ``[Lw Lu]ᵀ = G11⁻¹ G13 = R1⁻ᵀ R1⁻¹ G13`` by two triangular solves (LAPACK ``dpotrs``) — i.e.
     ``R3 R1⁻¹`` with the ``R3 = G31 R1⁻ᵀ`` a full Cholesky factor would hold, without factoring
-    the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``.
+    the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``: LAPACK factors
+    ``G11ᵀ`` (Fortran order, a plain copy of the C-ordered block) as ``R1ᵀ R1`` through its upper
+    triangle — the same numbers, without the transposing copy of ``G11``.
     """
     n_reg = i * (2 * m + l)
     if method in _GRAM_METHODS and route == "auto":
-        R1, info = lapack.dpotrf(G[:n_reg, :n_reg], lower=1, clean=1)
-        if info == 0 and _well_conditioned(R1, rcond, warm):
-            X, info = lapack.dpotrs(R1, G[n_reg:, :n_reg].T, lower=1)
+        R1t, info = lapack.dpotrf(G[:n_reg, :n_reg].T, lower=0, clean=1)  # upper factor: R1ᵀ
+        if info == 0 and _well_conditioned(R1t, rcond, warm, lower=False):
+            X, info = lapack.dpotrs(R1t, G[n_reg:, :n_reg].T, lower=0)
             if info == 0:
-                return _triangular_predictor(X.T, R1, i, m, l, j, rcond, method)
+                return _triangular_predictor(X.T, R1t, i, m, l, j, rcond, method)
         route = "spectral"  # R1 is not (well) conditioned: the full factor's triangular route would refuse too
     R = _psd_cholesky(G)
     return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm)

@@ -39,7 +39,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import blas
 
 from ._validation import DataError, as_signal, check_horizon
@@ -110,6 +109,7 @@ class RecursivePredictor:
         self._start = 0
         self._end = 0
         self._S = np.zeros((self._N, self._N))  # Gram AAᵀ, or its upper Cholesky factor R (AAᵀ = RᵀR)
+        self._col_index: dict = {}  # gather index of _columns per number of columns
         self._warm: dict = {}  # dominant vectors of R1 and R1⁻¹ from the last predictor() (conditioning check)
 
     # ------------------------------------------------------------------ construction
@@ -180,10 +180,14 @@ class RecursivePredictor:
             raise DataError(
                 f"u_new has {u_new.shape[0]} samples but y_new has {y_new.shape[0]}; push the same number of each"
             )
-        k = u_new.shape[0]
+        return self._push_samples(np.hstack([u_new, y_new]))
+
+    def _push_samples(self, z: np.ndarray) -> "RecursivePredictor":
+        """:meth:`push` of already validated samples ``z = [u y]`` (finite floats, shape (k, m + l))."""
+        k = z.shape[0]
         i = self.horizon
-        seg = np.vstack([self._data()[-(2 * i - 1) :], np.hstack([u_new, y_new])])
-        self._append(np.hstack([u_new, y_new]))
+        seg = np.concatenate([self._data()[-(2 * i - 1) :], z])
+        self._append(z)
         self._j += k
         drop = 0 if self.window is None else max(0, self._j - self.window)
         refresh = self.window is not None and (k + drop > self.window or self._since_refresh + k >= self.window)
@@ -211,7 +215,7 @@ class RecursivePredictor:
                     warnings.warn(
                         f"Cholesky downdate failed ({exc}); refactoring from the {self._j}-column window",
                         RefactorWarning,
-                        stacklevel=2,
+                        stacklevel=3,  # the caller of push()
                     )
                     self._trim()
                     self._recompute()
@@ -260,10 +264,20 @@ class RecursivePredictor:
         self._start = max(self._start, self._end - keep)
 
     def _columns(self, seg: np.ndarray) -> np.ndarray:
-        """Columns of ``A`` (as rows, shape (k, N)) for every 2i-sample window of ``seg``."""
-        i, c = self.horizon, self.m + self.l
-        win = sliding_window_view(seg, 2 * i, axis=0)  # (k, c, 2i)
-        return win.transpose(0, 2, 1).reshape(-1, 2 * i * c)[:, self._perm]
+        """Columns of ``A`` (as rows, shape (k, N)) for every 2i-sample window of ``seg``.
+
+        Window ``t`` of the C-ordered ``seg`` is its flat slice ``[t·c, t·c + N)`` in the
+        interleaved order of :func:`~synthesis.hankel.hankel_order`, so the columns are one gather
+        ``seg.flat[t·c + perm]`` (index cached per ``k``).
+        """
+        c = self.m + self.l
+        k = seg.shape[0] - 2 * self.horizon + 1
+        idx = self._col_index.get(k)
+        if idx is None:
+            if len(self._col_index) > 8:
+                self._col_index.clear()
+            idx = self._col_index[k] = (np.arange(k) * c)[:, None] + self._perm[None, :]
+        return np.ascontiguousarray(seg).reshape(-1)[idx]
 
     def _recompute(self) -> None:
         """Recompute the summary from the stored window (sliding mode or initialisation)."""
