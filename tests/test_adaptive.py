@@ -159,3 +159,45 @@ def test_update_phases_add_up():
         assert names == ["push", "predictor", "design"]
         total = sum(t for _, t in h.phases)
         assert all(t >= 0 for _, t in h.phases) and total <= h.seconds * (1 + 1e-9) + 1e-9
+
+
+@pytest.mark.parametrize("window", [None, 120])
+def test_updates_equal_the_engine_on_the_full_map_by_the_svd_route(window):
+    """A second route for every adaptive design: the full performance map of the same window's predictor,
+    γ_min by an SVD of the explicit projection and the gains by the SVD route of the engine (1e-9)."""
+    from synthesis.minimax import _gains, _saddle
+
+    u0, y0 = _init_data(seed=4)
+    W1, W2 = _weights()
+    policy = GammaPolicy("offset", 0.4)
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=20, window=window, policy=policy)
+    d = collect_data(servo(), prbs(80, seed=11), process_noise=0.05, sensor_noise=0.05, seed=12)
+    for k in range(80):
+        ad.control(0.5)
+        ad.observe(d.u[k], d.y[k], 0.5)
+        if ad.samples_seen % 20:
+            continue
+        pm = synthesis.performance_map(ad.recursive.predictor(), W1, W2)
+        P = pm.Mu @ np.linalg.lstsq(pm.Mu, np.eye(pm.Mu.shape[0]), rcond=None)[0]
+        gmin = np.linalg.svd(pm.Md - P @ pm.Md, compute_uv=False)[0]
+        live = ad.design
+        assert live.gamma_min == pytest.approx(gmin, rel=1e-9, abs=0)
+        u_ref, d_ref, _ = _gains(_saddle(pm.Md, pm.Mu, pm.Mx), live.gamma, route="svd")
+        assert np.linalg.norm(live.gain - u_ref) <= 1e-9 * np.linalg.norm(u_ref)
+        assert np.linalg.norm(live.disturbance_gain - d_ref) <= 1e-9 * np.linalg.norm(d_ref)
+    assert len(ad.history) == 5
+
+
+def test_sample_buffer_grows_past_its_initial_size():
+    """A period longer than the initial buffer (256 samples): the update pushes every sample once."""
+    u0, y0 = _init_data(seed=5)
+    W1, W2 = _weights()
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=300)
+    d = collect_data(servo(), prbs(300, seed=13), sensor_noise=0.05, seed=14)
+    for k in range(300):
+        ad.control(0.0)
+        ad.observe(d.u[k], d.y[k], 0.0)
+    assert len(ad.history) == 2
+    ref = synthesis.RecursivePredictor.from_data(np.vstack([u0, d.u]), np.vstack([y0, d.y]), I_H)
+    assert ad.recursive.n_columns == ref.n_columns
+    np.testing.assert_allclose(ad.recursive.gram, ref.gram, rtol=1e-10, atol=1e-10 * np.abs(ref.gram).max())

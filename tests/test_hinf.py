@@ -383,3 +383,26 @@ def test_map_plan_fill_equals_the_map_built_from_scratch(case, kw):
     # the template is not modified by filling
     again = plan.fill(pred.Lw, pred.Lu)
     np.testing.assert_array_equal(again.Mu, ref.Mu)
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(causal=True), dict(uncertainty=Multiplicative(0.3, 0.4)),
+                                dict(uncertainty=Additive(0.2, 0.5), causal=True)])
+def test_plan_route_equals_the_engine_on_the_full_map(case, kw):
+    """hinf_design solves the game for [M_x without w_p | B] and expands the w_p gain as G_B L_w;
+    the engine on the full map (performance_map, SVD route of the disturbance gain) is the second route."""
+    from synthesis.hinf import _map_plan, performance_map
+    from synthesis.minimax import _gains, _saddle
+
+    pred, W1, W2 = case[:3]
+    if pred.m == 2:
+        kw = {k: (type(v)(v.W3 * np.eye(2), v.W4 * np.eye(2)) if k == "uncertainty" else v) for k, v in kw.items()}
+    d = hinf_design(pred, W1, W2, gamma_ratio=1.4, **kw)
+    pm = performance_map(pred, W1, W2, **kw)
+    u_ref, d_ref, route = _gains(_saddle(pm.Md, pm.Mu, pm.Mx), d.gamma, route="svd")
+    assert route == "svd"
+    assert d.gamma_min == gamma_min(pred, W1, W2, **kw)  # the same computation, to the last bit
+    assert np.linalg.norm(d.gain - u_ref) <= 1e-10 * np.linalg.norm(u_ref)
+    assert np.linalg.norm(d.disturbance_gain - d_ref) <= 1e-10 * np.linalg.norm(d_ref)
+    # B is read off the reference columns of the map except for the multiplicative law (H3 L_u in z3)
+    plan = _map_plan(pred.horizon, pred.m, pred.l, W1, W2, **kw)
+    assert plan.b_is_reference == (not isinstance(kw.get("uncertainty"), Multiplicative))

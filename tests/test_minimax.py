@@ -203,3 +203,51 @@ def test_threshold_is_relative_to_the_accuracy_of_gamma_min():
     k = (thr - gm) / (gm * np.finfo(float).eps)
     assert 1 < k < 1e4
     assert feasibility_threshold(10 * Md, Mu, 10 * gm) == pytest.approx(10 * thr, rel=1e-12)
+
+
+# ------------------------------------------------------------------ routes of the fast engine (issue 12)
+def test_gamma_min_equals_the_largest_singular_value_of_the_explicit_projection():
+    """γ_min from λ_max(XᵀX) equals σ_max((I − P_u) M_d) from an SVD of the projection built by lstsq."""
+    for seed in range(4):
+        Md, Mu, _ = _random_map(seed, 128, 64, 64, 3, 2.0)
+        P = Mu @ np.linalg.lstsq(Mu, np.eye(Mu.shape[0]), rcond=None)[0]
+        ref = np.linalg.svd(Md - P @ Md, compute_uv=False)[0]
+        assert minimax_gamma_min(Md, Mu) == pytest.approx(ref, rel=1e-12)
+
+
+@pytest.mark.parametrize("ratio, route", [(1.3, "cholesky"), (1.03, "cholesky"), (1.02, "svd"), (np.inf, "none")])
+def test_disturbance_gain_route_follows_the_level(ratio, route):
+    Md, Mu, Mx = _maps(21)
+    g = ratio * minimax_gamma_min(Md, Mu)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NearGammaMinWarning)
+        sol = solve_minimax(Md, Mu, Mx, g)
+    assert sol.route == route
+
+
+@settings(max_examples=60, deadline=None)
+@given(_maps_strategy, st.floats(1.03, 5.0))
+def test_cholesky_and_svd_routes_give_the_same_gains(args, ratio):
+    """The two routes of the disturbance gain, forced on the same factorisation, agree to 1e-10."""
+    from synthesis.minimax import _gains, _saddle
+
+    seed, extra, nd, nu, nx, scale = args
+    Md, Mu, Mx = _random_map(seed, nu + extra, nd, nu, nx, scale)
+    sd = _saddle(Md, Mu, Mx)
+    g = ratio * sd.gamma_min
+    if not g > sd.threshold:
+        return  # γ_min = 0 (no disturbance reaches z beyond range(M_u))
+    uc, dc, rc = _gains(sd, g, route="cholesky")
+    us, ds, rs = _gains(sd, g, route="svd")
+    assert (rc, rs) == ("cholesky", "svd")
+    for a, b in ((uc, us), (dc, ds)):
+        assert np.linalg.norm(a - b) <= 1e-10 * max(np.linalg.norm(b), 1e-300)
+
+
+def test_unknown_route_is_refused():
+    from synthesis.minimax import _gains, _saddle
+
+    Md, Mu, Mx = _maps(22)
+    sd = _saddle(Md, Mu, Mx)
+    with pytest.raises(ValueError, match="route"):
+        _gains(sd, 2 * sd.gamma_min, route="qr")

@@ -437,3 +437,31 @@ def test_vectorised_gram_equals_block_row_loop_and_explicit_product(rows, c, j):
     assert np.array_equal(G, G.T)
     np.testing.assert_allclose(G, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
     np.testing.assert_allclose(G, _interleaved_gram_loop(z, rows, j), rtol=0, atol=1e-13 * np.abs(ref).max())
+
+
+def test_conditioning_estimate_is_a_close_lower_bound_for_either_factor_layout():
+    """κ₂ of R1 estimated on R1R1ᵀ and its inverse: never above the SVD value, within 10 % of it, and the
+    same decision from the lower factor R1 and from LAPACK's upper factor R1ᵀ of the Gram block."""
+    from scipy.linalg import lapack
+
+    from synthesis.predictor import _eig_max_estimate, _gram_inverse_apply, _start_block, _well_conditioned
+
+    rng = np.random.default_rng(31)
+    for decades in (1, 3, 5):
+        n = 60
+        Q1, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        Q2, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        A = Q1 @ np.diag(np.logspace(0, -decades, n)) @ Q2
+        G = A @ A.T
+        Rt, info = lapack.dpotrf(G, lower=0, clean=1)
+        assert info == 0
+        R1 = np.ascontiguousarray(Rt.T)
+        s = np.linalg.svd(R1, compute_uv=False)
+        V = _start_block(n)
+        l1, _ = _eig_max_estimate(lambda X: R1 @ (R1.T @ X), 4, V)
+        li, _ = _eig_max_estimate(_gram_inverse_apply(Rt, False), 6, V)
+        kappa = np.sqrt(l1 * li)
+        assert kappa <= s[0] / s[-1] * (1 + 1e-12)
+        assert kappa >= 0.9 * s[0] / s[-1]
+        for rc in (0.5 / kappa, 2.0 / kappa):  # clearly inside and clearly outside the margin
+            assert _well_conditioned(R1, rc) == _well_conditioned(Rt, rc, lower=False) == (rc < 0.8 / kappa)
