@@ -13,11 +13,10 @@
   ``AAᵀ``, ``numpy.linalg.cholesky``, eigendecomposition pseudo-inverse and input rank), and the
   speed-up over it;
 * the machine's peak (median GFLOP/s of a 2000 × 2000 matrix product, same run) and the achieved
-  rate of the Cholesky fit against it under two flop counts: *dense-equivalent*
-  (``N²j + N³/3 + il·n²``: ``AAᵀ`` as one dense product of the explicit Hankel data, then the
-  Cholesky factor and a triangular solve; ``N = 2i(m+l)``, ``n = i(2m+l)``) and *minimal*
-  (``4ic²j + N³/3 + il·n²``: the ``2i`` lag products the recursion (2.8)–(2.9) cannot avoid instead
-  of the dense product, ``c = m + l``);
+  rate of the Cholesky fit: the flops it *performs* (:func:`_flops`) per second and as a fraction
+  of the peak — the count the goal is judged on — beside a *minimal* count (a lower bound for any
+  Gram-based route) and the *dense-equivalent* count (``AAᵀ`` as a dense product, never performed:
+  a speed-up measure that can exceed the peak);
 * scaling of both methods with ``j`` (i = 20) and with ``i`` (j = 2048): fitted exponents;
 * peak traced memory (tracemalloc) of each method at (20, 100000);
 * :class:`synthesis.RecursivePredictor` at i = 64: time per pushed sample (growing and sliding
@@ -25,7 +24,7 @@
 
 SISO data (m = l = 1) as in the thesis: white-noise input through a lightly damped second-order
 plant plus white sensor noise; the MIMO case couples two such resonances.  Targets: cholesky ≥ 3×
-faster than qr at (64, 2048) and ≥ 10× at (20, 100000); ≥ 50 % of peak (dense-equivalent) at
+faster than qr at (64, 2048) and ≥ 10× at (20, 100000); ≥ 50 % of peak (flops performed) at
 (64, 2048); ≥ 4× faster than the route before at (20, 100000); push < 5 ms at i = 64, flat in j.
 
 On a shared, busy machine multi-threaded BLAS makes timings erratic (threads spin while waiting
@@ -105,9 +104,29 @@ def _peak_gflops(n: int, repeats: int) -> float:
 
 
 def _flops(i, j, m, l) -> dict:
+    """Three flop counts of one Cholesky fit (multiply and add counted separately).
+
+    ``performed``: what :func:`synthesis.fit_predictor` actually computes on the triangular route —
+    the lag-product GEMM of :func:`synthesis.hankel._lag_products` (``4P²c²Q``, ``P = 2i`` block
+    length, ``Q = ⌊(j−1)/P⌋``, twice the multiplications of the separate lag products) and its tail
+    (``2c²P(j − QP)``), the recursion (2.8)–(2.9) and symmetrisation (``3c²P² + N²``), the Cholesky of
+    the regressor block ``G11`` (``n³/3``), two triangular solves for ``[Lw Lu]`` (``2il·n²``) and
+    the cold conditioning estimate (4 products with ``R1R1ᵀ`` by two ``n × n × 4`` matrix products,
+    6 with its inverse by two ``n × 4`` triangular solves: ``112n²``).
+    ``minimal``: a lower bound for any Gram-based route — the ``2i`` lag products once (``4ic²j``),
+    the Cholesky of ``G11`` and the two solves.
+    ``dense_equivalent``: ``AAᵀ`` as one dense product of the explicit Hankel data (``N²j``) plus the
+    Cholesky and the solves: arithmetic this route never performs, i.e. a speed-up measure, not a
+    rate the machine can reach (it exceeds the peak when the recursion saves enough).
+    ``N = 2i(m+l)``, ``n = i(2m+l)``, ``c = m + l``.
+    """
     c, N, n_reg = m + l, 2 * i * (m + l), i * (2 * m + l)
-    tail = N**3 / 3 + i * l * n_reg**2
-    return {"dense_equivalent": N * N * j + tail, "minimal": 4 * i * c * c * j + tail}
+    P = 2 * i
+    Q = (j - 1) // P
+    tail = n_reg**3 / 3 + 2 * i * l * n_reg**2
+    performed = (4 * P * P * c * c * Q + 2 * c * c * P * (j - Q * P) + 3 * c * c * P * P + N * N
+                 + tail + 112 * n_reg**2)
+    return {"performed": performed, "minimal": 4 * i * c * c * j + tail, "dense_equivalent": N * N * j + tail}
 
 
 def _fit(u, y, i, method):
@@ -162,10 +181,9 @@ def _batch(sizes, rng, repeats, peak):
                 "max_rel_diff": float(np.linalg.norm(Lref - Lc) / np.linalg.norm(Lref)),
                 "rank": p_ch.rank,
                 "solver": p_ch.solver,
-                "gflops_dense_equivalent": fl["dense_equivalent"] / t_ch / 1e9,
-                "gflops_minimal": fl["minimal"] / t_ch / 1e9,
-                "peak_fraction_dense_equivalent": fl["dense_equivalent"] / t_ch / 1e9 / peak,
-                "peak_fraction_minimal": fl["minimal"] / t_ch / 1e9 / peak,
+                **{f"gflops_{k}": v / t_ch / 1e9 for k, v in fl.items()},
+                **{f"peak_fraction_{k}": v / t_ch / 1e9 / peak for k, v in fl.items()},
+                "mflop_performed": fl["performed"] / 1e6,
             }
         )
     return rows
@@ -307,7 +325,7 @@ def run(opts) -> dict:
             >= TARGETS["speedup_64_2048"],
             "cholesky >= 10x faster than qr at (20, 100000)": by[(20, 100_000, 1)]["ratio_qr_over_cholesky"]
             >= TARGETS["speedup_20_100000"],
-            ">= 50 % of peak (dense-equivalent flops) at (64, 2048)": by[(64, 2048, 1)]["peak_fraction_dense_equivalent"]
+            ">= 50 % of peak at (64, 2048), counting the flops performed": by[(64, 2048, 1)]["peak_fraction_performed"]
             >= TARGETS["peak_fraction_64_2048"],
             ">= 4x faster than the route before at (20, 100000)": by[(20, 100_000, 1)]["speedup_vs_before"]
             >= TARGETS["speedup_vs_before_20_100000"],
@@ -324,10 +342,12 @@ def run(opts) -> dict:
         ],
     )
     t_rate = format_table(
-        ["i", "j", "m, l", "GFLOP/s dense-equiv.", "% of peak", "GFLOP/s minimal", "% of peak (minimal)"],
+        ["i", "j", "m, l", "Mflop performed", "GFLOP/s performed", "% of peak", "GFLOP/s minimal", "% of peak (minimal)",
+         "GFLOP/s dense-equiv.", "dense-equiv. / peak"],
         [
-            [r["i"], r["j"], f"{r['m']}, {r['l']}", r["gflops_dense_equivalent"], f"{100 * r['peak_fraction_dense_equivalent']:.0f}",
-             r["gflops_minimal"], f"{100 * r['peak_fraction_minimal']:.0f}"]
+            [r["i"], r["j"], f"{r['m']}, {r['l']}", r["mflop_performed"], r["gflops_performed"],
+             f"{100 * r['peak_fraction_performed']:.0f}", r["gflops_minimal"], f"{100 * r['peak_fraction_minimal']:.0f}",
+             r["gflops_dense_equivalent"], f"{r['peak_fraction_dense_equivalent']:.2f}"]
             for r in batch
         ],
     )
@@ -362,9 +382,14 @@ def run(opts) -> dict:
     rep.section("Achieved rate against the machine's peak")
     rep.text(
         f"Peak: {peak:.1f} GFLOP/s (median {scale[1]}×{scale[1]} matrix product at the start of the run; "
-        f"{peak_after:.1f} at the end). Dense-equivalent flops N²j + N³/3 + il·n² (AAᵀ as one dense product of "
-        "the Hankel data, then Cholesky and a triangular solve; N = 2i(m+l), n = i(2m+l)); minimal flops "
-        "4ic²j + N³/3 + il·n² (only the 2i lag products the recursion needs, c = m+l).\n\n" + t_rate)
+        f"{peak_after:.1f} at the end). **The rate is the flops the Cholesky fit performs divided by its time** "
+        "(`performed`: the lag-product GEMM, the recursion (2.8)–(2.9), the Cholesky of the regressor block, two "
+        "triangular solves and the conditioning estimate; see `experiments.bench_predictor._flops`); the goal "
+        "\"≥ 50 % of peak at (64, 2048)\" is judged on this count. `minimal`: a lower bound on the arithmetic of "
+        "any Gram-based route (the 2i lag products once, 4ic²j, plus the Cholesky n³/3 and the solves 2il·n²). "
+        "`dense-equivalent` (N²j + n³/3 + 2il·n²: AAᵀ as one dense product of the explicit Hankel data) counts "
+        "arithmetic this route never performs: shown as a multiple of the peak, it measures the saving of the "
+        "recursion, not how well the machine is used (N = 2i(m+l), n = i(2m+l), c = m+l).\n\n" + t_rate)
     rep.section("Scaling (SISO)")
     rep.text(t_scale + "\n\nFitted exponents (log-log least squares):\n\n" + t_fits)
     rep.section("Peak traced memory (tracemalloc)")
@@ -380,9 +405,11 @@ def run(opts) -> dict:
     rep.figure(fig, "Fit time against j and i, with fitted exponents")
     md = rep.write(opts.out / "bench_predictor.md")
     keys = ["kind", "i", "j", "m", "l", "qr_s", "cholesky_s", "before_s", "solver", "max_rel_diff",
-            "gflops_dense_equivalent", "peak_fraction_dense_equivalent", "gflops_minimal", "peak_fraction_minimal"]
+            "mflop_performed", "gflops_performed", "peak_fraction_performed", "gflops_minimal", "peak_fraction_minimal",
+            "gflops_dense_equivalent", "peak_fraction_dense_equivalent"]
     csv_rows = [["batch"] + [r.get(k, "") for k in keys[1:]] for r in batch]
-    csv_rows += [[f"scaling_{r['axis']}", r["i"], r["j"], 1, 1, r["qr_s"], r["cholesky_s"], r["before_s"]] + [""] * 6
+    csv_rows += [[f"scaling_{r['axis']}", r["i"], r["j"], 1, 1, r["qr_s"], r["cholesky_s"], r["before_s"]]
+                 + [""] * (len(keys) - 8)
                  for r in scaling]
     write_csv(opts.out / "bench_predictor.csv", keys, [["" if v is None else v for v in row] for row in csv_rows])
     summary = {

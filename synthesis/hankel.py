@@ -86,23 +86,26 @@ def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
 
     With block length ``P = rows`` and ``Q = ⌊(j−1)/P⌋`` whole blocks, the rows
     ``Z_b[q] = [z_{qP} … z_{qP+P−1}]`` and ``Z_n[q] = Z_b[q+1]`` are free reshapes of the signal,
-    and the two matrix products ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``) hold every product
+    and the matrix product ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``; ``[Z_b  Z_n]`` is an overlapping
+    strided view of the signal, copied once by the product) holds every product
     ``z_{qP+p} z_{qP+p+s}ᵀ`` summed over ``q``: ``S[s] = Σ_p C[p, p+s]`` (a skewed sum).  The at
     most ``P`` columns ``t ≥ QP`` are added by one more product.  This does twice the
     multiplications of ``rows`` separate lag products, but as two level-3 BLAS calls instead of
-    ``rows`` memory-bound ``c × j`` products (each streaming the whole signal).
+    ``rows`` memory-bound ``c × j`` products (each streaming the whole signal).  (``z`` must be
+    C-contiguous.)
     """
+    z = np.ascontiguousarray(z)
     c = z.shape[1]
     P = rows
     Q = (j - 1) // P
     S = np.zeros((c, c, rows))
     if Q > 0:
         Zb = z[: Q * P].reshape(Q, P * c)
-        Zn = z[P : (Q + 1) * P].reshape(Q, P * c)
+        zf = z.reshape(-1)
+        Zbn = as_strided(zf, shape=(Q, 2 * P * c), strides=(P * c * zf.strides[0], zf.strides[0]),
+                         writeable=False)  # row q: [Z_b[q] Z_n[q]] = z_{qP} … z_{qP+2P−1}
         C = np.empty((P, c, 2 * P, c))  # C[p, a, p', b]
-        C2 = C.reshape(P * c, 2 * P * c)
-        np.matmul(Zb.T, Zb, out=C2[:, : P * c])
-        np.matmul(Zb.T, Zn, out=C2[:, P * c :])
+        np.matmul(Zb.T, Zbn, out=C.reshape(P * c, 2 * P * c))  # one product into contiguous memory
         st = C.strides  # skewed view V[p, a, b, s] = C[p, a, p + s, b]  (p + s < 2P)
         V = as_strided(C, shape=(P, c, c, rows), strides=(st[0] + st[2], st[1], st[3], st[2]), writeable=False)
         S += V.sum(axis=0)
@@ -149,8 +152,9 @@ def _upper_block_skew(z: np.ndarray, rows: int, j: int) -> np.ndarray:
 
 def _gram_from_skew(F: np.ndarray, rows: int, order: np.ndarray) -> np.ndarray:
     """Symmetric ``ZZᵀ`` from :func:`_upper_block_skew`, rows and columns in ``order`` (channel-major indices)."""
-    a, r = np.divmod(order, rows)
-    U = F[a[:, None], r[:, None], a[None, :], r[None, :]]  # one gather from the strided upper part
+    c = F.shape[0]
+    M = np.ascontiguousarray(F[:, :, :, :rows]).reshape(c * rows, c * rows)  # channel-major, upper blocks
+    U = M.take(order, axis=0).take(order, axis=1)  # row gather, then column gather (no 2-D index arrays)
     return U + U.T
 
 

@@ -465,3 +465,16 @@ def test_conditioning_estimate_is_a_close_lower_bound_for_either_factor_layout()
         assert kappa >= 0.9 * s[0] / s[-1]
         for rc in (0.5 / kappa, 2.0 / kappa):  # clearly inside and clearly outside the margin
             assert _well_conditioned(R1, rc) == _well_conditioned(Rt, rc, lower=False) == (rc < 0.8 / kappa)
+
+
+def test_bench_predictor_flop_counts_written_out():
+    """The three counts of the rate table, for (i, j, m, l) = (2, 9, 1, 1) written out by hand:
+    c = 2, N = 8, n = 6, P = 4, Q = 2."""
+    from experiments.bench_predictor import _flops
+
+    fl = _flops(2, 9, 1, 1)
+    gemm, tail, recursion, sym = 2 * (4 * 2) * (8 * 2) * 2, 2 * 4 * 4 * 1, 3 * 4 * 16, 64
+    chol, solves, estimate = 6**3 / 3, 2 * (2 * 1) * 6**2, 112 * 6**2  # n³/3, 2·il·n², 112·n²
+    assert fl["performed"] == gemm + tail + recursion + sym + chol + solves + estimate
+    assert fl["minimal"] == 2 * 2 * 2 * 4 * 9 + chol + solves  # 2i lags x c² x j multiply-adds
+    assert fl["dense_equivalent"] == 8 * 8 * 9 + chol + solves
