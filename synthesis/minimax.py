@@ -183,10 +183,12 @@ class _Saddle:
 def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
     """Smallest level this engine accepts: ``γ_min + τ``, ``τ = 8 · max(r, c) · eps · ‖M_d‖_F``.
 
-    The computed ``γ_min`` is the largest singular value of the computed ``(I − Q Qᵀ) M_d``.
-    Householder QR, the projection and the SVD are backward stable, so the computed value is
-    the exact ``γ_min`` of maps perturbed by ``O(max(r, c) · eps)`` relative to their size
-    (``r`` rows, ``c`` columns of ``[M_d M_u]``); by Weyl's inequality it is within about
+    The computed ``γ_min`` is the square root of the largest eigenvalue of ``XᵀX``, ``X = Qcᵀ M_d``
+    the computed ``(I − Q Qᵀ) M_d`` in the basis ``Qc``.  Householder QR and its application are
+    backward stable, so ``X`` is exact for maps perturbed by ``O(max(r, c) · eps)`` relative to their
+    size (``r`` rows, ``c`` columns of ``[M_d M_u]``); forming ``XᵀX`` and the symmetric eigensolver
+    add an error ``O(dim d · eps · ‖X‖₂²)`` to ``λ_max = ‖X‖₂²``, i.e. ``O(dim d · eps · ‖X‖₂)`` to its
+    square root.  By Weyl's inequality the computed ``γ_min`` is within about
     ``max(r, c) · eps · ‖M_d‖₂ ≤ max(r, c) · eps · ‖M_d‖_F`` of the true one.  A level closer to
     the computed ``γ_min`` than that (times the safety factor 8) cannot be told apart from
     ``γ_min`` itself: the saddle Hessian ``γ²I − M̃_dᵀM̃_d`` is then numerically singular and its

@@ -49,6 +49,8 @@ def test_csv_has_one_row_per_update(run_dir):
 def test_adaptive_design_equals_batch_design(run_dir):
     a = json.loads((run_dir / "bench_adaptive.json").read_text())["agreement"]
     assert a["gamma_min_rel"] <= 1e-9 and a["gain_rel"] <= 1e-9
+    # second route: the engine on the full map, γ_min by an SVD of the explicit projection, SVD gains
+    assert a["gamma_min_rel_projection_svd"] <= 1e-9 and a["gain_rel_full_map_svd_route"] <= 1e-9
 
 
 def test_bench_adaptive_is_registered():
