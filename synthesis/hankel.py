@@ -86,8 +86,7 @@ def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
 
     With block length ``P = rows`` and ``Q = ⌊(j−1)/P⌋`` whole blocks, the rows
     ``Z_b[q] = [z_{qP} … z_{qP+P−1}]`` and ``Z_n[q] = Z_b[q+1]`` are free reshapes of the signal,
-    and the matrix product ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``; ``[Z_b  Z_n]`` is an overlapping
-    strided view of the signal, copied once by the product) holds every product
+    and the two matrix products ``C = Z_bᵀ[Z_b  Z_n]`` (``Pc × 2Pc``) hold every product
     ``z_{qP+p} z_{qP+p+s}ᵀ`` summed over ``q``: ``S[s] = Σ_p C[p, p+s]`` (a skewed sum).  The at
     most ``P`` columns ``t ≥ QP`` are added by one more product.  This does twice the
     multiplications of ``rows`` separate lag products, but as two level-3 BLAS calls instead of
@@ -101,11 +100,13 @@ def _lag_products(z: np.ndarray, j: int, rows: int) -> np.ndarray:
     S = np.zeros((c, c, rows))
     if Q > 0:
         Zb = z[: Q * P].reshape(Q, P * c)
-        zf = z.reshape(-1)
-        Zbn = as_strided(zf, shape=(Q, 2 * P * c), strides=(P * c * zf.strides[0], zf.strides[0]),
-                         writeable=False)  # row q: [Z_b[q] Z_n[q]] = z_{qP} … z_{qP+2P−1}
+        Zn = z[P : (Q + 1) * P].reshape(Q, P * c)
         C = np.empty((P, c, 2 * P, c))  # C[p, a, p', b]
-        np.matmul(Zb.T, Zbn, out=C.reshape(P * c, 2 * P * c))  # one product into contiguous memory
+        C2 = C.reshape(P * c, 2 * P * c)
+        # contiguous products, then copied into the halves (a product into a non-contiguous `out`
+        # is slower than the copy: 0.36 → 0.27 ms at (i, j) = (64, 2048))
+        C2[:, : P * c] = Zb.T @ Zb
+        C2[:, P * c :] = Zb.T @ Zn
         st = C.strides  # skewed view V[p, a, b, s] = C[p, a, p + s, b]  (p + s < 2P)
         V = as_strided(C, shape=(P, c, c, rows), strides=(st[0] + st[2], st[1], st[3], st[2]), writeable=False)
         S += V.sum(axis=0)
