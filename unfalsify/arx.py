@@ -340,8 +340,8 @@ def _solve_cvxpy(P: ArxProblem, form: str, solver: str, solver_options) -> dict:
 
 
 def _solve_structured(P: ArxProblem, tol: float, time_limit, progress: bool) -> dict:
-    """The structured barrier solver (:mod:`unfalsify._structured`); returns a dict in data units."""
-    from ._structured import solve_structured
+    """The Cholesky barrier solver (:mod:`unfalsify._arx_barrier`); returns a dict in data units."""
+    from ._arx_barrier import ridge_start, solve_arx_barrier
 
     su, sy = P.scale
     f = P.column_form(scaled=True)
@@ -351,18 +351,26 @@ def _solve_structured(P: ArxProblem, tol: float, time_limit, progress: bool) -> 
         h_s = np.zeros(P.n)
         out = dict(status="optimal", H=h_s[:, None], V=None, W=None, upper=0.0, lower=0.0)
     else:
-        out = solve_structured(f, B0, tol=tol, time_limit=time_limit, progress=progress)
+        out = solve_arx_barrier(f, ridge_start(f, B0), tol=tol, time_limit=time_limit, progress=progress)
         h_s = out["H"][:, 0]
+    return _structured_out(P, out, h_s, time.perf_counter() - t0)
+
+
+def _structured_out(P: ArxProblem, out: dict, h_s: np.ndarray, elapsed: float) -> dict:
+    """A structured solver's scaled output as the backend dict in data units (θ refitted by least squares)."""
+    su, sy = P.scale
     h = h_s * (sy / su)
     Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
     if Phi.shape[1]:
         theta = -np.linalg.lstsq(Phi, Y - _conv_cols(P.u[:, None], h[:, None])[:, 0], rcond=None)[0]
     else:
         theta = np.zeros(0)
-    W = None if out["W"] is None else out["W"][0] * su
+    W = out["W"]
+    if W is not None:
+        W = (W[0] * su, W[1]) if isinstance(W, tuple) else W[0] * su  # W = P Qᵀ: scale P only
     v = out["V"]
     v = None if v is None else v[:, 0]
-    return dict(delta=out["upper"] * sy / su, h=h, theta=theta, status=out["status"], time=time.perf_counter() - t0,
+    return dict(delta=out["upper"] * sy / su, h=h, theta=theta, status=out["status"], time=elapsed,
                 problem=None, v=v, W=W)
 
 
