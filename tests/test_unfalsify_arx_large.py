@@ -138,19 +138,69 @@ def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
     assert lo > 0 and c.relative_gap == pytest.approx((up - lo) / up, rel=1e-6)
 
 
-def test_bracket_interrupted_keeps_the_upper_side(monkeypatch):
+@pytest.mark.parametrize("where", ["lower", "upper"])
+def test_bracket_interrupted_keeps_the_work(monkeypatch, where):
+    # Ctrl-C in the dual search keeps the upper side and the unoptimised circulant bound; Ctrl-C in the
+    # 3rd reweighted fit of the upper side keeps the best earlier iterate
     u, y, sigma = _problem(30, 0)
+    if where == "lower":
+        def boom(*a, **k):
+            raise KeyboardInterrupt
 
-    def boom(*a, **k):
-        raise KeyboardInterrupt
+        monkeypatch.setattr(br, "lower_point", boom)
+    else:
+        calls = [0]
+        orig = br._ridge_fit
 
-    monkeypatch.setattr(br, "lower_point", boom)
+        def fit(*a, **k):
+            calls[0] += 1
+            if calls[0] == 3:
+                raise KeyboardInterrupt
+            return orig(*a, **k)
+
+        monkeypatch.setattr(br, "_ridge_fit", fit)
     with pytest.warns(uf.SolverWarning, match="interrupted"):
         r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", method="bracket", progress=False)
     assert r.status == "interrupted" and np.isfinite(r.delta)
     c = r.certificate
-    assert c.ok() and c.verify() and np.isnan(c.lower_bound)
+    assert c.ok() and c.verify() and 0 < c.lower_bound <= c.upper_bound
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rc = uf.arx_unfalsify(u, y, 2, 2, sigma)
-    assert rc.delta <= c.upper_bound * (1 + 1e-6)
+    assert c.lower_bound <= rc.delta * (1 + 1e-6) and rc.delta <= c.upper_bound * (1 + 1e-6)
+
+
+def test_gram_in_quadratic_time_equals_the_matrix_product():
+    for n in (1, 2, 7, 300):
+        h = np.random.default_rng(n).standard_normal(n)
+        T = uf.toeplitz_matrix(h)
+        assert np.allclose(ab._gram(h), T.T @ T, rtol=0, atol=1e-12 * max(1.0, float(h @ h)))
+
+
+def test_certified_norm_routes():
+    from unfalsify.arx import certified_norm, symbol_bound
+
+    rng = np.random.default_rng(4)
+    for n in (5, 60, 500):
+        h = rng.standard_normal(n) * 0.9 ** np.arange(n)
+        dense = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+        assert certified_norm(h) == pytest.approx(dense, rel=1e-12)
+        # the symbol bound is an upper bound on ‖T_n(h)‖ and on the peak of |ĥ| on a 16× finer grid
+        sb = symbol_bound(h)
+        fine = float(np.abs(np.fft.rfft(h, 1024 * 2 ** int(np.ceil(np.log2(n))))).max())
+        assert dense <= sb and fine <= sb * (1 + 1e-12)
+        assert sb <= fine * 1.06  # and not loose: the Bernstein factor at M = 64n is ≤ 1/(1 − π/64)
+    assert certified_norm(np.r_[1.0, np.nan]) == np.inf
+
+
+def test_certified_norm_falls_back_to_the_symbol_bound_when_lanczos_fails(monkeypatch):
+    import unfalsify.arx as arx
+    from scipy.sparse.linalg import ArpackNoConvergence
+
+    def no_convergence(h, method="auto", tol=1e-12):
+        raise ArpackNoConvergence("no convergence", [], [])
+
+    h = np.random.default_rng(1).standard_normal(50)
+    monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
+    monkeypatch.setattr(arx, "toeplitz_norm", no_convergence)
+    assert arx.certified_norm(h) == arx.symbol_bound(h) >= np.linalg.norm(uf.toeplitz_matrix(h), 2)

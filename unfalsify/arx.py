@@ -483,7 +483,7 @@ def arx_unfalsify(
         FFT-only bounds of :mod:`unfalsify._bracket` (O(n) memory, n = 10⁴ in minutes): a feasible h
         with a small spectral peak (upper) and a circulant dual point (lower); the result has status
         ``"bracket"``, δ = the certified upper bound and a :class:`SolverWarning` stating the relative
-        gap, which is NOT small (measured ~0.4–0.5 at n = 200–400, where the barrier optimum is known).
+        gap, which is NOT small (measured 0.47–0.53 at n = 200 … 10⁴).
 
     Returns
     -------
