@@ -204,3 +204,29 @@ def test_certified_norm_falls_back_to_the_symbol_bound_when_lanczos_fails(monkey
     monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
     monkeypatch.setattr(arx, "toeplitz_norm", no_convergence)
     assert arx.certified_norm(h) == arx.symbol_bound(h) >= np.linalg.norm(uf.toeplitz_matrix(h), 2)
+
+
+def test_certified_norm_above_the_dense_limit_is_proven_never_a_bare_lanczos_value(monkeypatch):
+    """Above the dense limit the Lanczos value is returned only once a Cholesky proves it."""
+    import unfalsify.arx as arx
+
+    monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
+    rng = np.random.default_rng(7)
+    h = rng.standard_normal(300) * 0.97 ** np.arange(300)
+    true = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+    c = arx.certified_norm(h)
+    assert true <= c <= true * (1 + 2e-6)  # proven Lanczos route, tighter than the symbol bound
+    assert c < arx.symbol_bound(h)
+    # a Lanczos value that is too small is refused by the Cholesky test: the symbol bound is returned
+    monkeypatch.setattr(arx, "toeplitz_norm", lambda h, method="auto", tol=1e-12: 0.9 * true)
+    assert arx.certified_norm(h) == arx.symbol_bound(h) >= true
+
+
+def test_cholesky_norm_test_decides_both_ways():
+    from unfalsify.arx import _norm_below_by_cholesky
+
+    h = np.random.default_rng(3).standard_normal(200)
+    true = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+    assert _norm_below_by_cholesky(h, true * (1 + 1e-6))
+    assert not _norm_below_by_cholesky(h, true * (1 - 1e-6))
+    assert not _norm_below_by_cholesky(h, 0.5 * float(np.linalg.norm(h)))

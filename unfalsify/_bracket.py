@@ -14,7 +14,7 @@ a small ``‖T_n(h)‖₂``.  We minimise a weighted energy of the spectrum on a
 with FFT products, λ by bisection so that the fit is 0.999 ρ) and update the weights by Lawson's rule
 ``w ← w |ĥ|`` (the iteratively reweighted least-squares route to the minimax spectrum).  The certified
 upper bound is ``‖T_n(h)‖₂`` recomputed by :func:`unfalsify.arx.certified_norm` (Lanczos with FFT
-products above n = 4000, the symbol bound if Lanczos does not converge), the fit by the certificate.
+products above n = 4000 proven by a Cholesky of c²I − TᵀT, else the symbol bound), the fit by the certificate.
 
 Lower side (a dual point).  The weak-duality bound of :mod:`unfalsify._columns` holds for any
 (v, W).  Take W = the leading n × n block of the N × N circulant whose first column is

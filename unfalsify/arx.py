@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import cvxpy as cp
 import numpy as np
+import scipy.linalg
 
 from synthesis._validation import DataError
 
@@ -256,23 +257,63 @@ DENSE_NORM_LIMIT = 4000
 
 
 def certified_norm(h) -> float:
-    """``‖T(h)‖₂`` for a certificate's upper bound.
+    """An upper bound on ``‖T(h)‖₂`` for a certificate's upper side (never an underestimate).
 
-    Dense LAPACK SVD (singular values only) up to :data:`DENSE_NORM_LIMIT`: near the optimum of (7.4)
-    most singular values of T(h) cluster at δ and ARPACK does not converge (measured at n = 1000).
-    Above it, Lanczos (:func:`toeplitz_norm`, FFT products) and, if ARPACK does not converge, the
-    symbol bound ``‖T_n(h)‖₂ ≤ max_ω |ĥ(e^{jω})| ≤ max_k |ĥ(2πk/M)| / (1 − π(n−1)/M)`` (Bernstein's
-    inequality on an M-point grid, M ≥ 64 n), which is an upper bound, never an underestimate.
+    Up to :data:`DENSE_NORM_LIMIT`: the largest singular value of the dense matrix (LAPACK; near the
+    optimum of (7.4) most singular values of T(h) cluster at δ and ARPACK does not converge, measured
+    at n = 1000).  Above it, the smaller of two proven bounds:
+
+    * the symbol bound :func:`symbol_bound` (``‖T_n(h)‖₂ ≤ sup_ω |ĥ(e^{jω})|`` with Bernstein's
+      inequality on the grid);
+    * a Lanczos estimate s (FFT products) raised to ``c = s(1 + 1e-6)`` and *proven* by a Cholesky
+      factorisation of ``c²I − T(h)ᵀT(h) − τI`` (:func:`_norm_below_by_cholesky`): if it succeeds,
+      ``‖T(h)‖₂ ≤ c``.  A Lanczos value alone is only a lower estimate, so it is never returned
+      unproven.
     """
     h = np.asarray(h, float).reshape(-1)
     if not np.all(np.isfinite(h)):
         return float("inf")
     if h.size <= DENSE_NORM_LIMIT:
         return toeplitz_norm(h, method="dense")
+    bound = symbol_bound(h)
     try:
-        return toeplitz_norm(h, method="lanczos")
+        estimate = toeplitz_norm(h, method="lanczos")
     except RuntimeError:  # ArpackNoConvergence
-        return symbol_bound(h)
+        return bound
+    c = estimate * (1.0 + 1e-6)
+    if c < bound and _norm_below_by_cholesky(h, c):
+        return c
+    return bound
+
+
+def _norm_below_by_cholesky(h: np.ndarray, c: float) -> bool:
+    """True only if ``‖T(h)‖₂ ≤ c`` is proven by a Cholesky factorisation of ``c²I − TᵀT − τI``.
+
+    ``TᵀT`` is formed in O(n²) (:func:`unfalsify._arx_barrier._gram`: each entry an FFT correlation
+    minus a partial sum, absolute error ≲ 2n·u·‖h‖², so ‖ΔG‖₂ ≤ 2n²u‖h‖²; u the unit roundoff).  A
+    floating-point Cholesky that runs to completion is the exact factorisation of the matrix plus E,
+    ``‖E‖₂ ≤ γ_{n+1}·n·max_i a_ii ≤ 2n(n+1)u·c²`` (Demmel's componentwise backward error).  With the
+    shift ``τ = 2n²u‖h‖² + 2n(n+1)u·c²`` success proves ``c²I − TᵀT ⪰ 0``.  (``‖h‖ > c`` already
+    refutes the bound: h is the first column of T.)
+    """
+    from ._arx_barrier import _gram
+
+    n = h.size
+    u = np.finfo(float).eps / 2
+    hh = float(h @ h)
+    if hh > c * c:
+        return False
+    tau = 2.0 * n * n * u * hh + 2.0 * n * (n + 1) * u * c * c
+    if tau >= 0.5 * c * c:
+        return False
+    A = _gram(h)
+    A *= -1.0
+    A.flat[:: n + 1] += c * c - tau
+    try:
+        scipy.linalg.cholesky(A, lower=False, overwrite_a=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def symbol_bound(h, oversample: int = 64) -> float:
