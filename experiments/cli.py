@@ -48,7 +48,9 @@ COMMANDS: dict[str, tuple] = {
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
-                                                                     "(default: cvxpy)")),)),
+                                                                     "(default: cvxpy)")),
+                         (("--series",), dict(dest="series", choices=("all", "arx"), default="all",
+                                              help="structured backend: all series, or the ARX rows only")))),
     "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",

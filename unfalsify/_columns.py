@@ -34,9 +34,31 @@ the only rounding not covered is that of the arithmetic itself (relative ~1e-13 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__: list[str] = []
+
+
+@dataclass(frozen=True, eq=False)
+class CirculantDual:
+    """A norm multiplier W (j = 1) stored in O(N): the leading m × m block of the N × N circulant with
+    first column ``[column; 0]`` (``N = size ≥ len(column) ≥ m``; the entries ``column[m:]`` only fill
+    the block's upper triangle and are free).
+
+    ``T*(W)_d = (m − d) column_d`` (d < m) and ``‖W‖_* ≤ ‖fft([column; 0], N)‖₁`` (the circulant's singular
+    values are the moduli of its DFT, and compressing a matrix does not increase its nuclear norm), so
+    :meth:`ColumnForm.lower_bound` evaluates the bound in O(N log N) without forming W.  Used by the
+    bracket route (:mod:`unfalsify._bracket`) at sizes where W cannot be stored.
+    """
+
+    column: np.ndarray
+    size: int
+
+    def scaled(self, a: float) -> "CirculantDual":
+        """``a W``."""
+        return CirculantDual(column=a * np.asarray(self.column, float), size=self.size)
 
 
 def _nfft(m: int) -> int:
@@ -147,6 +169,8 @@ class ColumnForm:
             return 0.0
         g = self.apply_T(V)  # (m, j)
         den = 0.0
+        if isinstance(W, CirculantDual):
+            return self._circulant_bound(num, g, W)
         if isinstance(W, tuple):
             P, Q = (np.asarray(a, float) for a in W)
             if P.ndim == 2:
@@ -167,6 +191,19 @@ class ColumnForm:
                 c = d / (self.m - idx)
                 Wk = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
                 den += float(np.linalg.svd(Wk, compute_uv=False).sum())
+        if not den > 0.0:
+            return 0.0
+        return max(0.0, num / den)
+
+    def _circulant_bound(self, num: float, g: np.ndarray, W: CirculantDual) -> float:
+        """The bound with a :class:`CirculantDual` W (j = 1), repaired inside the same circulant family:
+        adding ``c_d = (g − T*(W))_d/(m − d)`` to the column makes ``T*(W) = g`` exact."""
+        col = np.asarray(W.column, float).reshape(-1).copy()
+        if self.j != 1 or not self.m <= col.size <= int(W.size) or not np.all(np.isfinite(col)):
+            return float("nan")
+        scale = self.m - np.arange(self.m)
+        col[: self.m] += (g[:, 0] - scale * col[: self.m]) / scale
+        den = float(np.abs(np.fft.fft(col, int(W.size))).sum())
         if not den > 0.0:
             return 0.0
         return max(0.0, num / den)

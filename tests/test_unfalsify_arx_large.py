@@ -1,0 +1,232 @@
+"""ARX (7.4) at large n: the Cholesky barrier route, the FFT-only bracket route, the circulant dual,
+and long solves that are interrupted or run out of time (issue 15)."""
+import warnings
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+import unfalsify as uf
+import unfalsify._arx_barrier as ab
+import unfalsify._bracket as br
+from unfalsify._columns import CirculantDual
+from unfalsify._structured import solve_structured
+
+from _servo_arx import servo_arx_data  # tests/ helper
+
+
+def _problem(n, seed, frac=0.5):
+    u, y = servo_arx_data(n, seed)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    return u, y, frac * rms
+
+
+@pytest.mark.parametrize("seed,n", [(0, 40), (3, 60)])
+def test_cholesky_barrier_equals_svd_barrier(seed, n):
+    # independent route: the SVD-based solver of unfalsify._structured on the same column form
+    u, y, sigma = _problem(n, seed)
+    f = uf.ArxProblem.from_data(u, y, 2, 2, sigma).column_form()
+    B0 = f.project(f.B)
+    new = ab.solve_arx_barrier(f, ab.ridge_start(f, B0), tol=1e-9, progress=False)
+    old = solve_structured(f, B0, tol=1e-9, progress=False)
+    assert new["status"] == old["status"] == "optimal"
+    assert new["upper"] == pytest.approx(old["upper"], rel=1e-7)
+    assert new["lower"] <= old["upper"] * (1 + 1e-12) and old["lower"] <= new["upper"] * (1 + 1e-12)
+
+
+def test_circulant_dual_bound_equals_the_dense_circulant_block():
+    # the O(N log N) bound of a CirculantDual against the dense-W route on the same matrix
+    u, y, sigma = _problem(24, 1)
+    f = uf.ArxProblem.from_data(u, y, 2, 2, sigma).column_form()
+    m = f.m
+    rng = np.random.default_rng(0)
+    v = f.project(f.B)[:, 0] + 0.1 * rng.standard_normal(m)  # ⟨v, B⟩ − ρ‖v‖ > 0: a non-trivial bound
+    for N, tail in ((m, 0), (2 * m, m), (3 * m, 5)):
+        # the column that needs no repair (T*(W) = T(u)ᵀv already), so both routes bound the same matrix
+        W = br.circulant_dual(f, v, N, tail=rng.standard_normal(tail))
+        col = W.column
+        C = scipy.linalg.circulant(np.r_[col, np.zeros(N - col.size)])[:m, :m]
+        assert np.allclose(uf._columns.adjoint_toeplitz(C), f.apply_T(f.project(v[:, None]))[:, 0])
+        lo_c = f.lower_bound(v, W)
+        lo_d = f.lower_bound(v, C)
+        assert lo_c > 0
+        if N == m:  # the block is the circulant: same nuclear norm after the same repair
+            assert lo_c == pytest.approx(lo_d, rel=1e-10)
+        else:  # a compression: its nuclear norm is smaller, its bound larger
+            assert lo_c <= lo_d * (1 + 1e-12)
+    assert np.isnan(f.lower_bound(v, CirculantDual(column=np.ones(m - 1), size=m)))  # too short: no bound
+
+
+@pytest.mark.parametrize("seed,n,frac", [(0, 30, 0.5), (2, 40, 0.7)])
+def test_bracket_contains_the_clarabel_optimum(seed, n, frac):
+    u, y, sigma = _problem(n, seed, frac)
+    rc = uf.arx_unfalsify(u, y, 2, 2, sigma)
+    with pytest.warns(uf.SolverWarning, match="bracket"):
+        rb = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", method="bracket", progress=False)
+    c = rb.certificate
+    assert rb.status == "bracket" and c.verify() and c.ok()
+    assert isinstance(c.dual_G, CirculantDual)
+    assert 0.0 < c.lower_bound <= rc.delta * (1 + 1e-6)
+    assert rc.delta <= c.upper_bound * (1 + 1e-6)
+    assert rb.delta == pytest.approx(c.upper_bound, rel=1e-12)
+    assert c.relative_gap < 0.9  # a bracket, not a trivial one
+
+
+def test_bad_method_raises():
+    u, y, sigma = _problem(20, 0)
+    with pytest.raises(ValueError, match="'barrier', 'bracket'"):
+        uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", method="admm")
+    with pytest.raises(ValueError, match="structured"):
+        uf.arx_unfalsify(u, y, 2, 2, sigma, method="bracket")
+
+
+def _record_brackets(monkeypatch):
+    """Record (lower, upper) after every outer iteration of the barrier loop."""
+    seen = []
+    orig = ab._ArxBarrier._progress
+
+    def spy(self, bar, t_start, best):
+        seen.append((best["lower"], best["upper"]))
+        return orig(self, bar, t_start, best)
+
+    monkeypatch.setattr(ab._ArxBarrier, "_progress", spy)
+    return seen
+
+
+def test_ctrl_c_returns_the_best_certified_bracket(monkeypatch):
+    # KeyboardInterrupt raised inside the loop (in the 25th Newton step) ends the solve with the bracket so far
+    u, y, sigma = _problem(60, 1)
+    seen = _record_brackets(monkeypatch)
+    calls = [0]
+    orig = ab._ArxBarrier.newton
+
+    def newton(self, t, s):
+        calls[0] += 1
+        if calls[0] == 25:
+            raise KeyboardInterrupt
+        return orig(self, t, s)
+
+    monkeypatch.setattr(ab._ArxBarrier, "newton", newton)
+    with pytest.warns(uf.SolverWarning, match="interrupted"):
+        r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-9, progress=False)
+    assert r.status == "interrupted" and calls[0] == 25
+    c = r.certificate
+    assert c.verify() and c.ok() and r.delta == pytest.approx(c.upper_bound, rel=1e-12)
+    assert len(seen) >= 1 and seen[-1][0] > 0  # at least one outer iteration had finished
+    lo, up = seen[-1]
+    assert c.relative_gap == pytest.approx((up - lo) / up, rel=1e-6)  # that bracket, not a worse one
+    assert 0 < c.lower_bound <= c.upper_bound
+
+
+def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
+    # a fake clock (one second per reading) makes the limit expire mid-solve, deterministically
+    u, y, sigma = _problem(60, 1)
+    seen = _record_brackets(monkeypatch)
+    clock = [0.0]
+
+    def fake_clock():
+        clock[0] += 1.0
+        return clock[0]
+
+    monkeypatch.setattr(ab, "_clock", fake_clock)
+    with pytest.warns(uf.SolverWarning, match="time_limit"):
+        r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-12, time_limit=30.0, progress=False)
+    assert r.status == "time_limit"
+    c = r.certificate
+    assert c.verify() and c.ok()
+    lo, up = seen[-1]
+    assert lo > 0 and c.relative_gap == pytest.approx((up - lo) / up, rel=1e-6)
+
+
+@pytest.mark.parametrize("where", ["lower", "upper"])
+def test_bracket_interrupted_keeps_the_work(monkeypatch, where):
+    # Ctrl-C in the dual search keeps the upper side and the unoptimised circulant bound; Ctrl-C in the
+    # 3rd reweighted fit of the upper side keeps the best earlier iterate
+    u, y, sigma = _problem(30, 0)
+    if where == "lower":
+        def boom(*a, **k):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(br, "lower_point", boom)
+    else:
+        calls = [0]
+        orig = br._ridge_fit
+
+        def fit(*a, **k):
+            calls[0] += 1
+            if calls[0] == 3:
+                raise KeyboardInterrupt
+            return orig(*a, **k)
+
+        monkeypatch.setattr(br, "_ridge_fit", fit)
+    with pytest.warns(uf.SolverWarning, match="interrupted"):
+        r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", method="bracket", progress=False)
+    assert r.status == "interrupted" and np.isfinite(r.delta)
+    c = r.certificate
+    assert c.ok() and c.verify() and 0 < c.lower_bound <= c.upper_bound
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rc = uf.arx_unfalsify(u, y, 2, 2, sigma)
+    assert c.lower_bound <= rc.delta * (1 + 1e-6) and rc.delta <= c.upper_bound * (1 + 1e-6)
+
+
+def test_gram_in_quadratic_time_equals_the_matrix_product():
+    for n in (1, 2, 7, 300):
+        h = np.random.default_rng(n).standard_normal(n)
+        T = uf.toeplitz_matrix(h)
+        assert np.allclose(ab._gram(h), T.T @ T, rtol=0, atol=1e-12 * max(1.0, float(h @ h)))
+
+
+def test_certified_norm_routes():
+    from unfalsify.arx import certified_norm, symbol_bound
+
+    rng = np.random.default_rng(4)
+    for n in (5, 60, 500):
+        h = rng.standard_normal(n) * 0.9 ** np.arange(n)
+        dense = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+        assert certified_norm(h) == pytest.approx(dense, rel=1e-12)
+        # the symbol bound is an upper bound on ‖T_n(h)‖ and on the peak of |ĥ| on a 16× finer grid
+        sb = symbol_bound(h)
+        fine = float(np.abs(np.fft.rfft(h, 1024 * 2 ** int(np.ceil(np.log2(n))))).max())
+        assert dense <= sb and fine <= sb * (1 + 1e-12)
+        assert sb <= fine * 1.06  # and not loose: the Bernstein factor at M = 64n is ≤ 1/(1 − π/64)
+    assert certified_norm(np.r_[1.0, np.nan]) == np.inf
+
+
+def test_certified_norm_falls_back_to_the_symbol_bound_when_lanczos_fails(monkeypatch):
+    import unfalsify.arx as arx
+    from scipy.sparse.linalg import ArpackNoConvergence
+
+    def no_convergence(h, method="auto", tol=1e-12):
+        raise ArpackNoConvergence("no convergence", [], [])
+
+    h = np.random.default_rng(1).standard_normal(50)
+    monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
+    monkeypatch.setattr(arx, "toeplitz_norm", no_convergence)
+    assert arx.certified_norm(h) == arx.symbol_bound(h) >= np.linalg.norm(uf.toeplitz_matrix(h), 2)
+
+
+def test_certified_norm_above_the_dense_limit_is_proven_never_a_bare_lanczos_value(monkeypatch):
+    """Above the dense limit the Lanczos value is returned only once a Cholesky proves it."""
+    import unfalsify.arx as arx
+
+    monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
+    rng = np.random.default_rng(7)
+    h = rng.standard_normal(300) * 0.97 ** np.arange(300)
+    true = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+    c = arx.certified_norm(h)
+    assert true <= c <= true * (1 + 2e-6)  # proven Lanczos route, tighter than the symbol bound
+    assert c < arx.symbol_bound(h)
+    # a Lanczos value that is too small is refused by the Cholesky test: the symbol bound is returned
+    monkeypatch.setattr(arx, "toeplitz_norm", lambda h, method="auto", tol=1e-12: 0.9 * true)
+    assert arx.certified_norm(h) == arx.symbol_bound(h) >= true
+
+
+def test_cholesky_norm_test_decides_both_ways():
+    from unfalsify.arx import _norm_below_by_cholesky
+
+    h = np.random.default_rng(3).standard_normal(200)
+    true = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+    assert _norm_below_by_cholesky(h, true * (1 + 1e-6))
+    assert not _norm_below_by_cholesky(h, true * (1 - 1e-6))
+    assert not _norm_below_by_cholesky(h, 0.5 * float(np.linalg.norm(h)))
