@@ -312,6 +312,9 @@ def test_bench_predictor_quick(tmp_path):
         assert row["qr_s"] is None or row["qr_s"] > 0
         assert row["cholesky_s"] > 0 and row["before_s"] > 0 and row["max_rel_diff"] < 1e-6
         assert row["solver"] in ("triangular", "spectral") and 0 < row["peak_fraction_minimal"]
+        # the same fixed count for both routes: the fractions are in the ratio of the times
+        ratio = row["peak_fraction_dense_equivalent"] / row["peak_fraction_dense_equivalent_before"]
+        assert ratio == pytest.approx(row["speedup_vs_before"], rel=1e-12)
     assert any(row["m"] == 2 for row in summary["batch"])  # a MIMO case
     header = (tmp_path / "bench_predictor.csv").read_text().splitlines()[0]
     assert "cholesky_s" in header and "peak_fraction_dense_equivalent" in header
