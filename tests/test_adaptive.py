@@ -146,14 +146,19 @@ def test_every_update_equals_a_batch_design_on_the_same_window(kw, window):
     assert ad.design.controller is K  # cached
 
 
+def _drive(ad, d, n, r=0.0):
+    """Run the adaptive controller on ``n`` recorded samples of ``d`` with a constant reference ``r``."""
+    for k in range(n):
+        ad.control(r)
+        ad.observe(d.u[k], d.y[k], r)
+
+
 def test_update_phases_add_up():
     u0, y0 = _init_data(seed=3)
     W1, W2 = _weights()
     ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=20)
     d = collect_data(servo(), prbs(40, seed=9), sensor_noise=0.05, seed=10)
-    for k in range(40):
-        ad.control(0.0)
-        ad.observe(d.u[k], d.y[k], 0.0)
+    _drive(ad, d, 40)
     for h in ad.history[1:]:
         names = [p for p, _ in h.phases]
         assert names == ["push", "predictor", "design"]
@@ -194,9 +199,7 @@ def test_sample_buffer_grows_past_its_initial_size():
     W1, W2 = _weights()
     ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=300)
     d = collect_data(servo(), prbs(300, seed=13), sensor_noise=0.05, seed=14)
-    for k in range(300):
-        ad.control(0.0)
-        ad.observe(d.u[k], d.y[k], 0.0)
+    _drive(ad, d, 300)
     assert len(ad.history) == 2
     ref = synthesis.RecursivePredictor.from_data(np.vstack([u0, d.u]), np.vstack([y0, d.y]), I_H)
     assert ad.recursive.n_columns == ref.n_columns
