@@ -42,12 +42,12 @@ def test_columns_solver_equals_clarabel(plant, i, j, frac, seed, fixed):
     sigma = _sigma(u, y, i, frac)
     kw = {"predictor": fit_predictor(u, y, i)} if fixed else {}
     rc = uf.subspace_unfalsify(u, y, i, sigma, **kw)
-    rs = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", tol=1e-8, progress=False, **kw)
+    rs = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", tol=1e-7, progress=False, **kw)
     assert rs.status == "optimal" and rs.backend == "structured"
     assert rs.delta == pytest.approx(rc.delta, rel=1e-6)
     c = rs.certificate
     assert c.verify() and c.ok()
-    assert c.lower_bound <= c.upper_bound and c.relative_gap <= 1e-8
+    assert c.lower_bound <= c.upper_bound and c.relative_gap <= 1e-7
     # the certified lower bound never exceeds the independent (Clarabel) optimum
     assert c.lower_bound <= rc.delta * (1 + 1e-7)
     # primal point re-checked by dense matrices: every column's ‖T(h_k)‖₂ and the noise

@@ -100,29 +100,51 @@ def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 class _Point:
-    """The barrier's blocks at (H, δ): ``T_k``, the Cholesky-checked ``K_k⁻¹`` and the residual."""
+    """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, the Cholesky-checked ``K_k⁻¹``, the residual."""
 
-    def __init__(self, H, d, T, Kinv, logdet, r, psi):
-        self.H, self.d, self.T, self.Kinv, self.logdet, self.r, self.psi = H, d, T, Kinv, logdet, r, psi
-
-    @property
-    def S11(self):
-        return self.d * self.Kinv
-
-    @property
-    def S21(self):
-        return -self.T @ self.Kinv
+    def __init__(self, H, d, T, TtT, Kinv, logdet, r, psi):
+        self.H, self.d, self.T, self.TtT, self.Kinv = H, d, T, TtT, Kinv
+        self.logdet, self.r, self.psi = logdet, r, psi
+        self._blocks = None
 
     def blocks(self):
-        """``(S11, S21, S22)`` of ``F⁻¹``."""
-        S21 = self.S21
-        m = self.H.shape[0]
-        S22 = (np.eye(m) - S21 @ _tr(self.T)) / self.d
-        return self.S11, S21, 0.5 * (S22 + _tr(S22))
+        """``(S11, S21, S22)`` of ``F⁻¹``: ``δK⁻¹``, ``−TK⁻¹``, ``(I + TK⁻¹Tᵀ)/δ`` (computed once)."""
+        if self._blocks is None:
+            S21 = -self.T @ self.Kinv
+            m = self.H.shape[0]
+            S22 = (np.eye(m) - S21 @ _tr(self.T)) / self.d
+            self._blocks = (self.d * self.Kinv, S21, 0.5 * (S22 + _tr(S22)))
+        return self._blocks
+
+    def trace_S(self) -> float:
+        """``Σ_k tr F_k⁻¹ = Σ_k (δ tr K⁻¹ + (m + ⟨K⁻¹, TᵀT⟩)/δ)`` (no block products)."""
+        m, j = self.H.shape
+        trK = float(np.trace(self.Kinv, axis1=1, axis2=2).sum())
+        return self.d * trK + (m * j + float(np.sum(self.Kinv * self.TtT))) / self.d
 
     def upper(self) -> float:
         """``max_k ‖T(h_k)‖₂`` (dense spectral norms of the stack)."""
         return float(np.linalg.norm(self.T, 2, axis=(1, 2)).max())
+
+
+def _chol_inverse(K: np.ndarray):
+    """``(K_k⁻¹, log det K)`` for a stack, or None if some K_k is not positive definite (LAPACK potrf/potri)."""
+    from scipy.linalg.lapack import dpotrf, dpotri
+
+    out = np.empty_like(K)
+    logdet = 0.0
+    low = np.tril_indices(K.shape[1], -1)
+    for k in range(K.shape[0]):
+        c, info = dpotrf(K[k], lower=1, clean=0)
+        if info != 0:
+            return None
+        logdet += 2.0 * float(np.sum(np.log(np.diagonal(c))))
+        inv, info = dpotri(c, lower=1)
+        if info != 0:  # pragma: no cover - potrf succeeded
+            return None
+        inv[low[1], low[0]] = inv[low]
+        out[k] = inv
+    return out, logdet
 
 
 class _ColumnBarrier:
@@ -155,20 +177,19 @@ class _ColumnBarrier:
         if not (psi > 0 and d > 0):
             return None
         T = _toeplitz_stack(H)
-        K = d * d * np.eye(self.m) - _tr(T) @ T
-        try:
-            Lc = np.linalg.cholesky(K)
-        except np.linalg.LinAlgError:
+        TtT = _tr(T) @ T
+        inv = _chol_inverse(d * d * np.eye(self.m) - TtT)
+        if inv is None:
             return None
-        logdet = 2.0 * float(np.sum(np.log(np.diagonal(Lc, axis1=1, axis2=2))))
-        return _Point(H, d, T, _spd_inverse(K), logdet, r, psi)
+        return _Point(H, d, T, TtT, inv[0], inv[1], r, psi)
 
     def _slope(self, t, p: _Point, dh, dlt, q) -> float:
-        """Directional derivative of f_t at p along (dh, dlt); ``q = P H̃(dh)``."""
-        S11, S21, S22 = p.blocks()
+        """Directional derivative of f_t at p along (dh, dlt); ``q = P H̃(dh)``.
+
+        ``tr(F⁻¹ΔF) = dδ tr F⁻¹ + 2⟨S21, ΔT⟩`` and ``⟨S21, ΔT⟩ = −⟨K⁻¹, TᵀΔT⟩``: one product per column.
+        """
         dT = _toeplitz_stack(dh)
-        tr_fdf = dlt * float(np.trace(S11, axis1=1, axis2=2).sum() + np.trace(S22, axis1=1, axis2=2).sum())
-        tr_fdf += 2.0 * float(np.sum(S21 * dT))
+        tr_fdf = dlt * p.trace_S() - 2.0 * float(np.sum(p.Kinv * (_tr(p.T) @ dT)))
         return t * dlt - tr_fdf - 2.0 * self.wn * float(np.sum(p.r * q)) / p.psi
 
     # ---- Newton system -----------------------------------------------------------------------
@@ -179,8 +200,8 @@ class _ColumnBarrier:
         psi = p.psi
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
         grad_h = -2.0 * adjoint_toeplitz(S21) - 2.0 * self.wn * g_noise / psi
-        grad_d = t - float(np.trace(S11, axis1=1, axis2=2).sum() + np.trace(S22, axis1=1, axis2=2).sum())
-        c = 2.0 * adjoint_toeplitz(S21 @ S11 + S22 @ S21)
+        grad_d = t - p.trace_S()
+        c = 4.0 * adjoint_toeplitz(S21 @ S11)  # (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K)
         dd = float(np.sum(S11 * S11) + np.sum(S22 * S22) + 2.0 * np.sum(S21 * S21))
         G = _chunked_hessian(S11, S21, S22)
         X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
