@@ -87,7 +87,10 @@ def _chunked_hessian(S11, S21, S22):
 
 
 def _spd_inverse(X: np.ndarray) -> np.ndarray:
-    """Inverse of a stack of symmetric positive definite matrices (symmetrised)."""
+    """Inverse of a stack of symmetric positive definite matrices (Cholesky; LU if one is not PD)."""
+    out = _chol_inverse(X)
+    if out is not None:
+        return out[0]
     Y = np.linalg.inv(X)
     return 0.5 * (Y + _tr(Y))
 
@@ -95,8 +98,8 @@ def _spd_inverse(X: np.ndarray) -> np.ndarray:
 def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Columns ``A_k X[:, k]`` for a stack A (j, m, m) and X (m, j) (or (m, j, p))."""
     if X.ndim == 2:
-        return np.einsum("kab,bk->ak", A, X)
-    return np.einsum("kab,bkp->akp", A, X)
+        return (A @ X.T[:, :, None])[:, :, 0].T
+    return np.moveaxis(A @ np.moveaxis(X, 1, 0), 0, 1)
 
 
 class _Point:
@@ -147,11 +150,27 @@ def _chol_inverse(K: np.ndarray):
     return out, logdet
 
 
+def _kronecker_preconditioner(Q: np.ndarray, E: np.ndarray, sweeps: int = 4):
+    """``(A⁻¹, B⁻¹)`` of the nearest Kronecker product ``A ⊗ B`` to ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (Van Loan–Pitsianis).
+
+    In matrix form C maps Y (m × r) to ``Σ_k E_k Y q_k q_kᵀ``; if every ``E_k = w_k B`` it is exactly
+    ``B Y A`` with ``A = Σ_k w_k q_k q_kᵀ``.  Alternating least squares on the rank-one approximation of
+    the rearranged C: ``A ∝ Σ_k ⟨E_k, B⟩ q_k q_kᵀ``, ``B ∝ Σ_k (q_kᵀ A q_k) E_k``, starting from ``B = mean E_k``.
+    """
+    B = E.mean(axis=0)
+    for _ in range(sweeps):
+        wa = np.einsum("kab,ab->k", E, B)
+        A = (Q.T * wa) @ Q
+        wb = np.einsum("kr,rs,ks->k", Q, A, Q)
+        B = np.einsum("k,kab->ab", wb, E) / max(float(np.sum(A * A)), 1e-300)
+    return np.linalg.inv(0.5 * (A + A.T)), np.linalg.inv(0.5 * (B + B.T))
+
+
 class _ColumnBarrier:
     """The barrier method of the module docstring on a :class:`ColumnForm` with j ≥ 1 columns."""
 
     def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=20.0, max_newton=3000,
-                 cg_tol=1e-10, cg_maxiter=2000, noise_weight=None):
+                 cg_tol=1e-8, cg_maxiter=2000, noise_weight=None):
         self.f = form
         self.m, self.j = form.m, form.j
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
@@ -237,8 +256,7 @@ class _ColumnBarrier:
         m = self.m
         Tu = self.Tu
         E = _spd_inverse(cc * np.eye(m) + cc * cc * (Tu @ _spd_inverse(G) @ _tr(Tu)))
-        w = np.sum(Q * Q, axis=1) / Q.shape[1]
-        Ebar_inv = np.linalg.inv(np.einsum("k,kab->ab", w, E))
+        Ainv, Binv = _kronecker_preconditioner(Q, E)
 
         def Cmul(Y3):  # (p, m, r) -> (p, m, r)
             Z = np.moveaxis(Y3 @ Q.T, 2, 0)  # (j, p, m): column k of Y Qᵀ
@@ -248,7 +266,7 @@ class _ColumnBarrier:
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
         TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
         Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
-        Z = self._pcg(Cmul, lambda X: Ebar_inv @ X, Ut_b)
+        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b)
         UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
         return np.moveaxis(UZ @ Dinv, 0, 2).transpose(1, 2, 0)  # D_k⁻¹ (…), back to (m, j, p)
 
