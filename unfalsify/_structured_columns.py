@@ -59,27 +59,36 @@ def _tr(X: np.ndarray) -> np.ndarray:
     return np.swapaxes(X, -1, -2)
 
 
+def _rfft2_padded(X: np.ndarray, N: int) -> np.ndarray:
+    """``rfft2(X, (N, N))`` of a stack of m × m matrices, without transforming the N − m zero rows."""
+    return scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2)
+
+
 def _corr_hessian(S11, S21, S22, m):
     """``2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` for all (a, b), by 2-D FFT (batched).
 
     Both terms are 2-D cross-correlations read at lags (−b, a) (the second after flipping the columns
-    of S11 and S22), so their spectra are added and one inverse FFT serves both.
+    of S11 and S22), so their spectra are added and one inverse transform serves both; the spectrum
+    of ``S12 = S21ᵀ`` is that of S21 transposed (completed by conjugate symmetry), and only the m
+    rows of lags that are read are inverse-transformed: three forward and one partial inverse FFT.
     """
     N = 2 * m
-    s = (N, N)
-    f = scipy.fft
-    spec = f.rfft2(_tr(S21), s) * np.conj(f.rfft2(S21, s))
-    spec += f.rfft2(S11[..., ::-1], s) * np.conj(f.rfft2(S22[..., ::-1], s))
-    R = f.irfft2(spec, s)
-    neg = (-np.arange(m)) % N
-    return 2.0 * _tr(R[..., neg, :][..., :, :m])
+    h = N // 2 + 1
+    F21 = _rfft2_padded(S21, N)  # F(S21)[u, v], v ≤ N/2
+    G = np.empty(F21.shape[:-2] + (h, N), complex)  # F(S21)[v, u] for v ≤ N/2, every u
+    G[..., :h] = F21[..., :h, :]
+    G[..., h:] = np.conj(F21[..., (-np.arange(h)) % N, :][..., :, N - np.arange(h, N)])
+    spec = _tr(G) * np.conj(F21)
+    spec += _rfft2_padded(S11[..., ::-1], N) * np.conj(_rfft2_padded(S22[..., ::-1], N))
+    rows = scipy.fft.ifft(spec, axis=-2)[..., (-np.arange(m)) % N, :]
+    return 2.0 * _tr(scipy.fft.irfft(rows, N, axis=-1)[..., :m])
 
 
 def _chunked_hessian(S11, S21, S22):
     """:func:`_corr_hessian` over the column stack in chunks (bounded FFT workspace)."""
     j, m = S11.shape[0], S11.shape[1]
     out = np.empty((j, m, m))
-    step = max(1, int(2e7 // (4 * m * m)))
+    step = max(1, int(1e7 // (4 * m * m)))
     for k0 in range(0, j, step):
         sl = slice(k0, k0 + step)
         out[sl] = _corr_hessian(S11[sl], S21[sl], S22[sl], m)
