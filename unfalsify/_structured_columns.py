@@ -258,8 +258,9 @@ class _ColumnBarrier:
         """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with ``C = c⁻¹I − UᵀD⁻¹U = Σ_k q_k q_kᵀ ⊗ E_k`` by PCG.
 
         ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹`` equals ``c⁻¹I − T(u_k) D_k⁻¹ T(u_k)ᵀ`` without its
-        cancellation.  Preconditioner ``I ⊗ Ē``, Ē the ``‖q_k‖²``-weighted mean of the E_k.  Vectors
-        are stacks (p, m, r) (p right-hand sides); a product costs O(p m r j + p m² j).
+        cancellation.  Preconditioner: the nearest Kronecker product ``A ⊗ B`` to C
+        (:func:`_kronecker_preconditioner`).  Vectors are stacks (p, m, r) (p right-hand sides); a
+        product costs O(p m r j + p m² j) and C is never formed.
         """
         Q = self.Q
         m = self.m
@@ -267,10 +268,9 @@ class _ColumnBarrier:
         E = _spd_inverse(cc * np.eye(m) + cc * cc * (Tu @ _spd_inverse(G) @ _tr(Tu)))
         Ainv, Binv = _kronecker_preconditioner(Q, E)
 
-        def Cmul(Y3):  # (p, m, r) -> (p, m, r)
+        def Cmul(Y3):  # (p, m, r) -> (p, m, r): Σ_k E_k (Y Qᵀ)_k q_kᵀ
             Z = np.moveaxis(Y3 @ Q.T, 2, 0)  # (j, p, m): column k of Y Qᵀ
-            EZ = Z @ _tr(E)  # E_k z_k
-            return np.moveaxis(EZ, 0, 2) @ Q
+            return np.moveaxis(Z @ _tr(E), 0, 2) @ Q
 
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
         TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
