@@ -3,11 +3,15 @@
 Barrier method (Boyd & Vandenberghe §11.3) on the ij + 1 variables (H, δ) of (C), the predictor
 eliminated by projection (:mod:`unfalsify._columns`):
 
-    f_t(H, δ) = t δ − Σ_k log det F_k(h_k, δ) − log(ρ² − ‖P(B − H̃)‖²_F),
+    f_t(H, δ) = t δ − Σ_k log det F_k(h_k, δ) − w log ψ,   ψ = ρ² − ‖P(B − H̃)‖²_F,
     F_k = [δI T(h_k)ᵀ; T(h_k) δI]      (the LMI of (7.5) per column, conditioned form),
 
-P the projection onto 𝓛^⊥ (𝓛 = {0} with L fixed, ``{X Qᵀ}`` with L optimised).  What makes the
-thesis's (i, j) = (100, 1000) reachable:
+P the projection onto 𝓛^⊥ (𝓛 = {0} with L fixed, ``{X Qᵀ}`` with L optimised).  The noise barrier
+carries the weight ``w = √(2ij)`` (a weighted barrier, parameter ν = 2ij + w, duality gap ν/t on the
+central path): with w = 1 the single noise constraint is swamped by the 2ij LMI terms and the iterates
+crowd its boundary (measured at (i, j) = (5, 60): ψ collapsing after every increase of t, tens of short
+steps to recover, and status "failed" after 364 Newton steps with w = 1; certified in 29 steps with
+w = 60).  Structure used:
 
 * **Cholesky instead of SVD.**  ``K_k = δ²I − T_kᵀT_k`` (T_k = T(h_k)) is the Schur complement of
   F_k: ``log det F_k = log det K_k``, F_k ≻ 0 ⟺ the Cholesky of K_k exists (the line search's
@@ -15,22 +19,24 @@ thesis's (i, j) = (100, 1000) reachable:
 * **Hessian by 2-D FFT.**  ``tr(F⁻¹E_aF⁻¹E_b) = 2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` (Z_a the
   shift matrices, S = F⁻¹): two 2-D cross-correlations, O(i² log i) per column.
 * **Newton system without O(n⁴) storage.**  The Hessian in H is block diagonal (j blocks i × i: the
-  barrier plus ``(2/ψ) T(u_k)ᵀT(u_k)``) plus the rank-one noise term ``(4/ψ²) g gᵀ`` and, with L
-  optimised, minus ``(2/ψ) U Uᵀ``, ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: block
-  Cholesky + Sherman–Morrison + the Schur complement of the δ row (exact, O(j i³)).  L optimised:
+  barrier plus ``c T(u_k)ᵀT(u_k)``, c = 2w/ψ) plus the rank-one noise term ``(4w/ψ²) g gᵀ`` and, with
+  L optimised, minus ``c U Uᵀ``, ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: block
+  inverses + Sherman–Morrison + the Schur complement of the δ row (exact, O(j i³)).  L optimised:
   Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (``q_k`` row k of Q,
-  ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, c = 2/ψ, G_k the barrier block) solved by preconditioned
+  ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
   conjugate gradients; C is never formed (products cost O(i r j)), memory O(j i²).
-* **Long steps.**  After each centring, t grows by ``mu`` and a predictor step follows the tangent of
-  the central path; Newton steps use a line search on the slope of f_t (function values lose their
-  digits at large t), not the short damped-Newton step.
+* **Long steps.**  After each centring t grows by ``mu`` (20); the first Newton step of f_{μt} from
+  the centred point is the tangent of the central path.  Steps use a safeguarded secant line search
+  on the slope of f_t (function values lose their digits at large t), not the short damped step.
 
-Every centred iterate gives a dual point (``W_k = −2 (F_k⁻¹)_{21}/t`` and the noise multiplier,
-linearised with the last Newton step), bounded by :meth:`ColumnForm.lower_bound`: the stopping rule
-and the returned bracket use that **certified** gap whatever the accuracy of the Newton solves.
+Every centred iterate gives a dual point (``W_k = −2 (F_k⁻¹ − F_k⁻¹ΔF_kF_k⁻¹)_{21}/t`` and the noise
+multiplier, linearised with the last Newton step), bounded by :meth:`ColumnForm.lower_bound`: the
+stopping rule and the returned bracket use that **certified** gap whatever the accuracy of the Newton
+solves.
 """
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -59,9 +65,18 @@ def _tr(X: np.ndarray) -> np.ndarray:
     return np.swapaxes(X, -1, -2)
 
 
+def _fft_workers() -> int:
+    """FFT threads: ``OMP_NUM_THREADS`` if set (as BLAS follows ``OPENBLAS_NUM_THREADS``), else 1."""
+    try:
+        return max(1, int(os.environ.get("OMP_NUM_THREADS", "1")))
+    except ValueError:
+        return 1
+
+
 def _rfft2_padded(X: np.ndarray, N: int) -> np.ndarray:
     """``rfft2(X, (N, N))`` of a stack of m × m matrices, without transforming the N − m zero rows."""
-    return scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2)
+    w = _fft_workers()
+    return scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1, workers=w), N, axis=-2, workers=w)
 
 
 def _corr_hessian(S11, S21, S22, m):
@@ -80,8 +95,8 @@ def _corr_hessian(S11, S21, S22, m):
     G[..., h:] = np.conj(F21[..., (-np.arange(h)) % N, :][..., :, N - np.arange(h, N)])
     spec = _tr(G) * np.conj(F21)
     spec += _rfft2_padded(S11[..., ::-1], N) * np.conj(_rfft2_padded(S22[..., ::-1], N))
-    rows = scipy.fft.ifft(spec, axis=-2)[..., (-np.arange(m)) % N, :]
-    return 2.0 * _tr(scipy.fft.irfft(rows, N, axis=-1)[..., :m])
+    rows = scipy.fft.ifft(spec, axis=-2, workers=_fft_workers())[..., (-np.arange(m)) % N, :]
+    return 2.0 * _tr(scipy.fft.irfft(rows, N, axis=-1, workers=_fft_workers())[..., :m])
 
 
 def _chunked_hessian(S11, S21, S22):
@@ -331,16 +346,17 @@ class _ColumnBarrier:
         disc = rq * rq + qq * (self.f.rho**2 - rr)
         return min(1.0, 0.99 * (rq + np.sqrt(max(disc, 0.0))) / qq)
 
-    def _line_search(self, t, p: _Point, dh, dlt, slope0):
+    def _line_search(self, t, p: _Point, dh, dlt, slope0, a_init=1.0):
         """A step along (dh, dlt) near the minimiser of f_t on the line (convex there), by safeguarded
         secant steps on the slope (function values lose their digits at large t).  Only points with a
-        non-positive slope are accepted (they lie before the minimiser, so f_t decreases); the first
-        trial is the Newton step, cut to stay 1 % off the noise boundary."""
+        non-positive slope are accepted (they lie before the minimiser, so f_t decreases).  The first
+        trial is ``min(a_init, a₀)``, a₀ the Newton step cut to stay 1 % off the noise boundary; a trial
+        short of a₀ that is inside and still descending is expanded 4× while no upper end is known."""
         q = self.f.project(self.f.apply(dh))
         a0 = self._noise_step(p.r, q)
         lo, s_lo, p_lo = 0.0, slope0, None
         hi, s_hi = None, None
-        a = a0
+        a = min(a0, a_init)
         for _ in range(40):
             pn = self._point(p.H + a * dh, p.d + a * dlt)
             if pn is None:
@@ -349,18 +365,20 @@ class _ColumnBarrier:
                 s = self._slope(t, pn, dh, dlt, q)
                 if s <= 0.0:
                     lo, s_lo, p_lo = a, s, pn
-                    if a == a0 or s >= 0.1 * slope0:
-                        return pn
+                    if a >= a0 or s >= 0.1 * slope0:
+                        return pn, a
                 else:
                     hi, s_hi = a, s
             if p_lo is not None and hi is not None and hi - lo <= 0.05 * hi:
-                return p_lo
-            if s_hi is None:  # infeasible above: shrink towards lo
-                a = lo + 0.5 * (hi - lo) if p_lo is not None else 0.5 * hi
+                return p_lo, lo
+            if hi is None:  # inside and descending short of a₀: expand
+                a = min(a0, 4.0 * a)
+            elif s_hi is None:  # infeasible above: shrink towards lo
+                a = lo + 0.5 * (hi - lo)
             else:  # secant on the slope, kept inside the bracket
                 a = lo - s_lo * (hi - lo) / (s_hi - s_lo)
                 a = min(max(a, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
-        return p_lo  # None: no progress along this direction (rounding, at the end of the path)
+        return p_lo, lo  # p_lo None: no progress along this direction (rounding, at the end of the path)
 
     # ---- starting point ----------------------------------------------------------------------
     def start(self, B0) -> _Point:
@@ -395,7 +413,7 @@ class _ColumnBarrier:
                 raise _Stop("failed" if not np.isfinite(lam2) else "max_iter")
             if lam2 <= self.center_tol:
                 break
-            pn = self._line_search(t, p, dh, dlt, -lam2)
+            pn, _ = self._line_search(t, p, dh, dlt, -lam2)
             if pn is None:  # rounding-level stall: take the bounds here; run() stops if they do not improve
                 self.stalled += 1
                 break
@@ -456,17 +474,36 @@ class _ColumnBarrier:
 
 def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_limit=None, progress=True,
                           mu=20.0, noise_weight=None) -> dict:
-    """Run the column barrier method on ``form``; ``B0 = P B`` (B minus a point of 𝓛) seeds the start.
+    """Run the column barrier method on ``form`` (program (C) of (7.5)).
 
-    Returns a dict: status (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the
-    best upper bound and its impulses ``H`` (m × j), the best lower bound and its dual point ``V``
-    (m × j), ``W`` (j × m × m), Newton, outer and CG iteration counts, wall time.
+    Parameters
+    ----------
+    form : ColumnForm
+        The column form, scaled units; ``basis_right`` set when L is optimised.
+    B0 : ndarray, shape (m, j)
+        ``P B`` (B minus a point of 𝓛): seeds the ridge starting point.
+    tol : float
+        Relative certified gap ``(upper − lower)/upper`` at which to stop.
+    time_limit : float, optional
+        Wall-clock seconds; then the best certified bracket is returned with status ``time_limit``.
+    progress : bool
+        tqdm bar (iteration, bounds) for solves longer than about 2 s.
+    mu, noise_weight : float
+        Growth of t per centring; weight w of the noise barrier (default √(2ij)).
+
+    Returns
+    -------
+    dict
+        status (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the best upper
+        bound and its impulses ``H`` (m × j), the best lower bound and its dual point ``V`` (m × j),
+        ``W`` (j × m × m), Newton, outer and CG iteration counts, wall time.  Ctrl-C during the solve
+        returns the bracket so far with status ``interrupted``.
     """
     solver = _ColumnBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu, noise_weight=noise_weight)
     t0 = time.perf_counter()
     try:
         p = solver.start(B0)
     except KeyboardInterrupt:
-        return dict(status="interrupted", lower=0.0, upper=float("inf"), H=np.zeros((form.m, form.j)), V=None,
+        return dict(status="interrupted", lower=0.0, upper=float("nan"), H=np.zeros((form.m, form.j)), V=None,
                     W=None, outer=0, newton=0, cg=0, time=time.perf_counter() - t0)
     return solver.run(p)
