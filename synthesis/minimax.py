@@ -236,7 +236,7 @@ def _saddle(Md, Mu, Mx=None) -> _Saddle:
     (:func:`minimax_gamma_min` equals the γ_min of :func:`solve_minimax` to the last bit).
     """
     qr, tau, R = _qr_u(Mu)
-    k, nd = Mu.shape[1], Md.shape[1]
+    k = Mu.shape[1]
     T = _apply_qt(qr, tau, Md)
     TX = None if Mx is None else _apply_qt(qr, tau, Mx)
     X = T[k:]

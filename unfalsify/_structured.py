@@ -203,7 +203,6 @@ class _Solver:
         S11 = (V * D1[:, None, :]) @ Vt
         S22 = (Uk * D1[:, None, :]) @ Ut
         S21 = -(Uk * D2[:, None, :]) @ Vt
-        S12 = np.swapaxes(S21, -1, -2)
         dT = _toeplitz_stack(dh)
         dTt = np.swapaxes(dT, -1, -2)
         SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ dTt @ S21 + S22 @ dT @ S11

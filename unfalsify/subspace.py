@@ -343,8 +343,8 @@ def _solve_cvxpy(P: SubspaceProblem, form, eliminate_L, solver, solver_options) 
 
 
 def _solve_structured(P: SubspaceProblem, tol, time_limit, progress) -> dict:
-    """The structured barrier solver; returns a dict in data units."""
-    from ._structured import solve_structured
+    """The column barrier solver (:mod:`unfalsify._structured_columns`); returns a dict in data units."""
+    from ._structured_columns import solve_columns_barrier
 
     su, sy = P.scale
     f = P.column_form(scaled=True)
@@ -354,7 +354,7 @@ def _solve_structured(P: SubspaceProblem, tol, time_limit, progress) -> dict:
     if np.linalg.norm(B0) <= f.rho:
         out = dict(status="optimal", H=np.zeros((i, j)), V=None, W=None, upper=0.0)
     else:
-        out = solve_structured(f, B0, tol=tol, time_limit=time_limit, progress=progress)
+        out = solve_columns_barrier(f, B0, tol=tol, time_limit=time_limit, progress=progress)
     H = out["H"] * (sy / su)
     Htil = _conv_cols(P.Uf, H)
     L = P.L_fixed.copy() if P.L_fixed is not None else np.linalg.lstsq(P.A.T, (P.Yf - Htil).T, rcond=None)[0].T
