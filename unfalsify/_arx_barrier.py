@@ -36,7 +36,7 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import ColumnForm, _nfft
+from ._columns import _SOLVE_ERRORS, ColumnForm, _nfft, _ridge_lambda, _Stop, _stop_status
 from ._structured import _cho, _corr_hessian
 from ._toeplitz import toeplitz_matrix
 
@@ -53,9 +53,6 @@ def _clock() -> float:
     """Wall clock of the time limit (a function, so that tests can substitute a deterministic one)."""
     return time.perf_counter()
 
-
-class _Stop(Exception):
-    pass
 
 
 class _State:
@@ -262,13 +259,8 @@ class _ArxBarrier:
                 t_new = t * self.mu
                 s = self._predict(t, t_new, s, tangent)
                 t = t_new
-        except _Stop as exc:
-            status = str(exc)
-        except KeyboardInterrupt:
-            status = "interrupted"
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError) as exc:
-            status = "failed"
-            best["error"] = f"{type(exc).__name__}: {exc}"
+        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
+            status = _stop_status(exc, best)
         finally:
             if bar is not None:
                 bar.close()
@@ -328,13 +320,5 @@ def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarr
     Us, sv, Vt = np.linalg.svd(Tu)
     beta = Us.T @ B0[:, 0]
     target = (frac * form.rho) ** 2
-    lo, hi = -40.0, 10.0
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lam = 10.0**mid
-        if float(np.sum((lam / (sv * sv + lam)) ** 2 * beta**2)) > target:
-            hi = mid
-        else:
-            lo = mid
-    lam = 10.0**lo
+    lam = _ridge_lambda(sv, beta, target)
     return Vt.T @ (sv / (sv * sv + lam) * beta)

@@ -61,6 +61,49 @@ class CirculantDual:
         return CirculantDual(column=a * np.asarray(self.column, float), size=self.size)
 
 
+class _Stop(Exception):
+    """A barrier solver's own stop (time limit, iteration cap, failure); the message is the status."""
+
+
+#: numerical failures a barrier solver turns into status ``"failed"`` (the best bracket so far is kept)
+_SOLVE_ERRORS = (np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError)
+
+
+def _stop_status(exc: BaseException, best: dict) -> str:
+    """The status of a solve ended by ``exc`` (:class:`_Stop`, Ctrl-C or one of :data:`_SOLVE_ERRORS`);
+    a numerical failure is also recorded in ``best["error"]``."""
+    if isinstance(exc, _Stop):
+        return str(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    best["error"] = f"{type(exc).__name__}: {exc}"
+    return "failed"
+
+
+def _toeplitz_stack(H: np.ndarray) -> np.ndarray:
+    """Stack ``(j, m, m)`` of ``T(H[:, k])``."""
+    m = H.shape[0]
+    idx = np.subtract.outer(np.arange(m), np.arange(m))
+    T = H.T[:, idx.clip(0)]
+    T[:, idx < 0] = 0.0
+    return T
+
+
+def _ridge_lambda(s: np.ndarray, beta: np.ndarray, target: float) -> float:
+    """The ridge parameter λ with ``Σ (λ/(s² + λ))² β² = target`` (the residual ‖B0 − T(u)h_λ‖² of the
+    ridge impulses, s and β the singular values and data coordinates of T(u)), by bisection on log₁₀ λ
+    over [−40, 10] (the residual grows with λ); the side of the bracket that stays below ``target``."""
+    lo, hi = -40.0, 10.0
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lam = 10.0**mid
+        if float(np.sum((lam / (s * s + lam)) ** 2 * beta**2)) > target:
+            hi = mid
+        else:
+            lo = mid
+    return 10.0**lo
+
+
 def _nfft(m: int) -> int:
     return int(2 ** np.ceil(np.log2(max(2 * m, 2))))
 

@@ -30,24 +30,12 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import ColumnForm, adjoint_toeplitz
+from ._columns import _SOLVE_ERRORS, ColumnForm, _ridge_lambda, _Stop, _stop_status, _toeplitz_stack, adjoint_toeplitz
 
 __all__: list[str] = []
 
 
 
-
-class _Stop(Exception):
-    pass
-
-
-def _toeplitz_stack(H: np.ndarray) -> np.ndarray:
-    """Stack ``(j, m, m)`` of ``T(H[:, k])``."""
-    m = H.shape[0]
-    idx = np.subtract.outer(np.arange(m), np.arange(m))
-    T = H.T[:, idx.clip(0)]
-    T[:, idx < 0] = 0.0
-    return T
 
 
 def _cho(Hm):
@@ -244,17 +232,7 @@ class _Solver:
         beta = np.einsum("kia,ik->ka", Us, B0)  # (j, m)
         target = (0.7 * f.rho) ** 2
 
-        def res2(lam):
-            return float(np.sum((lam / (s * s + lam)) ** 2 * beta**2))
-
-        lo, hi = -40.0, 10.0
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            if res2(10.0**mid) > target:
-                hi = mid
-            else:
-                lo = mid
-        lam = 10.0**lo
+        lam = _ridge_lambda(s, beta, target)
         H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
         return H
 
@@ -329,13 +307,8 @@ class _Solver:
                     if np.isfinite(self._phi(t_new, Hn, dn, svdn[1], rn)):
                         H, d, svd, r = Hn, dn, svdn, rn
                 t = t_new
-        except _Stop as exc:
-            status = str(exc)
-        except KeyboardInterrupt:
-            status = "interrupted"
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-            status = "failed"
-            best["error"] = f"{type(exc).__name__}: {exc}"
+        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
+            status = _stop_status(exc, best)
         finally:
             if bar is not None:
                 bar.close()

@@ -42,22 +42,10 @@ import time
 import numpy as np
 import scipy.fft
 
-from ._columns import ColumnForm, adjoint_toeplitz
+from ._columns import _SOLVE_ERRORS, ColumnForm, _ridge_lambda, _Stop, _stop_status, _toeplitz_stack, adjoint_toeplitz
 
 __all__: list[str] = []
 
-
-class _Stop(Exception):
-    pass
-
-
-def _toeplitz_stack(H: np.ndarray) -> np.ndarray:
-    """Stack ``(j, m, m)`` of ``T(H[:, k])``."""
-    m = H.shape[0]
-    idx = np.subtract.outer(np.arange(m), np.arange(m))
-    T = H.T[:, idx.clip(0)]
-    T[:, idx < 0] = 0.0
-    return T
 
 
 def _tr(X: np.ndarray) -> np.ndarray:
@@ -385,15 +373,7 @@ class _ColumnBarrier:
         Us, s, Vt = np.linalg.svd(self.Tu)
         beta = np.einsum("kia,ik->ka", Us, B0)
         target = (0.7 * self.f.rho) ** 2
-        lo, hi = -40.0, 10.0
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            lam = 10.0**mid
-            if float(np.sum((lam / (s * s + lam)) ** 2 * beta**2)) > target:
-                hi = mid
-            else:
-                lo = mid
-        lam = 10.0**lo
+        lam = _ridge_lambda(s, beta, target)
         H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
         up = float(np.linalg.norm(_toeplitz_stack(H), 2, axis=(1, 2)).max())
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
@@ -457,13 +437,8 @@ class _ColumnBarrier:
                 self._check_time(t_start)
                 t_new = t * self.mu
                 t = t_new
-        except _Stop as exc:
-            status = str(exc)
-        except KeyboardInterrupt:
-            status = "interrupted"
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-            status = "failed"
-            best["error"] = f"{type(exc).__name__}: {exc}"
+        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
+            status = _stop_status(exc, best)
         finally:
             if bar is not None:
                 bar.close()
