@@ -159,17 +159,16 @@ def _gram_from_skew(F: np.ndarray, rows: int, order: np.ndarray) -> np.ndarray:
     return U + U.T
 
 
-def _channel_major_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
-    """``ZZᵀ`` ordered channel-major: index ``a·rows + r`` is channel ``a`` of block row ``r``."""
-    c = z.shape[1]
-    return _gram_from_skew(_upper_block_skew(z, rows, j), rows, np.arange(c * rows))
+def _interleaved_gram(z: np.ndarray, rows: int, j: int, order=None) -> np.ndarray:
+    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns.
 
-
-def _interleaved_gram(z: np.ndarray, rows: int, j: int) -> np.ndarray:
-    """``ZZᵀ`` for the block Hankel ``Z`` of ``z`` with ``rows`` block rows and ``j`` columns (interleaved order)."""
+    Interleaved order (index ``r·c + ch``: channel ``ch`` of block row ``r``), or the rows and
+    columns ``order`` of it (e.g. :func:`hankel_order`), gathered once from the channel-major
+    array of :func:`_upper_block_skew`.
+    """
     c = z.shape[1]
-    N = rows * c
-    return _channel_major_gram(z, rows, j).reshape(c, rows, c, rows).transpose(1, 0, 3, 2).reshape(N, N)
+    idx = np.arange(rows * c) if order is None else np.asarray(order)
+    return _gram_from_skew(_upper_block_skew(z, rows, j), rows, (idx % c) * rows + idx // c)
 
 
 def hankel_gram(u, y, i: int) -> np.ndarray:
@@ -197,6 +196,4 @@ def hankel_gram(u, y, i: int) -> np.ndarray:
     i = check_horizon(i, n)
     j = n - 2 * i + 1
     z = np.ascontiguousarray(np.hstack([u, y]))
-    perm = hankel_order(i, m, l)
-    perm = (perm % (m + l)) * (2 * i) + perm // (m + l)  # interleaved index r·c + ch → channel-major ch·2i + r
-    return _gram_from_skew(_upper_block_skew(z, 2 * i, j), 2 * i, perm)
+    return _interleaved_gram(z, 2 * i, j, hankel_order(i, m, l))
