@@ -36,7 +36,8 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import _SOLVE_ERRORS, ColumnForm, _nfft, _ridge_lambda, _Stop, _stop_status
+from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _nfft, _ridge_lambda, _Stop, _stop_status,
+                       _tick_progress)
 from ._structured import _cho, _corr_hessian
 from ._toeplitz import toeplitz_matrix
 
@@ -254,7 +255,7 @@ class _ArxBarrier:
                     best.update(lower=lower, V=v[:, None], W=W[None])
                 best.update(newton=counter[0], outer=best["outer"] + 1)
                 bar = self._progress(bar, t_start, best)
-                if best["upper"] - best["lower"] <= self.tol * best["upper"] or best["upper"] <= 1e-14:
+                if _gap_closed(best, self.tol):
                     break
                 t_new = t * self.mu
                 s = self._predict(t, t_new, s, tangent)
@@ -268,14 +269,8 @@ class _ArxBarrier:
         return best
 
     def _progress(self, bar, t_start, best):
-        if bar is None and self.progress and _clock() - t_start > 2.0:
-            from tqdm import tqdm
-
-            bar = tqdm(desc=f"structured ARX unfalsification (n={self.n})", unit=" outer", leave=False)
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(newton=best["newton"], lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
-        return bar
+        return _tick_progress(bar, self.progress, _clock() - t_start,
+                              f"structured ARX unfalsification (n={self.n})", best["newton"], best)
 
 
 def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=None, progress=True, mu=None) -> dict:

@@ -80,6 +80,27 @@ def _stop_status(exc: BaseException, best: dict) -> str:
     return "failed"
 
 
+def _tick_progress(bar, enabled: bool, elapsed: float, desc: str, newton: int, best: dict):
+    """One outer iteration of a barrier solve on its tqdm bar (iteration, Newton steps, bounds).
+
+    The bar is opened only once the solve has run 2 s (``enabled``: the solver's ``progress``);
+    returns it (or ``None``) for the next call.
+    """
+    if bar is None and enabled and elapsed > 2.0:
+        from tqdm import tqdm
+
+        bar = tqdm(desc=desc, unit=" outer", leave=False)
+    if bar is not None:
+        bar.update(1)
+        bar.set_postfix(newton=newton, lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
+    return bar
+
+
+def _gap_closed(best: dict, tol: float) -> bool:
+    """The stopping rule of the barrier solvers: certified relative gap ≤ ``tol`` (or δ = 0 reached)."""
+    return best["upper"] - best["lower"] <= tol * best["upper"] or best["upper"] <= 1e-14
+
+
 def _toeplitz_stack(H: np.ndarray) -> np.ndarray:
     """Stack ``(j, m, m)`` of ``T(H[:, k])``."""
     m = H.shape[0]

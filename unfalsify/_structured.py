@@ -30,7 +30,8 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import _SOLVE_ERRORS, ColumnForm, _ridge_lambda, _Stop, _stop_status, _toeplitz_stack, adjoint_toeplitz
+from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status, _tick_progress,
+                       _toeplitz_stack, adjoint_toeplitz)
 
 __all__: list[str] = []
 
@@ -284,16 +285,9 @@ class _Solver:
                 if lower > best["lower"]:
                     best.update(lower=lower, V=Vd, W=Wd)
                 best.update(newton=n_newton, outer=best["outer"] + 1)
-                elapsed = time.perf_counter() - t_start
-                if bar is None and self.progress and elapsed > 2.0:
-                    from tqdm import tqdm
-
-                    bar = tqdm(desc=f"structured unfalsification ({self.m}×{self.j})", unit=" outer", leave=False)
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(newton=n_newton, lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
-                gap = best["upper"] - best["lower"]
-                if gap <= self.tol * best["upper"] or best["upper"] <= 1e-14:
+                bar = _tick_progress(bar, self.progress, time.perf_counter() - t_start,
+                                     f"structured unfalsification ({self.m}×{self.j})", n_newton, best)
+                if _gap_closed(best, self.tol):
                     break
                 t_new = t * self.mu
                 # predictor: follow the tangent of the central path to t_new (then re-centre)

@@ -42,7 +42,8 @@ import time
 import numpy as np
 import scipy.fft
 
-from ._columns import _SOLVE_ERRORS, ColumnForm, _ridge_lambda, _Stop, _stop_status, _toeplitz_stack, adjoint_toeplitz
+from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status, _tick_progress,
+                       _toeplitz_stack, adjoint_toeplitz)
 
 __all__: list[str] = []
 
@@ -421,15 +422,9 @@ class _ColumnBarrier:
                 if lower > best["lower"]:
                     best.update(lower=lower, V=Vd, W=Wd)
                 best["outer"] += 1
-                elapsed = time.perf_counter() - t_start
-                if bar is None and self.progress and elapsed > 2.0:
-                    from tqdm import tqdm
-
-                    bar = tqdm(desc=f"structured unfalsification ({self.m}×{self.j})", unit=" outer", leave=False)
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(newton=n_newton, lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
-                if best["upper"] - best["lower"] <= self.tol * best["upper"] or best["upper"] <= 1e-14:
+                bar = _tick_progress(bar, self.progress, time.perf_counter() - t_start,
+                                     f"structured unfalsification ({self.m}×{self.j})", n_newton, best)
+                if _gap_closed(best, self.tol):
                     break
                 if self.stalled and not (upper < prev[0] or lower > prev[1]):
                     raise _Stop("failed")  # no step possible and no better bound: the end of double precision
