@@ -36,10 +36,10 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _nfft, _ridge_lambda, _Stop, _stop_status,
+from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status,
                        _tick_progress)
 from ._structured import _cho, _corr_hessian
-from ._toeplitz import toeplitz_matrix
+from ._toeplitz import _toeplitz_gram, toeplitz_matrix
 
 __all__: list[str] = []
 
@@ -72,7 +72,7 @@ class _State:
         self.logdet = -np.inf
         if not (self.d > 0.0 and self.psi > 0.0):
             return
-        K = _gram(h)
+        K = _toeplitz_gram(h)
         K *= -1.0
         K[np.diag_indices_from(K)] += self.d * self.d
         try:
@@ -90,27 +90,6 @@ class _State:
         if not self.ok:
             return np.inf
         return t * self.d - self.logdet - np.log(self.psi)
-
-
-def _gram(h: np.ndarray) -> np.ndarray:
-    """``T(h)ᵀT(h)`` in O(n²) (no matrix product): along the k-th diagonal,
-    ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h`` reversed
-    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``)."""
-    n = h.size
-    nf = _nfft(n)
-    H = np.fft.rfft(h, nf)
-    r = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
-    a = h[::-1]
-    G = np.empty((n, n))
-    flat = G.reshape(-1)
-    for k in range(n):
-        diag = np.empty(n - k)
-        diag[0] = r[k]
-        np.cumsum(a[: n - 1 - k] * a[k : n - 1], out=diag[1:])
-        diag[1:] = r[k] - diag[1:]
-        flat[k : (n - k) * (n + 1) : n + 1] = diag  # upper diagonal k
-        flat[k * n : n * n : n + 1] = diag  # lower diagonal k
-    return G
 
 
 def _adjoint(A: np.ndarray, lower_d: np.ndarray, lower_mask: np.ndarray, n: int) -> np.ndarray:

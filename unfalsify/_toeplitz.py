@@ -29,6 +29,8 @@ from scipy.sparse.linalg import LinearOperator, svds
 
 from synthesis._validation import DataError
 
+from ._columns import _nfft
+
 __all__ = [
     "toeplitz_matrix",
     "toeplitz_norm",
@@ -66,6 +68,27 @@ def _fft_operator(h: np.ndarray) -> LinearOperator:
         return mv(x[::-1])[::-1]
 
     return LinearOperator((n, n), matvec=mv, rmatvec=rmv, dtype=float)
+
+
+def _toeplitz_gram(h: np.ndarray) -> np.ndarray:
+    """``T(h)ᵀT(h)`` in O(n²) (no matrix product): along the k-th diagonal,
+    ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h`` reversed
+    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``)."""
+    n = h.size
+    nf = _nfft(n)
+    H = np.fft.rfft(h, nf)
+    r = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
+    a = h[::-1]
+    G = np.empty((n, n))
+    flat = G.reshape(-1)
+    for k in range(n):
+        diag = np.empty(n - k)
+        diag[0] = r[k]
+        np.cumsum(a[: n - 1 - k] * a[k : n - 1], out=diag[1:])
+        diag[1:] = r[k] - diag[1:]
+        flat[k : (n - k) * (n + 1) : n + 1] = diag  # upper diagonal k
+        flat[k * n : n * n : n + 1] = diag  # lower diagonal k
+    return G
 
 
 def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:

@@ -51,7 +51,7 @@ from ._common import (
     solved_value,
 )
 from ._lmi import toeplitz_expr, toeplitz_norm_lmi
-from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from ._toeplitz import _toeplitz_gram, deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from synthesis._repr import result
 
 __all__ = ["ArxProblem", "ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
@@ -289,15 +289,13 @@ def certified_norm(h) -> float:
 def _norm_below_by_cholesky(h: np.ndarray, c: float) -> bool:
     """True only if ``‖T(h)‖₂ ≤ c`` is proven by a Cholesky factorisation of ``c²I − TᵀT − τI``.
 
-    ``TᵀT`` is formed in O(n²) (:func:`unfalsify._arx_barrier._gram`: each entry an FFT correlation
+    ``TᵀT`` is formed in O(n²) (:func:`unfalsify._toeplitz._toeplitz_gram`: each entry an FFT correlation
     minus a partial sum, absolute error ≲ 2n·u·‖h‖², so ‖ΔG‖₂ ≤ 2n²u‖h‖²; u the unit roundoff).  A
     floating-point Cholesky that runs to completion is the exact factorisation of the matrix plus E,
     ``‖E‖₂ ≤ γ_{n+1}·n·max_i a_ii ≤ 2n(n+1)u·c²`` (Demmel's componentwise backward error).  With the
     shift ``τ = 2n²u‖h‖² + 2n(n+1)u·c²`` success proves ``c²I − TᵀT ⪰ 0``.  (``‖h‖ > c`` already
     refutes the bound: h is the first column of T.)
     """
-    from ._arx_barrier import _gram
-
     n = h.size
     u = np.finfo(float).eps / 2
     hh = float(h @ h)
@@ -306,7 +304,7 @@ def _norm_below_by_cholesky(h: np.ndarray, c: float) -> bool:
     tau = 2.0 * n * n * u * hh + 2.0 * n * (n + 1) * u * c * c
     if tau >= 0.5 * c * c:
         return False
-    A = _gram(h)
+    A = _toeplitz_gram(h)
     A *= -1.0
     A.flat[:: n + 1] += c * c - tau
     try:
