@@ -11,7 +11,7 @@ but every quantity is read off one Cholesky factorisation instead of an SVD of T
   ``log det F = 2 Σ log L_ii`` and F ≻ 0 ⟺ (δ > 0 and the Cholesky factorisation succeeds);
 * ``F⁻¹ = [S11 S12; S21 S22]`` with ``S11 = δK⁻¹``, ``S21 = −T K⁻¹``, ``S22 = (I + T K⁻¹ Tᵀ)/δ``;
 * the gradient ``∂/∂h_a = 2 T*(T K⁻¹)_a``, ``∂/∂δ = t − 2δ tr K⁻¹``; the Hessian's h–h block is the
-  2-D-FFT correlation of :func:`unfalsify._structured._corr_hessian`, its δ–δ entry
+  2-D-FFT correlation of :func:`unfalsify._structured_columns._corr_hessian`, its δ–δ entry
   ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)`` and its h–δ column ``−4δ T*(T K⁻²)``.
 
 A trial point of the line search costs one Cholesky (n³/3 flops) instead of an SVD (~20 n³), so
@@ -38,7 +38,8 @@ import scipy.linalg
 
 from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status,
                        _tick_progress)
-from ._structured import _cho, _corr_hessian
+from ._structured import _cho
+from ._structured_columns import _corr_hessian
 from ._toeplitz import _toeplitz_gram, toeplitz_matrix
 
 __all__: list[str] = []
