@@ -199,3 +199,61 @@ def test_failed_solve_gives_nan_and_warning(monkeypatch):
     with pytest.warns(uf.SolverWarning, match="failed"):
         r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False)
     assert r.status == "failed" and np.isnan(r.delta)
+
+
+@pytest.mark.parametrize("fixed", [True, False])
+def test_column_threads_equal_serial_solve(fixed):
+    # the chunked, threaded stack operations against the serial ones on the same problem: the same
+    # per-column kernels, so the same iterates (sums of chunk sums are the only reordering)
+    from concurrent.futures import ThreadPoolExecutor
+
+    u, y = servo_arx_data(2 * 4 + 24 - 1, 5)
+    P = SubspaceProblem.from_data(u, y, 4, _sigma(u, y, 4), predictor=fit_predictor(u, y, 4) if fixed else None)
+    f = P.column_form(scaled=True)
+    B0 = f.project(f.B)
+    serial = sc._solve(f, B0, 1e-7, None, False, 5.0, None, sc._SERIAL)
+    with ThreadPoolExecutor(3) as pool:
+        chunks = sc._Chunks(pool, 3, min_size=0)
+        assert len(chunks.slices(24, 1)) == 3
+        threaded = sc._solve(f, B0, 1e-7, None, False, 5.0, None, chunks)
+    assert serial["status"] == threaded["status"] == "optimal"
+    assert threaded["newton"] == serial["newton"]
+    assert threaded["upper"] == pytest.approx(serial["upper"], rel=1e-10)
+    assert threaded["lower"] == pytest.approx(serial["lower"], rel=1e-10)
+    np.testing.assert_allclose(threaded["H"], serial["H"], rtol=1e-8, atol=1e-12 * np.abs(serial["H"]).max())
+
+
+@pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2"])
+def test_bad_workers_is_value_error_naming_workers(workers):
+    u, y = servo_arx_data(2 * 3 + 14 - 1, 0)
+    with pytest.raises(ValueError, match="workers"):
+        uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False, workers=workers)
+
+
+def test_workers_two_equals_one_through_public_api():
+    u, y = servo_arx_data(2 * 3 + 16 - 1, 6)
+    sigma = _sigma(u, y, 3)
+    r1 = uf.subspace_unfalsify(u, y, 3, sigma, backend="structured", tol=1e-7, progress=False, workers=1)
+    r2 = uf.subspace_unfalsify(u, y, 3, sigma, backend="structured", tol=1e-7, progress=False, workers=2)
+    assert r1.status == r2.status == "optimal"
+    assert r2.delta == pytest.approx(r1.delta, rel=1e-10) and r2.certificate.verify()
+
+
+def test_nonpositive_newton_decrement_is_a_stall_not_a_centre(monkeypatch):
+    # a Newton solve that lost its digits (λ² ≤ 0) must not count as centred: before, t grew by μ
+    # on every such step until it overflowed (hundreds of outer iterations); now each one is a stall,
+    # and the solve stops as "failed" once a stall brings no better bound
+    u, y = servo_arx_data(2 * 3 + 20 - 1, 4)
+    orig = sc._ColumnBarrier._newton
+    calls = {"n": 0}
+
+    def newton(self, t, p):
+        calls["n"] += 1
+        dh, dlt, lam2, tangent = orig(self, t, p)
+        return dh, dlt, -abs(lam2), tangent
+
+    monkeypatch.setattr(sc._ColumnBarrier, "_newton", newton)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False)
+    assert r.status == "failed" and np.isnan(r.delta)
+    assert calls["n"] < 60

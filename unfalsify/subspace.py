@@ -342,7 +342,7 @@ def _solve_cvxpy(P: SubspaceProblem, form, eliminate_L, solver, solver_options) 
     return dict(delta=d_s * sy / su, H=impulses, L=L_out, status=status, time=elapsed, problem=prob, v=V, W=W)
 
 
-def _solve_structured(P: SubspaceProblem, tol, time_limit, progress) -> dict:
+def _solve_structured(P: SubspaceProblem, tol, time_limit, progress, workers=1) -> dict:
     """The column barrier solver (:mod:`unfalsify._structured_columns`); returns a dict in data units."""
     from ._structured_columns import solve_columns_barrier
 
@@ -354,7 +354,7 @@ def _solve_structured(P: SubspaceProblem, tol, time_limit, progress) -> dict:
     if np.linalg.norm(B0) <= f.rho:
         out = dict(status="optimal", H=np.zeros((i, j)), V=None, W=None, upper=0.0)
     else:
-        out = solve_columns_barrier(f, B0, tol=tol, time_limit=time_limit, progress=progress)
+        out = solve_columns_barrier(f, B0, tol=tol, time_limit=time_limit, progress=progress, workers=workers)
     H = out["H"] * (sy / su)
     Htil = _conv_cols(P.Uf, H)
     L = P.L_fixed.copy() if P.L_fixed is not None else np.linalg.lstsq(P.A.T, (P.Yf - Htil).T, rcond=None)[0].T
@@ -379,6 +379,7 @@ def subspace_unfalsify(
     time_limit: float | None = None,
     progress: bool = True,
     executor=None,
+    workers: int | None = None,
 ) -> SubspaceResult:
     """Smallest δ bounding the column operators ``Δ_k`` that unfalsify the subspace model: (7.5).
 
@@ -409,6 +410,11 @@ def subspace_unfalsify(
         on this executor (local processes, ``distributed.Client.get_executor()``, …) and the
         one-dimensional outer problem in δ here (:mod:`unfalsify.split`); ``backend`` is then
         ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate as serial.
+    workers : int or None
+        Structured backend: threads over the column stack (default ``None``: every core,
+        ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the
+        threads do not compete with BLAS's own; the result equals the one-thread solve up to the
+        order of floating-point sums.
 
     Returns
     -------
@@ -438,6 +444,9 @@ def subspace_unfalsify(
         raise ValueError("eliminate_L applies to form='conditioned' only")
     if predictor is not None and eliminate_L:
         raise ValueError("eliminate_L and a fixed predictor exclude each other")
+    from ._structured_columns import _worker_count
+
+    workers = _worker_count(workers)
     P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
     i, j = P.Uf.shape
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
@@ -457,7 +466,7 @@ def subspace_unfalsify(
     elif backend == "cvxpy":
         out = _solve_cvxpy(P, form, eliminate_L, solver, solver_options)
     else:
-        out = _solve_structured(P, float(tol), time_limit, progress)
+        out = _solve_structured(P, float(tol), time_limit, progress, workers)
     from .arx import _finish_structured, certify
 
     cert = certify(P, out["delta"], out["H"], out["L"], out["v"], out["W"])
