@@ -257,3 +257,26 @@ def test_nonpositive_newton_decrement_is_a_stall_not_a_centre(monkeypatch):
         r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False)
     assert r.status == "failed" and np.isnan(r.delta)
     assert calls["n"] < 60
+
+
+def test_cg_tolerance_is_loose_only_far_from_the_centre(monkeypatch):
+    # inexact Newton: the CG residual is relaxed (sc._CG_TOL_FAR) only on the first step after t
+    # grows and after a step whose decrement exceeded sc._FAR_DECREMENT; otherwise cg_tol holds
+    u, y = servo_arx_data(2 * 4 + 24 - 1, 7)
+    seen = []
+    orig = sc._ColumnBarrier._newton
+
+    def newton(self, t, p):
+        out = orig(self, t, p)
+        seen.append((t, self.cg_tol, out[2]))
+        return out
+
+    monkeypatch.setattr(sc._ColumnBarrier, "_newton", newton)
+    r = uf.subspace_unfalsify(u, y, 4, _sigma(u, y, 4), backend="structured", tol=1e-7, progress=False)
+    assert r.status == "optimal" and r.certificate.verify()
+    loose = max(sc._CG_TOL_FAR, 1e-8)
+    for k, (t, tol, _) in enumerate(seen):
+        first = k == 0 or seen[k - 1][0] != t
+        far = first or seen[k - 1][2] > sc._FAR_DECREMENT
+        assert tol == (loose if far else 1e-8)
+    assert any(tol == 1e-8 for _, tol, _ in seen) and any(tol == loose for _, tol, _ in seen)

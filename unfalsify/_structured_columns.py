@@ -241,6 +241,12 @@ def _kronecker_preconditioner(Q: np.ndarray, E: np.ndarray, sweeps: int = 4):
     return np.linalg.inv(0.5 * (A + A.T)), np.linalg.inv(0.5 * (B + B.T))
 
 
+#: Newton decrement λ² above which a step counts as far from the centre (inexact CG, see ``_centre``).
+_FAR_DECREMENT = 10.0
+#: Relative CG residual of the Newton solves far from the centre (L optimised).
+_CG_TOL_FAR = 1e-3
+
+
 class _ColumnBarrier:
     """The barrier method of the module docstring on a :class:`ColumnForm` with j ≥ 1 columns."""
 
@@ -252,6 +258,7 @@ class _ColumnBarrier:
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.max_newton = mu, max_newton
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
+        self.cg_tol_near = cg_tol
         self.Tu = _toeplitz_stack(form.U)
         self.TuTu = _tr(self.Tu) @ self.Tu
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
@@ -450,10 +457,21 @@ class _ColumnBarrier:
 
     # ---- main loop ---------------------------------------------------------------------------
     def _centre(self, t, p, n_newton, t_start):
-        """Newton steps on f_t until λ² ≤ 0.1 (or 60 steps); returns the point, the last step, counts."""
+        """Newton steps on f_t until λ² ≤ ``center_tol`` (or 60 steps); returns the point, the last step, counts.
+
+        Inexact Newton far from the centre: while the last decrement exceeds :data:`_FAR_DECREMENT`
+        (and on the first step after t grew) the CG solves of L optimised stop at the relative residual
+        :data:`_CG_TOL_FAR` instead of ``cg_tol``.  Measured at (100, 1000), t = 4.9·10⁵: 237 CG
+        iterations instead of 1005 for a direction 4 % off, whose line-search step and new point agreed
+        to 2e-6 relative; the steps near the centre, whose directions also make the dual point, keep
+        ``cg_tol``.
+        """
+        lam2_prev = np.inf
         for _ in range(60):
             self._check_time(t_start)
+            self.cg_tol = max(_CG_TOL_FAR, self.cg_tol_near) if lam2_prev > _FAR_DECREMENT else self.cg_tol_near
             dh, dlt, lam2, tangent = self._newton(t, p)
+            lam2_prev = lam2
             n_newton += 1
             if not np.isfinite(lam2) or n_newton > self.max_newton:
                 raise _Stop("failed" if not np.isfinite(lam2) else "max_iter")
