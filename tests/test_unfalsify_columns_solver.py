@@ -268,7 +268,7 @@ def test_cg_tolerance_is_loose_only_far_from_the_centre(monkeypatch):
 
     def newton(self, t, p):
         out = orig(self, t, p)
-        seen.append((t, self.cg_tol, out[2]))
+        seen.append((t, self.pcg_tol(), out[2]))
         return out
 
     monkeypatch.setattr(sc._ColumnBarrier, "_newton", newton)

@@ -258,7 +258,7 @@ class _ColumnBarrier:
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.max_newton = mu, max_newton
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
-        self.cg_tol_near = cg_tol
+        self.far = False  # set by _centre: the next Newton solve is far from the centre (inexact CG)
         self.Tu = _toeplitz_stack(form.U)
         self.TuTu = _tr(self.Tu) @ self.Tu
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
@@ -272,14 +272,19 @@ class _ColumnBarrier:
     def _resid(self, H):
         return self.f.project(self.f.B - self.f.apply(H))
 
-    def _point(self, H, d) -> _Point | None:
-        """The blocks at (H, δ), or None outside the domain (a Cholesky fails or the noise ball is left)."""
+    def _gram(self, H):
+        """``(T_k, T_kᵀT_k)`` stacks of the impulses H."""
+        T = _toeplitz_stack(H)
+        return T, self.chunks.matmul(_tr(T), T)
+
+    def _point(self, H, d, gram=None) -> _Point | None:
+        """The blocks at (H, δ), or None outside the domain (a Cholesky fails or the noise ball is left);
+        ``gram``: :meth:`_gram` of H if already computed."""
         r = self._resid(H)
         psi = self.f.rho**2 - float(np.sum(r * r))
         if not (psi > 0 and d > 0):
             return None
-        T = _toeplitz_stack(H)
-        TtT = self.chunks.matmul(_tr(T), T)
+        T, TtT = self._gram(H) if gram is None else gram
         inv = _chol_inverse(d * d * np.eye(self.m) - TtT, self.chunks)
         if inv is None:
             return None
@@ -353,10 +358,16 @@ class _ColumnBarrier:
         UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
         return np.moveaxis(UZ @ Dinv, 0, 2).transpose(1, 2, 0)  # D_k⁻¹ (…), back to (m, j, p)
 
+    def pcg_tol(self) -> float:
+        """Relative residual of the CG solves: ``cg_tol``, relaxed to :data:`_CG_TOL_FAR` when :attr:`far`."""
+        return max(_CG_TOL_FAR, self.cg_tol) if self.far else self.cg_tol
+
     def _pcg(self, A, Minv, B):
-        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual ``cg_tol``)."""
+        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual :meth:`pcg_tol`)."""
         def dot(X, Y):
             return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
+
+        tol = self.pcg_tol()
 
         X = np.zeros_like(B)
         R = B.copy()
@@ -372,7 +383,7 @@ class _ColumnBarrier:
             X += a * P
             R -= a * AP
             self.cg_iters += 1
-            if np.all(np.sqrt(dot(R, R)) <= self.cg_tol * bn):
+            if np.all(np.sqrt(dot(R, R)) <= tol * bn):
                 break
             Z = Minv(R)
             rz_new = dot(R, Z)
@@ -448,9 +459,9 @@ class _ColumnBarrier:
         target = (0.7 * self.f.rho) ** 2
         lam = _ridge_lambda(s, beta, target)
         H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
-        T = _toeplitz_stack(H)
-        up = _max_norm(self.chunks.matmul(_tr(T), T), self.chunks)
-        p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
+        gram = self._gram(H)
+        up = _max_norm(gram[1], self.chunks)
+        p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up), gram)
         if p is None:  # pragma: no cover - the ridge point is strictly inside by construction
             raise _Stop("failed")
         return p
@@ -469,7 +480,7 @@ class _ColumnBarrier:
         lam2_prev = np.inf
         for _ in range(60):
             self._check_time(t_start)
-            self.cg_tol = max(_CG_TOL_FAR, self.cg_tol_near) if lam2_prev > _FAR_DECREMENT else self.cg_tol_near
+            self.far = lam2_prev > _FAR_DECREMENT
             dh, dlt, lam2, tangent = self._newton(t, p)
             lam2_prev = lam2
             n_newton += 1
@@ -517,8 +528,7 @@ class _ColumnBarrier:
                     raise _Stop("failed")  # no step possible and no better bound: the end of double precision
                 prev, self.stalled = (best["upper"], best["lower"]), 0
                 self._check_time(t_start)
-                t_new = t * self.mu
-                t = t_new
+                t *= self.mu
         except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
             status = _stop_status(exc, best)
         finally:
