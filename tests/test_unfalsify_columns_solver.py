@@ -280,3 +280,93 @@ def test_cg_tolerance_is_loose_only_far_from_the_centre(monkeypatch):
         far = first or seen[k - 1][2] > sc._FAR_DECREMENT
         assert tol == (loose if far else 1e-8)
     assert any(tol == 1e-8 for _, tol, _ in seen) and any(tol == loose for _, tol, _ in seen)
+
+
+def test_common_impulse_directions_are_free_for_the_noise_term():
+    # the deflated directions: a common impulse change dh_k = l moves H̃ by T(l) U, inside 𝓛, so the
+    # projected residual does not see it; the basis spans exactly {T(l) U Q}
+    s, _ = _barrier(False, 4, 20)
+    f, m = s.f, s.m
+    rng = np.random.default_rng(3)
+    l = rng.standard_normal(m)
+    moved = f.apply(np.repeat(l[:, None], f.j, axis=1))
+    assert np.linalg.norm(f.project(moved)) <= 1e-12 * np.linalg.norm(moved)
+    W = s.W.reshape(m, -1)
+    np.testing.assert_allclose(W @ W.T, np.eye(m), atol=1e-12)
+    Y = (toeplitz_matrix(l) @ f.U @ s.Q).ravel()  # the capacitance coordinates of that move
+    assert np.linalg.norm(Y - W.T @ (W @ Y)) <= 1e-12 * np.linalg.norm(Y)
+
+
+def _spd_capacitance(rng, j=30, m=4, r=6):
+    Q, _ = np.linalg.qr(rng.standard_normal((j, r)))
+    X = rng.standard_normal((j, m, m))
+    E = X @ np.swapaxes(X, 1, 2) * np.logspace(-4, 0, j)[:, None, None] + 1e-6 * np.eye(m)
+    dense = sum(np.kron(np.outer(Q[k], Q[k]), E[k]) for k in range(j))  # vec_F order: index a·m + α
+
+    def Cmul(Y3):
+        Z = np.moveaxis(Y3 @ Q.T, 2, 0)
+        return np.moveaxis(Z @ np.swapaxes(E, 1, 2), 0, 2) @ Q
+
+    return Q, E, dense, Cmul
+
+
+def test_deflated_cg_solves_the_same_system_in_fewer_iterations():
+    rng = np.random.default_rng(0)
+    Q, E, dense, Cmul = _spd_capacitance(rng)
+    m, r = E.shape[1], Q.shape[1]
+    B = rng.standard_normal((2, m, r))
+    ref = np.linalg.solve(dense, B.transpose(0, 2, 1).reshape(2, -1).T).T.reshape(2, r, m).transpose(0, 2, 1)
+    w, V = np.linalg.eigh(dense)
+    W = V[:, :5].T.reshape(5, r, m).transpose(0, 2, 1)  # the five smallest eigenvectors, as (k, m, r)
+    counts = {}
+    for name, defl in [("plain", None), ("deflated", sc._deflation(Cmul, W))]:
+        s = sc._ColumnBarrier.__new__(sc._ColumnBarrier)
+        s.cg_tol, s.cg_maxiter, s.far, s.cg_iters = 1e-12, 500, False, 0
+        X = s._pcg(Cmul, lambda Y: Y, B, defl)
+        np.testing.assert_allclose(X, ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max())
+        counts[name] = s.cg_iters
+    assert counts["deflated"] < counts["plain"]
+
+
+def test_deflation_declines_a_singular_coarse_matrix():
+    rng = np.random.default_rng(1)
+    _, E, _, Cmul = _spd_capacitance(rng)
+    W = np.zeros((2, E.shape[1], 6))
+    assert sc._deflation(Cmul, W) is None
+
+
+def test_chol_inverse_matches_numpy_and_rejects_indefinite_or_nan():
+    rng = np.random.default_rng(2)
+    X = rng.standard_normal((7, 5, 5))
+    K = X @ np.swapaxes(X, 1, 2) + 0.1 * np.eye(5)
+    inv, logdet = sc._chol_inverse(K)
+    np.testing.assert_allclose(inv, np.linalg.inv(K), rtol=1e-10, atol=1e-12)
+    assert np.array_equal(inv, np.swapaxes(inv, 1, 2))
+    assert logdet == pytest.approx(float(np.linalg.slogdet(K)[1].sum()), rel=1e-12)
+    bad = K.copy()
+    bad[3] = -bad[3]
+    assert sc._chol_inverse(bad) is None
+    bad = K.copy()
+    bad[2, 0, 0] = np.nan
+    assert sc._chol_inverse(bad) is None
+
+
+def test_noise_step_keeps_half_the_slack():
+    s, p = _barrier(False, 4, 20)
+    r = p.r
+    q = -40.0 * r  # moving along -q grows the residual: the slack's boundary is close
+    a = s._noise_step(r, q)
+    psi = lambda a: s.f.rho**2 - float(np.sum((r - a * q) ** 2))
+    assert 0 < a < 1
+    assert psi(a) == pytest.approx(sc._NOISE_KEEP * psi(0.0), rel=1e-9)
+    assert s._noise_step(r, 1e-6 * r) == 1.0  # far from the boundary: the full step
+
+
+def test_chunked_dot_equals_matmul():
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(4)
+    A, B = rng.standard_normal((37, 5)), rng.standard_normal((5, 8))
+    with ThreadPoolExecutor(3) as pool:
+        out = sc._Chunks(pool, 3, min_size=0).dot(A, B)
+    np.testing.assert_allclose(out, A @ B, rtol=1e-13)
