@@ -21,7 +21,7 @@ the returned variables, ``max_violation``) and cond T(u).  Clarabel, explicitly.
 n = 80 … 1000 (:mod:`unfalsify._arx_barrier`; n = 1000 with a 1800 s limit), ARX n = 10⁴ by
 ``method="bracket"`` (:mod:`unfalsify._bracket`) and subspace (7.5) (:mod:`unfalsify._structured_columns`,
 600 s limit) with L fixed (the least-squares predictor) and with L optimised at (i, j) = (10, 200) …
-(100, 1000) (``--series arx``: the ARX rows only); each row carries the certified
+(100, 1000) (``--series arx`` / ``--series subspace``: those rows only); each row carries the certified
 bracket [lower, upper] (:class:`unfalsify.Certificate`, recomputed from the data), its relative gap,
 ``verify()`` and the child's peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
 (δ difference and speed ratio; Clarabel's child gets 900 s).  ``both`` runs the cvxpy series and the
@@ -345,13 +345,42 @@ def _plot_scaling(series: list[dict], path) -> None:
     save_figure(fig, path)
 
 
+def _compare_arx(opts, limit: float) -> dict:
+    """ARX: the structured backend against cvxpy/Clarabel on the same data, in the same run."""
+    n_cmp = 20 if opts.quick else 80
+    cmp_budget = QUICK_BUDGET_S if opts.quick else ARX_CLARABEL_BUDGET_S
+    c_row = _run_with_budget(dict(kind="arx", form="conditioned"), n_cmp, opts.seed, cmp_budget)
+    s_row = _run_with_budget(dict(kind="arx", tol=1e-7, limit=limit), n_cmp, opts.seed, limit + 120.0,
+                             worker=_solve_structured_one, label=f"n={n_cmp}")
+    comparison = {"n": n_cmp, "cvxpy": c_row, "structured": s_row, "budget_s": cmp_budget}
+    if "delta" in c_row and "delta" in s_row:
+        comparison["delta_difference"] = abs(c_row["delta"] - s_row["delta"])
+        comparison["speed_ratio"] = c_row["wall_s"] / s_row["wall_s"]
+    return comparison
+
+
+def _report_comparison(rep: Report, comparison: dict) -> None:
+    c_row, s_row = comparison["cvxpy"], comparison["structured"]
+    rep.section(f"ARX n = {comparison['n']}: structured against cvxpy/Clarabel, same data, same run")
+    cmp_rows = []
+    for name, r in (("cvxpy (Clarabel)", c_row), ("structured (tol 1e-7)", s_row)):
+        cmp_rows.append([name, r.get("status"), r.get("delta", float("nan")), r["wall_s"]])
+    rep.table(["backend", "status", "δ", "wall [s]"], cmp_rows, floatfmt=".8g")
+    rep.text(f"Clarabel's child budget: {comparison['budget_s']:.0f} s; wall = the `arx_unfalsify` call (model, "
+             "solve, certificate).")
+    if "speed_ratio" in comparison:
+        rep.text(f"|δ_cvxpy − δ_structured| = {comparison['delta_difference']:.2e} "
+                 f"(relative {comparison['delta_difference'] / abs(c_row['delta']):.1e}); "
+                 f"speed ratio cvxpy/structured = {comparison['speed_ratio']:.0f}×.")
+
+
 def _run_structured(opts, rep: Report) -> dict:
     """The structured series, the ARX cvxpy comparison, CSV and scaling plot; adds sections to ``rep``."""
     limit = QUICK_STRUCTURED_LIMIT_S if opts.quick else STRUCTURED_LIMIT_S
     series = []
     only = (getattr(opts, "extra", None) or {}).get("series") or "all"
     for spec in _structured_series(opts.quick):
-        if only == "arx" and spec["kind"] != "arx":
+        if only != "all" and spec["kind"] != only:
             continue
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
@@ -367,16 +396,7 @@ def _run_structured(opts, rep: Report) -> dict:
         series.append({"series": spec["name"], "kind": spec["kind"], "L_fixed": spec.get("fixed"), "tol": spec["tol"],
                        "rows": rows, "exponent": _fit_exponent(rows)})
 
-    # ARX: structured against cvxpy/Clarabel on the same data, same run
-    n_cmp = 20 if opts.quick else 80
-    cmp_budget = QUICK_BUDGET_S if opts.quick else ARX_CLARABEL_BUDGET_S
-    c_row = _run_with_budget(dict(kind="arx", form="conditioned"), n_cmp, opts.seed, cmp_budget)
-    s_row = _run_with_budget(dict(kind="arx", tol=1e-7, limit=limit), n_cmp, opts.seed, limit + 120.0,
-                             worker=_solve_structured_one, label=f"n={n_cmp}")
-    comparison = {"n": n_cmp, "cvxpy": c_row, "structured": s_row}
-    if "delta" in c_row and "delta" in s_row:
-        comparison["delta_difference"] = abs(c_row["delta"] - s_row["delta"])
-        comparison["speed_ratio"] = c_row["wall_s"] / s_row["wall_s"]
+    comparison = None if only == "subspace" else _compare_arx(opts, limit)
 
     rep.section("Structured backend")
     rep.text(
@@ -405,16 +425,8 @@ def _run_structured(opts, rep: Report) -> dict:
     rep.table(headers, rows_md)
     rep.section("Fitted exponents (wall ∝ size^p over the certified rows)")
     rep.table(["series", "p"], [[s["series"], s["exponent"]] for s in series], floatfmt=".2f")
-    rep.section(f"ARX n = {n_cmp}: structured against cvxpy/Clarabel, same data, same run")
-    cmp_rows = []
-    for name, r in (("cvxpy (Clarabel)", c_row), ("structured (tol 1e-7)", s_row)):
-        cmp_rows.append([name, r.get("status"), r.get("delta", float("nan")), r["wall_s"]])
-    rep.table(["backend", "status", "δ", "wall [s]"], cmp_rows, floatfmt=".8g")
-    rep.text(f"Clarabel's child budget: {cmp_budget:.0f} s; wall = the `arx_unfalsify` call (model, solve, certificate).")
-    if "speed_ratio" in comparison:
-        rep.text(f"|δ_cvxpy − δ_structured| = {comparison['delta_difference']:.2e} "
-                 f"(relative {comparison['delta_difference'] / abs(c_row['delta']):.1e}); "
-                 f"speed ratio cvxpy/structured = {comparison['speed_ratio']:.0f}×.")
+    if comparison is not None:
+        _report_comparison(rep, comparison)
     csv_path = opts.out / "bench_unfalsify_structured.csv"
     opts.out.mkdir(parents=True, exist_ok=True)
     with csv_path.open("w", newline="") as fh:

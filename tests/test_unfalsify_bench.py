@@ -65,6 +65,18 @@ def test_bench_unfalsify_structured_quick(tmp_path):
     assert "Fitted exponents" in (out / "bench_unfalsify.md").read_text()
 
 
+@pytest.mark.slow
+def test_bench_unfalsify_structured_subspace_series_only(tmp_path):
+    # ``--series subspace``: the subspace rows alone, no ARX rows and no Clarabel comparison
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace",
+                 "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert {s["series"] for s in st["series"]} == {"subspace structured, L fixed", "subspace structured, L optimised"}
+    assert st["comparison"] is None
+    for s in st["series"]:
+        assert all(r["status"] == "optimal" and r["verify"] is True for r in s["rows"])
+
+
 def test_cli_extra_arguments_are_per_command(tmp_path):
     with pytest.raises(SystemExit):  # --backend belongs to bench-unfalsify only
         main(["bench-norms", "--quick", "--backend", "structured", "--out", str(tmp_path)])
