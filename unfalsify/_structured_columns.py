@@ -281,7 +281,6 @@ class _Deflation:
 
     def __init__(self, Cmul, W: np.ndarray):
         k = W.shape[0]
-        self.shape = W.shape[1:]
         self.W2 = W.reshape(k, -1)
         self.CW = Cmul(W).reshape(k, -1)
         E = self.W2 @ self.CW.T
