@@ -156,12 +156,17 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL):
 
 
 def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
-    """Inverse of a stack of symmetric positive definite matrices (Cholesky; LU if one is not PD)."""
-    out = _chol_inverse(X, chunks)
-    if out is not None:
-        return out[0]
+    """Inverse of a stack of symmetric (positive definite) matrices, symmetrised, on ``chunks``' threads."""
+    out = np.empty_like(X)
+    chunks.map(lambda s: _sym_inverse_into(X[s], out[s]), X.shape[0], X.size)
+    return out
+
+
+def _sym_inverse_into(X: np.ndarray, out: np.ndarray) -> None:
+    """``out = (X⁻¹ + X⁻ᵀ)/2`` for a stack (numpy's batched LU, which releases the GIL)."""
     Y = np.linalg.inv(X)
-    return 0.5 * (Y + _tr(Y))
+    np.add(Y, _tr(Y), out=out)
+    out *= 0.5
 
 
 def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -229,9 +234,7 @@ def _chol_inverse_into(K: np.ndarray, out: np.ndarray):
     logdet = 2.0 * float(np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1))))
     if not np.isfinite(logdet):
         return None
-    X = np.linalg.inv(K)
-    np.add(X, _tr(X), out=out)
-    out *= 0.5
+    _sym_inverse_into(K, out)
     return logdet
 
 
