@@ -315,9 +315,23 @@ def test_bench_predictor_quick(tmp_path):
         # the same fixed count for both routes: the fractions are in the ratio of the times
         ratio = row["peak_fraction_dense_equivalent"] / row["peak_fraction_dense_equivalent_before"]
         assert ratio == pytest.approx(row["speedup_vs_before"], rel=1e-12)
+        if row["qr_s"] is not None:  # the dense SYRK route runs wherever QR does, on the same count
+            assert row["dense_s"] > 0 and row["max_rel_diff_dense"] < 1e-6
+            ratio = row["peak_fraction_performed_dense"] / row["peak_fraction_dense_equivalent"]
+            assert ratio == pytest.approx(row["cholesky_s"] / row["dense_s"], rel=1e-12)
     assert any(row["m"] == 2 for row in summary["batch"])  # a MIMO case
     header = (tmp_path / "bench_predictor.csv").read_text().splitlines()[0]
     assert "cholesky_s" in header and "peak_fraction_dense_equivalent" in header
+
+
+def test_dense_route_of_the_benchmark_equals_fit_predictor():
+    """The explicit-Hankel SYRK Gram is a second route to the recursion (2.8)-(2.9): same predictor."""
+    from experiments.bench_predictor import _dense_fit
+
+    u, y = noisy_mimo(seed=17, n=500)
+    Lw, Lu = _dense_fit(u, y, 4)
+    p = fit_predictor(u, y, 4)
+    assert rel(np.hstack([Lw, Lu]), np.hstack([p.Lw, p.Lu])) < 1e-10
 
 
 def test_legacy_route_of_the_benchmark_equals_fit_predictor():
