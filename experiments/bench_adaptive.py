@@ -34,7 +34,7 @@ from .report import Report, format_table, median_time, save_figure, write_csv, w
 
 __all__ = ["run", "GOAL_P99_S", "N_UPDATES"]
 
-#: Target 99th percentile of the time per update (issue #12).
+#: Target 99th percentile of the time per update.
 GOAL_P99_S = 5e-3
 #: Redesigns timed in a full run.
 N_UPDATES = 300
