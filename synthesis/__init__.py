@@ -28,6 +28,7 @@ from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_mi
 from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
+from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 
@@ -85,6 +86,8 @@ __all__ = [
     "NormTest",
     "hinf_norm",
     "norm_below",
+    "BoundedRealCertificate",
+    "bounded_real_certificate",
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",

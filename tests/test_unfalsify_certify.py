@@ -99,6 +99,20 @@ def test_certificate_small_gain_against_direct_evaluation(designed):
     assert not big.certified and big.reason.startswith("small gain")
 
 
+def test_small_gain_has_a_second_proof_by_a_bounded_real_matrix(designed):
+    _, _, Ph, K = designed
+    cert = uf.certify_loop(Ph, K, 0.05, margin=0.1)
+    kyp = cert.bounded_real
+    assert cert.certified and kyp is not None and kyp.proven and kyp.verify()
+    assert kyp.gamma == pytest.approx(1.0 / (1.1 * 0.05), rel=1e-15) and cert.norm.upper < kyp.gamma
+    # the certificate refers to the loop the pencil test saw: M̂ = (I − C_y P̂)⁻¹ C_y
+    P, C, l = uf.loop_parts(Ph, K)
+    assert kyp.verify(control.feedback(C[:, l:], P, sign=+1))
+    # a level the pencil test refuses gets no second proof (nothing to confirm)
+    big = uf.certify_loop(Ph, K, 1.0 / cert.norm.upper)
+    assert not big.certified and big.bounded_real is None
+
+
 def test_certificate_refuses_an_unstable_loop_and_a_do_nothing_controller(designed):
     _, _, Ph, K = designed
     Kc = control.ss(K)
@@ -142,6 +156,7 @@ def test_pipeline_invariant_on_true_plants(plant):
         if c["certified"]:
             t = c["true"]
             assert t["stable"] and t["tracks"] and t["survives"] and t["small_gain"] < 1.0
+            assert c["bounded_real_model"] and c["bounded_real_reference"]  # the second proof, re-checked
         else:
             assert c["warned"] and c["reason"]
     assert sum(c["certified"] for c in runs) >= 1  # measured: 2 of 2 on each plant

@@ -12,8 +12,11 @@ directly, on the data-based model ``P̂`` (:func:`unfalsify.predictor_model`):
 
        δ · ‖M̂‖∞ ≤ 1/(1 + margin),
 
-   decided with the *proven* upper bound of :func:`synthesis.hinfnorm.hinf_norm`.  Then the loop
-   is stable for every plant ``P̂ + Δ`` with ``Δ`` stable and ``‖Δ‖∞ ≤ (1 + margin)·δ``.
+   decided with the *proven* upper bound of :func:`synthesis.hinfnorm.hinf_norm` (the
+   Hamiltonian-pencil test) **and**, independently, by a bounded-real matrix ``P ≻ 0`` with
+   ``M(P) ≺ 0`` at the level ``1/((1 + margin)·δ)`` (:func:`synthesis.bounded_real_certificate`,
+   stored on the result so that anyone can re-check it).  Then the loop is stable for every plant
+   ``P̂ + Δ`` with ``Δ`` stable and ``‖Δ‖∞ ≤ (1 + margin)·δ``.
 3. **Performance floor**: a controller that does almost nothing is trivially robust on a
    stable plant.  A unit step on every reference channel of ``(P̂, K)``, simulated noise free
    for ``step_samples`` samples, must track: the mean absolute error over the last quarter of
@@ -37,7 +40,7 @@ import control
 import numpy as np
 
 from synthesis._validation import DataError, as_discrete_system, check_same_dt
-from synthesis import NormBracket, hinf_norm
+from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis._repr import result
 
 __all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "loop_parts", "step_metrics"]
@@ -94,6 +97,10 @@ class LoopCertificate:
     step : StepMetrics or None
         Unit step on ``(P̂, K)`` (None when the nominal loop is unstable).
     tracking_floor : float
+    bounded_real : BoundedRealCertificate or None
+        The second proof of the small gain: ``‖M̂‖∞ < 1/((1 + margin)·δ)`` by a matrix ``P``
+        (:meth:`BoundedRealCertificate.verify` re-checks it).  Computed when the pencil test
+        passes and ``δ > 0``; certified needs it proven too.
     """
 
     certified: bool
@@ -105,6 +112,7 @@ class LoopCertificate:
     small_gain: float
     step: StepMetrics | None
     tracking_floor: float
+    bounded_real: BoundedRealCertificate | None = None
 
     @property
     def stable(self) -> bool:
@@ -218,6 +226,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
         return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model P̂ (spectral radius {rho:.6g})",
                                norm=None, small_gain=float("inf"), step=None, **common)
     bracket = hinf_norm(M, tol=tol)
+    kyp = None
     small_gain = float(delta) * bracket.upper if delta > 0 else 0.0
     step = step_metrics(_closed_loop_ry(P, C, l), int(step_samples))
     reason = ""
@@ -229,5 +238,10 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     elif not step.final_error <= tracking_floor:
         reason = (f"performance floor: the step on P̂ leaves a mean error {step.final_error:.3g} > {tracking_floor:.3g} "
                   "over its last quarter (the controller does not track)")
+    elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)
+        kyp = bounded_real_certificate(M, 1.0 / ((1.0 + margin) * float(delta)), lower=bracket.lower)
+        if not kyp:
+            reason = (f"small gain: proven by the pencil test ({small_gain:.4g} ≤ {1.0 / (1.0 + margin):.4g}) but "
+                      f"not by a bounded-real matrix P ({kyp.reason})")
     return LoopCertificate(certified=not reason, reason=reason, norm=bracket, small_gain=small_gain, step=step,
-                           **common)
+                           bounded_real=kyp, **common)
