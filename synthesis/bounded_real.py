@@ -136,10 +136,12 @@ class BoundedRealCertificate:
         return bool(self.proven)
 
     def verify(self, sys=None) -> bool:
-        """Check the certificate again from its matrices (or from ``sys``'s, which must have the same sizes).
+        """Check the certificate again from its matrices (or from ``sys``'s).
 
         Recomputes ``M(P)``, both extreme eigenvalues and the allowances; needs nothing of the
-        search that produced ``P``.  False when there is no ``P``.
+        search that produced ``P``.  ``P`` belongs to one state-space realisation: ``sys`` must be
+        that realisation (the same ``A, B, C, D``, e.g. the ``StateSpace`` that was certified),
+        not merely the same transfer function.  False when there is no ``P`` or the sizes differ.
         """
         if self.P is None:
             return False
