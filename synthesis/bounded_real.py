@@ -21,6 +21,13 @@ bounded-real one of ``[G; √ε(zI − A)⁻¹B]`` at level ``√(1 − ε)``, s
 ‖(zI − A)⁻¹B‖²∞)`` suffices); fractions of that estimate (from a grid) are tried, from the largest
 (the widest margin against rounding) down.
 
+Scaling.  The search and the check run in the coordinates ``x̃ = T⁻¹x`` of a diagonal ``T`` of powers
+of two that balances ``A`` (:func:`scipy.linalg.matrix_balance`): ``Ã = T⁻¹AT``, ``B̃ = T⁻¹B``,
+``C̃ = CT`` and ``P̃ = TᵀPT`` are then *exact* in floating point, and ``M(P) = diag(T, I)⁻ᵀ M̃(P̃)
+diag(T, I)⁻¹`` is a congruence, so ``M̃(P̃) ≺ 0`` and ``P̃ ≻ 0`` prove the statement for the system as
+given.  Without it a badly scaled realisation (state units spanning orders of magnitude) gives a ``P``
+whose check is swamped by its own rounding allowance.
+
 Checking ``P``.  The certificate holds the system's matrices, ``P`` (exactly symmetric) and the
 numbers of the check: ``λ_max`` of the computed ``M(P)`` must lie below ``−allowance`` and
 ``λ_min(P)`` above its own allowance.  The allowances bound the rounding of forming ``M(P)`` in
@@ -48,17 +55,34 @@ _EPS = np.finfo(float).eps
 EPSILON_FRACTIONS = (0.5, 1e-2, 1e-4, 1e-6)
 
 
-def _state_gain(s: _Sys, w) -> float:
-    """Largest ``σ̄((e^{jω}I − A)⁻¹B)`` over the frequencies ``w`` (on the Schur form: ``Z`` is unitary)."""
+def _state_gain(s: _Sys, w, t) -> float:
+    """Largest ``σ̄(T⁻¹(e^{jω}I − A)⁻¹B)`` (the balanced coordinates' ``(zI − Ã)⁻¹B̃``) over ``w``.
+
+    Solved on the Schur form ``A = Z T_s Zᴴ``: ``(zI − A)⁻¹B = Z (zI − T_s)⁻¹ Zᴴ B``.
+    """
     Tm = -s.T
     diag = np.diag_indices(s.n)
     d0 = Tm[diag].copy()
+    Zs = s.Z / t[:, None]  # T⁻¹ Z
     best = 0.0
     for wk in w:
         Tm[diag] = d0 + np.exp(1j * wk)
-        X = sla.solve_triangular(Tm, s.Bt, check_finite=False)
+        X = Zs @ sla.solve_triangular(Tm, s.Bt, check_finite=False)
         best = max(best, float(np.linalg.norm(X, 2)))
     return best
+
+
+def _balancing(A) -> np.ndarray:
+    """Diagonal of ``T`` (powers of two) balancing ``A``; ones for an empty ``A``."""
+    if not A.size:
+        return np.ones(A.shape[0])
+    _, (scale, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return np.asarray(scale, float)
+
+
+def _scaled(A, B, C, t):
+    """``(T⁻¹AT, T⁻¹B, CT)`` for ``T = diag(t)`` (exact: ``t`` holds powers of two)."""
+    return A * (t[None, :] / t[:, None]), B / t[:, None], C * t[None, :]
 
 
 def _lmi(A, B, C, D, P, gamma):
@@ -113,9 +137,12 @@ class BoundedRealCertificate:
     p_min, p_allowance : float
         ``λ_min(P)`` and its allowance: proven needs ``p_min > p_allowance``.
     epsilon : float
-        The Riccati perturbation that gave ``P`` (``M(P) ≈ −ε γ² I`` at best).
+        The Riccati perturbation that gave ``P`` (``M̃(P̃) ≈ −ε γ² I`` at best).
     A, B, C, D : ndarray
         The system the certificate refers to (checked by :meth:`verify`).
+    scaling : ndarray, shape (n,)
+        Diagonal of the power-of-two state scaling ``T``; the eigenvalues and allowances above are
+        those of ``P̃ = TᵀPT`` and ``M̃(P̃)`` (module docstring: an exact congruence).
     """
 
     proven: bool
@@ -131,6 +158,7 @@ class BoundedRealCertificate:
     B: np.ndarray
     C: np.ndarray
     D: np.ndarray
+    scaling: np.ndarray | None = None
 
     def __bool__(self) -> bool:
         return bool(self.proven)
@@ -153,21 +181,24 @@ class BoundedRealCertificate:
             if A.shape != self.P.shape or B.shape != self.B.shape or C.shape != self.C.shape:
                 return False
         P = np.asarray(self.P, float)
-        if not np.array_equal(P, P.T):
+        t = np.ones(P.shape[0]) if self.scaling is None else np.asarray(self.scaling, float)
+        if not (np.array_equal(P, P.T) and t.shape == (P.shape[0],) and np.all(t > 0)
+                and np.array_equal(np.frexp(t)[0], np.full(t.shape, 0.5))):  # powers of two only: exact
             return False
-        return _holds(*_check(A, B, C, D, P, self.gamma))
+        As, Bs, Cs = _scaled(A, B, C, t)
+        return _holds(*_check(As, Bs, Cs, D, P * np.outer(t, t), self.gamma))
 
 
-def _riccati_candidate(s: _Sys, gamma: float, eps: float):
+def _riccati_candidate(A, B, C, D, gamma: float, eps: float):
     """``P = γ² X`` from the perturbed bounded-real Riccati equation (module docstring), or None."""
-    n, m = s.n, s.m
-    Cs, Ds = s.C / gamma, s.D / gamma
+    n, m = B.shape
+    Cs, Ds = C / gamma, D / gamma
     Q = Cs.T @ Cs + eps * np.eye(n)
     R = Ds.T @ Ds - (1.0 - eps) * np.eye(m)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            X = sla.solve_discrete_are(s.A, s.B, Q, R, s=Cs.T @ Ds)
+            X = sla.solve_discrete_are(A, B, Q, R, s=Cs.T @ Ds)
     except (np.linalg.LinAlgError, ValueError):
         return None
     if not np.all(np.isfinite(X)):
@@ -242,21 +273,25 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     if known >= gamma:
         return BoundedRealCertificate(False, gamma, (
             f"not proven: the given attained gain lower = {known:.12g} is not below gamma"), **none)
-    gap = (1.0 - (max(lower, known) / gamma) ** 2) / (1.0 + _state_gain(s, w) ** 2)
+    t = _balancing(s.A)
+    As, Bs, Cs = _scaled(s.A, s.B, s.C, t)
+    f = _state_gain(s, w, t)
+    gap = (1.0 - (max(lower, known) / gamma) ** 2) / (1.0 + f * f)
     last = None
     for frac in EPSILON_FRACTIONS:
         eps = frac * gap
-        P = _riccati_candidate(s, gamma, eps)
-        if P is None:
+        Pt = _riccati_candidate(As, Bs, Cs, s.D, gamma, eps)
+        if Pt is None:
             continue
-        checks = _check(s.A, s.B, s.C, s.D, P, gamma)
+        checks = _check(As, Bs, Cs, s.D, Pt, gamma)
+        P = Pt / np.outer(t, t)  # T⁻ᵀ P̃ T⁻¹, exact
         last = (P, checks, eps)
         if _holds(*checks):
             lmi_max, lmi_allow, p_min, p_allow = checks
             return BoundedRealCertificate(True, gamma, (
                 f"proven: P ≻ 0 (λ_min {p_min:.3g}) and M(P) ≺ 0 (λ_max {lmi_max:.3g}, rounding allowance "
-                f"{lmi_allow:.3g}) with Riccati perturbation ε = {eps:.3g}"),
-                P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D)
+                f"{lmi_allow:.3g}; balanced coordinates) with Riccati perturbation ε = {eps:.3g}"),
+                P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D, t)
     if last is None:
         return BoundedRealCertificate(False, gamma, (
             "not proven: the perturbed bounded-real Riccati equation has no stabilising solution for any ε tried "
@@ -265,4 +300,4 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     return BoundedRealCertificate(False, gamma, (
         f"not proven: the best candidate P has λ_max(M(P)) = {lmi_max:.3g} against the allowance {lmi_allow:.3g} "
         f"and λ_min(P) = {p_min:.3g} (ε = {eps:.3g}); gamma may be within rounding of the norm"),
-        P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D)
+        P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D, t)

@@ -172,7 +172,7 @@ class _Sys:
         self.n, self.m, self.p = n, m, p
         if n:
             T, Z = sla.schur(self.A.astype(complex), output="complex")
-            self.T, self.Bt, self.Ct = T, Z.conj().T @ self.B, self.C @ Z
+            self.T, self.Z, self.Bt, self.Ct = T, Z, Z.conj().T @ self.B, self.C @ Z
             self.poles = np.diag(T).copy()
         else:
             self.poles = np.zeros(0, complex)

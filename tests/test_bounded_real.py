@@ -62,6 +62,26 @@ def test_sharp_peak_missed_by_the_grid_is_not_certified(zeta):
     assert cert and cert.verify(G)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_badly_scaled_realisation_is_certified_through_exact_balancing(seed):
+    G0 = _random_stable(seed + 20, 15, 2, 2)
+    t = 10.0 ** np.random.default_rng(seed).uniform(-4, 4, 15)  # state units over 8 decades
+    A, B, C, D = (np.asarray(X, float) for X in (G0.A, G0.B, G0.C, G0.D))
+    G = ct.ss(A * (t[:, None] / t[None, :]), B * t[:, None], C / t[None, :], D, 1.0)
+    gamma = 1.01 * hinf_norm(G0).upper  # the same transfer function: the norm of the well-scaled twin
+    cert = bounded_real_certificate(G, gamma)
+    assert cert and cert.verify() and cert.verify(G)
+    assert np.array_equal(np.frexp(cert.scaling)[0], np.full(15, 0.5))  # powers of two
+    # the congruence by hand: P̃ = TᵀPT certifies the balanced realisation, checked independently
+    Ts = cert.scaling
+    Gs = ct.ss(A * (t[:, None] / t[None, :]) * (Ts[None, :] / Ts[:, None]), B * t[:, None] / Ts[:, None],
+               C / t[None, :] * Ts[None, :], D, 1.0)
+    M = _lmi_by_hand(Gs, cert.P * np.outer(Ts, Ts), gamma)
+    assert np.linalg.eigvalsh(0.5 * (M + M.T))[-1] < 0
+    bad = BoundedRealCertificate(**{**cert.__dict__, "scaling": 3.0 * cert.scaling})  # not powers of two
+    assert not bad.verify()
+
+
 def test_verify_rejects_a_tampered_certificate_or_another_system():
     G = _resonance(0.05, 1.0)
     b = hinf_norm(G)
