@@ -55,29 +55,20 @@ _EPS = np.finfo(float).eps
 EPSILON_FRACTIONS = (0.5, 1e-2, 1e-4, 1e-6)
 
 
-def _state_gain(s: _Sys, w, t) -> float:
-    """Largest ``σ̄(T⁻¹(e^{jω}I − A)⁻¹B)`` (the balanced coordinates' ``(zI − Ã)⁻¹B̃``) over ``w``.
+def _state_gain(s: _Sys, w) -> float:
+    """Largest ``σ̄((e^{jω}I − Ã)⁻¹B̃)`` over ``w``, in the balanced realisation of ``s``.
 
-    Solved on the Schur form ``A = Z T_s Zᴴ``: ``(zI − A)⁻¹B = Z (zI − T_s)⁻¹ Zᴴ B``.
+    Solved on the Schur form ``Ã = Z T_s Zᴴ``: ``(zI − Ã)⁻¹B̃ = Z (zI − T_s)⁻¹ Zᴴ B̃``.
     """
     Tm = -s.T
     diag = np.diag_indices(s.n)
     d0 = Tm[diag].copy()
-    Zs = s.Z / t[:, None]  # T⁻¹ Z
     best = 0.0
     for wk in w:
         Tm[diag] = d0 + np.exp(1j * wk)
-        X = Zs @ sla.solve_triangular(Tm, s.Bt, check_finite=False)
+        X = sla.solve_triangular(Tm, s.Bt, check_finite=False)  # Z is unitary: same norm
         best = max(best, float(np.linalg.norm(X, 2)))
     return best
-
-
-def _balancing(A) -> np.ndarray:
-    """Diagonal of ``T`` (powers of two) balancing ``A``; ones for an empty ``A``."""
-    if not A.size:
-        return np.ones(A.shape[0])
-    _, (scale, _) = sla.matrix_balance(A, permute=False, separate=True)
-    return np.asarray(scale, float)
 
 
 def _scaled(A, B, C, t):
@@ -177,7 +168,7 @@ class BoundedRealCertificate:
             A, B, C, D = self.A, self.B, self.C, self.D
         else:
             s = _Sys(sys, "sys")
-            A, B, C, D = s.A, s.B, s.C, s.D
+            (A, B, C), D = s.given, s.D
             if A.shape != self.P.shape or B.shape != self.B.shape or C.shape != self.C.shape:
                 return False
         P = np.asarray(self.P, float)
@@ -252,7 +243,7 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     gamma = check_level(gamma, "gamma")
     s = _Sys(sys, "sys")
     none = dict(P=None, lmi_max=float("nan"), lmi_allowance=float("nan"), p_min=float("nan"),
-                p_allowance=float("nan"), epsilon=float("nan"), A=s.A, B=s.B, C=s.C, D=s.D)
+                p_allowance=float("nan"), epsilon=float("nan"), A=s.given[0], B=s.given[1], C=s.given[2], D=s.D)
     stable, why = s.stability()
     if not stable:
         return BoundedRealCertificate(False, gamma, why, **none)
@@ -273,17 +264,17 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     if known >= gamma:
         return BoundedRealCertificate(False, gamma, (
             f"not proven: the given attained gain lower = {known:.12g} is not below gamma"), **none)
-    t = _balancing(s.A)
-    As, Bs, Cs = _scaled(s.A, s.B, s.C, t)
-    f = _state_gain(s, w, t)
+    t, (A, B, C), D = s.scaling, s.given, s.D
+    As, Bs, Cs = s.A, s.B, s.C  # = _scaled(A, B, C, t), exactly
+    f = _state_gain(s, w)
     gap = (1.0 - (max(lower, known) / gamma) ** 2) / (1.0 + f * f)
     last = None
     for frac in EPSILON_FRACTIONS:
         eps = frac * gap
-        Pt = _riccati_candidate(As, Bs, Cs, s.D, gamma, eps)
+        Pt = _riccati_candidate(As, Bs, Cs, D, gamma, eps)
         if Pt is None:
             continue
-        checks = _check(As, Bs, Cs, s.D, Pt, gamma)
+        checks = _check(As, Bs, Cs, D, Pt, gamma)
         P = Pt / np.outer(t, t)  # T⁻ᵀ P̃ T⁻¹, exact
         last = (P, checks, eps)
         if _holds(*checks):
@@ -291,7 +282,7 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
             return BoundedRealCertificate(True, gamma, (
                 f"proven: P ≻ 0 (λ_min {p_min:.3g}) and M(P) ≺ 0 (λ_max {lmi_max:.3g}, rounding allowance "
                 f"{lmi_allow:.3g}; balanced coordinates) with Riccati perturbation ε = {eps:.3g}"),
-                P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D, t)
+                P, lmi_max, lmi_allow, p_min, p_allow, eps, A, B, C, D, t)
     if last is None:
         return BoundedRealCertificate(False, gamma, (
             "not proven: the perturbed bounded-real Riccati equation has no stabilising solution for any ε tried "
@@ -300,4 +291,4 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     return BoundedRealCertificate(False, gamma, (
         f"not proven: the best candidate P has λ_max(M(P)) = {lmi_max:.3g} against the allowance {lmi_allow:.3g} "
         f"and λ_min(P) = {p_min:.3g} (ε = {eps:.3g}); gamma may be within rounding of the norm"),
-        P, lmi_max, lmi_allow, p_min, p_allow, eps, s.A, s.B, s.C, s.D, t)
+        P, lmi_max, lmi_allow, p_min, p_allow, eps, A, B, C, D, t)

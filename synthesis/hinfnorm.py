@@ -146,8 +146,20 @@ class NormTest:
 
 
 # ---------------------------------------------------------------------------------------------
+def _balancing(A) -> np.ndarray:
+    """Diagonal of a power-of-two ``T`` balancing ``A`` (:func:`scipy.linalg.matrix_balance`); ones when empty."""
+    if not A.size:
+        return np.ones(A.shape[0])
+    _, (scale, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return np.asarray(scale, float)
+
+
 class _Sys:
-    """A checked discrete system with the complex Schur form of ``A`` (cheap frequency responses)."""
+    """A checked discrete system with the complex Schur form of ``A`` (cheap frequency responses).
+
+    ``A, B, C`` are the exactly balanced realisation (``given`` holds the one passed, ``scaling``
+    the power-of-two ``T`` with ``A = T⁻¹ A_given T``); ``D`` is unchanged.
+    """
 
     def __init__(self, sys, name: str):
         import control
@@ -165,9 +177,16 @@ class _Sys:
                     "add poles (e.g. multiply by z^-k) or pass a proper system") from exc
         sys = as_discrete_system(sys, name, hint="use control.norm(sys, 'inf') for continuous time")
         n, m, p = sys.nstates, sys.ninputs, sys.noutputs
-        self.A = np.asarray(sys.A, float).reshape(n, n)
-        self.B = np.asarray(sys.B, float).reshape(n, m)
-        self.C = np.asarray(sys.C, float).reshape(p, n)
+        A = np.asarray(sys.A, float).reshape(n, n)
+        B = np.asarray(sys.B, float).reshape(n, m)
+        C = np.asarray(sys.C, float).reshape(p, n)
+        self.given = (A, B, C)  # the realisation as passed
+        # Work in the realisation x̃ = T⁻¹x of a power-of-two diagonal T balancing A: the scaling is
+        # exact in floating point and leaves the transfer function unchanged, while a badly scaled
+        # realisation (state units over decades) loses digits in every frequency response and pencil.
+        self.scaling = _balancing(A)
+        t = self.scaling
+        self.A, self.B, self.C = A * (t[None, :] / t[:, None]), B / t[:, None], C * t[None, :]
         self.D = np.asarray(sys.D, float).reshape(p, m)
         self.n, self.m, self.p = n, m, p
         if n:

@@ -136,3 +136,20 @@ def test_bad_input_raises_data_error():
         hinf_norm(ct.tf([1], [1, -0.5], 1), tol=0.0)
     with pytest.raises(DataError, match="gamma"):
         norm_below(ct.tf([1], [1, -0.5], 1), -1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_badly_scaled_realisation_gives_the_bracket_of_its_well_scaled_twin(seed):
+    """State units over 8 decades: the same transfer function, so the same norm; computed in an exactly
+    balanced realisation, the bracket stays tight and its attained side is not inflated by rounding."""
+    rng = np.random.default_rng(seed)
+    n = 20
+    A = rng.standard_normal((n, n))
+    A *= 0.95 / max(abs(np.linalg.eigvals(A)))
+    B, C, D = rng.standard_normal((n, 2)), rng.standard_normal((2, n)), 0.3 * rng.standard_normal((2, 2))
+    t = 10.0 ** rng.uniform(-4, 4, n)
+    twin = hinf_norm(ct.ss(A, B, C, D, 1.0))
+    scaled = hinf_norm(ct.ss(A * (t[:, None] / t[None, :]), B * t[:, None], C / t[None, :], D, 1.0))
+    assert twin.gap < 1e-7 and scaled.gap < 1e-7
+    assert scaled.lower == pytest.approx(twin.lower, rel=1e-9)
+    assert scaled.lower <= twin.upper * (1 + 1e-12) and twin.lower <= scaled.upper * (1 + 1e-12)
