@@ -23,6 +23,12 @@ repeated; when the test passes, ``upper = γ``.  Should the unit-circle eigenval
 higher gain (an eigenvalue within rounding of the circle), ``γ`` is raised geometrically instead,
 so the bracket widens but stays proven.
 
+All of it runs in an exactly balanced realisation of the system: ``x̃ = T⁻¹x`` with ``T`` a diagonal of
+powers of two balancing ``A`` (:func:`scipy.linalg.matrix_balance`).  The transfer function is the same
+and the scaling is exact in floating point; a realisation whose state units spread over decades would
+otherwise lose digits in every frequency response and in the pencil (measured: brackets 2–34× wide and
+an attained side 1e-7 too high at scalings over 8 decades).
+
 Not used: ``control.norm(sys, 'inf')`` returns ∞ for a stable discrete loop with a pole within
 about 1e-5 of the unit circle; ``slycot.ab13dd`` (SLICOT's H∞ norm) is fast but was measured to
 return a neighbouring local peak up to 5e-6 (relative) too low on three-disk mixed-sensitivity
