@@ -1,4 +1,73 @@
-"""Plants, signals, simulations and the thesis experiments (Ch. 5–7)."""
+"""
+Plants, signals, simulations and the thesis experiments (Ch. 5–7)
+=================================================================
+
+The building blocks of the thesis's experiments, and the experiments themselves as a command line,
+``python -m experiments NAME [--quick] [--json] [--out DIR] [--seed N]`` (one subcommand per experiment or
+benchmark; each writes a markdown report, a JSON summary, figures and CSV tables under
+``results/<name>/``). The subcommands, their options and files are described in ``experiments/README.md``
+and their measured results in ``experiments/BENCHMARKS.md`` of the source tree.
+
+Plants
+------
+
+   servo                  -- servo actuator (5.5) ``1/(s(s+1))``, ZOH at 10 Hz (``SERVO_DT``)
+   three_disk             -- three-disk torsional plant of §6.1 (output ``y1``/``y3``), ZOH at 64 Hz
+   ThreeDiskParameters    -- parameters of the §6.1 three-disk models
+   THREE_DISK             -- the §6.1 parameter values
+   THREE_DISK_DT          -- 1/64 s
+   SERVO_DT               -- 0.1 s
+   third_order            -- stable ``6/((s+1)(s+2)(s+3))``
+   resonant               -- lightly damped ``ω²/(s² + 2ζωs + ω²)``
+   nonminimum_phase       -- ``2(1 − s)/((s+1)(s+2))``
+   PLANT_CATALOGUE        -- name → (factory, description) of the plants of the sweeps
+   plant_catalogue        -- those plants, built
+
+Signals
+-------
+
+   prbs                   -- maximum-length PRBS ±amplitude
+   white_noise            -- zero-mean white Gaussian noise
+   step                   -- unit (or scaled) step
+   step_sequence          -- a series of steps
+
+Simulation
+----------
+
+   collect_data           -- open-loop experiment ``y = P(u + w) + v`` (§5.4)
+   OpenLoopData           -- its result (``u``, ``y``, ``y_clean``, ``x_final``)
+   closed_loop            -- a plant (plus an optional additive perturbation) under an LTI, receding-horizon
+                             or adaptive controller
+   closed_loop_adaptive   -- closed loop with an adaptive controller, keeping its γ history
+   closed_loop_system     -- the LTI closed loop ``r → [y; u]`` as a ``StateSpace``
+   ClosedLoopResult       -- result of ``closed_loop`` (``t``, ``r``, ``y``, ``u``, ``e``)
+   AlgebraicLoopError     -- plant and controller both have feedthrough
+
+Tour
+----
+
+An open-loop experiment on the servo, then the loop closed by a proportional controller on ``e = r − y``:
+
+>>> import numpy as np
+>>> import control
+>>> from experiments import closed_loop, collect_data, prbs, servo
+>>> P = servo()
+>>> P.dt
+0.1
+>>> data = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=1)
+>>> data.u.shape, data.y.shape
+((1000, 1), (1000, 1))
+>>> res = closed_loop(P, control.ss([], [], [], [[2.0]], P.dt), np.ones(200))
+>>> round(float(res.y[-1, 0]), 3)
+1.0
+
+The command line (``python -m experiments --help``):
+
+>>> from experiments.cli import COMMANDS
+>>> list(COMMANDS)  # doctest: +NORMALIZE_WHITESPACE
+['demo', 'design-example', 'noncollocated', 'adaptive', 'chapter7', 'robust-pipeline', 'bench-predictor',
+ 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep']
+"""
 from .plants import (
     PLANT_CATALOGUE,
     SERVO_DT,

@@ -1,10 +1,138 @@
-"""Uncertainty-model unfalsification as cvxpy LMI models (thesis Ch. 7).
+"""
+Uncertainty-model unfalsification and the §7.4 robust design (thesis Ch. 7)
+===========================================================================
 
-* :func:`unfalsified_gain` -- Theorem 7.1 (smallest H∞ gain explaining SISO data);
-* :func:`arx_unfalsify` -- ARX uncertainty model, program (7.4);
-* :func:`subspace_unfalsify` -- subspace uncertainty model, program (7.5) (``executor=``: split by columns,
-  :func:`split_solve`);
-* :func:`robust_design_from_data` -- §7.4 steps 1–5 (δ → additive-uncertainty H∞ design).
+The smallest uncertainty bound not falsified by input/output data, as convex programs that certify their
+own answers (cvxpy with Clarabel, passed explicitly, or a structured barrier solver that exploits the
+Toeplitz structure), and the §7.4 pipeline from that bound δ to a robust Theorem 3.7 controller whose
+implemented loop is certified. The method, the two corrections to the thesis's §7.4 and the certificate
+are explained in ``docs/UNFALSIFICATION.md`` of the source tree.
+
+Theorem 7.1
+-----------
+
+   unfalsified_gain       -- smallest γ such that an LTI Δ with ‖Δ‖∞ ≤ γ maps u to y on the window
+   unfalsified_gain_result -- the same with ``h = T(u)⁻¹y`` and cond T(u)
+   GainResult             -- result of ``unfalsified_gain_result``
+   is_unfalsified         -- whether the data do not falsify "y = Δu with ‖Δ‖∞ ≤ gamma"
+
+ARX uncertainty model (7.4)
+---------------------------
+
+   arx_unfalsify          -- smallest ‖Δ‖∞ unfalsifying the ARX model (7.3) with ‖ξ‖_rms ≤ σ
+   ArxResult              -- result of ``arx_unfalsify`` (δ, status, certificate, the cvxpy problem)
+   ArxProblem             -- program (7.4) on given data: validation, scaling, independent bounds
+   arx_least_squares      -- classical ARX (7.2) and the rms of its residual
+   arx_regressor          -- the regressor ``(Φ, Y)`` of §7.2.1
+
+Subspace uncertainty model (7.5)
+--------------------------------
+
+   subspace_unfalsify     -- smallest δ bounding the column operators Δ_k (L optimised, or ``predictor=`` fixed)
+   SubspaceResult         -- result of ``subspace_unfalsify``
+   SubspaceProblem        -- program (7.5) on given data: validation, scaling, the fixed predictor, bounds
+   subspace_data          -- ``(A, U_f, Y_f)`` of a window, ``A = [U_p; Y_p; U_f]``
+   split_solve            -- (7.5) with a fixed predictor split by columns over an ``Executor``
+
+Certificates and Toeplitz helpers
+---------------------------------
+
+   Certificate            -- two-sided bracket ``lower ≤ δ ≤ upper`` of an answer, ``verify()`` from the data
+   BACKENDS               -- the solver backends, ``("cvxpy", "structured")``
+   COND_WARN              -- cond T(u) above which ``IllConditionedWarning`` is raised (1e8)
+   toeplitz_matrix        -- dense lower-triangular Toeplitz matrix T(x)
+   toeplitz_norm          -- spectral norm ‖T(h)‖₂
+   toeplitz_cond          -- condition number of T(u)
+   deconvolve             -- solve ``T(u) h = y``
+
+Robust design from data (§7.4)
+------------------------------
+
+   robust_design_from_data -- δ by (7.5), a Theorem 3.7 design, searched until its shipped loop is certified
+   RobustDesignResult     -- result: δ, the design, its controller, certificates, the search
+   DesignSearch           -- the family of designs the search tries (γ ratios, W3 gains, causality, horizons)
+   SearchRecord           -- one design tried by the search and why it failed
+   additive_weight_fixed_point -- the W3 gain ``c = (1 + margin) δ γ(c)``
+   predictor_model        -- the data-based model P̂: ARX model of the predictor's first block row
+
+Loop certificate
+----------------
+
+   certify_loop           -- certify the loop (P̂, K) for additive uncertainty of size δ
+   LoopCertificate        -- result of ``certify_loop``
+   additive_robustness    -- nominal stability and a certified ‖K(I+PK)⁻¹‖∞ of a controller with inputs [r; y]
+   AdditiveRobustness     -- result of ``additive_robustness``
+   additive_channel       -- the transfer an additive plant perturbation sees (Fig. 3.5)
+   closed_loop_ry         -- the noise-free closed loop r → y
+   loop_parts             -- checked plant and controller parts of a loop
+   step_metrics           -- unit-step metrics of a loop r → y
+   StepMetrics            -- result of ``step_metrics``
+
+Errors and warnings
+-------------------
+
+   UnfalsificationError   -- infeasible, unbounded or failed solve
+   NotCertifiedError      -- ``require_certified=True`` and no design of the search certifies
+   NotCertifiedWarning    -- the pipeline could not certify the loop it returns (with the reason)
+   FewDataWarning         -- the (7.5) window has few columns for the predictor it estimates
+   IllConditionedWarning  -- cond T(u) > 1e8: the literal Chapter 7 quantities are meaningless
+   NotAtRestWarning       -- a record that starts mid-motion where rest is assumed
+   SolverWarning          -- the conic solver returned a status other than ``optimal``
+
+Tour
+----
+
+Servo data (§5.4: 1/(s(s+1)) at 10 Hz, PRBS input, noise σ = 0.05 at the input and on the sensor).
+Theorem 7.1 on a 30-sample window; noise is not a bounded causal Δ, so γ grows with the window:
+
+>>> import numpy as np
+>>> import synthesis as sy
+>>> import unfalsify as uf
+>>> from experiments import collect_data, prbs, servo
+>>> P = servo()
+>>> data = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=1)
+>>> u, y = data.u[:, 0], data.y[:, 0]
+>>> g = uf.unfalsified_gain_result(u[:30], y[:30])
+>>> round(g.gamma), f"{g.cond_Tu:.1e}"
+(104, '9.6e+03')
+
+ARX (7.4): ``A(q)y − B(q)u = ξ + Δu`` with ‖ξ‖_rms ≤ σ, here σ = ½ the least-squares residual rms.
+``form="conditioned"`` (default) solves the substitution ``e − ξ = T(u)h``; ``form="thesis"`` keeps the
+literal LMIs. Every result carries ``status``, ``solve_time``, ``cond_Tu`` and a ``certificate``; a status
+other than ``optimal`` warns, and δ is NaN when the solve failed:
+
+>>> _, rms = uf.arx_least_squares(u[:30], y[:30], 2, 2)
+>>> arx = uf.arx_unfalsify(u[:30], y[:30], 2, 2, 0.5 * rms)          # cvxpy + Clarabel
+>>> round(arx.delta, 3), arx.status, bool(arx.certificate.max_violation < 1e-6)
+(0.2, 'optimal', True)
+>>> fast = uf.arx_unfalsify(u[:30], y[:30], 2, 2, 0.5 * rms, backend="structured", progress=False)
+>>> c = fast.certificate                                           # lower ≤ δ_unf ≤ upper, both proven
+>>> bool(c.lower_bound <= arx.delta * (1 + 1e-6)), bool(c.verify())
+(True, True)
+
+Subspace (7.5) for a fixed least-squares predictor (i = 20) on a j = 20 window: only this δ acts
+additively on the predictor output as Theorem 3.7 assumes, so only it sizes the robust design
+(``robust_design_from_data``; the README's quick start runs the whole pipeline):
+
+>>> i, j = 20, 20
+>>> pred = sy.fit_predictor(u, y, i)
+>>> n = 2 * i + j - 1
+>>> A, Uf, Yf = uf.subspace_data(u[:n], y[:n], i)
+>>> rms_f = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
+>>> sub = uf.subspace_unfalsify(u[:n], y[:n], i, 0.5 * rms_f, predictor=pred, backend="structured", progress=False)
+>>> round(sub.delta, 3), sub.status
+(0.102, 'optimal')
+
+The robustness of a loop on a plant, with a proven ‖K(I+PK)⁻¹‖∞ (here the nominal §5.4 design on the true
+plant; its radius 1/‖K(I+PK)⁻¹‖∞ is far below this δ, which is why the pipeline searches):
+
+>>> import control
+>>> s = control.tf("s")
+>>> W1 = sy.tustin(100 * (0.01 / 5) * (s + 5) / (s + 0.01), P.dt)
+>>> W2 = sy.tustin(0.05 * (10 / 0.5) * (s + 0.5) / (s + 10), P.dt)
+>>> rob = uf.additive_robustness(P, sy.hinf_design(pred, W1, W2, dt=P.dt).controller)
+>>> rob.stable, round(rob.peak, 1), bool(sub.delta * rob.peak < 1)
+(True, 13.7, False)
 """
 from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
