@@ -31,6 +31,7 @@ from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
 from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
+from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, save_controller
 
 __all__ = [
     "DataError",
@@ -91,6 +92,11 @@ __all__ = [
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",
+    # controller files
+    "ControllerFileError",
+    "CONTROLLER_FORMATS",
+    "save_controller",
+    "load_controller",
     # module-level public helpers
     "hankel_order",
     "common_dt",
