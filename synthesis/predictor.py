@@ -116,8 +116,8 @@ class Predictor:
     def past_vector(self, u_past, y_past) -> np.ndarray:
         """Stack the last ``i`` samples of ``u`` and ``y`` into ``w_p`` (3.13)."""
         i = self.horizon
-        u_past = as_signal(u_past, "u_past", width=self.m)
-        y_past = as_signal(y_past, "y_past", width=self.l)
+        u_past = as_signal(u_past, "u_past", width=self.m, record=False)
+        y_past = as_signal(y_past, "y_past", width=self.l, record=False)
         if u_past.shape[0] < i or y_past.shape[0] < i:
             raise DataError(f"need at least i={i} past samples of u and y")
         return np.concatenate([u_past[-i:].reshape(-1), y_past[-i:].reshape(-1)])
