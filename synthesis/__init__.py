@@ -31,6 +31,7 @@ from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
 from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
+from .noise import NoiseEstimate, estimate_noise
 from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, save_controller
 
 __all__ = [
@@ -92,6 +93,9 @@ __all__ = [
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",
+    # the engineer's choices: noise level, weights
+    "NoiseEstimate",
+    "estimate_noise",
     # controller files
     "ControllerFileError",
     "CONTROLLER_FORMATS",
