@@ -13,7 +13,16 @@ from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .recursive import RecursivePredictor, RefactorWarning
-from .weights import WeightError, as_weight, common_dt, is_zero_weight, markov_toeplitz, observability, tustin
+from .weights import (
+    WeightError,
+    as_weight,
+    common_dt,
+    is_zero_weight,
+    makeweight,
+    markov_toeplitz,
+    observability,
+    tustin,
+)
 from .minimax import (
     NEAR_GAMMA_MIN_RATIO,
     InfeasibleGammaError,
@@ -96,6 +105,7 @@ __all__ = [
     # the engineer's choices: noise level, weights
     "NoiseEstimate",
     "estimate_noise",
+    "makeweight",
     # controller files
     "ControllerFileError",
     "CONTROLLER_FORMATS",
