@@ -40,3 +40,41 @@ def test_short_windows_and_single_samples_are_still_accepted():
     assert pred.past_vector(u[-2:], y[-2:]).shape == (12,)  # (2, 3) windows: more channels than rows
     # a 1-D signal is one channel, never "transposed"
     assert synthesis.fit_predictor(u[:, 0], y[:, 0], 5).m == 1
+
+
+def _fir(n=300, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    return u, np.convolve(u, [0.0, 1.0, 0.5])[:n] + 0.01 * rng.standard_normal(n)
+
+
+def test_weights_at_another_sample_time_than_the_data_fail_without_dt():
+    u, y = _fir()
+    W1 = synthesis.makeweight(100.0, (0.5, 1.0), 0.5, 0.1)
+    W2 = synthesis.makeweight(0.05, (2.0, 0.3), 10.0, 0.1)
+    pred = synthesis.fit_predictor(u, y, 4, dt=0.2)  # the data's sample time travels with the predictor
+    assert pred.dt == 0.2
+    for call in (lambda: synthesis.hinf_design(pred, W1, W2), lambda: synthesis.gamma_min(pred, W1, W2),
+                 lambda: synthesis.performance_map(pred, W1, W2)):
+        with pytest.raises(synthesis.WeightError, match=r"sample time 0.1 but the data's is 0.2.*tustin\(W, 0.2\)"):
+            call()
+    with pytest.raises(synthesis.WeightError, match="Predictor.dt.*drop dt="):
+        synthesis.hinf_design(pred, W1, W2, dt=0.1)  # two different data sample times
+    ok = synthesis.fit_predictor(u, y, 4, dt=0.1)
+    assert synthesis.hinf_design(ok, W1, W2).dt == 0.1
+    assert synthesis.hinf_design(ok, W1, W2, dt=0.1).dt == 0.1
+    # static weights take the data's sample time
+    assert synthesis.hinf_design(ok, 1.0, 0.1).controller.dt == 0.1
+    # without dt anywhere the mismatch cannot be seen: the arrays carry no sample time
+    assert synthesis.hinf_design(synthesis.fit_predictor(u, y, 4), W1, W2).dt == 0.1
+    with pytest.raises(DataError, match="dt must be"):
+        synthesis.fit_predictor(u, y, 4, dt=0.0)
+
+
+def test_predictor_dt_reaches_the_robust_pipeline():
+    u, y = _fir(400, 1)
+    W1 = synthesis.makeweight(100.0, (0.5, 1.0), 0.5, 0.1)
+    W2 = synthesis.makeweight(0.05, (2.0, 0.3), 10.0, 0.1)
+    pred = synthesis.fit_predictor(u, y, 4, dt=0.2)
+    with pytest.raises(synthesis.WeightError, match="data's is 0.2"):
+        uf.robust_design_from_data(u[:40], y[:40], 4, W1, W2, 0.005, predictor=pred, search=False)
