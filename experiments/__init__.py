@@ -81,6 +81,7 @@ from .plants import (
     third_order,
     three_disk,
 )
+from .records import RECORD_FORMATS, Record, RecordError, load_record
 from .signals import prbs, step, step_sequence, white_noise
 from .simulate import (
     AlgebraicLoopError,
@@ -115,6 +116,10 @@ __all__: list[str] = [
     "closed_loop_adaptive",
     "closed_loop_system",
     "collect_data",
+    "RECORD_FORMATS",
+    "Record",
+    "RecordError",
+    "load_record",
 ]
 
 from synthesis import __version__  # noqa: E402 - one distribution, one version

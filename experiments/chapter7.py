@@ -168,8 +168,9 @@ def run(opts, cfg: Config | None = None) -> dict:
         # the conditioned form by the structured backend (measured 3-35× faster than Clarabel at n = 40-60);
         # the literal form needs the cvxpy backend, and the conditioned form is also solved by cvxpy at the
         # smallest n so that the report keeps the form/backend comparison
+        # (Config.tiny() has no literal-form sizes: then no cvxpy comparison either)
         arx_jobs = ([("conditioned", n, "structured") for n in cfg.arx_sizes]
-                    + [("conditioned", cfg.arx_thesis_sizes[0], "cvxpy")]
+                    + [("conditioned", n, "cvxpy") for n in cfg.arx_thesis_sizes[:1]]
                     + [("thesis", n, "cvxpy") for n in cfg.arx_thesis_sizes])
         arx_rows = []
         for form, n, backend in tqdm(arx_jobs, desc="ARX (7.4)", leave=False):

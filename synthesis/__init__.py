@@ -202,7 +202,16 @@ from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .recursive import RecursivePredictor, RefactorWarning
-from .weights import WeightError, as_weight, common_dt, is_zero_weight, markov_toeplitz, observability, tustin
+from .weights import (
+    WeightError,
+    as_weight,
+    common_dt,
+    is_zero_weight,
+    makeweight,
+    markov_toeplitz,
+    observability,
+    tustin,
+)
 from .minimax import (
     NEAR_GAMMA_MIN_RATIO,
     InfeasibleGammaError,
@@ -220,6 +229,8 @@ from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
 from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
+from .noise import NoiseEstimate, estimate_noise
+from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, save_controller
 
 __all__ = [
     "DataError",
@@ -280,6 +291,15 @@ __all__ = [
     "AdaptiveHinf",
     "AdaptiveUpdate",
     "GammaPolicy",
+    # the engineer's choices: noise level, weights
+    "NoiseEstimate",
+    "estimate_noise",
+    "makeweight",
+    # controller files
+    "ControllerFileError",
+    "CONTROLLER_FORMATS",
+    "save_controller",
+    "load_controller",
     # module-level public helpers
     "hankel_order",
     "common_dt",

@@ -24,7 +24,7 @@ class InputTypeError(DataError, TypeError):
     """
 
 
-def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -> np.ndarray:
+def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
     """Return ``x`` as a float array of shape ``(n, k)`` (time along axis 0).
 
     Parameters
@@ -37,12 +37,26 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -
         Required number of samples.
     width : int, optional
         Required number of channels.
+    record : bool
+        ``x`` is a whole record (the default): a 2-D array with more columns than rows is then
+        taken for a record with time along axis 1 and refused, naming the fix ``x.T``.  Pass
+        False for short windows (past samples of a controller, one new sample).
 
     Raises
     ------
     DataError
-        If ``x`` is complex, not 1-D or 2-D, is empty, contains NaN/inf, or has the wrong
-        length or number of channels.
+        If ``x`` is complex, not 1-D or 2-D, is empty, contains NaN/inf, has the wrong
+        length or number of channels, or (``record=True``) more channels than samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> as_signal(np.arange(3.0), "u").shape
+    (3, 1)
+    >>> as_signal(np.ones((1, 500)), "u")
+    Traceback (most recent call last):
+    ...
+    synthesis._validation.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
     """
     if np.iscomplexobj(x):
         raise DataError(
@@ -52,6 +66,7 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -
         arr = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
         raise DataError(f"{name} must be a numeric array, got {type(x).__name__}") from exc
+    x_was_2d = arr.ndim == 2
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:
@@ -61,6 +76,10 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None) -
         )
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise DataError(f"{name} is empty (shape {arr.shape})")
+    if record and x_was_2d and arr.shape[1] > arr.shape[0]:
+        raise DataError(
+            f"{name} has shape {arr.shape}: more channels ({arr.shape[1]}) than samples ({arr.shape[0]}); "
+            f"time runs along axis 0: pass {name}.T (shape ({arr.shape[1]}, {arr.shape[0]}))")
     if not np.all(np.isfinite(arr)):
         bad = int(np.count_nonzero(~np.isfinite(arr)))
         raise DataError(f"{name} contains {bad} NaN or infinite value(s); clean or interpolate the data first")

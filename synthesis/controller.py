@@ -187,12 +187,12 @@ class RecedingHorizonController:
         self.u_p = np.zeros((i, m))
         self.y_p = np.zeros((i, l))
         if u_past is not None:
-            u_past = as_signal(u_past, "u_past", width=m)
+            u_past = as_signal(u_past, "u_past", width=m, record=False)
             if u_past.shape[0] < i:
                 raise DataError(f"u_past needs at least i = {i} samples, got {u_past.shape[0]}")
             self.u_p = u_past[-i:].copy()
         if y_past is not None:
-            y_past = as_signal(y_past, "y_past", width=l)
+            y_past = as_signal(y_past, "y_past", width=l, record=False)
             if y_past.shape[0] < i:
                 raise DataError(f"y_past needs at least i = {i} samples, got {y_past.shape[0]}")
             self.y_p = y_past[-i:].copy()

@@ -181,7 +181,7 @@ def _weights(pred_m, pred_l, W1, W2, uncertainty, data_dt=None):
         elif data_dt is not True and not np.isclose(dt, data_dt, rtol=1e-9, atol=0):
             raise WeightError(
                 f"the weights have sample time {dt} but the data's is {data_dt}; discretise the weights at the "
-                f"data's sample time (e.g. synthesis.tustin(W, {data_dt}))")
+                f"data's sample time (e.g. synthesis.tustin(W, {data_dt}) or synthesis.makeweight(..., {data_dt}))")
     # give static weights the common sample time so every system returned is discrete with one dt
     fix = lambda W: W if W.nstates else control.ss(W.A, W.B, W.C, W.D, dt)  # noqa: E731
     W1, W2 = fix(W1), fix(W2)
@@ -359,12 +359,27 @@ def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
     return PerformanceMap(Md, Mu, Mx, tuple(disturbances), tuple(columns))
 
 
+def _data_dt(pred, dt):
+    """The data's sample time: ``dt`` if given, else the predictor's (``fit_predictor(..., dt=)``); both must agree."""
+    pdt = getattr(pred, "dt", None)
+    if pdt is None:
+        return dt
+    if dt is None:
+        return pdt
+    if dt is True or not np.isclose(float(dt), float(pdt), rtol=1e-9, atol=0):
+        raise WeightError(
+            f"dt = {dt} but the predictor was fitted on data sampled at {pdt} (Predictor.dt); pass the data's "
+            "sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)")
+    return dt
+
+
 def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> PerformanceMap:
     """Performance map ``z = M_d d + M_u u + M_x x`` of a law ((3.21), Thm 3.2, (3.49), Thm 3.7).
 
     Parameters are those of :func:`hinf_design`.
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
+    dt = _data_dt(pred, dt)
     W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty, dt)
     return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc, bool(causal))
 
@@ -417,10 +432,12 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     uncertainty : Multiplicative or Additive, optional
         Robust design (Thm 3.4 / Thm 3.7).
     dt : float, optional
-        The data's sample time (the predictor does not carry one).  When given, the weights'
-        sample time must equal it (else :class:`WeightError`), and it is the controller's
-        sample time even when every weight is static.  Default: the weights' common sample
-        time (``True``, unspecified, if all are static).
+        The data's sample time.  When known -- given here, or stored on the predictor by
+        ``fit_predictor(u, y, i, dt=...)`` (:attr:`Predictor.dt`) -- the weights' sample time
+        must equal it (else :class:`WeightError`), and it is the controller's sample time even
+        when every weight is static.  Default: the predictor's ``dt``, else the weights' common
+        sample time (``True``, unspecified, if all are static): a predictor fitted on bare
+        arrays without ``dt`` cannot tell a mismatch.
 
     Returns
     -------
@@ -439,7 +456,7 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         If ``gamma < 1.03 γ_min``.
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    plan = _map_plan(i, m, l, W1, W2, causal=causal, uncertainty=uncertainty, dt=dt)
+    plan = _map_plan(i, m, l, W1, W2, causal=causal, uncertainty=uncertainty, dt=_data_dt(pred, dt))
     if gamma is None:
         ratio = check_level(gamma_ratio, "gamma_ratio")
         gamma = lambda g0: ratio * g0 if g0 > 0 else np.inf  # noqa: E731 - a γ policy

@@ -17,7 +17,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import lapack
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, as_signal, check_horizon
+from ._validation import DataError, as_signal, check_horizon, check_sample_time
 from .hankel import hankel_gram
 from ._repr import result
 
@@ -63,6 +63,10 @@ class Predictor:
         triangular solves, taken when ``R1`` is well conditioned: a power-iteration estimate of
         ``κ₂(R1)`` below ``0.8/rcond``) or ``"spectral"`` (the rank-revealing pseudo-inverse of
         §2.2); ``None`` for ``"lstsq"``.
+    dt : float or None
+        Sample time of the data the predictor was fitted on, when it was given
+        (``fit_predictor(..., dt=...)``).  The designs then check the weights' sample time
+        against it (:func:`synthesis.hinf_design`); ``None``: unknown (the arrays carry none).
     """
 
     Lw: np.ndarray
@@ -77,6 +81,7 @@ class Predictor:
     input_rank: int | None = None
     rcond: float | None = None
     solver: str | None = None
+    dt: float | None = None
 
     @property
     def n_regressors(self) -> int:
@@ -116,8 +121,8 @@ class Predictor:
     def past_vector(self, u_past, y_past) -> np.ndarray:
         """Stack the last ``i`` samples of ``u`` and ``y`` into ``w_p`` (3.13)."""
         i = self.horizon
-        u_past = as_signal(u_past, "u_past", width=self.m)
-        y_past = as_signal(y_past, "y_past", width=self.l)
+        u_past = as_signal(u_past, "u_past", width=self.m, record=False)
+        y_past = as_signal(y_past, "y_past", width=self.l, record=False)
         if u_past.shape[0] < i or y_past.shape[0] < i:
             raise DataError(f"need at least i={i} past samples of u and y")
         return np.concatenate([u_past[-i:].reshape(-1), y_past[-i:].reshape(-1)])
@@ -408,7 +413,8 @@ def _split(L: np.ndarray, i: int, m: int, l: int):
     return L[:, : i * (m + l)].copy(), L[:, i * (m + l) :].copy()
 
 
-def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float | None = None) -> Predictor:
+def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float | None = None,
+                  dt: float | None = None) -> Predictor:
     """Fit the least-squares subspace predictor (2.5) from input/output data.
 
     Parameters
@@ -438,6 +444,11 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
         Relative tolerance for the pseudo-inverse: singular values ``<= rcond * σ₁`` are
         discarded (§2.2).  Default :func:`default_rcond` (``max(i(2m+l), j)·eps`` for
         ``"qr"``/``"lstsq"``, ``10·√(max(i(2m+l), j)·eps)`` for ``"cholesky"``).
+    dt : float, optional
+        The data's sample time, stored as :attr:`Predictor.dt`: the designs built on the
+        predictor then refuse weights discretised at another sample time (the arrays alone
+        carry no sample time).  From a file: ``fit_predictor(rec.u, rec.y, i, dt=rec.dt)`` with
+        ``rec = experiments.load_record(...)``.
 
     Returns
     -------
@@ -472,6 +483,8 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     """
     if method not in ("cholesky", "qr", "lstsq"):
         raise ValueError(f"unknown method {method!r}; use 'cholesky', 'qr' or 'lstsq'")
+    if dt is not None:
+        dt = check_sample_time(dt, "dt", allow_true=False)
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
     n, m = u.shape
@@ -481,12 +494,12 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     j = n - 2 * i + 1
     tol = _resolve_rcond(rcond, method, n_reg, j)
     if method == "cholesky":
-        return _predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method)
+        return _with_dt(_predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method), dt)
     Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
     if method == "qr":
         A = np.vstack([Up, Yp, Uf, Yf])
         R = _square_factor(np.linalg.qr(A.T, mode="r").T)
-        return _predictor_from_factor(R, i, m, l, j, tol, method)
+        return _with_dt(_predictor_from_factor(R, i, m, l, j, tol, method), dt)
     # method == "lstsq"
     Phi = np.vstack([Up, Yp, Uf])
     sol, _, q, s = np.linalg.lstsq(Phi.T, Yf.T, rcond=tol)
@@ -494,7 +507,13 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     r_in = _rank(np.linalg.svd(np.vstack([Up, Uf]), compute_uv=False), tol)
     _warn_rank(int(q), r_in, i, m, l, j, tol, stacklevel=3)
     Lw, Lu = _split(sol.T, i, m, l)
-    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol))
+    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol), dt=dt)
+
+
+def _with_dt(pred: Predictor, dt) -> Predictor:
+    if dt is not None:
+        object.__setattr__(pred, "dt", dt)  # a new object of our own, not yet seen by anyone
+    return pred
 
 
 def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, rcond: float, *, stacklevel: int = 3) -> None:

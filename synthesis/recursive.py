@@ -243,7 +243,7 @@ class RecursivePredictor:
             arr = np.reshape(arr, (1,))
         if np.ndim(arr) == 1 and width > 1 and np.size(arr) == width:
             arr = np.reshape(arr, (1, width))  # one MIMO sample
-        return as_signal(arr, name, width=width)
+        return as_signal(arr, name, width=width, record=False)
 
     def _data(self) -> np.ndarray:
         return self._buf[self._start : self._end]

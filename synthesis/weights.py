@@ -29,6 +29,7 @@ __all__ = [
     "as_weight",
     "common_dt",
     "is_zero_weight",
+    "makeweight",
     "markov_toeplitz",
     "observability",
     "tustin",
@@ -62,6 +63,95 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
         raise WeightError(f"dt must be a positive finite sample time in seconds, got {dt!r}")
     sysd = control.sample_system(sys_continuous, float(dt), method="bilinear")
     return control.ss(sysd)
+
+
+def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace:
+    """First-order weight from its gains at DC, at one frequency and at high frequency.
+
+    In the manner of MATLAB's ``makeweight(dcgain, [freq, mag], hfgain, Ts)``.  The continuous
+    design is
+
+    ``W(s) = (hf·s + dc·a) / (s + a)``,  ``a = ω_c · sqrt((mag² − hf²) / (dc² − mag²))``,
+
+    so that ``W(0) = dc``, ``|W(jω_c)| = mag`` and ``W(∞) = hf``: stable (pole ``−a``), minimum
+    phase (zero ``−a·dc/hf``) and biproper (``D = hf ≠ 0``: relative degree 0, as a weight must
+    be, §3.1).  It is discretised by the Tustin transform *prewarped at* ``ω_c``,
+    ``s = K (z − 1)/(z + 1)`` with ``K = ω_c / tan(ω_c·dt/2)``, which maps ``z = e^{jω_c dt}`` to
+    ``s = jω_c`` exactly: the discrete weight has ``|W(e^{jω_c dt})| = mag`` (to rounding),
+    ``W(1) = dc`` and ``W(−1) = hf`` (the Nyquist frequency takes the place of ``ω = ∞``), and its
+    pole ``(K − a)/(K + a)`` and zero ``(hf·K − dc·a)/(hf·K + dc·a)`` lie inside the unit circle.
+
+    Parameters
+    ----------
+    dc : float
+        Gain at DC (absolute, not dB), > 0.
+    crossover : (float, float)
+        ``(freq, mag)``: the frequency ``ω_c`` in rad/s (below the Nyquist frequency ``π/dt``) and
+        the gain there, strictly between ``dc`` and ``hf``.
+    hf : float
+        Gain at high frequency (at the Nyquist frequency for the discrete weight), > 0.
+    dt : float
+        Sample time of the data, > 0; ``0`` returns the continuous design.
+
+    Returns
+    -------
+    control.StateSpace
+        One state, one input, one output, sample time ``dt``.
+
+    Raises
+    ------
+    WeightError
+        A gain or the frequency not a positive finite number; ``mag`` not strictly between ``dc``
+        and ``hf`` (a first-order weight is monotonic in ``|W|``); ``freq ≥ π/dt``.
+
+    Examples
+    --------
+    A performance weight W1: large at low frequency, crossing 1 at 0.5 rad/s, 0.5 at high frequency;
+    data sampled at 10 Hz:
+
+    >>> import numpy as np
+    >>> from synthesis import makeweight
+    >>> W1 = makeweight(100.0, (0.5, 1.0), 0.5, 0.1)
+    >>> gain = lambda w: abs(complex(np.squeeze(W1(np.exp(1j * w * 0.1)))))
+    >>> round(gain(0.0), 9), round(gain(0.5), 9), round(gain(np.pi / 0.1), 9)
+    (100.0, 1.0, 0.5)
+    >>> makeweight(100.0, (0.5, 200.0), 0.5, 0.1)
+    Traceback (most recent call last):
+    ...
+    synthesis.weights.WeightError: makeweight: the crossover gain mag = 200 must lie strictly between dc = 100 and hf = 0.5 (a first-order weight's gain moves monotonically from dc to hf); choose mag in (0.5, 100)
+    """
+    def positive(value, what):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (np.isfinite(value) and value > 0):
+            raise WeightError(f"makeweight: {what} must be a positive finite number (an absolute gain or rad/s, "
+                              f"not dB), got {value!r}")
+        return float(value)
+
+    dc, hf = positive(dc, "dc"), positive(hf, "hf")
+    try:
+        freq, mag = crossover
+    except (TypeError, ValueError):
+        raise WeightError(f"makeweight: crossover must be a pair (freq in rad/s, mag), got {crossover!r}") from None
+    freq, mag = positive(freq, "the crossover frequency"), positive(mag, "the crossover gain mag")
+    if not min(dc, hf) < mag < max(dc, hf):
+        raise WeightError(
+            f"makeweight: the crossover gain mag = {mag:g} must lie strictly between dc = {dc:g} and hf = {hf:g} "
+            "(a first-order weight's gain moves monotonically from dc to hf); choose mag in "
+            f"({min(dc, hf):g}, {max(dc, hf):g})")
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt >= 0):
+        raise WeightError(f"makeweight: dt must be the data's sample time (> 0), or 0 for the continuous design; "
+                          f"got {dt!r}")
+    a = freq * np.sqrt((mag ** 2 - hf ** 2) / (dc ** 2 - mag ** 2))
+    if dt == 0:
+        return control.ss(control.tf([hf, dc * a], [1.0, a]))
+    nyquist = np.pi / dt
+    if freq >= nyquist:
+        raise WeightError(
+            f"makeweight: the crossover frequency {freq:g} rad/s is not below the Nyquist frequency π/dt = "
+            f"{nyquist:g} rad/s of dt = {dt:g}; choose a lower frequency or sample faster")
+    K = freq / np.tan(freq * dt / 2)
+    num = [hf * K + dc * a, dc * a - hf * K]
+    den = [K + a, a - K]
+    return control.ss(control.tf(num, den, float(dt)))
 
 
 def _ss_parts(W) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

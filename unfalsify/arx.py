@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cvxpy as cp
 import numpy as np
@@ -80,7 +80,9 @@ class ArxResult:
         Wall time of the solve in seconds (cvxpy: ``problem.solve``, incl. compilation).
     problem : cvxpy.Problem or None
         The cvxpy problem as solved (in scaled units, see ``scale``); None for the structured backend
-        (the data are in ``certificate.problem``, an :class:`ArxProblem`).
+        (the data are in ``certificate.problem``, an :class:`ArxProblem`).  A by-product: not
+        compared by ``==``, and stored as None when the result is pickled (a cvxpy problem holds a
+        solver object that does not pickle); everything else, the certificate included, survives.
     form : str
         ``"conditioned"`` or ``"thesis"``.
     sigma : float
@@ -103,7 +105,7 @@ class ArxResult:
     impulse: np.ndarray
     status: str
     solve_time: float
-    problem: cp.Problem
+    problem: cp.Problem | None = field(compare=False)
     form: str
     sigma: float
     na: int

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cvxpy as cp
 import numpy as np
@@ -75,8 +75,11 @@ class SubspaceResult:
     status : str
     solve_time : float
         Wall time of ``problem.solve`` (includes cvxpy compilation).
-    problem : cvxpy.Problem
-        The problem as solved (in rms-scaled units, see ``scale``).
+    problem : cvxpy.Problem or None
+        The problem as solved (in rms-scaled units, see ``scale``); None for the structured and split
+        backends.  A by-product: not compared by ``==``, and stored as None when the result is
+        pickled (a cvxpy problem holds a solver object that does not pickle); everything else, the
+        certificate included, survives.
     form : str
     eliminate_L : bool
         Whether the predictor was eliminated analytically (conditioned form).
@@ -101,7 +104,7 @@ class SubspaceResult:
     impulses: np.ndarray
     status: str
     solve_time: float
-    problem: cp.Problem
+    problem: cp.Problem | None = field(compare=False)
     form: str
     eliminate_L: bool
     sigma: float

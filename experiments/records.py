@@ -1,0 +1,381 @@
+"""Read a measured input/output record from a CSV, NPZ or MATLAB file.
+
+:func:`load_record` is the first step from a data file to a designed controller: it picks the
+input and output columns, finds the sample time and checks the samples, and returns a frozen
+:class:`Record` with time along axis 0 (``u``: ``(n, m)``, ``y``: ``(n, l)``), ready for
+:func:`synthesis.fit_predictor`, :func:`unfalsify.subspace_unfalsify` and the designs.
+"""
+from __future__ import annotations
+
+import csv
+import numbers
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from synthesis._repr import result
+from synthesis._validation import DataError, as_signal, check_sample_time
+
+__all__ = ["Record", "RecordError", "load_record", "RECORD_FORMATS"]
+
+#: File endings :func:`load_record` reads.
+RECORD_FORMATS = (".csv", ".txt", ".npz", ".mat")
+
+
+class RecordError(DataError):
+    """A data file cannot be turned into a record (missing column, NaN, non-uniform time, no dt, ...)."""
+
+
+@result
+@dataclass(frozen=True, eq=False)
+class Record:
+    """A sampled input/output record, time along axis 0.
+
+    Attributes
+    ----------
+    u : ndarray, shape (n, m)
+        Inputs, one column per channel.
+    y : ndarray, shape (n, l)
+        Outputs.
+    dt : float
+        Sample time (seconds, or 1 when the file has none and ``dt=1`` was passed).
+    source : str
+        The file read.
+    u_columns, y_columns : tuple of str
+        Where each channel came from (column name, ``"column 2"``, ``"key u"``, ...).
+    t : ndarray, shape (n,), or None
+        The time column, when there was one.
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    dt: float
+    source: str
+    u_columns: tuple = ()
+    y_columns: tuple = ()
+    t: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.u.shape[0])
+
+    @property
+    def m(self) -> int:
+        """Number of inputs."""
+        return int(self.u.shape[1])
+
+    @property
+    def l(self) -> int:  # noqa: E743 - the thesis's name for the number of outputs
+        """Number of outputs."""
+        return int(self.y.shape[1])
+
+
+def _as_list(sel, what: str):
+    if sel is None:
+        return None
+    if isinstance(sel, (str, numbers.Integral)) and not isinstance(sel, bool):
+        return [sel]
+    try:
+        items = list(sel)
+    except TypeError:
+        raise RecordError(f"{what} must be a column name, an integer index or a list of them, got {sel!r}") from None
+    if not items:
+        raise RecordError(f"{what} selects no column; name at least one")
+    for s in items:
+        if isinstance(s, bool) or not isinstance(s, (str, numbers.Integral)):
+            raise RecordError(f"{what}: {s!r} is neither a column name nor an integer index")
+    return items
+
+
+# ---------------------------------------------------------------------------------------------- CSV
+def _read_csv(path: Path, delimiter: str | None):
+    text = path.read_text(encoding="utf-8-sig")
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise RecordError(f"{str(path)!r} has no data rows")
+    if delimiter is None:
+        try:
+            delimiter = csv.Sniffer().sniff(lines[0], delimiters=",;\t ").delimiter
+        except csv.Error:
+            delimiter = ","
+    rows = [[c.strip() for c in r] for r in csv.reader(lines, delimiter=delimiter, skipinitialspace=True)]
+    if delimiter == " ":
+        rows = [[c for c in r if c] for r in rows]
+
+    def numeric(cell):
+        try:
+            float(cell)
+            return True
+        except ValueError:
+            return False
+
+    header = None
+    if not all(numeric(c) for c in rows[0]):
+        header, rows = rows[0], rows[1:]
+    if not rows:
+        raise RecordError(f"{str(path)!r} has a header but no data rows")
+    width = len(header) if header is not None else len(rows[0])
+    data = np.empty((len(rows), width))
+    for r, row in enumerate(rows):
+        if len(row) != width:
+            raise RecordError(f"{str(path)!r}: data row {r} has {len(row)} fields but {width} were expected; "
+                              "every row needs one value per column")
+        for c, cell in enumerate(row):
+            try:
+                data[r, c] = float(cell) if cell != "" else np.nan
+            except ValueError:
+                col = repr(header[c]) if header is not None else f"column {c}"
+                raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number; "
+                                  "fix the file or drop that column") from None
+    return header, data
+
+
+def _pick_columns(table: np.ndarray, header, sel, what: str, path: Path):
+    names = []
+    cols = []
+    for s in sel:
+        if isinstance(s, str):
+            if header is None:
+                raise RecordError(f"{what}={s!r} names a column but {str(path)!r} has no header row; select "
+                                  "columns by integer index instead")
+            if s not in header:
+                raise RecordError(f"{str(path)!r} has no column {s!r} (columns: {', '.join(header)}); "
+                                  f"pass {what}= one of them or an integer index")
+            k = header.index(s)
+        else:
+            k = int(s)
+            if not -table.shape[1] <= k < table.shape[1]:
+                raise RecordError(f"{what}: column index {k} is out of range; {str(path)!r} has "
+                                  f"{table.shape[1]} columns (0 … {table.shape[1] - 1})")
+            k %= table.shape[1]
+        cols.append(table[:, k])
+        names.append(header[k] if header is not None else f"column {k}")
+    return np.column_stack(cols), names
+
+
+# ---------------------------------------------------------------------------------------------- arrays
+def _read_arrays(path: Path, fmt: str) -> dict:
+    if fmt == ".npz":
+        with np.load(path, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    from scipy.io import loadmat
+
+    return {k: v for k, v in loadmat(path).items() if not k.startswith("__")}
+
+
+def _key(arrays: dict, key, what: str, path: Path):
+    if not isinstance(key, str):
+        raise RecordError(f"{what}={key!r}: without variable= the entries of {str(path)!r} are selected by name "
+                          f"(keys: {', '.join(sorted(arrays))}); or pass variable=<matrix name> and column indices")
+    if key not in arrays:
+        raise RecordError(f"{str(path)!r} has no array {key!r} (keys: {', '.join(sorted(arrays)) or 'none'}); "
+                          f"pass {what}= one of them")
+    arr = np.asarray(arrays[key])
+    if arr.dtype.kind not in "biuf":
+        raise RecordError(f"{str(path)!r}: array {key!r} is not numeric (dtype {arr.dtype})")
+    arr = np.asarray(arr, dtype=float)
+    if arr.ndim == 2 and 1 in arr.shape:  # MATLAB stores vectors as (1, n) or (n, 1)
+        arr = arr.reshape(-1)
+    return arr
+
+
+def _check_finite(arr: np.ndarray, names, path: Path, what: str):
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        rows, cols = np.nonzero(bad)
+        first = int(np.argmin(rows))
+        r, c = int(rows[first]), int(cols[first])
+        count = int(np.count_nonzero(bad[:, c]))
+        raise RecordError(
+            f"{str(path)!r}: {what} {names[c]} has NaN, empty or infinite values ({count}), the first at data row {r} "
+            f"(0-based); clean or interpolate them, or cut the record to the rows before {r} (or after the last bad "
+            "one)")
+
+
+def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, delimiter: str | None = None,
+                rtol: float = 1e-6) -> Record:
+    """Read an input/output record from a ``.csv`` (or ``.txt``), ``.npz`` or ``.mat`` file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file; its ending chooses the reader.
+    u, y : str, int or list of them
+        The input and output channels.  CSV: column names (the header row) or integer column
+        indices (0-based; negative counts from the end).  NPZ/MAT without ``variable``: array
+        names; a 1-D array is one channel, a 2-D array ``(n, k)`` is ``k`` channels (a list of
+        names is stacked column by column).  With ``variable``: column indices of that matrix.
+    t : str or int, optional
+        The time column (selected like ``u``).  The sample time is then its mean step (rounded to
+        12 significant digits), and every step must equal it to the relative tolerance ``rtol``.
+    dt : float, optional
+        The sample time, when the file has no time column (e.g. ``dt=1`` for a record in samples).
+        Given together with ``t``, the two must agree.
+    variable : str, optional
+        NPZ/MAT: the name of one matrix (samples along the rows) that holds all channels; ``u``,
+        ``y``, ``t`` are then its column indices.
+    delimiter : str, optional
+        CSV field separator (default: guessed from the first line among ``, ; tab space``).
+    rtol : float
+        Relative tolerance of the uniformity check of the time column.
+
+    Returns
+    -------
+    Record
+        ``u`` ``(n, m)``, ``y`` ``(n, l)``, ``dt``, the source and where each channel came from.
+
+    Raises
+    ------
+    RecordError
+        Unknown file ending; a missing column, key or variable (the message lists what there
+        is); NaN, empty or infinite values (which column, first row); channels of different
+        lengths; a non-uniform or decreasing time column; ``t`` and ``dt`` that disagree; no
+        sample time at all; a matrix with time along axis 1.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from experiments import load_record
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "step.csv"
+    >>> _ = path.write_text("time,force,position\\n0.0,1,0.0\\n0.1,1,0.2\\n0.2,1,0.5\\n0.3,1,0.7\\n")
+    >>> rec = load_record(path, u="force", y="position", t="time")
+    >>> rec.u.shape, rec.y.shape, rec.dt
+    ((4, 1), (4, 1), 0.1)
+    >>> load_record(path, u="force", y="speed", t="time")
+    Traceback (most recent call last):
+    ...
+    experiments.records.RecordError: '...step.csv' has no column 'speed' (columns: time, force, position); pass y= one of them or an integer index
+
+    A MATLAB matrix with the channels in its columns and no time (``dt=1``: one unit per sample):
+
+    >>> import scipy.io
+    >>> mat = path.with_name("arm.mat")
+    >>> scipy.io.savemat(mat, {"data": np.random.default_rng(0).standard_normal((50, 4))})
+    >>> rec = load_record(mat, variable="data", u=[0, 1], y=[2, 3], dt=1)
+    >>> rec.m, rec.l, rec.n, rec.dt
+    (2, 2, 50, 1.0)
+    """
+    path = Path(path)
+    fmt = path.suffix.lower()
+    if fmt not in RECORD_FORMATS:
+        raise RecordError(f"cannot read {str(path)!r}: the ending {fmt or '(none)'!r} is not one of "
+                          f"{', '.join(RECORD_FORMATS)}; save the data as CSV (a header row and one column per "
+                          "signal), NPZ or MAT")
+    if not path.exists():
+        raise FileNotFoundError(f"no data file {str(path)!r}")
+    u_sel, y_sel = _as_list(u, "u"), _as_list(y, "y")
+    if u_sel is None or y_sel is None:
+        raise RecordError("pass both u= and y= (the input and output columns)")
+    t_sel = None if t is None else _as_list(t, "t")
+    if t_sel is not None and len(t_sel) != 1:
+        raise RecordError(f"t must be one column, got {t!r}")
+
+    if fmt in (".csv", ".txt") or variable is not None:
+        if fmt in (".csv", ".txt"):
+            if variable is not None:
+                raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
+            header, table = _read_csv(path, delimiter)
+        else:
+            arrays = _read_arrays(path, fmt)
+            if variable not in arrays:
+                raise RecordError(f"{str(path)!r} has no variable {variable!r} (it has: "
+                                  f"{', '.join(sorted(arrays)) or 'nothing'}); pass variable= one of them")
+            table = np.asarray(arrays[variable])
+            if table.dtype.kind not in "biuf" or table.ndim not in (1, 2):
+                raise RecordError(f"{str(path)!r}: {variable!r} must be a numeric matrix (samples × channels), "
+                                  f"got dtype {table.dtype}, shape {table.shape}")
+            table = np.asarray(table, dtype=float).reshape(table.shape[0], -1)
+            if table.shape[1] > table.shape[0]:
+                raise RecordError(f"{str(path)!r}: {variable!r} has shape {table.shape}: more channels than "
+                                  f"samples; time runs along axis 0: transpose it ({variable}.T) before saving")
+            header = None
+            bad = [s for s in u_sel + y_sel + (t_sel or []) if isinstance(s, str)]
+            if bad:
+                raise RecordError(f"with variable={variable!r} select columns by integer index, not by name {bad[0]!r}")
+        U, u_names = _pick_columns(table, header, u_sel, "u", path)
+        Y, y_names = _pick_columns(table, header, y_sel, "y", path)
+        T = _pick_columns(table, header, t_sel, "t", path)[0][:, 0] if t_sel else None
+        if variable is not None:
+            u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
+            y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
+    else:
+        arrays = _read_arrays(path, fmt)
+
+        def gather(sel, what):
+            parts, names = [], []
+            for key in sel:
+                arr = _key(arrays, key, what, path)
+                if arr.ndim == 2 and arr.shape[1] > arr.shape[0]:
+                    raise RecordError(f"{str(path)!r}: {key!r} has shape {arr.shape}: more channels than samples; "
+                                      f"time runs along axis 0: store {key}.T (shape {arr.shape[::-1]})")
+                if arr.ndim not in (1, 2):
+                    raise RecordError(f"{str(path)!r}: {key!r} must be 1-D or 2-D, got shape {arr.shape}")
+                arr = arr.reshape(arr.shape[0], -1)
+                parts.append(arr)
+                names += [key] if arr.shape[1] == 1 else [f"{key}[:, {k}]" for k in range(arr.shape[1])]
+            lengths = {p.shape[0] for p in parts}
+            if len(lengths) > 1:
+                raise RecordError(f"{str(path)!r}: the {what} arrays {sel} have different lengths "
+                                  f"{[p.shape[0] for p in parts]}; cut them to a common length")
+            return np.hstack(parts), names
+
+        U, u_names = gather(u_sel, "u")
+        Y, y_names = gather(y_sel, "y")
+        T = None
+        if t_sel:
+            T = _key(arrays, t_sel[0], "t", path)
+            if T.ndim != 1:
+                raise RecordError(f"{str(path)!r}: the time array {t_sel[0]!r} must be one column, got shape {T.shape}")
+        lens = {"u": U.shape[0], "y": Y.shape[0], **({"t": T.shape[0]} if T is not None else {})}
+        if len(set(lens.values())) > 1:
+            raise RecordError(f"{str(path)!r}: the signals have different lengths ({', '.join(f'{k}: {v}' for k, v in lens.items())}); "
+                              "every signal needs one value per sample: cut them to a common length")
+
+    _check_finite(U, u_names, path, "input")
+    _check_finite(Y, y_names, path, "output")
+    dt_value = _sample_time(T, dt, rtol, path, t_sel[0] if t_sel else None)
+    U = as_signal(U, "u")
+    Y = as_signal(Y, "y", n=U.shape[0])
+    return Record(u=U, y=Y, dt=dt_value, source=str(path), u_columns=tuple(u_names), y_columns=tuple(y_names),
+                  t=T)
+
+
+def _sample_time(T, dt, rtol: float, path: Path, t_name) -> float:
+    if dt is not None:
+        try:
+            dt = check_sample_time(dt, "dt", allow_true=False)
+        except DataError as exc:
+            raise RecordError(str(exc)) from None
+    if T is None:
+        if dt is None:
+            raise RecordError(f"{str(path)!r}: no sample time: the record has no time column; pass dt=<sample time> "
+                              "(dt=1 for a record counted in samples) or t=<time column>")
+        return dt
+    if not np.all(np.isfinite(T)):
+        r = int(np.flatnonzero(~np.isfinite(T))[0])
+        raise RecordError(f"{str(path)!r}: time column {t_name!r} has a NaN or infinite value at row {r}; "
+                          "fix it or pass dt= instead of t=")
+    if T.shape[0] < 2:
+        raise RecordError(f"{str(path)!r}: one sample gives no sample time; pass dt=")
+    steps = np.diff(T)
+    step = float(np.median(steps))
+    if not step > 0:
+        raise RecordError(f"{str(path)!r}: time column {t_name!r} does not increase; sort the rows by time or "
+                          "pass the right column as t=")
+    worst = int(np.argmax(np.abs(steps - step)))
+    if abs(steps[worst] - step) > rtol * step:
+        raise RecordError(
+            f"{str(path)!r}: time column {t_name!r} is not uniformly sampled: the step from row {worst} to "
+            f"{worst + 1} is {steps[worst]:.6g} against {step:.6g} (relative tolerance {rtol:g}); resample the "
+            "record onto a uniform grid (e.g. numpy.interp) or, if the time stamps are only jittered, pass "
+            "dt= and drop t=, or loosen rtol=")
+    # the mean step over the record, to 12 significant digits: time stamps written in decimal
+    # (0.0, 0.1, 0.2, 0.3) give 0.1, not 0.09999999999999999
+    step = float(f"{(T[-1] - T[0]) / (T.shape[0] - 1):.12g}")
+    if dt is not None and not np.isclose(dt, step, rtol=max(rtol, 1e-9), atol=0):
+        raise RecordError(f"{str(path)!r}: dt={dt:g} disagrees with the time column's step {step:.6g}; pass one "
+                          "of t= or dt=")
+    return dt if dt is not None else step

@@ -1,0 +1,80 @@
+"""Common mistakes fail with a message that names the fix (issue "From a data file to a saved,
+certified controller", item 5)."""
+import numpy as np
+import pytest
+
+import synthesis
+import unfalsify as uf
+from synthesis import DataError
+
+TRANSPOSED = r"time runs along axis 0: pass {}\.T \(shape \(500, {}\)\)"
+
+
+@pytest.mark.parametrize("m", [1, 2])
+def test_time_along_axis_1_names_the_transpose(m):
+    rng = np.random.default_rng(0)
+    wide, good = rng.standard_normal((m, 500)), rng.standard_normal((500, m))
+    with pytest.raises(DataError, match=TRANSPOSED.format("u", m)):
+        synthesis.fit_predictor(wide, good, 10)
+    with pytest.raises(DataError, match=TRANSPOSED.format("y", m)):
+        synthesis.fit_predictor(good, wide, 10)
+    with pytest.raises(DataError, match=TRANSPOSED.format("u", m)):
+        synthesis.hankel_gram(wide, good, 10)
+    with pytest.raises(DataError, match=TRANSPOSED.format("u", m)):
+        synthesis.RecursivePredictor.from_data(wide, good, 10)
+    if m == 1:
+        with pytest.raises(DataError, match=TRANSPOSED.format("u", 1)):
+            uf.subspace_data(wide, good, 10)
+        with pytest.raises(DataError, match=TRANSPOSED.format("y", 1)):
+            uf.arx_least_squares(good, wide, 2, 2)
+
+
+def test_short_windows_and_single_samples_are_still_accepted():
+    # the past window of a controller and one new MIMO sample may have more channels than rows
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal((300, 3)), rng.standard_normal((300, 3))
+    rp = synthesis.RecursivePredictor.from_data(u, y, 2)
+    rp.push(rng.standard_normal((1, 3)), rng.standard_normal((1, 3)))
+    assert rp.n_columns == 298
+    pred = synthesis.fit_predictor(u, y, 2)
+    assert pred.past_vector(u[-2:], y[-2:]).shape == (12,)  # (2, 3) windows: more channels than rows
+    # a 1-D signal is one channel, never "transposed"
+    assert synthesis.fit_predictor(u[:, 0], y[:, 0], 5).m == 1
+
+
+def _fir(n=300, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    return u, np.convolve(u, [0.0, 1.0, 0.5])[:n] + 0.01 * rng.standard_normal(n)
+
+
+def test_weights_at_another_sample_time_than_the_data_fail_without_dt():
+    u, y = _fir()
+    W1 = synthesis.makeweight(100.0, (0.5, 1.0), 0.5, 0.1)
+    W2 = synthesis.makeweight(0.05, (2.0, 0.3), 10.0, 0.1)
+    pred = synthesis.fit_predictor(u, y, 4, dt=0.2)  # the data's sample time travels with the predictor
+    assert pred.dt == 0.2
+    for call in (lambda: synthesis.hinf_design(pred, W1, W2), lambda: synthesis.gamma_min(pred, W1, W2),
+                 lambda: synthesis.performance_map(pred, W1, W2)):
+        with pytest.raises(synthesis.WeightError, match=r"sample time 0.1 but the data's is 0.2.*tustin\(W, 0.2\)"):
+            call()
+    with pytest.raises(synthesis.WeightError, match="Predictor.dt.*drop dt="):
+        synthesis.hinf_design(pred, W1, W2, dt=0.1)  # two different data sample times
+    ok = synthesis.fit_predictor(u, y, 4, dt=0.1)
+    assert synthesis.hinf_design(ok, W1, W2).dt == 0.1
+    assert synthesis.hinf_design(ok, W1, W2, dt=0.1).dt == 0.1
+    # static weights take the data's sample time
+    assert synthesis.hinf_design(ok, 1.0, 0.1).controller.dt == 0.1
+    # without dt anywhere the mismatch cannot be seen: the arrays carry no sample time
+    assert synthesis.hinf_design(synthesis.fit_predictor(u, y, 4), W1, W2).dt == 0.1
+    with pytest.raises(DataError, match="dt must be"):
+        synthesis.fit_predictor(u, y, 4, dt=0.0)
+
+
+def test_predictor_dt_reaches_the_robust_pipeline():
+    u, y = _fir(400, 1)
+    W1 = synthesis.makeweight(100.0, (0.5, 1.0), 0.5, 0.1)
+    W2 = synthesis.makeweight(0.05, (2.0, 0.3), 10.0, 0.1)
+    pred = synthesis.fit_predictor(u, y, 4, dt=0.2)
+    with pytest.raises(synthesis.WeightError, match="data's is 0.2"):
+        uf.robust_design_from_data(u[:40], y[:40], 4, W1, W2, 0.005, predictor=pred, search=False)

@@ -1,0 +1,119 @@
+"""Result objects pickle and come back equal in a new process (issue "From a data file to a saved,
+certified controller", item 1).
+
+python-control 0.10's ``StateSpace`` holds a lambda and a cvxpy ``Problem`` holds a solver object:
+neither pickles, so ``@result`` stores systems as matrices and names and drops the problem.
+"""
+import os
+import pickle
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import control
+import numpy as np
+import pytest
+
+import synthesis
+import unfalsify as uf
+from experiments._servo import design_weights, servo_data
+from experiments.plants import servo
+from synthesis._repr import values_equal
+
+ROOT = Path(__file__).resolve().parents[1]
+I, J = 6, 10
+
+_CHILD = r"""
+import pickle, sys
+import control, numpy as np
+import unfalsify as uf
+from experiments.plants import servo
+with open(sys.argv[1], "rb") as f:
+    objs = pickle.load(f)
+out = {}
+for k, obj in objs.items():
+    K = obj.controller
+    for part in "ABCD":
+        out[f"{k}_{part}"] = np.asarray(getattr(K, part))
+    out[f"{k}_dt"] = np.asarray(K.dt)
+    out[f"{k}_names"] = np.asarray(list(K.input_labels) + list(K.output_labels))
+    out[f"{k}_step"] = control.step_response(uf.closed_loop_ry(servo(), K), T=np.arange(60) * 0.1).outputs
+    out[f"{k}_readonly"] = np.asarray(not obj.gain.flags.writeable if hasattr(obj, "gain") else
+                                      not obj.design.gain.flags.writeable)
+out["problem_is_none"] = np.asarray(objs["robust"].unfalsification.problem is None)
+np.savez(sys.argv[2], **out)
+"""
+
+
+@pytest.fixture(scope="module")
+def results():
+    W = design_weights()
+    W1, W2 = W["W11"], W["W21"]
+    data = servo_data(300, seed=0)
+    pred = synthesis.fit_predictor(data.u, data.y, I)
+    design = synthesis.hinf_design(pred, W1, W2)
+    n = 2 * I + J - 1
+    u, y = data.u[:n], data.y[:n]
+    A, _, Yf = uf.subspace_data(u, y, I)
+    rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # not certified at these tiny sizes: irrelevant here
+        robust = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, search=False)
+    return {"design": design, "robust": robust}
+
+
+def _expected(obj):
+    K = obj.controller
+    return K, control.step_response(uf.closed_loop_ry(servo(), K), T=np.arange(60) * 0.1).outputs
+
+
+def test_results_do_not_pickle_without_the_machinery():
+    # the reason for the machinery: a bare python-control system does not pickle (if this starts to pass,
+    # python-control fixed it and the StateSpace recipe may go)
+    with pytest.raises(Exception):
+        pickle.dumps(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1))
+
+
+def test_round_trip_in_the_same_process_is_equal(results):
+    for obj in results.values():
+        again = pickle.loads(pickle.dumps(obj))
+        assert again == obj
+    rob = pickle.loads(pickle.dumps(results["robust"]))
+    assert results["robust"].unfalsification.problem is not None  # the cvxpy backend's problem ...
+    assert rob.unfalsification.problem is None  # ... is dropped, as documented on the field
+    assert rob.unfalsification.certificate == results["robust"].unfalsification.certificate
+    # Additive (a plain dataclass) holding StateSpace weights
+    assert values_equal(rob.design.uncertainty, results["robust"].design.uncertainty)
+    assert isinstance(rob.model, control.StateSpace) and rob.model.dt == 0.1
+    assert not rob.design.gain.flags.writeable
+
+
+def test_pending_controller_is_rebuilt_after_loading(results):
+    fresh = synthesis.hinf_design(results["design"].predictor, results["design"].W1, results["design"].W2)
+    from synthesis._lazy import _is_pending
+
+    assert _is_pending(fresh, "controller")
+    again = pickle.loads(pickle.dumps(fresh))
+    for part in "ABCD":
+        assert np.array_equal(getattr(again.controller, part), getattr(results["design"].controller, part))
+
+
+def test_round_trip_in_a_new_process(results, tmp_path):
+    expected = {k: _expected(v) for k, v in results.items()}  # computes the controllers before pickling
+    src, dst = tmp_path / "results.pkl", tmp_path / "loaded.npz"
+    with open(src, "wb") as f:
+        pickle.dump(results, f)
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-c", _CHILD, str(src), str(dst)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    got = np.load(dst)
+    for k, (K, step) in expected.items():
+        for part in "ABCD":
+            assert np.array_equal(got[f"{k}_{part}"], np.asarray(getattr(K, part))), (k, part)  # bit for bit
+        assert float(got[f"{k}_dt"]) == K.dt
+        assert list(got[f"{k}_names"]) == list(K.input_labels) + list(K.output_labels)
+        assert np.array_equal(got[f"{k}_step"], step)
+        assert bool(got[f"{k}_readonly"])
+    assert bool(got["problem_is_none"])

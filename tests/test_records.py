@@ -1,0 +1,136 @@
+"""experiments.load_record: CSV / NPZ / MAT into a Record, with errors that name the fix."""
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+from experiments import Record, RecordError, load_record
+from synthesis import DataError
+
+CD_PLAYER = Path("/work/shared/data/CD_player_arm_dat.mat")
+
+
+@pytest.fixture
+def signals():
+    rng = np.random.default_rng(1)
+    n = 40
+    t = 0.05 * np.arange(n)
+    u = rng.standard_normal((n, 2))
+    y = rng.standard_normal((n, 1))
+    return t, u, y
+
+
+def _write_csv(path, header, columns, fmt="%.17g", delimiter=","):
+    table = np.column_stack(columns)
+    np.savetxt(path, table, delimiter=delimiter, fmt=fmt, header=delimiter.join(header) if header else "",
+               comments="")
+    return path
+
+
+def test_csv_by_name_and_by_index(tmp_path, signals):
+    t, u, y = signals
+    path = _write_csv(tmp_path / "r.csv", ["time", "u1", "u2", "y"], [t, u, y])
+    rec = load_record(path, u=["u1", "u2"], y="y", t="time")
+    assert isinstance(rec, Record)
+    assert rec.u.shape == (40, 2) and rec.y.shape == (40, 1) and rec.n == 40 and rec.m == 2 and rec.l == 1
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)  # %.17g: exact round trip
+    assert rec.dt == 0.05 and rec.u_columns == ("u1", "u2") and rec.y_columns == ("y",)
+    assert np.array_equal(rec.t, t)
+    by_index = load_record(path, u=[1, 2], y=-1, t=0)
+    assert np.array_equal(by_index.u, rec.u) and by_index.dt == rec.dt and by_index.u_columns == ("u1", "u2")
+    # no header: integer indices, semicolon separated, dt given
+    path2 = _write_csv(tmp_path / "r2.csv", None, [u, y], delimiter=";")
+    rec2 = load_record(path2, u=[0, 1], y=2, dt=0.05)
+    assert np.array_equal(rec2.u, u) and rec2.u_columns == ("column 0", "column 1") and rec2.t is None
+    assert not rec.u.flags.writeable
+    assert pickle.loads(pickle.dumps(rec)) == rec
+
+
+def test_rounded_time_column_gives_the_decimal_step(tmp_path):
+    t = np.round(0.1 * np.arange(100), 6)
+    path = _write_csv(tmp_path / "r.csv", ["t", "u", "y"], [t, np.ones(100), np.ones(100)], fmt="%.6f")
+    assert load_record(path, u="u", y="y", t="t").dt == 0.1
+
+
+def test_npz_by_key(tmp_path, signals):
+    t, u, y = signals
+    np.savez(tmp_path / "r.npz", time=t, u=u, y=y[:, 0], u_extra=u[:, 0])
+    rec = load_record(tmp_path / "r.npz", u="u", y="y", t="time")
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y) and rec.dt == 0.05
+    assert rec.u_columns == ("u[:, 0]", "u[:, 1]")
+    rec = load_record(tmp_path / "r.npz", u=["u_extra", "u"], y="y", dt=0.05)
+    assert rec.u.shape == (40, 3)
+
+
+def test_mat_by_variable_and_columns_and_by_name(tmp_path, signals):
+    t, u, y = signals
+    scipy.io.savemat(tmp_path / "r.mat", {"data": np.column_stack([t, u, y]), "u": u, "y": y[:, 0]})
+    rec = load_record(tmp_path / "r.mat", variable="data", u=[1, 2], y=[3], t=0)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y) and rec.dt == 0.05
+    rec = load_record(tmp_path / "r.mat", u="u", y="y", dt=0.05)  # MATLAB's (1, n) vector is one channel
+    assert rec.y.shape == (40, 1) and np.array_equal(rec.y, y)
+
+
+@pytest.mark.skipif(not CD_PLAYER.exists(), reason="shared data file not present")
+def test_cd_player_arm_file():
+    rec = load_record(CD_PLAYER, variable="CD_player_arm_dat", u=[0, 1], y=[2, 3], dt=1)
+    raw = scipy.io.loadmat(CD_PLAYER)["CD_player_arm_dat"]
+    assert rec.u.shape == (2048, 2) and rec.y.shape == (2048, 2) and rec.dt == 1.0
+    assert np.array_equal(rec.u, raw[:, :2]) and np.array_equal(rec.y, raw[:, 2:])
+    with pytest.raises(RecordError, match="no sample time.*dt=1"):
+        load_record(CD_PLAYER, variable="CD_player_arm_dat", u=[0, 1], y=[2, 3])
+
+
+def test_errors_name_the_problem_and_the_fix(tmp_path, signals):
+    t, u, y = signals
+    path = _write_csv(tmp_path / "r.csv", ["time", "u1", "u2", "y"], [t, u, y])
+    with pytest.raises(RecordError, match=r"no column 'y2' \(columns: time, u1, u2, y\)"):
+        load_record(path, u="u1", y="y2", t="time")
+    with pytest.raises(RecordError, match="index 7 is out of range"):
+        load_record(path, u=7, y="y", t="time")
+    with pytest.raises(RecordError, match="no sample time.*pass dt="):
+        load_record(path, u="u1", y="y")
+    with pytest.raises(RecordError, match="disagrees"):
+        load_record(path, u="u1", y="y", t="time", dt=0.1)
+    with pytest.raises(RecordError, match="dt must be"):
+        load_record(path, u="u1", y="y", dt=-1.0)
+    # non-uniform time
+    t_bad = t.copy()
+    t_bad[10:] += 0.01
+    bad = _write_csv(tmp_path / "jitter.csv", ["time", "u1", "u2", "y"], [t_bad, u, y])
+    with pytest.raises(RecordError, match=r"not uniformly sampled: the step from row 9 to 10.*numpy.interp"):
+        load_record(bad, u="u1", y="y", t="time")
+    assert load_record(bad, u="u1", y="y", t="time", rtol=0.5).n == 40  # a loose tolerance accepts it
+    # NaN: which column, first row
+    y_nan = y.copy()
+    y_nan[[7, 12]] = np.nan
+    nan = _write_csv(tmp_path / "nan.csv", ["time", "u1", "u2", "y"], [t, u, y_nan])
+    with pytest.raises(RecordError, match=r"output y has NaN.*\(2\), the first at data row 7"):
+        load_record(nan, u=["u1", "u2"], y="y", t="time")
+    (tmp_path / "empty_cell.csv").write_text("t,u,y\n0,1,2\n1,,3\n2,1,2\n")
+    with pytest.raises(RecordError, match="input u has NaN.*data row 1"):
+        load_record(tmp_path / "empty_cell.csv", u="u", y="y", t="t")
+    (tmp_path / "text.csv").write_text("t,u,y\n0,1,2\n1,abc,3\n")
+    with pytest.raises(RecordError, match=r"'u', data row 1: 'abc' is not a number"):
+        load_record(tmp_path / "text.csv", u="u", y="y", t="t")
+    # NPZ: mismatched lengths, missing key, time along axis 1
+    np.savez(tmp_path / "r.npz", u=u, y=y[:-1], wide=u.T)
+    with pytest.raises(RecordError, match=r"different lengths \(u: 40, y: 39\)"):
+        load_record(tmp_path / "r.npz", u="u", y="y", dt=1)
+    with pytest.raises(RecordError, match=r"no array 'out' \(keys: u, wide, y\)"):
+        load_record(tmp_path / "r.npz", u="u", y="out", dt=1)
+    with pytest.raises(RecordError, match=r"time runs along axis 0: store wide.T"):
+        load_record(tmp_path / "r.npz", u="wide", y="u", dt=1)
+    # MAT: missing variable, names where indices are needed
+    scipy.io.savemat(tmp_path / "r.mat", {"data": np.column_stack([u, y])})
+    with pytest.raises(RecordError, match=r"no variable 'dat' \(it has: data\)"):
+        load_record(tmp_path / "r.mat", variable="dat", u=0, y=2, dt=1)
+    with pytest.raises(RecordError, match="integer index"):
+        load_record(tmp_path / "r.mat", variable="data", u="u", y=2, dt=1)
+    with pytest.raises(RecordError, match=r"\.csv, \.txt, \.npz, \.mat"):
+        load_record(tmp_path / "r.xlsx", u=0, y=1, dt=1)
+    with pytest.raises(FileNotFoundError):
+        load_record(tmp_path / "absent.csv", u=0, y=1, dt=1)
+    assert issubclass(RecordError, DataError) and issubclass(RecordError, ValueError)
