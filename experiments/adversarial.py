@@ -67,7 +67,7 @@ from .signals import prbs
 from .simulate import closed_loop, collect_data
 
 __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excitation_class", "catalogue",
-           "quick_catalogue", "make_record", "run_case", "judge", "verdict", "premise_ratio", "run",
+           "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",
            "summary_lines", "VERDICTS"]
 
 VERDICTS = ("certified", "false_certificate", "not_certified", "refused_by_error", "refused_without_fix",
@@ -588,14 +588,22 @@ def run_case(case: Case) -> dict:
     out["premise_ratio"], out["premise_note"] = premise_ratio(rec.plant, rd.model, rd.delta)
     if rd.reference_model is not None:
         out["premise_ratio_ref"] = premise_ratio(rec.plant, rd.reference_model, rd.delta)[0]
+    out["true"], out["verdict"] = judge_result(rd, rec.plant, out["warned"])
+    return out
+
+
+def judge_result(rd, P, warned: bool) -> tuple[dict, str]:
+    """Judge a pipeline result on the true plant ``P``: ``(judge dict, verdict)``.
+
+    ``rd`` needs only ``certified``, ``controller``, ``delta`` and ``certificate.tracking_floor``
+    (so a hand-made result can be judged too).  A judge that raises fails the run.
+    """
     try:
-        true = judge(rec.plant, rd.controller, rd.delta, rd.certificate.tracking_floor)
+        true = judge(P, rd.controller, rd.delta, rd.certificate.tracking_floor)
     except Exception as exc:  # noqa: BLE001 - a judge that cannot judge must not pass the run
         true = {"stable": False, "small_gain": float("inf"), "ok": False,
                 "fails": [f"judge failed: {type(exc).__name__}: {exc}"]}
-    out["true"] = true
-    out["verdict"] = verdict(rd.certified, out["warned"], true)
-    return out
+    return true, verdict(bool(rd.certified), warned, true)
 
 
 # ---------------------------------------------------------------------------------------------- report
