@@ -39,6 +39,14 @@ true loop is unstable, has ``δ‖M‖ ≥ 1``, does not track or does not survi
 ``refused_without_fix`` (the same errors without one); ``silent_failure`` (not certified and not
 warned, or any other exception); ``fit_failed`` (the least-squares predictor itself could not be
 fitted: no pipeline run).
+
+Measured baseline (pipeline without ``validation=``, commit b518bf4, seed 0, all 47 cases): 29
+certified, 4 of them false certificates, all with low-pass noise excitation --
+``excitation/third_order/lowpass<0.02``, ``excitation/resonant/lowpass<0.15`` and
+``rate_order/fourth_order_50hz/lowpass<0.05`` (true loop unstable; ‖P−P̂‖∞/δ = 1.1e3, 465, 1.4e3)
+and ``rate_order/first_order/lowpass<0.05`` (stable, step error 0.33; ratio 195); no silent
+failures.  Of the 25 certificates the judge upheld, 14 had a premise ratio above 1.25 (up to 19) and
+one (the open-loop-unstable plant) an infinite one: the premise failed without the loop failing.
 """
 from __future__ import annotations
 
@@ -621,7 +629,9 @@ def _row(c: dict) -> list:
     t = c.get("true") or {}
     fit_warned = "yes" if any(w.startswith("PersistenceWarning") for w in c["fit_warnings"]) else "no"
     return [c["case"], c["excitation"], c["noise"], fit_warned, c["delta"], "yes" if c["certified"] else "no",
-            _short(c["reason"]) or "—", c["premise_ratio"], c["premise_ratio_ref"],
+            _short(c["reason"]) or "—",
+            c["premise_ratio"] if math.isfinite(c["premise_ratio"]) else f"inf ({_short(c['premise_note'], 80)})",
+            c["premise_ratio_ref"],
             t.get("stable", "—"), t.get("small_gain", float("nan")), _short("; ".join(t.get("fails", []))) or "—",
             f"**{c['verdict']}**" if c["verdict"] in ("false_certificate", "silent_failure") else c["verdict"],
             c["judge_note"] or "the data's plant"]
