@@ -47,7 +47,8 @@ COMMANDS: dict[str, tuple] = {
                            "§7.4 certificate against an adversarial catalogue (band-limited, closed-loop, delayed, "
                            "drifting, nonlinear data), judged on the true plant",
                            ((("--only",), dict(dest="only", default=None, metavar="TEXT",
-                                               help="run only the cases whose name contains TEXT (comma-separated: any of them)")),)),
+                                               help="run only the cases whose name contains TEXT "
+                                                    "(comma-separated: any of them)")),)),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",

@@ -195,3 +195,29 @@ def test_quick_runs_end_to_end(tmp_path, capsys):
         # the pipeline without its premise test (validation=) is known to certify these; with it, strict
         pytest.xfail(f"baseline pipeline: false certificates {summary['false_certificate_cases']}")
     assert summary["false_certificates"] == 0, summary["false_certificate_cases"]
+
+
+def test_held_out_data_reach_the_pipeline_when_it_takes_validation(monkeypatch):
+    case = adv.catalogue()[0]
+    seen = {}
+
+    def with_validation(u, y, horizon, W1, W2, sigma, *, validation=None, **kwargs):
+        seen["validation"], seen["n"] = validation, len(u)
+        raise DataError("stop here: use a fake")
+
+    monkeypatch.setattr(adv.uf, "robust_design_from_data", with_validation)
+    out = adv.run_case(case)
+    assert out["mode"] == "validation" and out["verdict"] == "refused_by_error"
+    rec = adv.make_record(case)
+    u_hold, y_hold = seen["validation"]
+    np.testing.assert_array_equal(u_hold, rec.held_out[0])
+    np.testing.assert_array_equal(y_hold, rec.held_out[1])
+    assert seen["n"] == 2 * case.i + case.j - 1
+
+    def without(u, y, horizon, W1, W2, sigma, **kwargs):
+        seen["kwargs"] = kwargs
+        raise DataError("stop here: use a fake")
+
+    monkeypatch.setattr(adv.uf, "robust_design_from_data", without)
+    out = adv.run_case(case)
+    assert out["mode"].startswith("baseline") and "validation" not in seen["kwargs"]
