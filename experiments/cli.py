@@ -43,6 +43,12 @@ COMMANDS: dict[str, tuple] = {
     "chapter7": ("experiments.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
     "robust-pipeline": ("experiments.robust_pipeline", "run",
                         "§7.4 pipeline on plants it was not designed on: certified or not, checked on the true plant"),
+    "robust-adversarial": ("experiments.adversarial", "run",
+                           "§7.4 certificate against an adversarial catalogue (band-limited, closed-loop, delayed, "
+                           "drifting, nonlinear data), judged on the true plant",
+                           ((("--only",), dict(dest="only", default=None, metavar="TEXT",
+                                               help="run only the cases whose name contains TEXT "
+                                                    "(comma-separated: any of them)")),)),
     "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
     "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",
