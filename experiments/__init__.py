@@ -43,6 +43,14 @@ Simulation
    ClosedLoopResult       -- result of ``closed_loop`` (``t``, ``r``, ``y``, ``u``, ``e``)
    AlgebraicLoopError     -- plant and controller both have feedthrough
 
+Lab records
+-----------
+
+   load_record            -- read ``u``, ``y`` and ``dt`` from CSV, NPZ or MATLAB ``.mat``
+   Record                 -- result of ``load_record``
+   RECORD_FORMATS         -- the file suffixes ``load_record`` reads
+   RecordError            -- a record that cannot be read as asked (the message names the fix)
+
 Tour
 ----
 

@@ -25,6 +25,7 @@ Subspace predictor (Ch. 2)
 Weights (§3, §5.4)
 ------------------
 
+   makeweight             -- first-order discrete weight from DC gain, a crossover and HF gain (MATLAB's ``makeweight``)
    tustin                 -- discretise a continuous-time weight by the bilinear transform
    as_weight              -- check a weighting filter and return it as a discrete ``StateSpace``
    common_dt              -- the one sample time shared by the dynamic weights
@@ -86,6 +87,16 @@ Certified H∞ norm
    NormTest               -- result of ``norm_below``
    bounded_real_certificate -- a second proof of ``‖G‖∞ < gamma``: a bounded-real (KYP) matrix ``P``
    BoundedRealCertificate -- result of ``bounded_real_certificate``, re-checkable by ``verify()``
+
+Data helpers and saving
+-----------------------
+
+   estimate_noise         -- σ from the data: residual rms of the least-squares predictor, and how it was obtained
+   NoiseEstimate          -- result of ``estimate_noise``
+   save_controller        -- write a controller to ``.npz`` or ``.mat`` (A, B, C, D, dt, signal names)
+   load_controller        -- read it back as a ``control.StateSpace``
+   CONTROLLER_FORMATS     -- the file suffixes ``save_controller`` writes
+   ControllerFileError    -- a controller file that cannot be written or read (the message names the fix)
 
 Errors and warnings
 -------------------
