@@ -54,7 +54,10 @@ PIPELINE_PLANTS = {
 }
 
 NOISE = 0.05
-RECORD = 1000
+#: samples of the experiment; the predictors are fitted on the first ``FIT``, the rest is held out
+#: for the premise test (``validation=``)
+RECORD = 1500
+FIT = 1000
 
 
 @dataclass(frozen=True)
@@ -129,7 +132,8 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     P, W1, W2 = plant_and_weights(plant)
     dt = float(P.dt)
     data = collect_data(P, prbs(RECORD, seed=seed), process_noise=NOISE, sensor_noise=NOISE, seed=seed + 100)
-    u, y = data.u[:, 0], data.y[:, 0]
+    u_all, y_all = data.u[:, 0], data.y[:, 0]
+    u, y = u_all[:FIT], y_all[:FIT]
     n = 2 * i + j - 1
     pred = synthesis.fit_predictor(u, y, i)
     A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
@@ -140,7 +144,8 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
         warnings.simplefilter("always")
         rd = uf.robust_design_from_data(u[:n], y[:n], i, W1, W2, sigma, predictor=pred, dt=dt,
                                         predictor_for=lambda h: synthesis.fit_predictor(u, y, h),
-                                        search=uf.DesignSearch(horizons=(2 * i,)))
+                                        search=uf.DesignSearch(horizons=(2 * i,)),
+                                        validation=(u_all[FIT:], y_all[FIT:]))
     seconds = time.perf_counter() - t0
     warned = [str(w.message) for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
     floor = rd.certificate.tracking_floor

@@ -55,6 +55,21 @@ Robust design from data (§7.4)
    additive_weight_fixed_point -- the W3 gain ``c = (1 + margin) δ γ(c)``
    predictor_model        -- the data-based model P̂: ARX model of the predictor's first block row
 
+The certificate's premise, tested on the data
+---------------------------------------------
+
+   check_premise          -- δ of P̂'s output error (Thm 7.1) beside δ of (7.5), and P̂ against the data's frequency response
+   PremiseTest            -- result of ``check_premise`` (``delta``, ``decided_by``, ``reason``)
+   PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
+   output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
+   output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
+   OutputErrorResult      -- result of ``output_error_unfalsify``
+   frequency_response_estimate -- Welch estimate ``S_yu/S_uu`` with simultaneous confidence disks
+   FrequencyResponseEstimate -- result of ``frequency_response_estimate``
+   check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
+   ExcitationCheck        -- result of ``check_excitation``
+   EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
+
 Loop certificate
 ----------------
 
@@ -142,6 +157,19 @@ from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_u
 from .split import split_solve
 from .model import predictor_model
 from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics
+from .premise import (
+    EXCITATION_FLOOR,
+    ExcitationCheck,
+    FrequencyResponseEstimate,
+    OutputErrorResult,
+    PremiseOptions,
+    PremiseTest,
+    check_excitation,
+    check_premise,
+    frequency_response_estimate,
+    output_error_residual,
+    output_error_unfalsify,
+)
 from .robust import (
     AdditiveRobustness,
     DesignSearch,
@@ -189,6 +217,17 @@ __all__ = [
     "closed_loop_ry",
     "loop_parts",
     "step_metrics",
+    "EXCITATION_FLOOR",
+    "ExcitationCheck",
+    "FrequencyResponseEstimate",
+    "OutputErrorResult",
+    "PremiseOptions",
+    "PremiseTest",
+    "check_excitation",
+    "check_premise",
+    "frequency_response_estimate",
+    "output_error_residual",
+    "output_error_unfalsify",
     "AdditiveRobustness",
     "DesignSearch",
     "FewDataWarning",

@@ -66,8 +66,9 @@ class ArxResult:
     ----------
     delta : float
         δ_unf, the smallest ``‖Δ‖∞`` (NaN if the solve failed).
-    theta : ndarray, shape (na + nb,)
-        ``[a₁ … a_na, b₁ … b_nb]`` (§7.2.1).
+    theta : ndarray, shape (na + nb + free_rows,)
+        ``[a₁ … a_na, b₁ … b_nb]`` (§7.2.1), followed by the free equation errors of the first
+        ``free_rows`` rows when there are any.
     noise : ndarray, shape (n,)
         ξ.  For the conditioned form ``ξ = Φθ + Y − T(u) h`` exactly.
     impulse : ndarray, shape (n,)
@@ -123,7 +124,7 @@ class ArxResult:
     @property
     def b(self) -> np.ndarray:
         """``[b₁ … b_nb]``."""
-        return self.theta[self.na :]
+        return self.theta[self.na : self.na + self.nb]
 
     @property
     def max_violation(self) -> float:
@@ -192,6 +193,11 @@ class ArxProblem:
     Build with :meth:`from_data`.  ``evaluate_primal`` and ``evaluate_dual`` are the two sides of
     :class:`Certificate` (data units); ``column_form`` is the scaled program the backends solve:
     ``u/s_u``, ``y/s_y`` with ``s_u`` = rms(u), ``s_y`` = rms of the least-squares equation error.
+
+    ``free_rows`` (default 0): the first ``free_rows`` equation errors are free parameters (appended
+    to θ as unit columns of Φ), and the noise budget counts the other rows only, ``σ√(n − free_rows)``.
+    That is the program for a record that does not start at rest: whatever the samples before the
+    record did to the first rows (Δ's own initial state) is not charged to Δ or to the noise.
     """
 
     u: np.ndarray
@@ -201,18 +207,21 @@ class ArxProblem:
     sigma: float
     scale: tuple
     cond_Tu: float
+    free_rows: int = 0
 
     @classmethod
-    def from_data(cls, u, y, na, nb, sigma) -> "ArxProblem":
+    def from_data(cls, u, y, na, nb, sigma, free_rows: int = 0) -> "ArxProblem":
         """Validate (raises :class:`DataError`) and scale."""
         u = siso_signal(u, "u")
         y = siso_signal(y, "y", n=u.size)
         na, nb = _order(na, "na"), _order(nb, "nb")
+        free_rows = _order(free_rows, "free_rows")
         sigma = check_sigma(sigma)
         n = u.size
-        if n <= na + nb:
-            raise DataError(f"need more samples than parameters: n = {n} <= na + nb = {na + nb}")
-        if u[0] == 0.0:
+        if n <= na + nb + free_rows:
+            raise DataError(f"need more samples than parameters: n = {n} <= na + nb + free_rows = "
+                            f"{na + nb + free_rows}")
+        if u[0] == 0.0 and free_rows == 0:
             raise DataError(
                 "u[0] == 0: T(u) is singular, so no causal Δ(q)u can explain a non-zero error at t = 0 and the "
                 "substitution e − ξ = T(u)h is not available; start the record at the first non-zero input sample"
@@ -220,23 +229,37 @@ class ArxProblem:
         # u to unit rms, y so that the least-squares equation error has unit rms: the program splits
         # exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
         su = rms_or_one(u)
-        sy = arx_least_squares(u, y, na, nb)[1]
-        _warn_if_not_at_rest(u, y, na, nb, sigma)
+        sy = arx_least_squares(u[free_rows:], y[free_rows:], na, nb)[1]
+        if free_rows == 0:
+            _warn_if_not_at_rest(u, y, na, nb, sigma)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
-        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=toeplitz_cond(u))
+        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=toeplitz_cond(u), free_rows=free_rows)
 
     @property
     def n(self) -> int:
         """Number of samples."""
         return int(self.u.size)
 
+    @property
+    def n_noise(self) -> int:
+        """Number of rows the noise budget ``σ√n_noise`` covers (the rows that are not free)."""
+        return self.n - int(self.free_rows)
+
+    def regressor(self, scaled: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """``(Φ, Y)`` with ``e(θ) = Φθ + Y``: :func:`arx_regressor` plus one unit column per free row."""
+        su, sy = self.scale if scaled else (1.0, 1.0)
+        Phi, Y = arx_regressor(self.u / su, self.y / sy, self.na, self.nb)
+        if self.free_rows:
+            Phi = np.hstack([Phi, np.eye(self.n, self.free_rows)])
+        return Phi, Y
+
     def column_form(self, scaled: bool = True) -> ColumnForm:
         """(7.4) as the column form (C) of :mod:`unfalsify._columns` (j = 1, 𝓛 = range Φ)."""
         su, sy = self.scale if scaled else (1.0, 1.0)
-        Phi, Y = arx_regressor(self.u / su, self.y / sy, self.na, self.nb)
+        Phi, Y = self.regressor(scaled)
         Q = np.linalg.qr(Phi)[0] if Phi.shape[1] else None
-        return ColumnForm((self.u / su)[:, None], Y[:, None], self.sigma / sy * np.sqrt(self.n), basis_left=Q)
+        return ColumnForm((self.u / su)[:, None], Y[:, None], self.sigma / sy * np.sqrt(self.n_noise), basis_left=Q)
 
     def evaluate_primal(self, h, theta) -> tuple[float, float]:
         """``(‖T(h)‖₂, ‖Φθ + Y − T(u)h‖₂)`` recomputed from the data (inf/NaN for non-finite input)."""
@@ -244,14 +267,14 @@ class ArxProblem:
         theta = np.asarray(theta, float).reshape(-1)
         if not (np.all(np.isfinite(h)) and np.all(np.isfinite(theta))):
             return float("inf"), float("nan")
-        Phi, Y = arx_regressor(self.u, self.y, self.na, self.nb)
+        Phi, Y = self.regressor()
         xi = (Phi @ theta if theta.size else 0.0) + Y - _conv_cols(self.u[:, None], h[:, None])[:, 0]
         return certified_norm(h), float(np.linalg.norm(xi))
 
     def evaluate_dual(self, v, W, sigma=None) -> float:
         """The weak-duality lower bound of :class:`Certificate` for any ``v`` (n,) and ``W``."""
         sigma = self.sigma if sigma is None else float(sigma)
-        return self.column_form(scaled=False).lower_bound(v, W, rho=sigma * np.sqrt(self.n))
+        return self.column_form(scaled=False).lower_bound(v, W, rho=sigma * np.sqrt(self.n_noise))
 
 
 #: up to this n, ``‖T(h)‖₂`` of a certificate is the largest singular value of the dense matrix (LAPACK)
@@ -350,17 +373,17 @@ def _solve_cvxpy(P: ArxProblem, form: str, solver: str, solver_options) -> dict:
     n, na, nb = P.n, P.na, P.nb
     su, sy = P.scale
     us, ys = P.u / su, P.y / sy
-    Phi_s, Y_s = arx_regressor(us, ys, na, nb)
+    Phi_s, Y_s = P.regressor(scaled=True)
     sig_s = P.sigma / sy
     Tu_s = toeplitz_matrix(us)
-    p = na + nb
+    p = Phi_s.shape[1]
     theta = cp.Variable(p, name="theta")
     delta = cp.Variable(name="delta")
     e = (Phi_s @ theta + Y_s) if p else cp.Constant(Y_s)
     if form == "conditioned":
         h = cp.Variable(n, name="h")
         xi = e - Tu_s @ h
-        cons = [cp.norm(xi, 2) <= sig_s * np.sqrt(n), toeplitz_norm_lmi(h, delta, n)]
+        cons = [cp.norm(xi, 2) <= sig_s * np.sqrt(P.n_noise), toeplitz_norm_lmi(h, delta, n)]
     else:
         xi_v = cp.Variable(n, name="xi")
         g = e - xi_v
@@ -382,8 +405,9 @@ def _solve_cvxpy(P: ArxProblem, form: str, solver: str, solver_options) -> dict:
     else:
         th_s = np.asarray(theta.value, dtype=float).reshape(-1)
     theta_out = th_s.copy()
-    theta_out[na:] *= sy / su
-    Phi, Y = arx_regressor(P.u, P.y, na, nb)
+    theta_out[na:na + nb] *= sy / su
+    theta_out[na + nb:] *= sy  # free rows: equation errors, in y units
+    Phi, Y = P.regressor()
     e_out = Phi @ theta_out + Y if p else Y
     v = W = None
     if form == "conditioned":
@@ -442,7 +466,7 @@ def _structured_out(P: ArxProblem, out: dict, h_s: np.ndarray, elapsed: float) -
     """A structured solver's scaled output as the backend dict in data units (θ refitted by least squares)."""
     su, sy = P.scale
     h = h_s * (sy / su)
-    Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
+    Phi, Y = P.regressor()
     if Phi.shape[1]:
         theta = -np.linalg.lstsq(Phi, Y - _conv_cols(P.u[:, None], h[:, None])[:, 0], rcond=None)[0]
     else:
@@ -489,6 +513,7 @@ def arx_unfalsify(
     time_limit: float | None = None,
     progress: bool = True,
     method: str = "barrier",
+    free_rows: int = 0,
 ) -> ArxResult:
     """Smallest ``‖Δ‖∞`` unfalsifying the ARX model (7.3) with ``‖ξ‖_rms ≤ σ``: program (7.4).
 
@@ -525,6 +550,10 @@ def arx_unfalsify(
         with a small spectral peak (upper) and a circulant dual point (lower); the result has status
         ``"bracket"``, δ = the certified upper bound and a :class:`SolverWarning` stating the relative
         gap, which is NOT small (measured 0.47–0.53 at n = 200 … 10⁴).
+    free_rows : int
+        The first ``free_rows`` equation errors are free (neither Δu nor noise): the program for a
+        record that does not start at rest, whose first rows carry the response to samples before it.
+        The noise budget is then ``σ√(n − free_rows)`` and ``u[0]`` may be zero.  Conditioned form only.
 
     Returns
     -------
@@ -558,7 +587,9 @@ def arx_unfalsify(
         raise ValueError(f"method={method!r} needs backend='structured'")
     if backend == "structured" and form != "conditioned":
         raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
-    P = ArxProblem.from_data(u, y, na, nb, sigma)
+    if free_rows and form != "conditioned":
+        raise ValueError("free_rows needs form='conditioned'")
+    P = ArxProblem.from_data(u, y, na, nb, sigma, free_rows=free_rows)
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with cond T(u) = {P.cond_Tu:.3g}: T(u)ᵀT(u) is numerically singular; the solver's δ "
@@ -574,8 +605,8 @@ def arx_unfalsify(
     delta = out["delta"]
     if backend == "structured":
         delta = _finish_structured(out["status"], f"ARX unfalsification (n={P.n})", cert, delta)
-    Phi, Y = arx_regressor(P.u, P.y, P.na, P.nb)
-    xi = (Phi @ out["theta"] if P.na + P.nb else 0.0) + Y - _conv_cols(P.u[:, None], out["h"][:, None])[:, 0]
+    Phi, Y = P.regressor()
+    xi = (Phi @ out["theta"] if Phi.shape[1] else 0.0) + Y - _conv_cols(P.u[:, None], out["h"][:, None])[:, 0]
     return ArxResult(
         delta=delta,
         theta=out["theta"],
@@ -599,7 +630,7 @@ def certify(P, delta, impulses, params, v, W) -> Certificate:
     """The :class:`Certificate` of a primal point (impulses, params) and a dual point (v, W) for ``P``."""
     up, nn = P.evaluate_primal(impulses, params)
     lo = P.evaluate_dual(v, W) if v is not None else float("nan")
-    n_noise = int(np.size(P.u)) if isinstance(P, ArxProblem) else int(P.horizon * P.n_columns)
+    n_noise = P.n_noise if isinstance(P, ArxProblem) else int(P.horizon * P.n_columns)
     return Certificate(
         delta=float(delta),
         upper_bound=float(up),

@@ -43,7 +43,8 @@ from synthesis._validation import DataError, as_discrete_system, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis._repr import result
 
-__all__ = ["LoopCertificate", "StepMetrics", "certify_loop", "closed_loop_ry", "loop_parts", "step_metrics"]
+__all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "loop_parts",
+           "step_metrics"]
 
 #: Default performance floor: mean |r − y| over the last quarter of a unit step.
 TRACKING_FLOOR = 0.1
@@ -150,6 +151,29 @@ def loop_parts(plant, controller):
             f"controller must have inputs [r; y] ({2 * l}) and {P.ninputs} output(s), got {C.ninputs} input(s) and "
             f"{C.noutputs} output(s); pass the controller of synthesis.hinf_design (inputs [r; y])")
     return P, C, l
+
+
+def additive_channel(plant, controller) -> control.StateSpace:
+    """``M = (I − C_y P)⁻¹ C_y``: the transfer an additive plant perturbation sees (Fig. 3.5).
+
+    With ``u = C_r r + C_y y`` and ``y = (P + P_Δ) u``, the perturbation's output ``d = P_Δ u``
+    returns as ``u = M d`` (``M = −K(I + PK)⁻¹`` for ``K = −C_y``); the loop is stable for
+    every stable ``P_Δ`` with ``‖P_Δ‖∞ ‖M‖∞ < 1`` (small gain) if it is nominally stable.
+
+    Parameters
+    ----------
+    plant : control.StateSpace or TransferFunction
+        Discrete plant P (``m`` inputs, ``l`` outputs).
+    controller : control.StateSpace
+        Discrete controller, inputs ``[r; y]`` (``2l``), outputs ``u`` (``m``), same sample time.
+
+    Raises
+    ------
+    DataError
+        The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
+    """
+    P, C, l = loop_parts(plant, controller)
+    return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
 
 
 def closed_loop_ry(plant, controller) -> control.StateSpace:

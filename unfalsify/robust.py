@@ -60,8 +60,9 @@ from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis._validation import DataError, check_horizon
 
 from ._common import SolverWarning, UnfalsificationError, check_sigma
-from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, certify_loop, loop_parts
+from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop
 from .model import predictor_model
+from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from synthesis._repr import result
 
@@ -139,18 +140,20 @@ class SearchRecord:
     certificate: LoopCertificate | None
     error: str = ""
     reference_certificate: LoopCertificate | None = None
+    premise_reason: str = ""
+    excitation: ExcitationCheck | None = None
 
     @property
     def certified(self) -> bool:
-        """Certified on P̂ (and on P̂_ref when there is one)."""
-        return bool(self.certificate is not None and _both_certified(self.certificate, self.reference_certificate))
+        """Certified on P̂ (and on P̂_ref when there is one), with the premise unfalsified by the data."""
+        return bool(self.certificate is not None and not self.reason)
 
     @property
     def reason(self) -> str:
         """Why not certified (``''`` when it is)."""
         if self.error or self.certificate is None:
             return self.error
-        return _joint_reason(self.certificate, self.reference_certificate)
+        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation)
 
 
 @result
@@ -188,6 +191,15 @@ class RobustDesignResult:
         Verdict on the returned loop ``(P̂, K)``.
     search : tuple of SearchRecord
         Every design tried, in order (the first is the requested design).
+    premise : PremiseTest or None
+        The premise of the certificate tested on the data (:mod:`unfalsify.premise`): δ of P̂'s output
+        error by Theorem 7.1 beside δ of (7.5) (``delta`` is the larger, ``premise.decided_by`` says
+        which), and P̂ against the nonparametric frequency response.  None only for results built by hand.
+    premise_reason : str
+        Why the data falsify (or cannot test) the premise, the predictors' persistence of excitation
+        included (``''`` when they do not).
+    excitation : ExcitationCheck or None
+        Whether the data determine the plant where the returned loop is sensitive.
     reference_model : control.StateSpace or None
         A second data-based model ``P̂_ref`` (the predictor model at ``reference_horizon``,
         default 2i): the same certificate must hold on it too.  A short horizon gives a coarse
@@ -216,6 +228,9 @@ class RobustDesignResult:
     reference_model: control.StateSpace | None = None
     reference_certificate: LoopCertificate | None = None
     reference_note: str = ""
+    premise: PremiseTest | None = None
+    premise_reason: str = ""
+    excitation: ExcitationCheck | None = None
 
     @property
     def controller(self) -> control.StateSpace:
@@ -224,13 +239,25 @@ class RobustDesignResult:
 
     @property
     def certified(self) -> bool:
-        """The returned loop is certified on P̂ and on P̂_ref (stable, proven small gain, performance floor)."""
-        return _both_certified(self.certificate, self.reference_certificate)
+        """The returned loop is certified on P̂ and on P̂_ref (stable, proven small gain, performance floor)
+        and the data do not falsify the premise (output error, frequency response, excitation where the
+        loop is sensitive, persistence of excitation)."""
+        return not self.reason
 
     @property
     def reason(self) -> str:
         """Why the loop is not certified (``''`` when it is)."""
-        return _joint_reason(self.certificate, self.reference_certificate)
+        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation)
+
+    @property
+    def delta_subspace(self) -> float:
+        """δ of (7.5) (``delta`` is the larger of it and :attr:`delta_output_error`)."""
+        return float(self.premise.delta_subspace) if self.premise is not None else float(self.delta)
+
+    @property
+    def delta_output_error(self) -> float:
+        """δ of P̂'s output error by Theorem 7.1 (NaN when it could not be computed)."""
+        return self.premise.delta_output_error if self.premise is not None else float("nan")
 
     @property
     def small_gain(self) -> float:
@@ -244,16 +271,41 @@ class RobustDesignResult:
         return self.certified
 
 
-def _both_certified(cert: LoopCertificate, ref: LoopCertificate | None) -> bool:
-    return bool(cert.certified and (ref is None or ref.certified))
-
-
-def _joint_reason(cert: LoopCertificate, ref: LoopCertificate | None) -> str:
+def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
+                    excitation: ExcitationCheck | None = None) -> str:
+    """Every reason the loop is not certified, joined (``''`` when it is)."""
     reasons = [] if cert.certified else [cert.reason]
     if ref is not None and not ref.certified:
         reasons.append(ref.reason if ref.norm is None and math.isnan(ref.spectral_radius)
                        else f"on the reference model P̂_ref: {ref.reason}")
+    if premise_reason:
+        reasons.append(f"premise not supported by the data: {premise_reason}")
+    if excitation is not None and not excitation.ok:
+        reasons.append(excitation.reason)
     return "; ".join(reasons)
+
+
+def _persistence_reason(pred, u, i: int, what: str) -> str:
+    """Why the predictor's data are not persistently exciting (``''`` when they are).
+
+    A predictor that records its ranks (:func:`synthesis.fit_predictor`) is judged by them; one that
+    does not (the (L_w, L_u) found by (7.5)) by the numerical rank of the window's ``[U_p; U_f]``.
+    """
+    if getattr(pred, "input_rank", None) is not None:
+        if pred.persistently_exciting is False:
+            return (f"the {what} was fitted on an input that is not persistently exciting of order 2i = {2 * i} "
+                    f"(rank {pred.input_rank}): excite more frequencies (white PRBS) or lower the horizon")
+        if not pred.full_rank:
+            return (f"the {what}'s regressor is rank deficient (rank {pred.rank} of {pred.n_regressors}; a "
+                    "PersistenceWarning): use a longer or richer record")
+        return ""
+    U = np.lib.stride_tricks.sliding_window_view(np.asarray(u, float).reshape(-1), 2 * i)
+    s = np.linalg.svd(U, compute_uv=False)
+    rank = int(np.sum(s > max(U.shape) * np.finfo(float).eps * 1e3 * s[0]))
+    if rank < 2 * i:
+        return (f"the window's input is not persistently exciting of order 2i = {2 * i} (rank {rank}): excite more "
+                "frequencies (white PRBS) or lower the horizon")
+    return ""
 
 
 def _gamma_of(pred, W1, W2, causal: bool, gamma_ratio: float, l: int, dt=None):
@@ -381,6 +433,8 @@ def robust_design_from_data(
     reference_horizon: int | None = None,
     certificate_margin: float = CERTIFICATE_MARGIN,
     require_reference: bool = True,
+    validation=None,
+    premise: PremiseOptions | None = None,
 ) -> RobustDesignResult:
     """§7.4 steps 1–5 -- δ by subspace unfalsification (7.5), a robust Theorem 3.7 design -- and a
     certificate of the LTI loop that ships.
@@ -395,8 +449,18 @@ def robust_design_from_data(
     returned, and every design tried is reported in ``result.search``.
 
     What is certified: every plant ``P̂ + Δ`` with ``Δ`` stable and ``‖Δ‖∞ ≤ (1 + certificate_margin)δ``
-    is stabilised (and likewise around ``P̂_ref``).  The true plant is among them under the assumption that the unfalsified δ of
-    (7.5) bounds its deviation from ``P̂`` (see :mod:`unfalsify.certify`).
+    is stabilised (and likewise around ``P̂_ref``).  The true plant is among them under the *premise* that
+    its deviation from ``P̂`` is at most that large.  No finite record proves the premise; the pipeline
+    tests it on the data before it certifies (:mod:`unfalsify.premise`) and refuses, with the reason and
+    the fix, when the data falsify it or cannot test it:
+
+    * δ is the larger of δ of (7.5) and δ of P̂'s *output error* ``y − P̂u`` by Theorem 7.1 (two-sided
+      certificate, stated noise level), on ``validation`` data not used to fit P̂ when given;
+    * P̂ must lie within δ of the confidence region of a nonparametric (Welch) frequency response
+      over the band the input excites;
+    * the data must determine the plant where the loop is sensitive: at every Welch frequency
+      ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
+    * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
     Parameters
     ----------
@@ -454,6 +518,13 @@ def robust_design_from_data(
         integrating plant with a resonance (i = 10), certificates on P̂ alone failed on the true
         plant, while P̂ and P̂_ref together never did on the plants tried.  ``False`` certifies on
         P̂ alone (weaker; say so when you report it).
+    validation : tuple of array_like, optional
+        ``(u_v, y_v)``: a record of the same plant *not used to fit the predictors* (e.g. the end of
+        the experiment), on which P̂'s output error is unfalsified.  Without it the window itself is
+        used (in sample: optimistic; ``result.premise.output_error.held_out`` is False).
+    premise : PremiseOptions, optional
+        How the premise is tested (noise level of the output-error program, confidence of the
+        frequency response, sizes, time limit).
 
     Returns
     -------
@@ -493,6 +564,9 @@ def robust_design_from_data(
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
+    premise_opts = PremiseOptions() if premise is None else premise
+    if not isinstance(premise_opts, PremiseOptions):
+        raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
     unf = unfalsification
     if unf is None:
         _check_window(u, y, i, sigma, predictor)
@@ -500,12 +574,16 @@ def robust_design_from_data(
                                  solver_options=solver_options)
     elif unf.horizon != i:
         raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
-    delta = _delta_of(unf)
+    delta_sub = _delta_of(unf)
     pred = unf.predictor
     if predictor is not None:
         if not np.allclose(np.hstack([unf.Lw, unf.Lu]), np.hstack([predictor.Lw, predictor.Lu])):
             raise DataError("the given unfalsification was not computed for the given predictor")
         pred = predictor
+    model = predictor_model(pred, _data_dt(dt, W1, W2))
+    prem = check_premise(model, u, y, i, delta_sub, dt=float(model.dt), validation=validation, options=premise_opts)
+    delta = prem.delta
+    premise_reason = "; ".join(r for r in (prem.reason, _persistence_reason(pred, u, i, "predictor of P̂")) if r)
     if w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
 
@@ -532,14 +610,18 @@ def robust_design_from_data(
         return _design(predictor_at(h), W1, W2, delta, c=c, gamma_ratio=ratio, causal=cz, dt=dt), c
 
     first, c0 = build(i, bool(causal), gamma_ratio, 1.0)
-    model = predictor_model(pred, first.dt)
     ref_h = 2 * i if reference_horizon is None else int(reference_horizon)
     ref_model, ref_note = None, ""
     try:
-        ref_model = predictor_model(predictor_at(ref_h), first.dt)
+        ref_pred = predictor_at(ref_h)
+        ref_model = predictor_model(ref_pred, first.dt)
+        premise_reason = "; ".join(r for r in (premise_reason, _persistence_reason(
+            ref_pred, u, ref_h, f"reference predictor (horizon {ref_h})")) if r)
     except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
         ref_note = (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
                     "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)")
+    if premise_reason:
+        search = None  # the data falsify (or cannot test) the premise: no design of the family can fix that
     certificate_margin = _positive_real(certificate_margin, "certificate_margin", allow_equal=True)
     cert_opts = dict(margin=certificate_margin, tracking_floor=tracking_floor, step_samples=step_samples)
     missing = None
@@ -553,7 +635,9 @@ def robust_design_from_data(
 
     def check(d):
         ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
-        return certify_loop(model, d.controller, delta, **cert_opts), ref
+        cert = certify_loop(model, d.controller, delta, **cert_opts)
+        exc = check_excitation(model, d.controller, prem.frf) if prem.frf is not None and cert.stable else None
+        return cert, ref, premise_reason, exc
 
     records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
     chosen = (first, c0, records[0])
@@ -597,13 +681,24 @@ def robust_design_from_data(
         reference_model=ref_model,
         reference_certificate=rec.reference_certificate,
         reference_note=ref_note,
+        premise=prem,
+        premise_reason=premise_reason,
+        excitation=rec.excitation,
     )
 
 
-def _record(h, cz, ratio, c, design, cert, ref_cert) -> SearchRecord:
+def _data_dt(dt, W1, W2) -> float:
+    """The data's sample time: ``dt``, else the weights' common one (1.0 when every weight is static)."""
+    if dt is not None:
+        return float(dt)
+    common = synthesis.common_dt(W1, W2)
+    return 1.0 if common is True else float(common)
+
+
+def _record(h, cz, ratio, c, design, cert, ref_cert, premise_reason="", excitation=None) -> SearchRecord:
     return SearchRecord(horizon=int(h), causal=bool(cz), gamma_ratio=float(ratio), w3_gain=float(c),
                         gamma=float(design.gamma), gamma_min=float(design.gamma_min), certificate=cert,
-                        reference_certificate=ref_cert)
+                        reference_certificate=ref_cert, premise_reason=premise_reason, excitation=excitation)
 
 
 def _predictor_at(h: int, u, y, predictor, predictor_for):
@@ -678,29 +773,6 @@ class AdditiveRobustness:
     def certifies(self, delta: float) -> bool:
         """``stable and δ·peak < 1`` with the proven upper bound (small-gain certificate for ``‖P_Δ‖∞ ≤ δ``)."""
         return bool(self.stable and delta * self.peak < 1.0)
-
-
-def additive_channel(plant, controller) -> control.StateSpace:
-    """``M = (I − C_y P)⁻¹ C_y``: the transfer an additive plant perturbation sees (Fig. 3.5).
-
-    With ``u = C_r r + C_y y`` and ``y = (P + P_Δ) u``, the perturbation's output ``d = P_Δ u``
-    returns as ``u = M d`` (``M = −K(I + PK)⁻¹`` for ``K = −C_y``); the loop is stable for
-    every stable ``P_Δ`` with ``‖P_Δ‖∞ ‖M‖∞ < 1`` (small gain) if it is nominally stable.
-
-    Parameters
-    ----------
-    plant : control.StateSpace or TransferFunction
-        Discrete plant P (``m`` inputs, ``l`` outputs).
-    controller : control.StateSpace
-        Discrete controller, inputs ``[r; y]`` (``2l``), outputs ``u`` (``m``), same sample time.
-
-    Raises
-    ------
-    DataError
-        The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
-    """
-    P, C, l = loop_parts(plant, controller)
-    return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
 
 
 def additive_robustness(plant, controller, *, tol: float = 1e-8, n_grid: int = 64) -> AdditiveRobustness:
