@@ -54,10 +54,9 @@ PIPELINE_PLANTS = {
 }
 
 NOISE = 0.05
-#: samples of the experiment; the predictors are fitted on the first ``FIT``, the rest is held out
-#: for the premise test (``validation=``)
-RECORD = 1500
-FIT = 1000
+RECORD = 1000
+#: samples of a second experiment (PRBS seed + 50, noise seed + 150), held out for the premise test
+HELD_OUT = 500
 
 
 @dataclass(frozen=True)
@@ -132,8 +131,8 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     P, W1, W2 = plant_and_weights(plant)
     dt = float(P.dt)
     data = collect_data(P, prbs(RECORD, seed=seed), process_noise=NOISE, sensor_noise=NOISE, seed=seed + 100)
-    u_all, y_all = data.u[:, 0], data.y[:, 0]
-    u, y = u_all[:FIT], y_all[:FIT]
+    u, y = data.u[:, 0], data.y[:, 0]
+    held = collect_data(P, prbs(HELD_OUT, seed=seed + 50), process_noise=NOISE, sensor_noise=NOISE, seed=seed + 150)
     n = 2 * i + j - 1
     pred = synthesis.fit_predictor(u, y, i)
     A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
@@ -145,7 +144,7 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
         rd = uf.robust_design_from_data(u[:n], y[:n], i, W1, W2, sigma, predictor=pred, dt=dt,
                                         predictor_for=lambda h: synthesis.fit_predictor(u, y, h),
                                         search=uf.DesignSearch(horizons=(2 * i,)),
-                                        validation=(u_all[FIT:], y_all[FIT:]))
+                                        validation=(held.u[:, 0], held.y[:, 0]))
     seconds = time.perf_counter() - t0
     warned = [str(w.message) for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
     floor = rd.certificate.tracking_floor

@@ -172,7 +172,9 @@ def nmp_window():
     A, _, Yf = uf.subspace_data(u[:n], y[:n], 10)
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
     W = design_weights()
-    return dict(u=u, y=y, n=n, pred=pred, rms=rms, W1=W["W11"], W2=W["W21"], dt=P.dt, plant=P)
+    held = collect_data(P, prbs(500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)  # held out
+    return dict(u=u, y=y, n=n, pred=pred, rms=rms, W1=W["W11"], W2=W["W21"], dt=P.dt, plant=P,
+                val=(held.u[:, 0], held.y[:, 0]))
 
 
 def test_search_finds_what_the_first_design_misses_and_reports_it(nmp_window):
@@ -181,20 +183,20 @@ def test_search_finds_what_the_first_design_misses_and_reports_it(nmp_window):
     # without the search: the requested design cancels the right-half-plane zero; said plainly
     with pytest.warns(uf.NotCertifiedWarning, match="nominal loop unstable"):
         r0 = uf.robust_design_from_data(u[:n], y[:n], 10, s["W1"], s["W2"], 0.5 * s["rms"], predictor=s["pred"],
-                                        dt=s["dt"], search=False)
+                                        dt=s["dt"], search=False, validation=s["val"])
     assert not r0.certified and len(r0.search) == 1
     assert not uf.additive_robustness(s["plant"], r0.controller).stable  # and indeed, on the true plant
     with pytest.raises(uf.NotCertifiedError, match="nominal loop unstable"):
         uf.robust_design_from_data(u[:n], y[:n], 10, s["W1"], s["W2"], 0.5 * s["rms"], predictor=s["pred"],
                                    dt=s["dt"], search=False, require_certified=True,
-                                   unfalsification=r0.unfalsification)
+                                   unfalsification=r0.unfalsification, validation=s["val"])
     # with it (horizon 20 through predictor_for): certified, and every design tried is reported
     with warnings.catch_warnings():
         warnings.simplefilter("error", uf.NotCertifiedWarning)
         r = uf.robust_design_from_data(u[:n], y[:n], 10, s["W1"], s["W2"], 0.5 * s["rms"], predictor=s["pred"],
                                        dt=s["dt"], unfalsification=r0.unfalsification,
                                        predictor_for=lambda h: synthesis.fit_predictor(u, y, h),
-                                       search=uf.DesignSearch(horizons=(20,)))
+                                       search=uf.DesignSearch(horizons=(20,)), validation=s["val"])
     assert r.certified and r.search[-1].certified and not any(rec.certified for rec in r.search[:-1])
     assert r.search[0].horizon == 10 and r.design.horizon == r.search[-1].horizon
     assert r.reference_certificate is not None and r.reference_certificate.certified
@@ -243,17 +245,21 @@ def test_without_a_reference_model_it_says_it_cannot_certify(nmp_window):
     d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
     u, y = d.u[:, 0], d.y[:, 0]
     i, n = 10, 2 * 10 + 30 - 1
+    held = collect_data(P, prbs(500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
+    val = (held.u[:, 0], held.y[:, 0])  # a second experiment, held out for the premise test
     pred = synthesis.fit_predictor(u, y, i)
     A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
     W = design_weights()
     with pytest.warns(uf.NotCertifiedWarning, match="predictor_for"):
-        r = uf.robust_design_from_data(u[:n], y[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt)
+        r = uf.robust_design_from_data(u[:n], y[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt,
+                                       validation=val)
     assert not r.certified and r.reference_model is None and "no reference model" in r.reason
     assert len(r.search) == 1  # no search: nothing could certify
     # the weaker, explicit choice: P̂ alone
     with warnings.catch_warnings():
         warnings.simplefilter("error", uf.NotCertifiedWarning)
         r2 = uf.robust_design_from_data(u[:n], y[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt,
-                                        unfalsification=r.unfalsification, require_reference=False)
+                                        unfalsification=r.unfalsification, require_reference=False,
+                                        validation=val)
     assert r2.certified and r2.reference_certificate is None and r2.reference_note

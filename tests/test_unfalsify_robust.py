@@ -32,8 +32,11 @@ def setup():
     A, Uf, Yf = uf.subspace_data(u, y, I)
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
     pfor = lambda h: synthesis.fit_predictor(data.u, data.y, h)  # noqa: E731 - reference models at other horizons
-    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, predictor_for=pfor)
-    return dict(W1=W1, W2=W2, pred=pred, u=u, y=y, res=res, plant=servo(), pfor=pfor)
+    # a second experiment on the same plant, not used to fit anything: held out for the premise test
+    held = servo_data(500, seed=1)
+    val = (held.u, held.y)
+    res = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, predictor_for=pfor, validation=val)
+    return dict(W1=W1, W2=W2, pred=pred, u=u, y=y, res=res, plant=servo(), pfor=pfor, val=val)
 
 
 def test_unfalsification_is_certified_and_positive(setup):

@@ -287,11 +287,16 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:
-    """Ridge impulses ``h = argmin ‖B0 − T(u)h‖² + λ‖h‖²`` with ``‖B0 − T(u)h‖ = frac·ρ`` (λ by bisection).
+    """Ridge impulses ``h = argmin ‖B0 − P T(u)h‖² + λ‖h‖²`` with ``‖B0 − P T(u)h‖ = frac·ρ`` (λ by bisection).
 
-    ``B0 = P B`` (B with its component in 𝓛 removed); the result is strictly feasible for (C).
+    ``B0 = P B`` (B with its component in 𝓛 removed, P the projector onto 𝓛^⊥); the result is strictly
+    feasible for (C).  Fitting through P matters when 𝓛 holds whole rows (free equation errors): an
+    unprojected fit would force ``(T(u)h)`` to vanish on them and start from an enormous ‖T(h)‖ (measured:
+    ‖T(h0)‖ ≈ 1e13 and a failed solve where the optimum is 0.4).
     """
     Tu = toeplitz_matrix(form.U[:, 0])
+    if form.Ql is not None:
+        Tu = Tu - form.Ql @ (form.Ql.T @ Tu)
     Us, sv, Vt = np.linalg.svd(Tu)
     beta = Us.T @ B0[:, 0]
     target = (frac * form.rho) ** 2

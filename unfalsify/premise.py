@@ -111,7 +111,7 @@ class PremiseOptions:
     sigma: float | None = None
     confidence: float = 0.99
     nperseg: int | None = None
-    samples: int = 400
+    samples: int = 300
     burn_in: int | None = None
     taps: int | None = None
     tol: float = 1e-4
@@ -428,9 +428,8 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
         warnings.simplefilter("ignore")  # a non-optimal status is read from the result below
         res = arx_unfalsify(seg_u, e, 0, 0, sigma, backend="structured", tol=opts.tol,
                             time_limit=opts.time_limit, progress=False, free_rows=burn)
-    upper = float(res.certificate.upper_bound)
-    delta = upper if math.isfinite(upper) and res.certificate.noise_norm <= res.certificate.noise_bound * (1 + 1e-6) \
-        else float("nan")
+    # δ is the certified upper end of the bracket (NaN after a failed solve, never a value below the bracket)
+    delta = float(res.delta) if math.isfinite(res.delta) else float("nan")
     return OutputErrorResult(delta=delta, unfalsification=res, residual=e_all, inputs=u[i:], sigma=float(sigma),
                              sigma_rule=rule,
                              held_out=bool(held_out), burn_in=burn, growth=float(growth))

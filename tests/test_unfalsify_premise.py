@@ -1,0 +1,262 @@
+"""The certificate's premise tested on the data (unfalsify.premise and its use by the §7.4 pipeline)."""
+import types
+import warnings
+
+import control
+import numpy as np
+import pytest
+import scipy.signal
+
+import synthesis
+import unfalsify as uf
+from experiments._servo import design_weights
+from experiments.plants import third_order
+from experiments.signals import prbs
+from experiments.simulate import collect_data
+from synthesis._validation import DataError
+
+FIR = np.array([0.0, 1.0, 0.5, -0.25])
+
+
+def _fir_data(n, noise, seed, u=None):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n) if u is None else u
+    return u, np.convolve(u, FIR)[:n] + noise * rng.standard_normal(n)
+
+
+def _fir_response(omega):
+    z = np.exp(-1j * np.outer(omega, np.arange(FIR.size)))
+    return z @ FIR
+
+
+# ---- the nonparametric frequency response -------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", range(4))
+def test_confidence_disks_cover_the_true_response(seed):
+    u, y = _fir_data(4096, 0.3, seed)
+    est = uf.frequency_response_estimate(u, y)
+    err = np.abs(est.response - _fir_response(est.frequency))
+    assert np.all(err <= est.radius)  # simultaneous 99 %: every frequency, every seed tried
+    assert np.median(est.radius) < 0.4  # and the disks are not vacuous (|G| is 0.75–1.75; measured 0.27)
+    assert est.averages > 25 and est.confidence == 0.99  # 31 segments at 50 % overlap
+
+
+def test_noise_free_estimate_equals_the_response_and_disks_shrink():
+    u, y = _fir_data(4096, 0.0, 7)
+    est = uf.frequency_response_estimate(u, y, dt=0.1)
+    np.testing.assert_allclose(est.response, _fir_response(est.frequency * 0.1), atol=2e-2)
+    positive = est.frequency > 0  # the DC bin of detrended segments carries leakage only
+    assert np.all(est.coherence > 0.99) and np.max(est.radius[positive]) < 0.05
+    assert est.frequency[-1] == pytest.approx(np.pi / 0.1) and est.resolution == pytest.approx(2 * np.pi / (est.nperseg * 0.1))
+
+
+def test_segments_are_averaged_and_match_scipy_on_one_record():
+    u, y = _fir_data(2048, 0.2, 3)
+    one = uf.frequency_response_estimate(u, y, nperseg=128)
+    # second route: scipy.signal.csd / welch directly
+    f, puu = scipy.signal.welch(u, nperseg=128)
+    _, puy = scipy.signal.csd(u, y, nperseg=128)
+    np.testing.assert_allclose(one.response, puy / puu, rtol=1e-12)
+    both = uf.frequency_response_estimate(u[:1024], y[:1024], nperseg=128, segments=[(u[1024:], y[1024:])])
+    assert both.averages == pytest.approx(2 * 15 / (1 + 2 * 0.167 ** 2))
+    assert np.median(both.radius) < 1.5 * np.median(one.radius)
+
+
+def test_a_silent_band_has_wide_disks_and_is_not_excited():
+    rng = np.random.default_rng(0)
+    b, a = scipy.signal.butter(6, 0.1)
+    u = scipy.signal.lfilter(b, a, rng.standard_normal(4096))
+    _, y = _fir_data(4096, 0.05, 1, u=u)
+    est = uf.frequency_response_estimate(u, y)
+    low, high = est.frequency < 0.05 * np.pi, est.frequency > 0.5 * np.pi
+    assert np.all(est.excited[low]) and not np.any(est.excited[high])
+    assert np.min(est.radius[high]) > 10 * np.max(est.radius[low & (est.frequency > 0)])
+
+
+def test_frequency_response_bad_input():
+    with pytest.raises(DataError, match="two Welch segments"):
+        uf.frequency_response_estimate(np.ones(20), np.ones(20), nperseg=16)
+    with pytest.raises(DataError, match="confidence"):
+        uf.frequency_response_estimate(np.ones(200), np.ones(200), confidence=1.0)
+    with pytest.raises(DataError):
+        uf.frequency_response_estimate(np.ones(200), np.r_[np.ones(199), np.nan])
+
+
+# ---- output error and Theorem 7.1 on it ----------------------------------------------------------------
+
+def _model_of(taps, i=4, dt=1.0):
+    """The exact predictor_model of the FIR plant ``taps`` (Lw from the past inputs only)."""
+    Lw = np.zeros((i, 2 * i))
+    Lu = np.zeros((i, i))
+    for r in range(i):
+        for k in range(i):  # past input u_{k-i+k'} reaches row r through tap (r + i - k)
+            t = r + i - k
+            if t < taps.size:
+                Lw[r, k] = taps[t]
+        for c in range(r + 1):
+            if r - c < taps.size:
+                Lu[r, c] = taps[r - c]
+    pred = types.SimpleNamespace(Lw=Lw, Lu=Lu, horizon=i, m=1, l=1)
+    return uf.predictor_model(pred, dt)
+
+
+def test_exact_model_has_zero_output_error_on_noise_free_data():
+    u, y = _fir_data(300, 0.0, 2)
+    model = _model_of(FIR)
+    e = uf.output_error_residual(model, u, y, 4)
+    assert np.max(np.abs(e)) < 1e-12
+    # second route: python-control's simulation of a wrong model from the same measured state
+    wrong = _model_of(FIR * 1.1)
+    x0 = np.concatenate([u[:4], y[:4]])
+    sim = control.forced_response(wrong, T=np.arange(296), U=u[4:], X0=x0).outputs
+    np.testing.assert_allclose(uf.output_error_residual(wrong, u, y, 4), y[4:] - sim, atol=1e-12)
+
+
+def test_output_error_delta_sees_a_gain_error_and_certifies_it():
+    u, y = _fir_data(700, 0.02, 4, u=np.sign(np.random.default_rng(40).standard_normal(700)))
+    exact = uf.output_error_unfalsify(_model_of(FIR), u, y, 4, held_out=True)
+    assert exact.delta < 0.05 and exact.unfalsification.certificate.verify()
+    wrong = uf.output_error_unfalsify(_model_of(FIR * 0.7), u, y, 4, held_out=False)
+    # P − P̂ = 0.3·FIR, whose H∞ norm is 0.3·1.75 = 0.525 and whose gain at DC is 0.375: the smallest Δ that
+    # explains the record (the noise budget spent) lies between (measured 0.39); the exact model's is ~0
+    assert 0.3 < wrong.delta < 0.6 and not wrong.held_out and wrong.delta > 5 * exact.delta
+    cert = wrong.unfalsification.certificate
+    assert cert.verify() and cert.lower_bound <= wrong.delta <= cert.upper_bound * (1 + 1e-12)
+    assert cert.n_noise == wrong.unfalsification.certificate.problem.n - wrong.burn_in
+    assert "FIR" in wrong.sigma_rule and wrong.sigma == pytest.approx(0.02, rel=0.3)
+
+
+def test_unstable_model_is_refused_not_simulated():
+    pred = types.SimpleNamespace(Lw=np.array([[0.5, 1.5]]), Lu=np.array([[0.0]]), horizon=1, m=1, l=1)
+    model = uf.predictor_model(pred, 1.0)  # y_k = 1.5 y_{k-1} + 0.5 u_{k-1}
+    u, y = _fir_data(300, 0.01, 5)
+    oe = uf.output_error_unfalsify(model, u, y, 1, held_out=True)
+    assert np.isnan(oe.delta) and oe.growth > 10
+    test = uf.check_premise(model, u, y, 1, 0.1, dt=1.0)
+    assert not test.ok and "unstable" in test.reason and "stabilise" in test.reason
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_free_rows_agree_across_backends_and_absorb_a_start_not_at_rest(seed):
+    rng = np.random.default_rng(seed)
+    n = 40
+    u = rng.standard_normal(n)
+    e = np.convolve(u, [0.3, -0.2, 0.1])[:n] + 0.05 * rng.standard_normal(n)
+    e[:5] += 2.0  # the response to samples before the record
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = uf.arx_unfalsify(u, e, 0, 0, 0.05, free_rows=5)
+        fast = uf.arx_unfalsify(u, e, 0, 0, 0.05, free_rows=5, backend="structured", progress=False, tol=1e-7)
+    assert fast.delta == pytest.approx(ref.delta, rel=1e-4)
+    assert ref.certificate.verify() and fast.certificate.verify()
+    assert fast.certificate.noise_bound == pytest.approx(0.05 * np.sqrt(n - 5))
+    assert fast.delta < 0.6  # the bump is not charged to Δ (Δ's true norm is about 0.5)
+    assert fast.theta.size == 5 and fast.a.size == 0 and fast.b.size == 0
+    with pytest.raises(ValueError, match="free_rows"):
+        uf.arx_unfalsify(u, e, 0, 0, 0.05, free_rows=5, form="thesis")
+
+
+# ---- the loop-dependent excitation check ---------------------------------------------------------------
+
+def _fake_frf(radius, response=0.0, n=65, dt=1.0):
+    f = np.linspace(0, np.pi / dt, n)
+    return uf.FrequencyResponseEstimate(frequency=f, response=np.full(n, response, complex),
+                                        radius=np.asarray(radius, float) * np.ones(n), coherence=np.ones(n),
+                                        input_psd=np.ones(n), noise_psd=np.zeros(n), averages=30.0,
+                                        confidence=0.99, nperseg=2 * (n - 1), dt=dt)
+
+
+def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
+    P = control.ss(control.tf([0.5], [1, -0.5], 1.0))
+    K = control.ss([], [], [], [[0.4, -0.4]], 1.0)  # u = 0.4 (r − y)
+    M = uf.additive_channel(P, K)
+    peak = float(np.max(np.abs(M(np.exp(1j * np.linspace(0, np.pi, 2000))))))
+    ok = uf.check_excitation(P, K, _fake_frf(0.5 / peak))
+    assert ok.ok and ok.worst == pytest.approx(0.5, rel=0.05) and not ok.reason
+    r = np.full(65, 0.01)
+    r[40:] = 10.0 / peak  # nothing known above 0.6π, where |M| is as large as anywhere
+    frf = _fake_frf(r)
+    frf = type(frf)(**{**{k: getattr(frf, k) for k in frf.__dataclass_fields__},
+                       "input_psd": np.where(np.arange(65) >= 40, 1e-6, 1.0)})
+    bad = uf.check_excitation(P, K, frf)
+    assert not bad.ok and bad.worst >= 1 and "excite" in bad.reason and "rad/sample" in bad.reason
+    assert "-60 dB" in bad.reason
+    # a disk far from P̂ (model error, not missing excitation) is named as such
+    far = uf.check_excitation(P, K, _fake_frf(0.01 / peak, response=2.0 / peak))
+    assert not far.ok and "differs from P̂" in far.reason
+
+
+# ---- the pipeline ---------------------------------------------------------------------------------------
+
+def _lowpass(n, wc, seed):
+    rng = np.random.default_rng(seed)
+    b, a = scipy.signal.butter(4, wc)
+    x = scipy.signal.lfilter(b, a, rng.standard_normal(n + 200))[200:]
+    return x / x.std()
+
+
+def _pipeline(u_fit, y_fit, held, i=10, j=30):
+    W = design_weights()
+    pred = synthesis.fit_predictor(u_fit, y_fit, i)
+    n = 2 * i + j - 1
+    A, _, Yf = uf.subspace_data(u_fit[:n], y_fit[:n], i)
+    rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
+    with warnings.catch_warnings(record=True) as log:
+        warnings.simplefilter("always")
+        r = uf.robust_design_from_data(u_fit[:n], y_fit[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred,
+                                       dt=0.1, predictor_for=lambda h: synthesis.fit_predictor(u_fit, y_fit, h),
+                                       search=uf.DesignSearch(horizons=(2 * i,)), validation=held)
+    return r, [w for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
+
+
+@pytest.mark.slow
+def test_low_pass_excitation_is_refused_with_the_band_and_the_fix():
+    """Low-pass noise (cut-off 2 % of Nyquist): the least-squares P̂ is biased by hundreds of δ above the band.
+    Before the premise test this certified a loop that is unstable on the true plant."""
+    P = third_order()
+    u = _lowpass(1500, 0.02, 0)
+    d = collect_data(P, u, process_noise=0.05, sensor_noise=0.05, seed=100)
+    r, warned = _pipeline(d.u[:900, 0], d.y[:900, 0], (d.u[900:, 0], d.y[900:, 0]))
+    assert not r.certified and warned and r.reason
+    assert ("rad/s" in r.reason and "excite" in r.reason) or "persistently exciting" in r.reason
+    # it was right to refuse: on the true plant this loop's small gain fails or it is unstable
+    rob = uf.additive_robustness(P, r.controller)
+    assert not rob.certifies(r.delta) or synthesis.hinf_norm(control.ss(P) - r.model).upper > 10 * r.delta
+
+
+@pytest.mark.slow
+def test_white_prbs_still_certifies_and_says_which_delta_decided():
+    P = third_order()
+    d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    held = collect_data(P, prbs(500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
+    r, warned = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]))
+    assert r.certified and not warned, r.reason
+    p = r.premise
+    assert p.ok and p.output_error.held_out and p.output_error.unfalsification.certificate.verify()
+    assert r.delta == max(r.delta_subspace, r.delta_output_error)
+    assert p.decided_by == ("output error (Theorem 7.1)" if r.delta_output_error > r.delta_subspace
+                            else "subspace (7.5)")
+    assert r.excitation is not None and r.excitation.ok and r.excitation.worst < 1
+    assert p.inconsistency < 1
+    # the claim on the true plant
+    assert uf.additive_robustness(P, r.controller).certifies(r.delta)
+
+
+def test_a_window_too_short_for_the_premise_is_refused_with_the_fix():
+    P = third_order()
+    d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    r, warned = _pipeline(d.u[:, 0], d.y[:, 0], None)
+    assert not r.certified and warned
+    assert "validation" in r.reason and r.premise.output_error is None
+
+
+def test_an_input_that_is_not_persistently_exciting_is_not_certified():
+    P = third_order()
+    n = 1500
+    t = np.arange(n)
+    u = np.cos(0.3 * t) + np.cos(1.1 * t + 0.4)  # two lines: persistently exciting of order 4 only
+    d = collect_data(P, u, process_noise=0.05, sensor_noise=0.05, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", synthesis.PersistenceWarning)
+        r, warned = _pipeline(d.u[:900, 0], d.y[:900, 0], (d.u[900:, 0], d.y[900:, 0]))
+    assert not r.certified and warned and "persistently exciting" in r.reason
