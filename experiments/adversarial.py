@@ -70,7 +70,7 @@ from synthesis._validation import DataError
 from ._servo import design_weights
 from .plants import SERVO_DT, _modal_ss, _pair, _zoh, nonminimum_phase, resonant, third_order
 from .report import LiveTable, Report, finish_report, write_csv
-from .robust_pipeline import _true_loop
+from .robust_pipeline import _true_loop, premise_ratio
 from .signals import prbs
 from .simulate import closed_loop, collect_data
 
@@ -470,23 +470,6 @@ def make_record(case: Case) -> Record:
 
 
 # ----------------------------------------------------------------------------------------------- judge
-def premise_ratio(P, model, delta: float) -> tuple[float, str]:
-    """``‖P − P̂‖∞ / δ`` (proven upper bound of the norm) and why it is ``inf`` when it is."""
-    if not (P.dt and model.dt) or not np.isclose(float(P.dt), float(model.dt)):
-        return float("inf"), f"sample times differ (P {P.dt}, P̂ {model.dt})"
-    why = []
-    for name, sys in (("P", P), ("P̂", model)):
-        rho = float(np.max(np.abs(np.linalg.eigvals(sys.A)))) if sys.nstates else 0.0
-        if rho >= 1.0 - 1e-9:
-            why.append(f"{name} not stable (spectral radius {rho:.4g}): P − P̂ has no finite H∞ norm")
-    if why:
-        return float("inf"), "; ".join(why)
-    b = synthesis.hinf_norm(control.ss(P) - control.ss(model))
-    if not math.isfinite(b.upper):
-        return float("inf"), b.reason
-    return (float(b.upper / delta) if delta > 0 else float("inf")), ("δ = 0" if delta <= 0 else "")
-
-
 def judge(P, controller, delta: float, tracking_floor: float) -> dict:
     """The true-plant check of :func:`experiments.robust_pipeline._true_loop` plus its failure flags.
 

@@ -3,9 +3,12 @@
 For each plant (stable third order, lightly damped resonant, non-minimum phase, and the §5.4
 servo), noise seed and (i, j):
 
-1. a 1000-sample open-loop experiment (PRBS ±1, process and sensor noise σ = 0.05, 10 Hz);
+1. a 1000-sample open-loop experiment (PRBS ±1, process and sensor noise σ = 0.05, 10 Hz), and a second
+   500-sample experiment on the same plant, held out for the premise test (``validation=``);
 2. the least-squares predictor on the whole record (horizon i); δ by (7.5) for that predictor on
-   the first ``2i + j − 1`` samples, with σ = ``sigma_ratio`` × the residual rms on that window;
+   the first ``2i + j − 1`` samples, with σ = ``sigma_ratio`` × the residual rms on that window; the
+   premise tested on the held-out experiment (δ of P̂'s output error by Theorem 7.1, the frequency
+   response of P − P̂, excitation where the loop is sensitive): δ is the larger of the two δ's;
 3. :func:`unfalsify.robust_design_from_data` with the design search (other γ ratios, W3 gains,
    causal laws, horizon 2i through ``predictor_for``) and its certificate on the data-based
    models P̂ (horizon i) and P̂_ref (horizon 2i);
@@ -23,6 +26,7 @@ Writes ``robust_pipeline.md``, ``.json`` and ``.csv`` under ``--out``, flushed a
 """
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -43,7 +47,7 @@ from .report import LiveTable, Report, finish_report, write_csv
 from .signals import prbs
 from .simulate import collect_data
 
-__all__ = ["run", "run_case", "plant_and_weights", "PIPELINE_PLANTS", "Config"]
+__all__ = ["run", "run_case", "plant_and_weights", "premise_ratio", "PIPELINE_PLANTS", "Config"]
 
 #: The 10 Hz plants of this experiment: name -> factory.
 PIPELINE_PLANTS = {
@@ -89,6 +93,23 @@ def _true_loop(P, K, delta: float, tracking_floor: float) -> dict:
     out["perturbed_max_radius"] = float(max(radii)) if radii else float("nan")
     out["survives"] = bool(rob.stable and (not radii or max(radii) < 1.0))
     return out
+
+
+def premise_ratio(P, model, delta: float) -> tuple[float, str]:
+    """``‖P − P̂‖∞ / δ`` (proven upper bound of the norm) and why it is ``inf`` when it is."""
+    if not (P.dt and model.dt) or not np.isclose(float(P.dt), float(model.dt)):
+        return float("inf"), f"sample times differ (P {P.dt}, P̂ {model.dt})"
+    why = []
+    for name, sys in (("P", P), ("P̂", model)):
+        rho = float(np.max(np.abs(np.linalg.eigvals(sys.A)))) if sys.nstates else 0.0
+        if rho >= 1.0 - 1e-9:
+            why.append(f"{name} not stable (spectral radius {rho:.4g}): P − P̂ has no finite H∞ norm")
+    if why:
+        return float("inf"), "; ".join(why)
+    b = synthesis.hinf_norm(control.ss(P) - control.ss(model))
+    if not math.isfinite(b.upper):
+        return float("inf"), b.reason
+    return (float(b.upper / delta) if delta > 0 else float("inf")), ("δ = 0" if delta <= 0 else "")
 
 
 def plant_and_weights(plant: str):
@@ -149,11 +170,14 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     warned = [str(w.message) for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
     floor = rd.certificate.tracking_floor
     robust = _true_loop(P, rd.controller, rd.delta, floor)
+    ratio, ratio_note = premise_ratio(P, rd.model, rd.delta)
     nominal_design = synthesis.hinf_design(pred, W1, W2, dt=dt)
     nominal = _true_loop(P, nominal_design.controller, rd.delta, floor)
     d = rd.design
     return {
         "plant": plant, "seed": int(seed), "i": int(i), "j": int(j), "sigma": sigma, "delta": rd.delta,
+        "delta_subspace": rd.delta_subspace, "delta_output_error": rd.delta_output_error,
+        "decided_by": rd.premise.decided_by, "premise_ratio": ratio, "premise_note": ratio_note,
         "certified": rd.certified, "reason": rd.reason, "warned": bool(warned), "designs_tried": len(rd.search),
         "chosen": {"horizon": d.horizon, "causal": d.causal, "gamma_ratio": rd.gamma / rd.gamma_min_a,
                    "w3_gain": rd.w3_gain, "gamma": rd.gamma},
@@ -174,7 +198,7 @@ def _rechecked(cert) -> bool:
     return bool(cert is not None and cert.bounded_real is not None and cert.bounded_real.verify())
 
 
-_HEADERS = ["plant", "seed", "i", "j", "δ", "certified", "reason", "tried", "chosen (i, causal, γ/γ_min, W3)",
+_HEADERS = ["plant", "seed", "i", "j", "δ", "δ (7.5) / δ output error", "true ‖P − P̂‖∞/δ", "certified", "reason", "tried", "chosen (i, causal, γ/γ_min, W3)",
             "δ‖M̂‖ (P̂ / P̂_ref)", "KYP P re-checked (P̂ / P̂_ref)", "true: stable", "true δ‖M‖", "true: step err", "overshoot (%)",
             "worst perturbed radius", "nominal: stable", "nominal δ‖M‖", "nominal survives"]
 
@@ -182,7 +206,9 @@ _HEADERS = ["plant", "seed", "i", "j", "δ", "certified", "reason", "tried", "ch
 def _row(c: dict) -> list:
     t, nt, ch = c["true"], c["nominal_true"], c["chosen"]
     reason = c["reason"].replace("|", "\\|") if c["reason"] else "—"
-    return [c["plant"], c["seed"], c["i"], c["j"], c["delta"], "yes" if c["certified"] else "**no**", reason,
+    return [c["plant"], c["seed"], c["i"], c["j"], c["delta"],
+            f"{c['delta_subspace']:.4g} / {c['delta_output_error']:.4g}", c["premise_ratio"],
+            "yes" if c["certified"] else "**no**", reason,
             c["designs_tried"], f"({ch['horizon']}, {ch['causal']}, {ch['gamma_ratio']:.3g}, {ch['w3_gain']:.3g})",
             f"{c['small_gain_model']:.3g} / {c['small_gain_reference']:.3g}",
             f"{'yes' if c['bounded_real_model'] else 'no'} / {'yes' if c['bounded_real_reference'] else 'no'}", t["stable"], t["small_gain"],
@@ -229,6 +255,9 @@ def _intro(cfg: Config) -> str:
         "with horizons (i, 2i). 'δ‖M̂‖' is the proven small gain on the models P̂ (horizon i) and P̂_ref (2i); "
         "'KYP P re-checked': the second proof of it, a bounded-real matrix P ≻ 0 with M(P) ≺ 0 at the level "
         "1/((1 + margin)δ), checked again here from its matrices ('no' when the loop was refused before it); "
-        "'true' columns are computed on the true plant, independently of the pipeline; 'worst perturbed radius' "
+        "'true' columns are computed on the true plant, independently of the pipeline; 'true ‖P − P̂‖∞/δ' is the "
+        "premise ratio measured on the true plant (above 1 + margin the premise was false, whatever the loop did); "
+        f"the premise test ran on a second, held-out {HELD_OUT}-sample experiment and δ is the larger of δ (7.5) and "
+        "δ of P̂'s output error (Theorem 7.1); 'worst perturbed radius' "
         "is the largest closed-loop spectral radius with δz⁻¹, −δ and a phase-aligned all-pass of size δ. "
         "Overshoot in percent of the step.")

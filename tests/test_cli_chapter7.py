@@ -62,8 +62,14 @@ def test_w3_rules_and_gamma_ordering(quick_run):
     assert d["covered_delta"] >= (1 + d["margin"]) * delta * (1 - 1e-6)
     if d["designs_tried"] == 1:
         assert d["covered_delta"] == pytest.approx((1 + d["margin"]) * delta, rel=1e-6)
-    # the loop that ships is certified on the data-based models (and checked on the true plant below)
-    assert d["certified"] and d["certificate_reason"] == "" and d["small_gain_on_model"] <= 1 / 1.25
+    # the loop that ships is certified on the data-based models, or refused with the reason. At the quick size
+    # ((12, 60), σ = 0.03) δ of (7.5) is 0.009 and the held-out experiment shows P̂ off by more than that at
+    # high frequency: the premise is falsified and the verdict says so (measured)
+    assert d["delta_output_error"] >= 0 and delta == max(d["delta_subspace"], d["delta_output_error"])
+    if d["certified"]:
+        assert d["certificate_reason"] == "" and d["small_gain_on_model"] <= 1 / 1.25
+    else:
+        assert "premise not supported by the data" in d["certificate_reason"]
     assert d["thesis_rule_w3_gain"] == pytest.approx(1 / delta)
     for r in s["delta_sweep"]:
         assert r["covered"] >= r["delta"]
