@@ -435,6 +435,8 @@ def robust_design_from_data(
     require_reference: bool = True,
     validation=None,
     premise: PremiseOptions | None = None,
+    window=None,
+    backend: str | None = None,
 ) -> RobustDesignResult:
     """§7.4 steps 1–5 -- δ by subspace unfalsification (7.5), a robust Theorem 3.7 design -- and a
     certificate of the LTI loop that ships.
@@ -465,14 +467,17 @@ def robust_design_from_data(
     Parameters
     ----------
     u, y : array_like
-        SISO experiment data (step 1): the (7.5) window, ``n = 2i + j − 1`` samples.
+        SISO experiment data (step 1): the (7.5) window, ``n = 2i + j − 1`` samples -- or, with
+        ``window=``, the whole record.
     horizon : int
         i, for both (7.5) and the design.
     W1, W2 : weights
         Performance weights, as for :func:`synthesis.hinf_design` (step 2).
-    sigma : float
+    sigma : float or "auto"
         Admissible rms noise level of (7.5) (step 2); a positive number below the residual rms
-        of the model on the window.
+        of the model on the window.  ``"auto"``: half that residual rms (the rule of our
+        experiments: half of what the model leaves unexplained is called noise, the rest must be
+        explained by Δ).
     gamma_ratio : float
         ``γ = gamma_ratio · γ_min_a`` of the first design (step 4).
     margin : float
@@ -525,6 +530,17 @@ def robust_design_from_data(
     premise : PremiseOptions, optional
         How the premise is tested (noise level of the output-error program, confidence of the
         frequency response, sizes, time limit).
+    window : slice, (start, length) or "auto", optional
+        Record mode: ``u, y`` are the whole record and ``window`` picks the (7.5) window in it.  The
+        last third of the record is held out for the premise test (unless ``validation`` is given);
+        the window must lie in the first two thirds, on which the predictor of P̂ (when ``predictor``
+        is None) and those of the other horizons (when ``predictor_for`` is None) are fitted by
+        least squares -- no lambda needed.  ``"auto"``: the first ``2i + j − 1`` samples with
+        ``j = 3·i(2m + l)`` columns (three per regressor of the predictor), or as many as the fitting
+        part holds.  None (default): ``u, y`` are the window itself.
+    backend : {"structured", "cvxpy"}, optional
+        Solver of (7.5) (:func:`subspace_unfalsify`); default ``"structured"`` (faster, O(i²j) memory)
+        for ``form="conditioned"``, the cvxpy models otherwise.
 
     Returns
     -------
@@ -554,14 +570,22 @@ def robust_design_from_data(
         raise ValueError(f"unknown w3_rule {w3_rule!r}; use 'small-gain' or 'thesis'")
     gamma_ratio = _positive_real(gamma_ratio, "gamma_ratio", above=1.0)
     margin = _positive_real(margin, "margin", allow_equal=True)
-    sigma = check_sigma(sigma)
+    if not (isinstance(sigma, str) and sigma == "auto"):
+        sigma = check_sigma(sigma)
     if search is True:
         search = DesignSearch()
     elif search is False:
         search = None
     elif search is not None and not isinstance(search, DesignSearch):
         raise DataError(f"search must be a DesignSearch, True or False/None, got {search!r}")
+    if window is not None:
+        u, y, validation, predictor, predictor_for = _record_mode(u, y, horizon, window, validation, predictor,
+                                                                  predictor_for)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+    if isinstance(sigma, str) and sigma == "auto":
+        sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]
+    if backend is None:
+        backend = "structured" if form == "conditioned" else "cvxpy"
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
     premise_opts = PremiseOptions() if premise is None else premise
@@ -571,7 +595,7 @@ def robust_design_from_data(
     if unf is None:
         _check_window(u, y, i, sigma, predictor)
         unf = subspace_unfalsify(u, y, i, sigma, form=form, predictor=predictor, solver=solver,
-                                 solver_options=solver_options)
+                                 solver_options=solver_options, backend=backend, progress=False)
     elif unf.horizon != i:
         raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
     delta_sub = _delta_of(unf)
@@ -685,6 +709,59 @@ def robust_design_from_data(
         premise_reason=premise_reason,
         excitation=rec.excitation,
     )
+
+
+#: fraction of a record held out for the premise test in record mode (``window=``)
+HELD_OUT_FRACTION = 1.0 / 3.0
+
+
+def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
+    """Split a whole record into the (7.5) window, a fitting part and a held-out part (``window=``).
+
+    Returns ``(u_window, y_window, validation, predictor, predictor_for)``.
+    """
+    u_all, y_all = np.asarray(u, float), np.asarray(y, float)
+    if u_all.ndim != 1 and not (u_all.ndim == 2 and u_all.shape[1] == 1):
+        raise DataError(f"u must be one channel with time along axis 0, got shape {u_all.shape}"
+                        + (" (time runs along axis 0: pass u.T)" if u_all.ndim == 2 and u_all.shape[0] < u_all.shape[1]
+                           else ""))
+    u_all, y_all = u_all.reshape(-1), y_all.reshape(-1)
+    if y_all.size != u_all.size:
+        raise DataError(f"u has {u_all.size} samples and y {y_all.size}: pass the same record for both")
+    n = u_all.size
+    i = check_horizon(horizon, n)
+    fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
+    if window == "auto":
+        j = min(3 * 3 * i, fit_end - 2 * i + 1)  # three columns per regressor i(2m + l) = 3i (SISO)
+        start, stop = 0, 2 * i + j - 1
+    elif isinstance(window, slice):
+        start, stop, step = window.indices(n)
+        if step != 1:
+            raise DataError(f"window must be a contiguous slice, got step {step}")
+    elif isinstance(window, tuple) and len(window) == 2:
+        start, stop = int(window[0]), int(window[0]) + int(window[1])
+    else:
+        raise DataError(f"window must be a slice, a pair (start, length) or 'auto', got {window!r}")
+    if not (0 <= start < stop <= fit_end):
+        raise DataError(
+            f"the window [{start}, {stop}) must lie in the fitting part [0, {fit_end}) of the {n}-sample record "
+            f"(the last {n - fit_end} samples are held out for the premise test): choose an earlier or shorter "
+            "window, or pass validation=(u_v, y_v) from another experiment to use the whole record for fitting")
+    u_fit, y_fit = u_all[:fit_end], y_all[:fit_end]
+    if validation is None:
+        validation = (u_all[fit_end:], y_all[fit_end:])
+    if predictor is None:
+        predictor = _fitted(u_fit, y_fit, i)
+    if predictor_for is None:
+        predictor_for = functools.partial(_fitted, u_fit, y_fit)
+    return u_all[start:stop], y_all[start:stop], validation, predictor, predictor_for
+
+
+def _fitted(u, y, h):
+    """Least-squares predictor of horizon ``h``; its rank warnings are judged by the premise test."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", synthesis.PersistenceWarning)
+        return synthesis.fit_predictor(u, y, h)
 
 
 def _data_dt(dt, W1, W2) -> float:
