@@ -260,3 +260,48 @@ def test_an_input_that_is_not_persistently_exciting_is_not_certified():
         warnings.simplefilter("ignore", synthesis.PersistenceWarning)
         r, warned = _pipeline(d.u[:900, 0], d.y[:900, 0], (d.u[900:, 0], d.y[900:, 0]))
     assert not r.certified and warned and "persistently exciting" in r.reason
+
+
+# ---- record mode: the pipeline on a whole record ------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def prbs_record():
+    P = third_order()
+    d = collect_data(P, prbs(1500, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    return P, d.u[:, 0], d.y[:, 0]
+
+
+def test_record_mode_fits_holds_out_and_certifies_without_a_lambda(prbs_record):
+    P, u, y = prbs_record
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.NotCertifiedWarning)
+        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49))
+    assert r.certified and r.premise.output_error.held_out
+    # the same run spelled out by hand: predictors on the first two thirds, the last third held out
+    fit_u, fit_y = u[:1000], y[:1000]
+    pred = synthesis.fit_predictor(fit_u, fit_y, 10)
+    np.testing.assert_allclose(r.unfalsification.Lw, pred.Lw, rtol=1e-10, atol=1e-12)
+    A, _, Yf = uf.subspace_data(u[:49], y[:49], 10)
+    rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
+    assert r.unfalsification.sigma == pytest.approx(0.5 * rms, rel=1e-12)
+    by_hand = uf.robust_design_from_data(u[:49], y[:49], 10, W["W11"], W["W21"], 0.5 * rms, predictor=pred, dt=P.dt,
+                                         predictor_for=lambda h: synthesis.fit_predictor(fit_u, fit_y, h),
+                                         validation=(u[1000:], y[1000:]))
+    assert by_hand.delta == pytest.approx(r.delta, rel=1e-9) and by_hand.certified
+    assert r.premise.output_error.residual.size == 500 - 10
+
+
+def test_record_mode_auto_window_and_bad_windows(prbs_record):
+    P, u, y = prbs_record
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.NotCertifiedWarning)
+        r = uf.robust_design_from_data(u, y, 5, W["W11"], W["W21"], "auto", dt=P.dt, window="auto", search=False)
+    assert r.unfalsification.n_columns == 3 * 3 * 5  # three columns per regressor i(2m + l)
+    with pytest.raises(DataError, match="fitting part"):
+        uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window=slice(1100, 1200))
+    with pytest.raises(DataError, match="window must be"):
+        uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window="first")
+    with pytest.raises(DataError, match="axis 0"):
+        uf.robust_design_from_data(np.vstack([u, u]), y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window="auto")
