@@ -59,7 +59,8 @@ def results():
     rms = np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # not certified at these tiny sizes: irrelevant here
-        robust = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, search=False)
+        robust = uf.robust_design_from_data(u, y, I, W1, W2, 0.5 * rms, predictor=pred, search=False,
+                                            backend="cvxpy")  # its cvxpy problem is what pickling drops
     return {"design": design, "robust": robust}
 
 
