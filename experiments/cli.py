@@ -77,6 +77,9 @@ COMMANDS: dict[str, tuple] = {
     "design": ("experiments.design_cli", "run",
                "§7.4 workflow on a measured SISO record (CSV/NPZ/MAT): δ, robust design, certificate or the "
                "reason for refusing, controller files", "experiments.design_cli:OPTIONS"),
+    "cd-player": ("experiments.cd_player", "run",
+                  "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
+                  "(--quick: i = 10)"),
 }
 
 
