@@ -135,3 +135,25 @@ def test_mimo_record_names_the_options(tmp_path, capsys):
     err = _bad(tmp_path, capsys, ["design", str(path), "--u", "u1,u2", "--y", "y1", "--horizon", "10",
                                   "--out", str(tmp_path)])
     assert "--u" in err and "SISO" in err
+
+
+def test_weights_from_files_equal_the_defaults(design_run, tmp_path, capsys):
+    """``--weights W1FILE W2FILE`` (saved with save_controller) gives the default design bit for bit."""
+    from synthesis import save_controller
+
+    _, csv, (_, _, dt) = design_run
+    W1, W2, _ = default_weights(dt)
+    f1, f2 = save_controller(tmp_path / "w1.npz", W1), save_controller(tmp_path / "w2.mat", W2)
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--weights", str(f1), str(f2),
+                 "--json", "--out", str(tmp_path / "files")]) == 0
+    files = json.loads(capsys.readouterr().out)
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--json",
+                 "--out", str(tmp_path / "defaults")]) == 0
+    defaults = json.loads(capsys.readouterr().out)
+    assert files["delta"] == defaults["delta"] and files["certified"] == defaults["certified"]
+    a, b = load_controller(files["controller_npz"]), load_controller(defaults["controller_npz"])
+    assert all(np.array_equal(getattr(a, m), getattr(b, m)) for m in "ABCD")
+    assert "w1.npz" in files["weights"]
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--w1", "100,1,1", "--w2", "1,2,3,4",
+                                  "--out", str(tmp_path)])
+    assert "DC,FREQ,MAG,HF" in err
