@@ -74,7 +74,8 @@ The command line (``python -m experiments --help``):
 >>> from experiments.cli import COMMANDS
 >>> list(COMMANDS)  # doctest: +NORMALIZE_WHITESPACE
 ['demo', 'design-example', 'noncollocated', 'adaptive', 'chapter7', 'robust-pipeline', 'robust-adversarial',
- 'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep']
+ 'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep', 'design',
+ 'cd-player']
 """
 from .plants import (
     PLANT_CATALOGUE,

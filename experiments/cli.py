@@ -74,13 +74,34 @@ COMMANDS: dict[str, tuple] = {
                                      help="seconds to wait for the scheduler (default: 30)")),
                (("--resume",), dict(dest="resume", action="store_true",
                                     help="skip the cases already finished in the report under --out")))),
+    "design": ("experiments.design_cli", "run",
+               "§7.4 workflow on a measured SISO record (CSV/NPZ/MAT): δ, robust design, certificate or the "
+               "reason for refusing, controller files", "experiments.design_cli:OPTIONS"),
+    "cd-player": ("experiments.cd_player", "run",
+                  "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
+                  "(--quick: i = 10)"),
 }
 
 
 def _entry(name: str) -> tuple[str, str, str, tuple]:
-    """``COMMANDS[name]`` as (module, function, help, extra option specs)."""
+    """``COMMANDS[name]`` as (module, function, help, extra option specs).
+
+    The specs may be given as ``"module:NAME"``, a tuple living in that module (imported here: a
+    subcommand with many options keeps them beside its code).
+    """
     module, func, help_, *rest = COMMANDS[name]
-    return module, func, help_, tuple(rest[0]) if rest else ()
+    specs = rest[0] if rest else ()
+    if isinstance(specs, str):
+        mod, attr = specs.split(":")
+        specs = getattr(importlib.import_module(mod), attr)
+    return module, func, help_, tuple(specs)
+
+
+def _add_option(parser: argparse.ArgumentParser, flags: tuple, kwargs: dict) -> None:
+    """``parser.add_argument`` for one spec; a positional (no leading '-') takes its ``dest`` from its name."""
+    if not flags[0].startswith("-"):
+        kwargs = {k: v for k, v in kwargs.items() if k != "dest"}  # argparse refuses dest= for positionals
+    parser.add_argument(*flags, **kwargs)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -94,7 +115,7 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
         s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
         for flags, kwargs in extra:
-            s.add_argument(*flags, **kwargs)
+            _add_option(s, flags, kwargs)
     return p
 
 
@@ -104,8 +125,15 @@ def output_dir(out: Path, command: str) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0)."""
-    args = _parser().parse_args(argv)
+    """Parse ``argv`` (default: ``sys.argv[1:]``), run the subcommand, return the exit status (0).
+
+    A subcommand that reads user input lists in its module's ``INPUT_ERRORS`` the exceptions that mean
+    bad input (a missing file, NaN, a bad window): they end the run like a bad option does, with
+    ``python -m experiments NAME: error: <message>`` on stderr and exit status 2 (``SystemExit``).
+    Other exceptions propagate with their traceback: they are bugs, not input.
+    """
+    parser = _parser()
+    args = parser.parse_args(argv)
     module, func, _, extra = _entry(args.command)
     mod = importlib.import_module(module)
     run = getattr(mod, func)
@@ -114,8 +142,13 @@ def main(argv: list[str] | None = None) -> int:
                    extra={kw["dest"]: getattr(args, kw["dest"]) for _, kw in extra})
     opts.out.mkdir(parents=True, exist_ok=True)
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
-    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
-        summary = run(opts)
+    input_errors = tuple(getattr(mod, "INPUT_ERRORS", ()))
+    try:
+        with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+            summary = run(opts)
+    except input_errors as exc:
+        sub = parser._subparsers._group_actions[0].choices[args.command]  # the subcommand's own usage line
+        sub.error(str(exc))
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=_jsonable)
         sys.stdout.write("\n")

@@ -1,0 +1,457 @@
+"""``python -m experiments design DATA``: from a measured record to a certified (or refused) controller.
+
+The §7.4 workflow on a data file, with no simulator behind it:
+
+1. :func:`experiments.load_record` reads one input and one output channel (CSV, NPZ or MAT) and the
+   sample time (``--dt``, or the step of a time column ``--t``);
+2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
+   (``--sigma``), the predictors fitted on the first two thirds of the record and the premise of
+   the certificate tested on the last third; the design search; the certificate of the loop;
+3. the report ``<out>/design/design.md`` (data, the model's output error, δ with its two-sided
+   certificate and which δ decided, the search, the verdict and its reason, step and Bode plots
+   of the loop on P̂), the controller as ``controller.npz`` and ``controller.mat``
+   (:func:`synthesis.save_controller`) and the summary ``design.json``.
+
+``--quick`` is accepted (every subcommand takes it) and changes nothing: the record sets the sizes.
+A refusal is a result, not an error: the command exits 0 whether or not the loop is certified and
+the report says why.  Bad input (a missing file, NaN, a non-uniform time column, a bad window) ends
+the command with an argparse-style message and exit status 2.
+
+Default weights (when neither ``--weights`` nor ``--w1/--w2`` is given) mirror the shape of the §5.4
+weights W11, W21 relative to the Nyquist frequency ``ω_N = π/dt`` (at the servo's 10 Hz, W11 crosses
+1 near ω_N/30 and W21 passes 0.3 near ω_N/10):
+
+* ``W1 = makeweight(100, (ω_N/30, 1), 0.2, dt)``: performance, 100 at DC falling to 0.2;
+* ``W2 = makeweight(0.05, (ω_N/10, 0.3), 1, dt)``: control effort, 0.05 at DC rising to 1.
+
+``--weights W1FILE W2FILE`` reads two weights saved with :func:`synthesis.save_controller` (one
+system per file, ``.npz`` or ``.mat``); ``--w1 DC,FREQ,MAG,HF`` (FREQ in rad/s) builds one with
+:func:`synthesis.makeweight`.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from synthesis._validation import DataError
+
+from .records import RecordError, _read_arrays, _read_csv, load_record
+
+__all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "INPUT_ERRORS"]
+
+#: errors that mean bad input, not a bug: ``cli.main`` turns them into a usage message and exit status 2
+INPUT_ERRORS = (DataError, FileNotFoundError)
+
+#: names a CSV time column is recognised by when ``--t`` is not given
+_TIME_NAMES = ("t", "time", "time_s", "times", "seconds")
+
+#: ``(dc, crossover as a fraction of Nyquist, gain there, hf)`` of the default weights
+W1_DEFAULT = (100.0, 1.0 / 30.0, 1.0, 0.2)
+W2_DEFAULT = (0.05, 1.0 / 10.0, 0.3, 1.0)
+
+
+def default_weights(dt: float) -> tuple:
+    """The default W1, W2 at sample time ``dt`` (module docstring) and a sentence stating them.
+
+    Parameters
+    ----------
+    dt : float
+        Sample time of the record.
+
+    Returns
+    -------
+    W1, W2 : control.StateSpace
+        First-order discrete weights (:func:`synthesis.makeweight`).
+    text : str
+        What they are, for the report.
+    """
+    from synthesis import makeweight
+
+    wn = math.pi / dt
+    parts, text = [], []
+    for name, (dc, frac, mag, hf) in (("W1", W1_DEFAULT), ("W2", W2_DEFAULT)):
+        parts.append(makeweight(dc, (frac * wn, mag), hf, dt))
+        text.append(f"{name} = makeweight({dc:g}, ({frac * wn:.4g} rad/s = ω_N/{1 / frac:g}, {mag:g}), {hf:g}, dt)")
+    return parts[0], parts[1], "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s)"
+
+
+def _weight_from_spec(spec: str, dt: float, what: str):
+    """``"DC,FREQ,MAG,HF"`` → ``makeweight(DC, (FREQ, MAG), HF, dt)``."""
+    from synthesis import makeweight
+
+    try:
+        dc, freq, mag, hf = (float(x) for x in spec.split(","))
+    except ValueError:
+        raise DataError(f"--{what} must be four numbers DC,FREQ,MAG,HF (FREQ in rad/s), got {spec!r}") from None
+    return makeweight(dc, (freq, mag), hf, dt)
+
+
+def _weights(extra: dict, dt: float) -> tuple:
+    """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults."""
+    files, w1, w2 = extra.get("weights"), extra.get("w1"), extra.get("w2")
+    if files and (w1 or w2):
+        raise DataError("pass either --weights W1FILE W2FILE or --w1/--w2, not both")
+    if files:
+        from synthesis import load_controller
+
+        W1, W2 = (load_controller(f) for f in files)
+        for name, W, f in (("W1", W1, files[0]), ("W2", W2, files[1])):
+            if W.dt is not True and not math.isclose(float(W.dt), dt, rel_tol=1e-9):
+                raise DataError(f"{name} from {f!r} has sample time {W.dt} but the record's is {dt:g}; "
+                                "save the weights at the record's sample time")
+        return W1, W2, f"W1 from {files[0]}, W2 from {files[1]}"
+    if bool(w1) != bool(w2):
+        raise DataError("pass both --w1 and --w2 (or neither, for the defaults)")
+    if w1:
+        return (_weight_from_spec(w1, dt, "w1"), _weight_from_spec(w2, dt, "w2"),
+                f"W1 = makeweight({w1}) and W2 = makeweight({w2}) (DC, FREQ rad/s, MAG, HF; given)")
+    return default_weights(dt)
+
+
+def parse_window(text: str | None):
+    """``"START:LEN"`` → ``(start, length)``; ``"auto"`` or None → ``"auto"``.
+
+    Raises
+    ------
+    DataError
+        Anything else.
+    """
+    if text is None or text.strip().lower() == "auto":
+        return "auto"
+    try:
+        start, length = (int(x) for x in text.split(":"))
+    except ValueError:
+        raise DataError(f"--window must be START:LEN (samples, e.g. 0:49) or auto, got {text!r}") from None
+    if start < 0 or length <= 0:
+        raise DataError(f"--window {text}: START must be >= 0 and LEN > 0")
+    return start, length
+
+
+def _parse_sigma(text):
+    if text is None or str(text).strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise DataError(f"--sigma must be a positive number or auto, got {text!r}") from None
+
+
+def _column(text):
+    """A column given on the command line: an integer index or a name; a comma list stays a list."""
+    if text is None:
+        return None
+    items = [s.strip() for s in str(text).split(",")]
+    items = [int(s) if s.lstrip("-").isdigit() else s for s in items]
+    return items[0] if len(items) == 1 else items
+
+
+def _file_columns(path: Path, variable: str | None):
+    """``(names or None, number of columns)`` of a CSV or of ``variable`` in an NPZ/MAT; None for keyed files."""
+    if not path.exists():
+        raise FileNotFoundError(f"no data file {str(path)!r}")
+    fmt = path.suffix.lower()
+    if fmt in (".csv", ".txt"):
+        header, table = _read_csv(path, None)
+        return header, table.shape[1]
+    if variable is not None and fmt in (".npz", ".mat"):
+        arrays = _read_arrays(path, fmt)
+        if variable in arrays and np.ndim(arrays[variable]) == 2:
+            return None, int(np.shape(arrays[variable])[1])
+    return None, None
+
+
+def _select(path: Path, extra: dict):
+    """The record's u, y, t selection: the user's, or the defaults (column after the time column, the next).
+
+    A record with more than one input or output channel is refused with the options to pick one: the
+    design is SISO (MIMO records are Chapter 7's other case).
+    """
+    variable = extra.get("variable")
+    u, y, t = _column(extra.get("u")), _column(extra.get("y")), _column(extra.get("t"))
+    names, width = _file_columns(path, variable)
+    if t is None and names is not None and extra.get("dt") is None:
+        # a CSV with a column called t/time: its step is the sample time (no --dt needed)
+        hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
+        t = names[hits[0]] if hits else None
+    for what, sel in (("--u", u), ("--y", y)):
+        if isinstance(sel, list):
+            raise RecordError(f"{what} {extra.get(what[2:])} selects {len(sel)} channels, but the design is SISO "
+                              f"(MIMO is not supported yet): pick one channel with {what}")
+    if u is None or y is None:
+        if width is None:
+            u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
+        else:
+            t_index = None if t is None else (names.index(t) if isinstance(t, str) and names else int(t) % width)
+            rest = [k for k in range(width) if k != t_index]
+            if len(rest) > 2 and (u is None and y is None):
+                cols = ", ".join(names[k] for k in rest) if names else f"{len(rest)} columns"
+                raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}): a MIMO record, but the "
+                                  "design is SISO: pick one input with --u and one output with --y (names or "
+                                  "0-based indices)")
+            free = [k for k in rest if k not in (u, y) and not (names and names[k] in (u, y))]
+            pick = (lambda k: names[k]) if names else (lambda k: k)
+            if u is None:
+                u, free = pick(free[0]), free[1:]
+            if y is None:
+                y = pick(free[0])
+    return u, y, t, variable
+
+
+def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto"):
+    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning.
+
+    Returns
+    -------
+    result : unfalsify.RobustDesignResult
+    warned : list of str
+        The warnings raised (the ``NotCertifiedWarning`` of a refusal among them).
+    """
+    import unfalsify as uf
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = uf.robust_design_from_data(np.asarray(u, float).reshape(-1), np.asarray(y, float).reshape(-1),
+                                         horizon, W1, W2, sigma, dt=dt, window=window)
+    return res, [f"{w.category.__name__}: {w.message}" for w in caught]
+
+
+def _fmt(x) -> str:
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.4g}"
+
+
+def _simulate(sys, u):
+    """Output of ``sys`` driven by ``u`` from rest (NaN from where it blows up: an unstable P̂ does)."""
+    from .simulate import _lsim
+
+    A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (sys.A, sys.B, sys.C, sys.D))
+    with np.errstate(all="ignore"):
+        y = _lsim(A, B, C, D, np.asarray(u, float).reshape(-1, 1), np.zeros(A.shape[0]))[0]
+    y = np.asarray(y, float).reshape(-1)
+    y[~np.isfinite(y)] = np.nan
+    return y
+
+
+def _figures(out: Path, rec, res, fit_end: int, window: tuple[int, int]) -> tuple[list, dict]:
+    """Data, output error, step and Bode plots; returns (paths, numbers for the report)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .report import save_figure
+    from .simulate import closed_loop_system
+
+    u, y, dt = rec.u[:, 0], rec.y[:, 0], rec.dt
+    t = np.arange(rec.n) * dt
+    figs, numbers = [], {}
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
+    ax1.plot(t, u, lw=0.7, label=f"u ({rec.u_columns[0]})")
+    ax2.plot(t, y, lw=0.7, color="C1", label=f"y ({rec.y_columns[0]})")
+    for ax in (ax1, ax2):
+        ax.axvspan(window[0] * dt, window[1] * dt, color="C2", alpha=0.15, label="(7.5) window")
+        ax.axvline(fit_end * dt, color="k", ls="--", lw=0.8, label="held out from here")
+        ax.legend(loc="upper right", fontsize=7)
+    ax1.set_ylabel("input u")
+    ax2.set_ylabel("output y")
+    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
+    ax1.set_title("Record")
+    figs.append(save_figure(fig, out / "data.png"))
+
+    yhat = _simulate(res.model, u)
+    err = y - yhat
+    numbers["oe_rms_fit"] = float(np.sqrt(np.nanmean(err[:fit_end] ** 2)))
+    numbers["oe_rms_held_out"] = float(np.sqrt(np.nanmean(err[fit_end:] ** 2)))
+    numbers["y_rms"] = float(np.sqrt(np.mean(y ** 2)))
+    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
+    ax1.plot(t, y, lw=0.7, label="measured y")
+    ax1.plot(t, yhat, lw=0.7, ls="--", label="P̂ u (simulated from rest)")
+    ax1.axvline(fit_end * dt, color="k", ls=":", lw=0.8, label="held out from here")
+    ax1.set_ylabel("output")
+    ax1.legend(loc="upper right", fontsize=7)
+    ax2.plot(t, err, lw=0.7, color="C3", label="output error y − P̂u")
+    ax2.set_ylabel("y − P̂u")
+    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
+    ax1.set_title("Model P̂ against the record")
+    figs.append(save_figure(fig, out / "output_error.png"))
+
+    loop = closed_loop_system(res.model, res.controller)  # r → [y; u]
+    n_step = 200
+    _, resp = _step(loop, n_step)
+    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
+    ts = np.arange(n_step) * dt
+    ax1.plot(ts, resp[:, 0], label="y")
+    ax1.plot(ts, np.ones(n_step), "k:", lw=0.8, label="reference")
+    ax1.set_ylabel("output")
+    ax1.legend(fontsize=7)
+    ax2.plot(ts, resp[:, 1], color="C1")
+    ax2.set_ylabel("control u")
+    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
+    ax1.set_title("Unit step of the loop on P̂")
+    figs.append(save_figure(fig, out / "step.png"))
+    numbers["step_final"] = float(resp[-1, 0]) if np.isfinite(resp[-1, 0]) else float("nan")
+
+    w = np.logspace(np.log10(math.pi / dt) - 3, np.log10(math.pi / dt), 400)
+    z = np.exp(1j * w * dt)
+    T = np.array([_freq(loop, zk)[0, 0] for zk in z])
+    # the model's peak gain on the grid: the scale δ (an additive bound) is to be read against
+    numbers["model_peak_gain"] = float(max(abs(_freq(res.model, zk)[0, 0]) for zk in z))
+    Ur = np.array([_freq(loop, zk)[1, 0] for zk in z])
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.loglog(w, np.abs(T), label="|T| (r → y)")
+    ax.loglog(w, np.abs(1 - T), ls="--", label="|S| = |1 − T|")
+    ax.loglog(w, np.abs(Ur), ls=":", label="|r → u|")
+    ax.set_xlabel("frequency (rad/s)")
+    ax.set_ylabel("magnitude")
+    ax.set_title("Loop on P̂")
+    ax.legend(fontsize=7)
+    figs.append(save_figure(fig, out / "bode.png"))
+    return figs, numbers
+
+
+def _freq(sys, z):
+    A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (sys.A, sys.B, sys.C, sys.D))
+    n = A.shape[0]
+    return C @ np.linalg.solve(z * np.eye(n) - A, B) + D if n else D.astype(complex)
+
+
+def _step(loop, n: int):
+    from .simulate import _lsim
+
+    A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (loop.A, loop.B, loop.C, loop.D))
+    with np.errstate(all="ignore"):
+        out = np.asarray(_lsim(A, B, C, D, np.ones((n, 1)), np.zeros(A.shape[0]))[0], float)
+    return np.arange(n), out.reshape(n, -1)
+
+
+def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg, weights_text, t_start,
+                  title="Design from data", name="design", intro="") -> dict:
+    """Write the report, the controller files and the JSON summary of one design; return the summary."""
+    from synthesis import save_controller
+
+    from .report import Report, finish_report
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    n = rec.n
+    fit_end = n - int(n / 3)  # robust_design_from_data's held-out last third (HELD_OUT_FRACTION)
+    unf = res.unfalsification
+    # the window robust_design_from_data used: 2i + j − 1 samples from START ("auto" starts at 0)
+    win_start = window_arg[0] if isinstance(window_arg, tuple) else 0
+    win = (win_start, win_start + 2 * int(unf.horizon) + int(unf.n_columns) - 1)
+    npz = save_controller(out / "controller.npz", res.controller)
+    mat = save_controller(out / "controller.mat", res.controller)
+    figs, numbers = _figures(out, rec, res, fit_end, win)
+    cert = unf.certificate
+    prem = res.premise
+
+    rep = Report(title)
+    if intro:
+        rep.text(intro)
+    rep.section("Record",
+                f"`{rec.source}`: {n} samples, dt = {rec.dt:g}, input {rec.u_columns[0]}, output "
+                f"{rec.y_columns[0]}.  The (7.5) window is samples [{win[0]}, {win[1]}) (`--window "
+                f"{'auto' if window_arg == 'auto' else f'{window_arg[0]}:{window_arg[1]}'}`); the predictors "
+                f"are fitted on [0, {fit_end}) and the last {n - fit_end} samples are held out for the test of "
+                f"the certificate's premise.  Horizon i = {horizon}.")
+    rep.figure(figs[0], "Record, the (7.5) window and the held-out part")
+    rep.section("Weights", weights_text + ".")
+    rep.section("Model P̂ and its output error",
+                f"rms of y − P̂u (P̂ simulated from rest): {_fmt(numbers['oe_rms_fit'])} on the fitting part, "
+                f"{_fmt(numbers['oe_rms_held_out'])} on the held-out part (rms of y: {_fmt(numbers['y_rms'])}).")
+    rep.figure(figs[1], "Measured output against P̂u, and the output error")
+    rep.section("δ")
+    rep.table(["quantity", "value"], [
+        ["σ (admissible rms noise of (7.5))" + (" — auto: half the window's residual rms" if sigma_arg == "auto"
+                                                 else ""), _fmt(float(cert.sigma))],
+        ["δ of (7.5)", _fmt(res.delta_subspace)],
+        ["certificate bracket of (7.5): lower bound", _fmt(float(cert.lower_bound))],
+        ["certificate bracket of (7.5): upper bound", _fmt(float(cert.upper_bound))],
+        ["δ of P̂'s output error (Theorem 7.1, held out)", _fmt(res.delta_output_error)],
+        ["δ designed and certified for (the larger)", _fmt(res.delta)],
+        ["decided by", prem.decided_by if prem is not None else "—"],
+        ["peak gain of P̂ (frequency grid), for scale", _fmt(numbers["model_peak_gain"])],
+    ])
+    rep.section("Design search", "Every design tried, in order; the first certified one is returned.")
+    rows = []
+    for k, s in enumerate(res.search):
+        rows.append([k, s.horizon, "yes" if s.causal else "no", _fmt(s.gamma_ratio), _fmt(s.w3_gain),
+                     _fmt(s.gamma), "yes" if s.certified else "no", s.reason or "—"])
+    rep.table(["#", "horizon", "causal", "γ/γ_min", "W3 gain", "γ", "certified", "reason"], rows)
+    verdict = "CERTIFIED" if res.certified else "NOT CERTIFIED"
+    rep.section("Verdict", f"**{verdict}** for δ = {_fmt(res.delta)}."
+                + (f"\n\nReason: {res.reason}" if res.reason else
+                   "\n\nThe loop is stable on P̂ and P̂_ref, small gain is proven for δ, the step tracks, and "
+                   "the held-out data do not falsify the premise."))
+    rep.section("The loop on P̂",
+                f"Controller (inputs [r; y], output u, {res.controller.nstates} states): `{npz.name}`, "
+                f"`{mat.name}` (synthesis.load_controller reads either).  Final value of the unit step on "
+                f"P̂ after 200 samples: {_fmt(numbers['step_final'])}.")
+    rep.figure(figs[2], "Unit step of the loop on P̂")
+    rep.figure(figs[3], "Closed-loop magnitudes on P̂")
+    summary = {
+        "source": rec.source, "samples": n, "dt": rec.dt, "u": rec.u_columns[0], "y": rec.y_columns[0],
+        "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
+        "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
+        "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
+        "delta_output_error": float(res.delta_output_error),
+        "delta_lower_bound": float(cert.lower_bound), "delta_upper_bound": float(cert.upper_bound),
+        "decided_by": prem.decided_by if prem is not None else None,
+        "search": [{"horizon": s.horizon, "causal": s.causal, "gamma_ratio": s.gamma_ratio, "w3_gain": s.w3_gain,
+                    "gamma": s.gamma, "certified": s.certified, "reason": s.reason} for s in res.search],
+        "weights": weights_text, **numbers,
+        "controller_npz": str(npz), "controller_mat": str(mat),
+    }
+    return finish_report(rep, summary, out, name, warn_log=warned, figures=figs, t_start=t_start,
+                         warnings_heading="Warnings raised")
+
+
+def run(opts) -> dict:
+    """``python -m experiments design DATA ...`` (module docstring); returns the JSON summary."""
+    t_start = time.perf_counter()
+    ex = opts.extra
+    path = Path(ex["data"])
+    u, y, t, variable = _select(path, ex)
+    rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
+    if rec.m != 1 or rec.l != 1:
+        raise RecordError(f"the record has {rec.m} input(s) and {rec.l} output(s), but the design is SISO: "
+                          "pick one channel with --u and one with --y")
+    W1, W2, weights_text = _weights(ex, rec.dt)
+    window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
+    horizon = ex["horizon"]
+    res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma)
+    return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
+                         weights_text=weights_text, t_start=t_start)
+
+
+def summary_lines(summary: dict) -> list[str]:
+    """The verdict, δ and the controller files, for the CLI's closing summary."""
+    verdict = "certified" if summary["certified"] else f"NOT certified: {summary['reason']}"
+    return [f"δ = {summary['delta']:.4g} ({summary['decided_by']}); {verdict}",
+            f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
+
+
+#: the options of ``design`` (argparse specs for ``cli.COMMANDS``)
+OPTIONS = (
+    (("data",), dict(dest="data", metavar="DATA", help="record file: .csv/.txt (header names or indices), .npz, .mat")),
+    (("--horizon", "-i"), dict(dest="horizon", type=int, required=True, help="horizon i of (7.5) and the design")),
+    (("--dt",), dict(dest="dt", type=float, default=None, help="sample time (omit with a time column)")),
+    (("--window",), dict(dest="window", default="auto", metavar="START:LEN|auto",
+                         help="the (7.5) window in the first two thirds of the record (default: auto)")),
+    (("--sigma",), dict(dest="sigma", default="auto", metavar="S|auto",
+                        help="admissible rms noise of (7.5) (default auto: half the window's residual rms)")),
+    (("--u",), dict(dest="u", default=None, metavar="COL", help="input column (name or 0-based index)")),
+    (("--y",), dict(dest="y", default=None, metavar="COL", help="output column (name or 0-based index)")),
+    (("--t",), dict(dest="t", default=None, metavar="COL",
+                    help="time column (default: a CSV column named t or time, if --dt is not given)")),
+    (("--variable",), dict(dest="variable", default=None, metavar="NAME",
+                           help="NPZ/MAT: the matrix holding the channels (then columns are indices)")),
+    (("--weights",), dict(dest="weights", nargs=2, default=None, metavar=("W1FILE", "W2FILE"),
+                          help="W1 and W2 saved with synthesis.save_controller (.npz or .mat each)")),
+    (("--w1",), dict(dest="w1", default=None, metavar="DC,FREQ,MAG,HF", help="W1 = makeweight(DC, (FREQ, MAG), HF, dt)")),
+    (("--w2",), dict(dest="w2", default=None, metavar="DC,FREQ,MAG,HF", help="W2 = makeweight(DC, (FREQ, MAG), HF, dt)")),
+)

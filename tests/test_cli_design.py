@@ -1,0 +1,159 @@
+"""``python -m experiments design DATA``: a CSV record to a report, a JSON summary and controller files.
+
+The record: the stable third-order plant under a 1500-sample PRBS with process and sensor noise 0.05
+(seed 100), written as ``t,u,y``.  The saved controller is checked bit for bit against the design
+rebuilt here with the same call, and its step on P̂ against the rebuilt one's.
+"""
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+import unfalsify as uf
+from experiments.cli import main
+from experiments.design_cli import default_weights
+from experiments.plants import third_order
+from experiments.signals import prbs
+from experiments.simulate import closed_loop, collect_data
+from synthesis import load_controller
+
+from _reports import assert_reports_complete
+
+N = 1500
+
+
+def _record():
+    P = third_order()
+    d = collect_data(P, prbs(N, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    return np.arange(N) * float(P.dt), d.u.reshape(-1), d.y.reshape(-1), float(P.dt)
+
+
+def _write_csv(path, t, u, y):
+    # repr precision: the CLI must read back exactly the floats the test designs with
+    lines = ["t,u,y"] + [f"{float(a)!r},{float(b)!r},{float(c)!r}" for a, b, c in zip(t, u, y)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def design_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("design")
+    t, u, y, dt = _record()
+    csv = _write_csv(tmp / "record.csv", t, u, y)
+    return tmp, csv, (u, y, dt)
+
+
+def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
+    tmp, csv, (u, y, dt) = design_run
+    assert main(["design", "--quick", str(csv), "--horizon", "10", "--window", "0:49", "--json",
+                 "--out", str(tmp)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    for key in ("certified", "delta", "reason", "seconds", "controller_npz", "controller_mat", "report"):
+        assert key in summary, key
+    out = tmp / "design"
+    for name in ("design.md", "design.json", "controller.npz", "controller.mat", "data.png", "output_error.png",
+                 "step.png", "bode.png"):
+        assert (out / name).is_file(), name
+    assert summary["dt"] == pytest.approx(dt, rel=1e-12)  # from the time column: no --dt needed
+    assert summary["window"] == [0, 49]
+    assert_reports_complete(out, "design")
+    md = (out / "design.md").read_text()
+    assert "certificate bracket" in md and "decided by" in md and "Design search" in md
+
+    # the same design, rebuilt here: the saved matrices are bit for bit its controller's
+    W1, W2, _ = default_weights(dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.NotCertifiedWarning)  # a refusal is a result, not a failure
+        res = uf.robust_design_from_data(u, y, 10, W1, W2, "auto", dt=dt, window=(0, 49))
+    assert summary["certified"] == res.certified and summary["delta"] == res.delta
+    assert summary["reason"] == res.reason
+    K_npz, K_mat = load_controller(summary["controller_npz"]), load_controller(summary["controller_mat"])
+    K = res.controller
+    for mat in "ABCD":
+        ref = np.asarray(getattr(K, mat), float)
+        assert np.array_equal(np.asarray(getattr(K_npz, mat)), ref), mat
+        assert np.array_equal(np.asarray(getattr(K_mat, mat)), ref), mat
+    r = np.ones(100)
+    a, b = closed_loop(res.model, K, r), closed_loop(res.model, K_npz, r)
+    assert np.array_equal(a.y, b.y) and np.array_equal(a.u, b.u)
+
+
+def test_text_output_names_verdict_and_paths(design_run, capsys):
+    tmp, csv, _ = design_run
+    out = tmp / "text"
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "certified" in text.lower() and "controller.npz" in text and "design.md" in text
+
+
+def _bad(tmp_path, capsys, argv):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code not in (0, None)
+    return capsys.readouterr().err
+
+
+def test_nan_in_record_is_an_input_error(tmp_path, capsys):
+    t, u, y, _ = _record()
+    y = y.copy()
+    y[7] = np.nan
+    csv = _write_csv(tmp_path / "nan.csv", t, u, y)
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--out", str(tmp_path)])
+    assert "design: error:" in err and "NaN" in err and "row 7" in err
+
+
+def test_non_uniform_time_is_an_input_error(tmp_path, capsys):
+    t, u, y, _ = _record()
+    t = t.copy()
+    t[300:] += 0.05
+    csv = _write_csv(tmp_path / "jitter.csv", t, u, y)
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--out", str(tmp_path)])
+    assert "not uniformly sampled" in err
+
+
+def test_missing_file_and_bad_window_are_input_errors(design_run, tmp_path, capsys):
+    _, csv, _ = design_run
+    err = _bad(tmp_path, capsys, ["design", str(tmp_path / "none.csv"), "--horizon", "10", "--out", str(tmp_path)])
+    assert "no data file" in err
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--window", "1400:49",
+                                  "--out", str(tmp_path)])
+    assert "held out" in err
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--window", "zero", "--out", str(tmp_path)])
+    assert "START:LEN" in err
+
+
+def test_mimo_record_names_the_options(tmp_path, capsys):
+    t, u, y, _ = _record()
+    path = tmp_path / "mimo.csv"
+    rows = (f"{float(a)!r},{float(b)!r},{float(b)!r},{float(c)!r},{float(c)!r}" for a, b, c in zip(t, u, y))
+    path.write_text("t,u1,u2,y1,y2\n" + "\n".join(rows) + "\n")
+    err = _bad(tmp_path, capsys, ["design", str(path), "--horizon", "10", "--out", str(tmp_path)])
+    assert "--u" in err and "--y" in err and "SISO" in err
+    err = _bad(tmp_path, capsys, ["design", str(path), "--u", "u1,u2", "--y", "y1", "--horizon", "10",
+                                  "--out", str(tmp_path)])
+    assert "--u" in err and "SISO" in err
+
+
+def test_weights_from_files_equal_the_defaults(design_run, tmp_path, capsys):
+    """``--weights W1FILE W2FILE`` (saved with save_controller) gives the default design bit for bit."""
+    from synthesis import save_controller
+
+    _, csv, (_, _, dt) = design_run
+    W1, W2, _ = default_weights(dt)
+    f1, f2 = save_controller(tmp_path / "w1.npz", W1), save_controller(tmp_path / "w2.mat", W2)
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--weights", str(f1), str(f2),
+                 "--json", "--out", str(tmp_path / "files")]) == 0
+    files = json.loads(capsys.readouterr().out)
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--json",
+                 "--out", str(tmp_path / "defaults")]) == 0
+    defaults = json.loads(capsys.readouterr().out)
+    assert files["delta"] == defaults["delta"] and files["certified"] == defaults["certified"]
+    a, b = load_controller(files["controller_npz"]), load_controller(defaults["controller_npz"])
+    assert all(np.array_equal(getattr(a, m), getattr(b, m)) for m in "ABCD")
+    assert "w1.npz" in files["weights"]
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--w1", "100,1,1", "--w2", "1,2,3,4",
+                                  "--out", str(tmp_path)])
+    assert "DC,FREQ,MAG,HF" in err
