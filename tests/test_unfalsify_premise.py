@@ -305,3 +305,16 @@ def test_record_mode_auto_window_and_bad_windows(prbs_record):
         uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window="first")
     with pytest.raises(DataError, match="axis 0"):
         uf.robust_design_from_data(np.vstack([u, u]), y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window="auto")
+
+
+def test_steady_state_tracking_is_checked_across_the_certified_ball():
+    from unfalsify.robust import _steady_state_reason
+
+    P = control.ss(control.tf([0.5], [1, -0.5], 1.0))  # DC gain 1
+    K = control.ss([], [], [], [[0.5, -0.5]], 1.0)  # u = 0.5 (r − y): DC error 1/(1 + 0.5 p) at DC gain p
+    assert _steady_state_reason(P, K, 0.0, 0.7) == ""
+    assert _steady_state_reason(P, K, 0.1, 0.7) == ""  # p = 0.9: error 1/1.45 = 0.690
+    why = _steady_state_reason(P, K, 0.2, 0.7)  # p = 0.8: error 1/1.4 = 0.714 (second route: the formula)
+    assert "0.714" in why and "-0.2" in why and "integral action" in why
+    # P̂ − 1.8: the loop pole (0.25 + 0.25 d)/(1 + 0.5 d) = −2 leaves the unit circle
+    assert "unstable" in _steady_state_reason(P, K, 1.8, 0.7)

@@ -60,7 +60,7 @@ from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis._validation import DataError, check_horizon
 
 from ._common import SolverWarning, UnfalsificationError, check_sigma
-from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop
+from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry
 from .model import predictor_model
 from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
@@ -142,6 +142,7 @@ class SearchRecord:
     reference_certificate: LoopCertificate | None = None
     premise_reason: str = ""
     excitation: ExcitationCheck | None = None
+    tracking_reason: str = ""
 
     @property
     def certified(self) -> bool:
@@ -153,7 +154,8 @@ class SearchRecord:
         """Why not certified (``''`` when it is)."""
         if self.error or self.certificate is None:
             return self.error
-        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation)
+        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
+                               self.tracking_reason)
 
 
 @result
@@ -200,6 +202,9 @@ class RobustDesignResult:
         included (``''`` when they do not).
     excitation : ExcitationCheck or None
         Whether the data determine the plant where the returned loop is sensitive.
+    tracking_reason : str
+        Why the returned loop does not keep its steady-state tracking floor for every static perturbation
+        of P̂ in the certified ball (``''`` when it does).
     reference_model : control.StateSpace or None
         A second data-based model ``P̂_ref`` (the predictor model at ``reference_horizon``,
         default 2i): the same certificate must hold on it too.  A short horizon gives a coarse
@@ -231,6 +236,7 @@ class RobustDesignResult:
     premise: PremiseTest | None = None
     premise_reason: str = ""
     excitation: ExcitationCheck | None = None
+    tracking_reason: str = ""
 
     @property
     def controller(self) -> control.StateSpace:
@@ -247,7 +253,8 @@ class RobustDesignResult:
     @property
     def reason(self) -> str:
         """Why the loop is not certified (``''`` when it is)."""
-        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation)
+        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
+                               self.tracking_reason)
 
     @property
     def delta_subspace(self) -> float:
@@ -272,7 +279,7 @@ class RobustDesignResult:
 
 
 def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
-                    excitation: ExcitationCheck | None = None) -> str:
+                    excitation: ExcitationCheck | None = None, tracking_reason: str = "") -> str:
     """Every reason the loop is not certified, joined (``''`` when it is)."""
     reasons = [] if cert.certified else [cert.reason]
     if ref is not None and not ref.certified:
@@ -282,7 +289,41 @@ def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_
         reasons.append(f"premise not supported by the data: {premise_reason}")
     if excitation is not None and not excitation.ok:
         reasons.append(excitation.reason)
+    if tracking_reason:
+        reasons.append(tracking_reason)
     return "; ".join(reasons)
+
+
+def _steady_state_reason(model, controller, radius: float, floor: float) -> str:
+    """Why the loop's steady-state tracking error exceeds ``floor`` for a static perturbation ``P̂ ± radius``.
+
+    The performance floor of :func:`certify_loop` is checked on P̂ alone; the certificate speaks of every
+    plant within ``radius`` of P̂.  At steady state the worst such plant is a static offset at either end
+    (the error ``|1 − T(1)|`` is a Möbius function of the DC gain, and the loop is stable across the
+    ball, so no pole lies between): measured, a model with a DC gain far off the plant's passed a
+    step on P̂ that the plant missed.  ``''`` when both ends keep the floor.
+    """
+    if not radius > 0:
+        return ""
+    worst, where = 0.0, 0.0
+    for d in (-radius, radius):
+        try:
+            loop = closed_loop_ry(model + control.ss([], [], [], [[d]], model.dt), controller)
+            A = np.asarray(loop.A, float)
+            if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+                return (f"the loop is unstable with the static perturbation {d:+.4g} of P̂, inside the certified "
+                        f"ball of radius {radius:.4g}")
+            err = float(abs(1.0 - np.squeeze(control.dcgain(loop))))
+        except (np.linalg.LinAlgError, ValueError):
+            err = float("inf")
+        if not err <= worst:
+            worst, where = err, d
+    if worst <= floor:
+        return ""
+    return (f"steady-state tracking error {worst:.3g} > {floor:g} for the plant P̂ {where:+.4g} (a static offset "
+            f"inside the certified ball of radius {radius:.4g}): the loop tracks on P̂ but not across the "
+            "uncertainty it claims; use a weight W1 with more gain at low frequency (integral action) or "
+            "reduce δ (a longer or richer record)")
 
 
 def _persistence_reason(pred, u, i: int, what: str) -> str:
@@ -661,7 +702,9 @@ def robust_design_from_data(
         ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
         cert = certify_loop(model, d.controller, delta, **cert_opts)
         exc = check_excitation(model, d.controller, prem.frf) if prem.frf is not None and cert.stable else None
-        return cert, ref, premise_reason, exc
+        track = (_steady_state_reason(model, d.controller, (1.0 + certificate_margin) * delta, float(tracking_floor))
+                 if cert.stable else "")
+        return cert, ref, premise_reason, exc, track
 
     records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
     chosen = (first, c0, records[0])
@@ -708,6 +751,7 @@ def robust_design_from_data(
         premise=prem,
         premise_reason=premise_reason,
         excitation=rec.excitation,
+        tracking_reason=rec.tracking_reason,
     )
 
 
@@ -772,10 +816,11 @@ def _data_dt(dt, W1, W2) -> float:
     return 1.0 if common is True else float(common)
 
 
-def _record(h, cz, ratio, c, design, cert, ref_cert, premise_reason="", excitation=None) -> SearchRecord:
+def _record(h, cz, ratio, c, design, cert, ref_cert, premise_reason="", excitation=None, tracking="") -> SearchRecord:
     return SearchRecord(horizon=int(h), causal=bool(cz), gamma_ratio=float(ratio), w3_gain=float(c),
                         gamma=float(design.gamma), gamma_min=float(design.gamma_min), certificate=cert,
-                        reference_certificate=ref_cert, premise_reason=premise_reason, excitation=excitation)
+                        reference_certificate=ref_cert, premise_reason=premise_reason, excitation=excitation,
+                        tracking_reason=tracking)
 
 
 def _predictor_at(h: int, u, y, predictor, predictor_for):
