@@ -15,8 +15,8 @@ power).  So the premise is tested three ways, each from the record itself:
    are free because Δ is not at rest when the segment starts).  The admissible noise σ_oe is stated:
    by default the residual rms of a least-squares FIR fit of ``e`` on ``u``, corrected for the taps'
    degrees of freedom -- the part of the output error that no causal LTI operator of that memory
-   explains -- with the memory doubled while the longer fit is significantly better (F-test at 1 %),
-   so that a slow model error is not mistaken for noise.  The loop is then designed and certified for
+   explains.  A model error slower than that memory is partly taken for noise: the frequency-response
+   tests below and the steady-state check of the pipeline look at it another way.  The loop is then designed and certified for
    ``max(δ, δ_oe)``.
 2. **A nonparametric frequency response** (:func:`frequency_response_estimate`): Welch cross-spectra
    of the input and the same output error, ``D̂ = S_ue/S_uu`` -- an estimate of ``P − P̂`` that needs no
@@ -33,7 +33,9 @@ power).  So the premise is tested three ways, each from the record itself:
    frequency the whole confidence disk lies where the loop is stable frequency by frequency:
    ``(|D̂| + r) · max_bin |M̂| < 1``.  Where the input has no power, ``r`` is large and the test
    fails unless ``|M̂|`` is small there: the reason names the band and the input that would fix it.
-   (Zero frequency is left out of both tests: each Welch segment is detrended.)
+   The lowest frequency of the grid stands for the band below half the resolution (each segment is
+   detrended, so it estimates the band around zero, not the mean): it is tested like the others --
+   measured, leaving it out let a model whose error sat below 0.05 rad/sample through.
 
 A ``PersistenceWarning`` of the predictors the pipeline uses (input not persistently exciting,
 regressor rank deficient) also means *not certified* (checked in :mod:`unfalsify.robust`).
@@ -103,8 +105,7 @@ class PremiseOptions:
     burn_in : int or None
         Free rows at the start of the output-error segment (None: the horizon ``i``).
     taps : int or None
-        Initial taps of the FIR fit that estimates σ (None: ``min(N/4, max(4i, 20))``; doubled up to
-        ``N/2`` while the F-test finds the longer memory significant).
+        Taps of the FIR fit that estimates σ (None: ``min(N/4, max(4i, 20))``).
     tol, time_limit : float
         Relative gap and wall-clock limit of the Theorem 7.1 solve (structured backend).  On the time
         limit the certified upper end of the bracket is used (never a smaller value).
@@ -366,29 +367,15 @@ def _fir_rss(u: np.ndarray, e: np.ndarray, taps: int, burn: int) -> tuple[float,
     return float(r @ r), target.size
 
 
-def _fir_sigma(u: np.ndarray, e: np.ndarray, taps: int, burn: int, alpha: float = 0.01) -> tuple[float, int]:
-    """Noise level of the output error: the residual rms of a least-squares FIR fit, per degree of freedom.
+def _fir_sigma(u: np.ndarray, e: np.ndarray, taps: int, burn: int) -> float:
+    """Residual rms of the least-squares FIR fit of ``e`` on ``u`` (rows after ``burn``), per degree of freedom.
 
-    The fit must leave no model error in the residual, or σ would absorb it (measured: a slow mode that
-    a short-horizon P̂ misses, its error hidden in σ, δ of the output error 0.012 for ‖P − P̂‖∞ = 0.73).
-    So the memory grows -- the taps doubled -- while doubling them still explains significantly more
-    (the F-test of nested least-squares models at level ``alpha``: the inputs further back still predict
-    the residual), up to half the rows.  Returns ``(σ, taps)``.
+    The memory is fixed: growing it while an F-test of nested fits found the longer one significant was
+    measured to miss the slow model error it was meant to catch (a fourth-order plant whose error sat
+    below the held-out record's noise) while it refused two integrating-plant loops that hold.
     """
-    rows = e.size - burn
-    cap = max(taps, rows // 2)
-    rss, m = _fir_rss(u, e, taps, burn)
-    while taps < cap:
-        more = min(2 * taps, cap)
-        rss2, _ = _fir_rss(u, e, more, burn)
-        dof = m - more
-        if dof <= 0 or rss2 <= 0:
-            break
-        stat = ((rss - rss2) / (more - taps)) / (rss2 / dof)
-        if scipy.stats.f.sf(stat, more - taps, dof) >= alpha:
-            break  # the longer memory explains nothing significant: the residual is noise
-        taps, rss = more, rss2
-    return float(math.sqrt(rss / max(m - taps, 1))), int(taps)
+    rss, rows = _fir_rss(u, e, taps, burn)
+    return float(math.sqrt(rss / max(rows - taps, 1)))
 
 
 def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options: PremiseOptions | None = None
@@ -447,10 +434,9 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
         sigma, rule = float(opts.sigma), "given"
     else:
         taps = opts.taps if opts.taps is not None else min((n - burn) // 4, max(4 * i, 20))
-        sigma, taps = _fir_sigma(seg_u, e, int(taps), burn)
+        sigma = _fir_sigma(seg_u, e, int(taps), burn)
         rule = (f"residual rms of a {taps}-tap least-squares FIR fit of the output error on the input, "
-                f"per degree of freedom (rows {burn}…{n - 1}; taps doubled while the F-test at 1 % found "
-                "the longer memory significant)")
+                f"per degree of freedom (rows {burn}…{n - 1})")
         sigma = max(sigma, 1e-12 * max(float(np.sqrt(np.mean(e ** 2))), 1e-300))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a non-optimal status is read from the result below
@@ -486,6 +472,10 @@ class PremiseTest:
         region by more than δ).
     reason : str
         ``''`` when the premise survived these tests; otherwise why not, and the fix.
+    plant_frf : FrequencyResponseEstimate or None
+        The direct Welch estimate of the plant ``Ĝ = S_yu/S_uu`` on the same data (its lowest frequency
+        is the low-frequency gain the pipeline's tracking check uses: the output error of a model with
+        a slow pole drifts, and its segments' detrending hides that drift from ``frf``).
     """
 
     delta_subspace: float
@@ -495,6 +485,7 @@ class PremiseTest:
     frf: FrequencyResponseEstimate | None
     inconsistency: float
     reason: str
+    plant_frf: FrequencyResponseEstimate | None = None
 
     @property
     def ok(self) -> bool:
@@ -509,7 +500,7 @@ class PremiseTest:
 
 def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[float, str]:
     """``max (|D̂| − r)/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``) and where it exceeds 1."""
-    excited = est.excited & np.isfinite(est.radius) & (est.frequency > 0)
+    excited = est.excited & np.isfinite(est.radius)
     if not np.any(excited):
         return float("nan"), "the record excites no frequency"
     gap = np.abs(est.response) - est.radius
@@ -587,12 +578,18 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
                                               confidence=opts.confidence)
         except DataError as exc:
             reasons.append(f"no frequency-response estimate of the model error ({exc})")
+    plant_frf = None
+    if oe is not None:
+        try:
+            plant_frf = frequency_response_estimate(*oe_data, dt, nperseg=opts.nperseg, confidence=opts.confidence)
+        except DataError:
+            plant_frf = None  # too short: the missing output-error estimate already says so
     if frf is not None:
         worst, why = _frf_inconsistency(frf, delta)
         if why:
             reasons.append(why)
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
-                       frf=frf, inconsistency=float(worst), reason="; ".join(reasons))
+                       frf=frf, inconsistency=float(worst), reason="; ".join(reasons), plant_frf=plant_frf)
 
 
 @result
@@ -620,7 +617,7 @@ class ExcitationCheck:
 def check_excitation(model, controller, frf: FrequencyResponseEstimate) -> ExcitationCheck:
     """Check that the data determine the plant where the loop ``(P̂, K)`` is sensitive.
 
-    At each Welch frequency ω > 0 the confidence disk ``|(P − P̂) − D̂| ≤ r`` must lie where the loop is
+    At each Welch frequency the confidence disk ``|(P − P̂) − D̂| ≤ r`` must lie where the loop is
     stable frequency by frequency: ``(|D̂| + r) · max_bin |M̂| < 1`` with ``M̂ = (I − C_y P̂)⁻¹ C_y``.
 
     Parameters
@@ -643,7 +640,6 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate) -> Excit
     with np.errstate(invalid="ignore"):
         bound = np.where(np.isfinite(frf.radius), (dist + frf.radius) * peak, np.where(peak > 0, np.inf, 0.0))
     bound = np.nan_to_num(bound, nan=np.inf)
-    bound[frf.frequency <= 0] = 0.0  # detrended segments: nothing is known at zero frequency
     k = int(np.argmax(bound))
     worst = float(bound[k])
     if worst < 1.0:

@@ -294,8 +294,11 @@ def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_
     return "; ".join(reasons)
 
 
-def _steady_state_reason(model, controller, radius: float, floor: float) -> str:
-    """Why the loop's steady-state tracking error exceeds ``floor`` for a static perturbation ``P̂ ± radius``.
+def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
+    """Why the loop's steady-state tracking error exceeds ``floor`` for a static perturbation ``P̂ ± radius``,
+    or for the data's own low-frequency gain ``data_gain`` (the lowest frequency of a Welch estimate of the
+    plant; measured: a model with DC gain −1694 where the record shows 1.3–1.7 passed every other test
+    with a controller too weak to track the real plant).
 
     The performance floor of :func:`certify_loop` is checked on P̂ alone; the certificate speaks of every
     plant within ``radius`` of P̂.  At steady state the worst such plant is a static offset at either end
@@ -318,12 +321,30 @@ def _steady_state_reason(model, controller, radius: float, floor: float) -> str:
             err = float("inf")
         if not err <= worst:
             worst, where = err, d
+    if worst <= floor and data_gain is not None and np.isfinite(data_gain):
+        err = _dc_error_at_gain(controller, complex(data_gain))
+        if not err <= floor:
+            return (f"steady-state tracking error {err:.3g} > {floor:g} at the low-frequency gain the data show "
+                    f"({abs(data_gain):.4g}, the lowest frequency of the Welch estimate) while P̂'s DC gain is "
+                    f"{float(np.real(np.squeeze(control.dcgain(model)))):.4g}: P̂ is wrong where tracking is decided; "
+                    "refit it (a longer horizon, a longer or richer record)")
     if worst <= floor:
         return ""
     return (f"steady-state tracking error {worst:.3g} > {floor:g} for the plant P̂ {where:+.4g} (a static offset "
             f"inside the certified ball of radius {radius:.4g}): the loop tracks on P̂ but not across the "
             "uncertainty it claims; use a weight W1 with more gain at low frequency (integral action) or "
             "reduce δ (a longer or richer record)")
+
+
+def _dc_error_at_gain(controller, p: complex) -> float:
+    """``|1 − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (SISO)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        C = np.asarray(control.dcgain(controller), complex).reshape(-1)
+        cr, cy = C[0], C[1]
+        den = 1.0 - p * cy
+        if not np.isfinite(cy):  # integral action: T(1) = 1
+            return 0.0
+        return float(abs(1.0 - p * cr / den)) if den != 0 else float("inf")
 
 
 def _persistence_reason(pred, u, i: int, what: str) -> str:
@@ -702,8 +723,9 @@ def robust_design_from_data(
         ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
         cert = certify_loop(model, d.controller, delta, **cert_opts)
         exc = check_excitation(model, d.controller, prem.frf) if prem.frf is not None and cert.stable else None
-        track = (_steady_state_reason(model, d.controller, (1.0 + certificate_margin) * delta, float(tracking_floor))
-                 if cert.stable else "")
+        gain = prem.plant_frf.response[0] if prem.plant_frf is not None else None
+        track = (_steady_state_reason(model, d.controller, (1.0 + certificate_margin) * delta, float(tracking_floor),
+                                      gain) if cert.stable else "")
         return cert, ref, premise_reason, exc, track
 
     records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
