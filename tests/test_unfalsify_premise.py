@@ -318,3 +318,20 @@ def test_steady_state_tracking_is_checked_across_the_certified_ball():
     assert "0.714" in why and "-0.2" in why and "integral action" in why
     # P̂ − 1.8: the loop pole (0.25 + 0.25 d)/(1 + 0.5 d) = −2 leaves the unit circle
     assert "unstable" in _steady_state_reason(P, K, 1.8, 0.7)
+
+
+def test_size_guard_refuses_what_cannot_fit_and_warns_about_long_solves(prbs_record, monkeypatch):
+    import unfalsify.robust as robust
+
+    # the estimate reproduces the measurements it was fitted to, within a factor 2
+    assert 96 < uf.solve_estimate(100, 1000, "structured")[0] < 390
+    assert uf.solve_estimate(64, 200, "cvxpy")[1] > 23.6e9 / 2  # killed for memory at 23.6 GB
+    P, u, y = prbs_record
+    W = design_weights()
+    monkeypatch.setattr(robust, "_memory_available", lambda: 1e6)  # 1 MB: nothing fits
+    with pytest.raises(DataError, match="GB available"):
+        uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49))
+    monkeypatch.setattr(robust, "_memory_available", lambda: 24.0 * 2 ** 30)
+    monkeypatch.setattr(robust, "LONG_SOLVE_SECONDS", 0.0)
+    with pytest.warns(uf.LongSolveWarning, match="estimated at"):
+        uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False)

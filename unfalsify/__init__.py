@@ -53,6 +53,7 @@ Robust design from data (§7.4)
    DesignSearch           -- the family of designs the search tries (γ ratios, W3 gains, causality, horizons)
    SearchRecord           -- one design tried by the search and why it failed
    additive_weight_fixed_point -- the W3 gain ``c = (1 + margin) δ γ(c)``
+   solve_estimate         -- rough time and memory of a (7.5) solve, which the pipeline checks before solving
    predictor_model        -- the data-based model P̂: ARX model of the predictor's first block row
 
 The certificate's premise, tested on the data
@@ -90,6 +91,7 @@ Errors and warnings
    NotCertifiedError      -- ``require_certified=True`` and no design of the search certifies
    NotCertifiedWarning    -- the pipeline could not certify the loop it returns (with the reason)
    FewDataWarning         -- the (7.5) window has few columns for the predictor it estimates
+   LongSolveWarning       -- the (7.5) solve is estimated to take long (with the estimate and the fix)
    IllConditionedWarning  -- cond T(u) > 1e8: the literal Chapter 7 quantities are meaningless
    NotAtRestWarning       -- a record that starts mid-motion where rest is assumed
    SolverWarning          -- the conic solver returned a status other than ``optimal``
@@ -174,6 +176,7 @@ from .robust import (
     AdditiveRobustness,
     DesignSearch,
     FewDataWarning,
+    LongSolveWarning,
     NotCertifiedError,
     NotCertifiedWarning,
     RobustDesignResult,
@@ -182,6 +185,7 @@ from .robust import (
     additive_robustness,
     additive_weight_fixed_point,
     robust_design_from_data,
+    solve_estimate,
 )
 
 __all__ = [
@@ -231,6 +235,8 @@ __all__ = [
     "AdditiveRobustness",
     "DesignSearch",
     "FewDataWarning",
+    "LongSolveWarning",
+    "solve_estimate",
     "NotCertifiedError",
     "NotCertifiedWarning",
     "RobustDesignResult",
