@@ -335,3 +335,18 @@ def test_size_guard_refuses_what_cannot_fit_and_warns_about_long_solves(prbs_rec
     monkeypatch.setattr(robust, "LONG_SOLVE_SECONDS", 0.0)
     with pytest.warns(uf.LongSolveWarning, match="estimated at"):
         uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False)
+
+
+def test_a_predictor_fitted_on_barely_enough_columns_is_warned():
+    P = third_order()
+    d = collect_data(P, prbs(400, seed=2), process_noise=0.05, sensor_noise=0.05, seed=102)
+    i = 20
+    n = 2 * i + 61 - 1  # 61 columns for 60 regressors
+    u, y = d.u[:n, 0], d.y[:n, 0]
+    pred = synthesis.fit_predictor(u, y, i)
+    assert pred.n_columns == 61 and pred.n_regressors == 60
+    W = design_weights()
+    with pytest.warns(uf.FewDataWarning, match="j = 61 columns for its 60 regressors"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", uf.NotCertifiedWarning)
+            uf.robust_design_from_data(u, y, i, W["W11"], W["W21"], "auto", predictor=pred, dt=P.dt, search=False)

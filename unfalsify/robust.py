@@ -712,6 +712,7 @@ def robust_design_from_data(
         backend = "structured" if form == "conditioned" else "cvxpy"
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
+    _warn_few_columns(predictor)
     premise_opts = PremiseOptions() if premise is None else premise
     if not isinstance(premise_opts, PremiseOptions):
         raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
@@ -884,6 +885,17 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     if predictor_for is None:
         predictor_for = functools.partial(_fitted, u_fit, y_fit)
     return u_all[start:stop], y_all[start:stop], validation, predictor, predictor_for
+
+
+def _warn_few_columns(predictor) -> None:
+    """FewDataWarning for a given predictor fitted on fewer than three columns per regressor."""
+    j, rows = getattr(predictor, "n_columns", None), getattr(predictor, "n_regressors", None)
+    if j is not None and rows is not None and int(j) < 3 * int(rows):
+        warnings.warn(
+            f"the predictor was fitted on j = {j} columns for its {rows} regressors (fewer than 3 per regressor): "
+            "it absorbs much of the noise, so P̂ and δ are optimistic; fit it on a longer record "
+            f"(j ≥ {3 * int(rows)}, i.e. at least {3 * int(rows) + 2 * int(predictor.horizon) - 1} samples)",
+            FewDataWarning, stacklevel=3)
 
 
 def _fitted(u, y, h):
