@@ -9,7 +9,7 @@ import scipy.io
 from experiments import Record, RecordError, load_record
 from synthesis import DataError
 
-CD_PLAYER = Path("/work/shared/data/CD_player_arm_dat.mat")
+CD_PLAYER = Path(__file__).resolve().parents[1] / "experiments" / "data" / "CD_player_arm_dat.mat"  # shipped
 
 
 @pytest.fixture
@@ -73,7 +73,7 @@ def test_mat_by_variable_and_columns_and_by_name(tmp_path, signals):
     assert rec.y.shape == (40, 1) and np.array_equal(rec.y, y)
 
 
-@pytest.mark.skipif(not CD_PLAYER.exists(), reason="shared data file not present")
+@pytest.mark.skipif(not CD_PLAYER.exists(), reason="the shipped data file is missing")
 def test_cd_player_arm_file():
     rec = load_record(CD_PLAYER, variable="CD_player_arm_dat", u=[0, 1], y=[2, 3], dt=1)
     raw = scipy.io.loadmat(CD_PLAYER)["CD_player_arm_dat"]
