@@ -73,6 +73,12 @@ def siso_signal(x, name: str, n: int | None = None) -> np.ndarray:
     return arr[:, 0].copy()
 
 
+def siso_pair(u, y, prefix: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """``(u, y)`` as two single-channel 1-D float arrays of one length (raises DataError otherwise)."""
+    u = siso_signal(u, f"{prefix}u")
+    return u, siso_signal(y, f"{prefix}y", n=u.size)
+
+
 def rms_or_one(x: np.ndarray) -> float:
     """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
     r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))

@@ -60,7 +60,7 @@ import scipy.stats
 from synthesis._repr import result
 from synthesis._validation import DataError
 
-from ._common import siso_signal
+from ._common import siso_pair
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel
 
@@ -217,11 +217,7 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     """
     if not (0.0 < confidence < 1.0):
         raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
-    pairs = [(siso_signal(u, "u"), None)]
-    pairs[0] = (pairs[0][0], siso_signal(y, "y", n=pairs[0][0].size))
-    for k, (us, ys) in enumerate(segments):
-        us = siso_signal(us, f"segments[{k}] u")
-        pairs.append((us, siso_signal(ys, f"segments[{k}] y", n=us.size)))
+    pairs = [siso_pair(u, y)] + [siso_pair(us, ys, f"segments[{k}] ") for k, (us, ys) in enumerate(segments)]
     L = int(nperseg) if nperseg is not None else _segment_length(max(p[0].size for p in pairs))
     usable = [p for p in pairs if p[0].size >= 2 * L]
     if not usable:
@@ -344,8 +340,7 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     ndarray, shape (n − horizon,)
     """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
+    u, y = siso_pair(u, y)
     i = int(horizon)
     if A.shape[0] != 2 * i or B.shape[1] != 1 or C.shape[0] != 1:
         raise DataError(f"model must be the SISO predictor_model of horizon {i} (order {2 * i}), got order "
@@ -413,8 +408,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     """
     opts = options or PremiseOptions()
     i = int(horizon)
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
+    u, y = siso_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)
     n = min(u.size - i, burn + int(opts.samples))
     if n < burn + 4 * i or n < 2 * burn:
@@ -540,15 +534,13 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     PremiseTest
     """
     opts = options or PremiseOptions()
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
+    u, y = siso_pair(u, y)
     if validation is not None:
         try:
             uv, yv = validation
         except (TypeError, ValueError):
             raise DataError("validation must be a pair (u, y) of held-out data of the same plant") from None
-        uv = siso_signal(uv, "validation u")
-        yv = siso_signal(yv, "validation y", n=uv.size)
+        uv, yv = siso_pair(uv, yv, "validation ")
         oe_data, held_out = (uv, yv), True
     else:
         oe_data, held_out = (u, y), False

@@ -59,7 +59,7 @@ import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis._validation import DataError, check_horizon
 
-from ._common import SolverWarning, UnfalsificationError, check_sigma
+from ._common import SolverWarning, UnfalsificationError, check_sigma, siso_pair
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry
 from .model import predictor_model
 from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
@@ -350,16 +350,15 @@ def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_
 
 
 def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
-    """Why the loop's steady-state tracking error exceeds ``floor`` for a static perturbation ``P̂ ± radius``,
-    or for the data's own low-frequency gain ``data_gain`` (the lowest frequency of a Welch estimate of the
-    plant; measured: a model with DC gain −1694 where the record shows 1.3–1.7 passed every other test
-    with a controller too weak to track the real plant).
+    """Why the loop's steady-state tracking error exceeds ``floor`` across the certified ball (``''`` if it does not).
 
-    The performance floor of :func:`certify_loop` is checked on P̂ alone; the certificate speaks of every
+    The performance floor of :func:`certify_loop` is a step on P̂ alone; the certificate speaks of every
     plant within ``radius`` of P̂.  At steady state the worst such plant is a static offset at either end
     (the error ``|1 − T(1)|`` is a Möbius function of the DC gain, and the loop is stable across the
-    ball, so no pole lies between): measured, a model with a DC gain far off the plant's passed a
-    step on P̂ that the plant missed.  ``''`` when both ends keep the floor.
+    ball, so no pole lies between).  The loop must also track at ``data_gain``, the low-frequency gain the
+    data show (the lowest frequency of a Welch estimate of the plant): measured, a model with DC gain
+    −1694 where the record shows 1.3–1.7 passed every other test with a controller too weak to track the
+    real plant.
     """
     if not radius > 0:
         return ""
@@ -376,19 +375,20 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
             err = float("inf")
         if not err <= worst:
             worst, where = err, d
-    if worst <= floor and data_gain is not None and np.isfinite(data_gain):
-        err = _dc_error_at_gain(controller, complex(data_gain))
-        if not err <= floor:
-            return (f"steady-state tracking error {err:.3g} > {floor:g} at the low-frequency gain the data show "
-                    f"({abs(data_gain):.4g}, the lowest frequency of the Welch estimate) while P̂'s DC gain is "
-                    f"{float(np.real(np.squeeze(control.dcgain(model)))):.4g}: P̂ is wrong where tracking is decided; "
-                    "refit it (a longer horizon, a longer or richer record)")
-    if worst <= floor:
+    if not worst <= floor:
+        return (f"steady-state tracking error {worst:.3g} > {floor:g} for the plant P̂ {where:+.4g} (a static offset "
+                f"inside the certified ball of radius {radius:.4g}): the loop tracks on P̂ but not across the "
+                "uncertainty it claims; use a weight W1 with more gain at low frequency (integral action) or "
+                "reduce δ (a longer or richer record)")
+    if data_gain is None or not np.isfinite(data_gain):
         return ""
-    return (f"steady-state tracking error {worst:.3g} > {floor:g} for the plant P̂ {where:+.4g} (a static offset "
-            f"inside the certified ball of radius {radius:.4g}): the loop tracks on P̂ but not across the "
-            "uncertainty it claims; use a weight W1 with more gain at low frequency (integral action) or "
-            "reduce δ (a longer or richer record)")
+    err = _dc_error_at_gain(controller, complex(data_gain))
+    if err <= floor:
+        return ""
+    return (f"steady-state tracking error {err:.3g} > {floor:g} at the low-frequency gain the data show "
+            f"({abs(data_gain):.4g}, the lowest frequency of the Welch estimate) while P̂'s DC gain is "
+            f"{float(np.real(np.squeeze(control.dcgain(model)))):.4g}: P̂ is wrong where tracking is decided; "
+            "refit it (a longer horizon, a longer or richer record)")
 
 
 def _dc_error_at_gain(controller, p: complex) -> float:
@@ -850,14 +850,7 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
 
     Returns ``(u_window, y_window, validation, predictor, predictor_for)``.
     """
-    u_all, y_all = np.asarray(u, float), np.asarray(y, float)
-    if u_all.ndim != 1 and not (u_all.ndim == 2 and u_all.shape[1] == 1):
-        raise DataError(f"u must be one channel with time along axis 0, got shape {u_all.shape}"
-                        + (" (time runs along axis 0: pass u.T)" if u_all.ndim == 2 and u_all.shape[0] < u_all.shape[1]
-                           else ""))
-    u_all, y_all = u_all.reshape(-1), y_all.reshape(-1)
-    if y_all.size != u_all.size:
-        raise DataError(f"u has {u_all.size} samples and y {y_all.size}: pass the same record for both")
+    u_all, y_all = siso_pair(u, y)
     n = u_all.size
     i = check_horizon(horizon, n)
     fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
