@@ -73,6 +73,64 @@ def test_a_silent_band_has_wide_disks_and_is_not_excited():
     assert np.min(est.radius[high]) > 10 * np.max(est.radius[low & (est.frequency > 0)])
 
 
+# ---- the response below the Welch resolution (local polynomial method) -----------------------------------
+
+def _slow_plant(dt=0.02):
+    """A pole at 1 rad/s and a faster pair (unit DC gain) at 50 Hz: its DC gain lives below Welch's first bin."""
+    return control.c2d(control.tf([192.0], np.polymul([1, 1], np.polymul([1, 3], [1, 4.8, 64]))), dt)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_low_band_disks_cover_a_response_with_its_transient(seed):
+    P = control.ss(control.tf([0.05], [1, -0.95], 1.0))  # DC gain 1, bandwidth ≈ 8 bins of a 1000-sample record
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal(1000))
+    # the record starts away from rest (a pre-run of 300 samples), so every DFT bin carries a transient
+    y = collect_data(P, np.concatenate([np.sign(rng.standard_normal(300)), u])).y[300:, 0]
+    y = y + 0.05 * rng.standard_normal(y.size)
+    est = uf.low_band_estimate(u, y, bins=10)
+    G = np.asarray(P(np.exp(1j * est.frequency)), complex).reshape(-1)  # second route: the true response
+    # within the disk plus the stated bias of a quadratic fit to a response that bends within the window
+    # (measured up to 8 % of |G| at the lowest bin)
+    assert np.all(np.abs(est.response - G) <= est.radius + 0.1 * np.abs(G))
+    assert np.max(est.radius) < 0.2 and est.window == 16 and est.degree == 2  # |G| is 0.6–1 here
+    np.testing.assert_allclose(est.frequency, 2 * np.pi * np.arange(1, 11) / 1000)
+
+
+def test_low_band_noise_free_fir_is_exact_and_bad_input_names_the_fix():
+    u, y = _fir_data(512, 0.0, 5)
+    est = uf.low_band_estimate(u, y, bins=6)
+    # a FIR response of length 4 on a record of 512 is, bin by bin, G U plus a transient of degree ≤ 3 in z
+    np.testing.assert_allclose(est.response, _fir_response(est.frequency), atol=5e-3)
+    with pytest.raises(DataError, match="longer record"):
+        uf.low_band_estimate(u[:43], y[:43], bins=6)  # needs 2·(6 + 16) = 44
+    with pytest.raises(DataError, match="bins"):
+        uf.low_band_estimate(u, y, bins=0)
+
+
+def test_low_band_inconsistency_and_excitation_evidence():
+    from unfalsify.premise import _low_band_inconsistency
+
+    f = np.array([0.1, 0.2, 0.3])
+    est = uf.LowBandEstimate(frequency=f, response=np.array([0.5, 0.2, 0.05]) + 0j, radius=np.array([0.2, 0.1, 0.1]),
+                             confidence=0.99, window=16, degree=2, samples=600, dt=1.0)
+    worst, why = _low_band_inconsistency(est, 0.1)
+    assert worst == pytest.approx(3.0) and "0.1 rad/sample" in why and "slow" in why  # |D̂| − r = 0.3 > δ at 0.1 only
+    assert _low_band_inconsistency(est, 0.5) == (pytest.approx(0.6), "")
+
+
+def test_a_model_missing_slow_dynamics_is_refused_at_low_frequency():
+    """The adversarial case that was a false certificate: a 4th-order 50 Hz plant with a pole at 1 rad/s,
+    i = 15, white PRBS.  P̂ has 0.27 of the DC gain (true ‖P − P̂‖∞ = 6δ, all of it below Welch's first
+    frequency): certified before the low band, and its loop settled too slowly to track on the plant."""
+    from experiments import adversarial as adv
+
+    case = next(c for c in adv.catalogue(seed=1) if c.name == "rate_order/fourth_order_50hz/prbs")
+    run = adv.run_case(case)
+    assert run["verdict"] == "not_certified" and run["premise_ratio"] > 1.25
+    assert "at low frequency" in run["reason"] and "rad/s" in run["reason"]
+
+
 def test_frequency_response_bad_input():
     with pytest.raises(DataError, match="two Welch segments"):
         uf.frequency_response_estimate(np.ones(20), np.ones(20), nperseg=16)

@@ -67,6 +67,8 @@ The certificate's premise, tested on the data
    OutputErrorResult      -- result of ``output_error_unfalsify``
    frequency_response_estimate -- Welch estimate ``S_yu/S_uu`` with simultaneous confidence disks
    FrequencyResponseEstimate -- result of ``frequency_response_estimate``
+   low_band_estimate -- response at the lowest DFT frequencies (local polynomial method), with disks
+   LowBandEstimate -- result of ``low_band_estimate``
    check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
    ExcitationCheck        -- result of ``check_excitation``
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
@@ -163,12 +165,14 @@ from .premise import (
     EXCITATION_FLOOR,
     ExcitationCheck,
     FrequencyResponseEstimate,
+    LowBandEstimate,
     OutputErrorResult,
     PremiseOptions,
     PremiseTest,
     check_excitation,
     check_premise,
     frequency_response_estimate,
+    low_band_estimate,
     output_error_residual,
     output_error_unfalsify,
 )
@@ -224,12 +228,14 @@ __all__ = [
     "EXCITATION_FLOOR",
     "ExcitationCheck",
     "FrequencyResponseEstimate",
+    "LowBandEstimate",
     "OutputErrorResult",
     "PremiseOptions",
     "PremiseTest",
     "check_excitation",
     "check_premise",
     "frequency_response_estimate",
+    "low_band_estimate",
     "output_error_residual",
     "output_error_unfalsify",
     "AdditiveRobustness",

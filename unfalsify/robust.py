@@ -356,7 +356,8 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
     plant within ``radius`` of P̂.  At steady state the worst such plant is a static offset at either end
     (the error ``|1 − T(1)|`` is a Möbius function of the DC gain, and the loop is stable across the
     ball, so no pole lies between).  The loop must also track at ``data_gain``, the low-frequency gain the
-    data show (the lowest frequency of a Welch estimate of the plant): measured, a model with DC gain
+    data show (the plant's response at the record's lowest DFT frequency,
+    :attr:`unfalsify.PremiseTest.plant_low_band`): measured, a model with DC gain
     −1694 where the record shows 1.3–1.7 passed every other test with a controller too weak to track the
     real plant.
     """
@@ -386,7 +387,7 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
     if err <= floor:
         return ""
     return (f"steady-state tracking error {err:.3g} > {floor:g} at the low-frequency gain the data show "
-            f"({abs(data_gain):.4g}, the lowest frequency of the Welch estimate) while P̂'s DC gain is "
+            f"({abs(data_gain):.4g}, the plant's response at the record's lowest DFT frequency) while P̂'s DC gain is "
             f"{float(np.real(np.squeeze(control.dcgain(model)))):.4g}: P̂ is wrong where tracking is decided; "
             "refit it (a longer horizon, a longer or richer record)")
 
@@ -786,8 +787,9 @@ def robust_design_from_data(
     def check(d):
         ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
         cert = certify_loop(model, d.controller, delta, **cert_opts)
-        exc = check_excitation(model, d.controller, prem.frf) if prem.frf is not None and cert.stable else None
-        gain = prem.plant_frf.response[0] if prem.plant_frf is not None else None
+        exc = (check_excitation(model, d.controller, prem.frf, prem.low_band)
+               if prem.frf is not None and cert.stable else None)
+        gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
         track = (_steady_state_reason(model, d.controller, (1.0 + certificate_margin) * delta, float(tracking_floor),
                                       gain) if cert.stable else "")
         return cert, ref, premise_reason, exc, track
