@@ -1,6 +1,6 @@
-"""Program (7.5) with the predictor fixed, split by columns (tasks on any ``concurrent.futures.Executor``).
+"""Solver ``"split"``: program (7.5) with the predictor fixed, split by columns (tasks on any ``concurrent.futures.Executor``).
 
-With ``[L_w L_u]`` fixed, (7.5) in the column form of :mod:`unfalsify._columns` is
+With ``[L_w L_u]`` fixed, (7.5) in the column form of :mod:`unfalsify.solvers.columns` is
 
     min δ   s.t.   ‖T(h_k)‖₂ ≤ δ  (k = 0 … j−1),   Σ_k ‖b_k − T(u_k) h_k‖₂² ≤ ρ²,
 
@@ -28,24 +28,27 @@ Newton steps, duality gap ``2i/t``), whose central-path multiplier ``G = F⁻¹/
 ``f_k'`` and the dual point of the certificate: with ``r_k`` the residual and ``G21`` the
 lower-left block, stationarity reads ``T*(−G21) = T(u_k)ᵀ r_k``, so ``(V, W) = (R, −G21)`` is a
 dual point of the joint problem (all columns share the noise multiplier), and its weak-duality
-bound is computed from the data by :meth:`unfalsify._columns.ColumnForm.lower_bound`, exactly as
+bound is computed from the data by :meth:`unfalsify.solvers.columns.ColumnForm.lower_bound`, exactly as
 for the other backends.  Every column is solved by the same deterministic code whatever the
 executor, the number of workers or the block size, so the answer does not depend on them.
 """
 from __future__ import annotations
 
 import math
-import time
+import warnings
 from functools import lru_cache
 
 import numpy as np
 import scipy.linalg
 
-from synthesis._validation import DataError
+from synthesis import DataError
 
-from ._toeplitz import toeplitz_matrix, toeplitz_norm
+from ..exceptions import SolverWarning
+from .barrier import Deadline
+from .base import SolverOutput, SolverStatus
+from .toeplitz import adjoint, toeplitz_matrix, toeplitz_norm, toeplitz_stack
 
-__all__ = ["split_solve"]  # solve_columns (the task), solve_column and solve_split_problem are helpers
+__all__ = ["split_solve", "solve", "solve_columns", "solve_column"]
 
 #: Default relative width of the final bracket on δ*.
 SPLIT_RTOL = 1e-8
@@ -56,31 +59,16 @@ _MU = 12.0
 
 @lru_cache(maxsize=16)
 def _indices(m: int) -> dict:
-    """Flat index arrays for the Hessian gathers, the subdiagonal sums and ``T(h)`` (size m)."""
+    """Flat index arrays for the Hessian gathers (size m)."""
     a = np.arange(m)[:, None, None]
     p = np.arange(m)[None, :, None]
     r = np.arange(m)[None, None, :]
     w = 2 * m  # row length of the zero-padded m × 2m matrices
-    d = np.subtract.outer(np.arange(m), np.arange(m))
-    low = np.flatnonzero(d.ravel() >= 0)
     return {
         "p_r_plus_a": (p * w + r + a).ravel(),  # X[p, r+a] on [X 0]
         "p_r_minus_a": (p * w + r - a + m).ravel(),  # X[p, r−a] on [0 X]
         "r_p_plus_b": (r * w + p + a).ravel(),  # W[r, p+b] on [W 0] (a plays b)
-        "low": low,
-        "low_d": d.ravel()[low],
-        "toeplitz": np.where(d >= 0, d, m),  # T(h) = [h 0][idx]
     }
-
-
-def _subdiag_sums(X: np.ndarray) -> np.ndarray:
-    """``T*(X)`` for a stack ``(k, m, m)``: sums of the subdiagonals ``d = 0 … m−1``, shape (k, m)."""
-    k, m = X.shape[0], X.shape[-1]
-    ix = _indices(m)
-    vals = X.reshape(k, -1)[:, ix["low"]]
-    out = np.zeros((k, m))
-    np.add.at(out, (slice(None), ix["low_d"]), vals)
-    return out
 
 
 def _barrier_terms(Y: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +79,7 @@ def _barrier_terms(Y: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """
     ix = _indices(m)
     k = Y.shape[0]
-    grad = -2.0 * _subdiag_sums(Y[:, m:, :m])
+    grad = -2.0 * adjoint(Y[:, m:, :m]).T
     z = np.zeros((k, m, m))
     P12 = np.concatenate([Y[:, :m, m:], z], axis=2).reshape(k, -1)
     P11 = np.concatenate([z, Y[:, :m, :m]], axis=2).reshape(k, -1)
@@ -103,16 +91,10 @@ def _barrier_terms(Y: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     return grad, 2.0 * (X12 @ W12.transpose(0, 2, 1) + X11 @ W22.transpose(0, 2, 1))
 
 
-def _toeplitz_stack(X: np.ndarray) -> np.ndarray:
-    """``T(x_k)`` for the rows of X (k, m): a stack (k, m, m)."""
-    k, m = X.shape
-    return np.concatenate([X, np.zeros((k, 1))], axis=1)[:, _indices(m)["toeplitz"]]
-
-
 def _lmi(Hs: np.ndarray, delta: float) -> np.ndarray:
     """``F(h_k) = [δI T(h_k)ᵀ; T(h_k) δI]`` for the rows of Hs (k, m): a stack (k, 2m, 2m)."""
     k, m = Hs.shape
-    T = _toeplitz_stack(Hs)
+    T = toeplitz_stack(Hs.T)
     F = np.zeros((k, 2 * m, 2 * m))
     F[:, m:, :m] = T
     F[:, :m, m:] = T.transpose(0, 2, 1)
@@ -159,7 +141,7 @@ def solve_columns(U, B, delta: float, gap: float) -> dict:
     U = np.asarray(U, float)
     B = np.asarray(B, float)
     m, k = U.shape
-    A = _toeplitz_stack(U.T)  # T(u_c), (k, m, m)
+    A = toeplitz_stack(U)  # T(u_c), (k, m, m)
     At = A.transpose(0, 2, 1)
     AtA2 = 2.0 * At @ A
     Atb2 = 2.0 * np.einsum("kij,jk->ki", At, B)
@@ -204,7 +186,7 @@ def solve_columns(U, B, delta: float, gap: float) -> dict:
             hn = Hs[c] + s[pending, None] * step[pending]
             Yn, ok = _inverse(_lmi(hn, delta))
             slope = np.sum((tc[pending] * (np.einsum("kij,kj->ki", AtA2[c], hn) - Atb2[c])
-                            - 2.0 * _subdiag_sums(Yn[:, m:, :m])) * step[pending], axis=1)
+                            - 2.0 * adjoint(Yn[:, m:, :m]).T) * step[pending], axis=1)
             acc = ok & ((slope <= 0.0) | (s[pending] < 0.1))
             newH[pending[acc]] = hn[acc]
             newY[pending[acc]] = Yn[acc]
@@ -264,7 +246,7 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
         (certificate's primal impulses and dual point, in the units of U and B), ``status``
         (``"optimal"`` or ``"max_rounds"``), ``rounds`` and ``time``.
     """
-    t0 = time.perf_counter()
+    clock = Deadline()
     U = np.asarray(U, float)
     B = np.asarray(B, float)
     if U.ndim != 2 or U.shape != B.shape:
@@ -280,7 +262,7 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     g0 = float(np.sum(B * B)) - rho2
     if g0 <= 0.0:  # zero impulses already fit within the budget
         return dict(delta=0.0, lower=0.0, H=np.zeros((m, j)), V=None, W=None, status="optimal", rounds=0,
-                    time=time.perf_counter() - t0)
+                    time=clock.elapsed())
     bs = int(block_size) if block_size else max(1, math.ceil(j / 16))
     if bs < 1:
         raise DataError(f"block_size must be a positive number of columns, got {block_size!r}")
@@ -325,28 +307,26 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     if best is None:  # pragma: no cover - max_rounds too small to reach an upper end
         best = _map_blocks(executor, U, B, hi, gap, blocks)
     return dict(delta=float(hi), lower=float(lower), H=best["H"], V=best["R"], W=best["W"], status=status,
-                rounds=rounds, time=time.perf_counter() - t0)
+                rounds=rounds, time=clock.elapsed())
 
 
-def solve_split_problem(P, executor=None, *, rtol: float = SPLIT_RTOL, block_size: int | None = None) -> dict:
-    """(7.5) of a :class:`unfalsify.SubspaceProblem` with a fixed predictor, split by columns.
+def solve(problem, *, executor=None, rtol: float = SPLIT_RTOL, block_size: int | None = None) -> SolverOutput:
+    """Registered solver ``"split"``: (7.5) of an :class:`unfalsify.SubspaceProblem` with a fixed predictor,
+    split by columns over ``executor``; the answer in data units.
 
-    Returns the dict the backends of :func:`unfalsify.subspace_unfalsify` return (data units).
+    Warns :class:`~unfalsify.SolverWarning` when the rounds ran out before the bracket on δ closed.
     """
-    if P.L_fixed is None:
+    if problem.L_fixed is None:
         raise DataError("the column split of (7.5) needs the predictor fixed: pass predictor=... "
                         "(with L free the columns are coupled through L)")
-    su, sy = P.scale
-    f = P.column_form(scaled=True)
+    su, sy = problem.scale
+    f = problem.column_form(scaled=True)
     out = split_solve(f.U, f.B, f.rho, executor, rtol=rtol, block_size=block_size)
     if out["status"] != "optimal":
-        import warnings
-
-        from ._common import SolverWarning
-
         warnings.warn(f"column split of (7.5): stopped after {out['rounds']} rounds with the bracket on δ still "
-                      "wider than rtol; check the result's certificate", SolverWarning, stacklevel=3)
+                      "wider than rtol; check the result's certificate", SolverWarning, stacklevel=4)
     H = out["H"] * (sy / su)
     W = None if out["W"] is None else out["W"] * su
-    return dict(delta=out["delta"] * sy / su, H=H, L=P.L_fixed.copy(), status=out["status"], time=out["time"],
-                problem=None, v=out["V"], W=W, rounds=out["rounds"])
+    return SolverOutput(delta=out["delta"] * sy / su, impulses=H, params=problem.L_fixed.copy(),
+                        status=SolverStatus(out["status"]), solve_time=out["time"], dual_v=out["V"], dual_W=W,
+                        stats=dict(rounds=out["rounds"]))
