@@ -22,6 +22,8 @@ import numbers
 import control
 import numpy as np
 
+from .exceptions import WeightError
+
 from ._validation import DataError, as_discrete_system, check_horizon, to_state_space
 
 __all__ = [
@@ -34,10 +36,6 @@ __all__ = [
     "observability",
     "tustin",
 ]
-
-
-class WeightError(DataError):
-    """A weighting filter is unusable (improper, continuous, wrong size, wrong dt, NaN)."""
 
 
 def tustin(sys_continuous, dt: float) -> control.StateSpace:
