@@ -46,7 +46,7 @@ Certificates and Toeplitz helpers
    BACKENDS               -- the solver backends, ``("cvxpy", "structured")``, resolved by :mod:`unfalsify.solvers`
    SOLVERS                -- the solver registry: name → ``solve(problem, **options) -> SolverOutput``
    SolverOutput           -- what every registered solver returns (δ, primal and dual point, status, in data units)
-   SolverStatus           -- how a solve ended, shared by all solvers (a ``str`` enum: ``"optimal"``, ``"time_limit"``, …)
+   SolverStatus           -- how a solve ended, shared by all solvers (a ``str`` enum: ``"optimal"``, …)
    COND_WARN              -- cond T(u) above which ``IllConditionedWarning`` is raised (1e8)
    toeplitz_matrix        -- dense lower-triangular Toeplitz matrix T(x)
    toeplitz_norm          -- spectral norm ‖T(h)‖₂

@@ -372,8 +372,10 @@ def arx_unfalsify(
         )
     if name == "cvxpy":
         options = dict(form=form, solver=solver, solver_options=solver_options)
+    elif name == "bracket":  # no tolerance: the bracket's gap is what it is, and reported
+        options = dict(time_limit=time_limit, progress=progress)
     else:
-        options = dict(time_limit=time_limit, progress=progress) | ({"tol": float(tol)} if name == "arx_barrier" else {})
+        options = dict(tol=float(tol), time_limit=time_limit, progress=progress)
     out = run(name, P, **options)
     cert, delta = certify(P, out, f"ARX unfalsification (n={P.n})")
     Phi, Y = P.regressor()

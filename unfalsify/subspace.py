@@ -296,8 +296,9 @@ def subspace_unfalsify(
     executor : concurrent.futures.Executor, optional
         With ``predictor`` fixed, (7.5) splits by columns: blocks of columns are solved as tasks
         on this executor (local processes, ``distributed.Client.get_executor()``, …) and the
-        one-dimensional outer problem in δ here (solver ``"split"``, :mod:`unfalsify.solvers.split`); ``backend`` is then
-        ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate as serial.
+        one-dimensional outer problem in δ here (solver ``"split"``, :mod:`unfalsify.solvers.split`);
+        ``backend`` is then ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate
+        as serial.
     workers : int or None
         Structured backend: threads over the column stack (default ``None``: every core,
         ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the

@@ -65,7 +65,9 @@ BACKENDS = ("cvxpy", "structured")
 #: ``method=`` of the structured backend of (7.4)
 METHODS = ("barrier", "bracket")
 
-_STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket", ("subspace", "barrier"): "column_barrier"}
+# (program, method) of backend="structured" -> solver
+_STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket",
+               ("subspace", "barrier"): "column_barrier"}
 
 
 def _names(xs) -> str:

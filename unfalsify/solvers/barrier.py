@@ -15,8 +15,9 @@ read a certified bracket off every centred point.  :func:`run_barrier` is that o
 
 A method provides ``centre(t, point, deadline) -> (point, step)``, ``upper(point)``,
 ``impulses(point)``, ``dual(t, point, step) -> (V, W)``, ``advance(t, point, step, bounds, deadline)
--> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.  The linearised dual
-point (:func:`linearised_dual`) and conjugate gradients (:func:`pcg`) are shared the same way.
+-> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.
+The linearised dual point (:func:`linearised_dual`) and conjugate gradients (:func:`pcg`) are shared the
+same way.
 """
 from __future__ import annotations
 

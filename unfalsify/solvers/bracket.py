@@ -1,4 +1,4 @@
-"""Solver ``"bracket"``: a certified bracket [lower, upper] for the ARX program (7.4) at sizes the barrier method cannot reach.
+"""Solver ``"bracket"``: a certified bracket [lower, upper] of the ARX program (7.4) where barriers cannot go.
 
 ``arx_unfalsify(..., backend="structured", method="bracket")``.  No O(n²) matrix is ever formed:
 every operation is a convolution by FFT, O(n log n) (measured: n = 2000 in 75 s under load).  The

@@ -1,4 +1,4 @@
-"""Solver ``"column_barrier"``: barrier method for the subspace program (7.5) in the column form (C) (``backend="structured"``).
+"""Solver ``"column_barrier"``: barrier method for the subspace program (7.5) in the column form (C).
 
 Barrier method (Boyd & Vandenberghe §11.3) on the ij + 1 variables (H, δ) of (C), the predictor
 eliminated by projection (:mod:`unfalsify.solvers.columns`):
@@ -62,14 +62,9 @@ import scipy.linalg
 from .barrier import Deadline, Stop, linearised_dual, pcg, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
-from .toeplitz import adjoint, corr_hessian, ridge_lambda, toeplitz_stack
+from .toeplitz import _tr, adjoint, corr_hessian, ridge_lambda, toeplitz_stack
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
-
-
-def _tr(X: np.ndarray) -> np.ndarray:
-    """Transpose of the last two axes."""
-    return np.swapaxes(X, -1, -2)
 
 
 class _Chunks:
@@ -638,7 +633,8 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
     return solver.run(p)
 
 
-def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True, workers: int | None = 1) -> SolverOutput:
+def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
+          workers: int | None = 1) -> SolverOutput:
     """Registered solver ``"column_barrier"``: (7.5) of an :class:`unfalsify.SubspaceProblem` (L optimised
     or fixed), certified to the relative gap ``tol``; the answer in data units."""
     f = problem.column_form(scaled=True)

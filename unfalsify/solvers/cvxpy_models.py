@@ -242,7 +242,8 @@ def _subspace_model(P, form, solver, solver_options, eliminate_L=False) -> Solve
             lmis.append(cp.bmat([[delta * (Tk.T @ Tk), Gk.T], [Gk, delta * np.eye(i)]]) >> 0)
         cons += lmis
     prob = cp.Problem(cp.Minimize(delta), cons)
-    status, elapsed = _conic_solve(prob, solver, solver_options, f"subspace unfalsification (form={form}, i={i}, j={j})")
+    what = f"subspace unfalsification (form={form}, i={i}, j={j})"
+    status, elapsed = _conic_solve(prob, solver, solver_options, what)
     d_s = _solved_value(status, delta.value)
 
     # --- back to original units --------------------------------------------------------------

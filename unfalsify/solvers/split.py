@@ -1,4 +1,4 @@
-"""Solver ``"split"``: program (7.5) with the predictor fixed, split by columns (tasks on any ``concurrent.futures.Executor``).
+"""Solver ``"split"``: (7.5) with the predictor fixed, split by columns (tasks on any ``concurrent.futures.Executor``).
 
 With ``[L_w L_u]`` fixed, (7.5) in the column form of :mod:`unfalsify.solvers.columns` is
 
