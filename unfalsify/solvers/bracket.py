@@ -82,7 +82,7 @@ def _ridge_fit(ops: _Ops, w, target, h0, deadline):
             return np.fft.irfft(np.fft.rfft(x, ops.N) / (Uabs2 + lam * w), ops.N)[: ops.n]
 
         rhs = ops.Mt(ops.b)
-        return pcg(apply, precond, rhs, tol=1e-9, maxiter=400, start=(x0.copy(), rhs - apply(x0)))[0]
+        return pcg(apply, precond, rhs, tol=1e-9, maxiter=400, start=(x0.copy(), rhs - apply(x0)), dot=np.dot)[0]
 
     lo, hi = -12.0, 6.0  # log10 λ: small λ fits the data (residual small), large λ shrinks h
     h = h0
