@@ -14,7 +14,7 @@ import numpy as np
 
 from synthesis.results import result
 
-from .columns import ColumnForm
+from .columns import ColumnForm, scale_dual
 
 __all__ = ["SolverStatus", "SolverOutput", "unscaled", "zero_answer"]
 
@@ -99,8 +99,6 @@ def unscaled(problem, H_s, upper_s: float, status, elapsed: float, *, V=None, W=
     Impulses and δ scale by ``s_y/s_u``, the norm multiplier W by ``s_u`` (V is scale-free); the model
     parameters are refitted to the impulses by the problem itself (``problem.params_for``).
     """
-    from .columns import scale_dual
-
     su, sy = problem.scale
     H = np.asarray(H_s) * (sy / su)
     return SolverOutput(delta=float(upper_s) * sy / su, impulses=H, params=problem.params_for(H),
