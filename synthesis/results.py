@@ -4,6 +4,6 @@
 arrays and pickling that survives a new process; see :func:`result`.  :mod:`unfalsify` and
 :mod:`experiments` decorate their results with it, so all results behave alike.
 """
-from ._repr import result, short_repr, values_equal
+from ._repr import result
 
-__all__ = ["result", "short_repr", "values_equal"]
+__all__ = ["result"]
