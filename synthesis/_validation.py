@@ -47,7 +47,7 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
     >>> as_signal(np.ones((1, 500)), "u")
     Traceback (most recent call last):
     ...
-    synthesis._validation.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
+    synthesis.exceptions.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
     """
     if np.iscomplexobj(x):
         raise DataError(
