@@ -65,7 +65,7 @@ from tqdm import tqdm
 
 import synthesis
 import unfalsify as uf
-from synthesis._validation import DataError
+from synthesis.validation import DataError
 
 from ._servo import design_weights
 from .plants import SERVO_DT, _modal_ss, _pair, _zoh, nonminimum_phase, resonant, third_order

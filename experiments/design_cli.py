@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from synthesis._validation import DataError
+from synthesis.validation import DataError
 
 from .records import RecordError, _read_arrays, _read_csv, load_record
 

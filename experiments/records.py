@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from synthesis._repr import result
-from synthesis._validation import DataError, as_signal, check_sample_time
+from synthesis.results import result
+from synthesis.validation import DataError, as_signal, check_sample_time
 
 __all__ = ["Record", "RecordError", "load_record", "RECORD_FORMATS"]
 

@@ -38,7 +38,7 @@ from tqdm import tqdm
 
 import synthesis
 import unfalsify as uf
-from synthesis._validation import DataError
+from synthesis.validation import DataError
 
 from ._servo import design_weights
 from .chapter7 import worst_phase_allpass

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from synthesis._validation import as_discrete_system
+from synthesis.validation import as_discrete_system
 
 __all__ = [
     "AlgebraicLoopError",

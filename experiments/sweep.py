@@ -38,7 +38,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from synthesis._validation import DataError
+from synthesis.validation import DataError
 
 from .plants import PLANT_CATALOGUE
 from .report import Report, save_figure, write_json

@@ -111,6 +111,20 @@ Errors and warnings
    RefactorWarning        -- a downdate lost definiteness; the factor was recomputed from the window
    NearGammaMinWarning    -- γ < 1.03 γ_min: huge gains
 
+The errors and warnings live in ``synthesis.exceptions``.
+
+Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
+------------------------------------------------------------------------------
+
+   result                 -- class decorator of the frozen result dataclasses (short repr, equality, pickling)
+   as_signal              -- a signal as a float array ``(n, k)``, time along axis 0, or a ``DataError``
+   as_discrete_system     -- a discrete-time python-control system, or a ``DataError`` naming the fix
+   check_horizon          -- a prediction horizon i checked against the number of samples
+   check_sample_time      -- a sample time checked (positive, finite, or ``True``)
+   check_same_dt          -- two systems checked for one sample time
+
+Also in ``synthesis.results`` and ``synthesis.validation``.
+
 Tour
 ----
 
@@ -207,7 +221,9 @@ True
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
-from ._validation import DataError, InputTypeError
+from .exceptions import DataError, InputTypeError
+from .results import result
+from .validation import as_discrete_system, as_signal, check_horizon, check_same_dt, check_sample_time
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -316,6 +332,13 @@ __all__ = [
     "common_dt",
     "is_zero_weight",
     "NEAR_GAMMA_MIN_RATIO",
+    # building blocks for the packages on synthesis
+    "result",
+    "as_signal",
+    "as_discrete_system",
+    "check_horizon",
+    "check_sample_time",
+    "check_same_dt",
 ]
 
 try:

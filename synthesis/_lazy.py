@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import FrozenInstanceError
 
+import numpy as np
+
 __all__: list[str] = []
 
 _MISSING = object()
@@ -59,8 +61,6 @@ class _LazyField:
             return self._default
         value = obj.__dict__[self._slot]
         if isinstance(value, _Deferred):
-            from ._repr import _readonly
-
             value = _readonly(value(obj))  # as the eager fields of a @result class
             obj.__dict__[self._slot] = value
         return value
@@ -74,3 +74,15 @@ class _LazyField:
 def _is_pending(obj, name: str) -> bool:
     """True while the field ``name`` of ``obj`` still holds an unevaluated recipe."""
     return isinstance(obj.__dict__.get(f"_lazy_{name}"), _Deferred)
+
+
+def _readonly(value):
+    """A read-only copy of an array (also inside a tuple), as every field of a ``@result`` class is stored
+    (:mod:`synthesis._repr`, which imports it from here: the lazy fields freeze their value the same way)."""
+    if isinstance(value, np.ndarray):
+        arr = np.array(value, copy=True)
+        arr.flags.writeable = False
+        return arr
+    if isinstance(value, tuple) and any(isinstance(v, np.ndarray) for v in value):
+        return tuple(_readonly(v) for v in value)
+    return value

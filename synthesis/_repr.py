@@ -34,19 +34,11 @@ import numbers
 
 import numpy as np
 
+from ._lazy import _Deferred, _LazyField, _readonly
+
 __all__ = ["result", "short_repr", "values_equal"]
 
 _MAX_SEQ = 4  # items of a tuple/list shown before "…"
-
-
-def _readonly(value):
-    if isinstance(value, np.ndarray):
-        arr = np.array(value, copy=True)
-        arr.flags.writeable = False
-        return arr
-    if isinstance(value, tuple) and any(isinstance(v, np.ndarray) for v in value):
-        return tuple(_readonly(v) for v in value)
-    return value
 
 
 def short_repr(value, depth: int = 0) -> str:
@@ -186,7 +178,6 @@ def _picklable(value):
     """``value`` with every ``StateSpace`` replaced by a recipe and every cvxpy Problem by None."""
     import sys
 
-    from ._lazy import _Deferred
 
     control = sys.modules.get("control")
     if control is not None and isinstance(value, control.StateSpace):
@@ -240,7 +231,6 @@ def result(cls):
     compared = [f.name for f in dataclasses.fields(cls) if f.compare]  # field(compare=False): a by-product
     original_init = cls.__init__
 
-    from ._lazy import _LazyField
 
     # deferred fields are made read-only when they are computed (reading them here would compute them)
     eager = [n for n in names if not isinstance(cls.__dict__.get(n), _LazyField)]

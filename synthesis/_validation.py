@@ -9,19 +9,10 @@ import numbers
 
 import numpy as np
 
+from .exceptions import DataError, InputTypeError
+
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
            "check_horizon", "check_level", "check_sample_time"]
-
-
-class DataError(ValueError):
-    """Invalid input data (shape, length, NaN/inf, too few samples, ...)."""
-
-
-class InputTypeError(DataError, TypeError):
-    """An argument of the wrong type (e.g. a string where an LTI system is expected).
-
-    Both a :class:`DataError` (a ``ValueError``) and a ``TypeError``, so either ``except`` catches it.
-    """
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -56,7 +47,7 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
     >>> as_signal(np.ones((1, 500)), "u")
     Traceback (most recent call last):
     ...
-    synthesis._validation.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
+    synthesis.exceptions.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
     """
     if np.iscomplexobj(x):
         raise DataError(

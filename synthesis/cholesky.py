@@ -23,11 +23,9 @@ import math
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from .exceptions import DowndateError
+
 __all__ = ["cholupdate", "choldowndate", "DowndateError"]
-
-
-class DowndateError(np.linalg.LinAlgError):
-    """``L Lᵀ − x xᵀ`` is not (numerically) positive definite: the downdate is impossible."""
 
 
 def _prepare(L, x, lower: bool, overwrite: bool):

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .exceptions import ControllerFileError
+
 from ._validation import DataError, InputTypeError, to_state_space
 
 __all__ = ["ControllerFileError", "save_controller", "load_controller", "CONTROLLER_FORMATS"]
@@ -24,10 +26,6 @@ __all__ = ["ControllerFileError", "save_controller", "load_controller", "CONTROL
 #: File name endings :func:`save_controller` and :func:`load_controller` understand.
 CONTROLLER_FORMATS = (".npz", ".mat")
 _MATRICES = ("A", "B", "C", "D")
-
-
-class ControllerFileError(DataError):
-    """A controller file cannot be written or read (unknown ending, missing or inconsistent variables)."""
 
 
 def _format(path: Path) -> str:

@@ -41,6 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import blas, lapack
 
+from .exceptions import InfeasibleGammaError, NearGammaMinWarning
+
 from ._validation import DataError
 from ._repr import result
 
@@ -56,24 +58,6 @@ __all__ = [
 
 #: Below ``1.03 γ_min`` the §5.4.4 design example went unstable.
 NEAR_GAMMA_MIN_RATIO = 1.03
-
-
-class InfeasibleGammaError(ValueError):
-    """γ ≤ γ_min: no saddle point, the level-γ problem has no solution (3.29)."""
-
-    def __init__(self, gamma: float, gamma_min: float, threshold: float | None = None):
-        self.gamma = float(gamma)
-        self.gamma_min = float(gamma_min)
-        #: smallest accepted level (γ_min plus the accuracy of its computation), when known
-        self.threshold = self.gamma_min if threshold is None else float(threshold)
-        super().__init__(
-            f"gamma = {self.gamma:.6g} is not above gamma_min = {self.gamma_min:.6g}: the level-gamma "
-            f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = "
-            f"{1.1 * self.gamma_min:.6g} (§5.1 comment 4)")
-
-
-class NearGammaMinWarning(UserWarning):
-    """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
 
 
 @result

@@ -16,16 +16,14 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import lapack
 
+from .exceptions import PersistenceWarning
+
 from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, as_signal, check_horizon, check_sample_time
 from .hankel import hankel_gram
 from ._repr import result
 
 __all__ = ["Predictor", "fit_predictor", "block_hankel", "PersistenceWarning", "default_rcond"]
-
-
-class PersistenceWarning(UserWarning):
-    """The input is not persistently exciting of order 2mi (§5.1, comment 1)."""
 
 
 @result

@@ -41,6 +41,8 @@ import warnings
 import numpy as np
 from scipy.linalg import blas
 
+from .exceptions import RefactorWarning
+
 from ._validation import DataError, as_signal, check_horizon
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .hankel import hankel_gram, hankel_order
@@ -59,10 +61,6 @@ def _syrk_lower(S: np.ndarray, cols: np.ndarray, alpha: float) -> None:
     out = blas.dsyrk(alpha, np.ascontiguousarray(cols).T, beta=1.0, c=S.T, trans=0, lower=0, overwrite_c=1)
     if not np.shares_memory(out, S):  # pragma: no cover - S is always C-contiguous here
         S[...] = out.T
-
-
-class RefactorWarning(RuntimeWarning):
-    """A Cholesky downdate lost positive definiteness; the factor was recomputed from the window."""
 
 
 class RecursivePredictor:

@@ -24,21 +24,13 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
+from .exceptions import StageSaddleError
+
 from ._validation import DataError, as_discrete_system, check_horizon, check_level
-from .minimax import InfeasibleGammaError
 from .weights import _ss_parts, as_weight, common_dt
 from ._repr import result
 
 __all__ = ["GeneralizedPlant", "RiccatiLaw", "StageSaddleError", "generalized_plant", "hinf_riccati", "lqr_riccati"]
-
-
-class StageSaddleError(InfeasibleGammaError):
-    """A stage of the H∞ Riccati recursion (4.17) has no saddle point: γ is too small."""
-
-    def __init__(self, gamma: float, message: str):
-        self.gamma = float(gamma)
-        self.gamma_min = float("nan")
-        ValueError.__init__(self, message)
 
 
 @result

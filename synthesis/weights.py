@@ -22,6 +22,8 @@ import numbers
 import control
 import numpy as np
 
+from .exceptions import WeightError
+
 from ._validation import DataError, as_discrete_system, check_horizon, to_state_space
 
 __all__ = [
@@ -34,10 +36,6 @@ __all__ = [
     "observability",
     "tustin",
 ]
-
-
-class WeightError(DataError):
-    """A weighting filter is unusable (improper, continuous, wrong size, wrong dt, NaN)."""
 
 
 def tustin(sys_continuous, dt: float) -> control.StateSpace:
@@ -118,7 +116,7 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     >>> makeweight(100.0, (0.5, 200.0), 0.5, 0.1)
     Traceback (most recent call last):
     ...
-    synthesis.weights.WeightError: makeweight: the crossover gain mag = 200 must lie strictly between dc = 100 and hf = 0.5 (a first-order weight's gain moves monotonically from dc to hf); choose mag in (0.5, 100)
+    synthesis.exceptions.WeightError: makeweight: the crossover gain mag = 200 must lie strictly between dc = 100 and hf = 0.5 (a first-order weight's gain moves monotonically from dc to hf); choose mag in (0.5, 100)
     """
     def positive(value, what):
         if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (np.isfinite(value) and value > 0):

@@ -219,7 +219,7 @@ def test_split_needs_a_fixed_predictor(small_problem):
 
 
 def test_split_column_slope_matches_finite_difference():
-    from unfalsify.split import solve_column
+    from unfalsify.solvers.split import solve_column
 
     rng = np.random.default_rng(0)
     u, b = np.sign(rng.standard_normal(6)), rng.standard_normal(6)

@@ -7,13 +7,15 @@ import pytest
 import scipy.linalg
 
 import unfalsify as uf
-import unfalsify._arx_barrier as ab
-import unfalsify._bracket as br
-from unfalsify._columns import CirculantDual
-from unfalsify._structured import solve_structured
-from unfalsify._toeplitz import _toeplitz_gram
+import unfalsify.solvers.arx_barrier as ab
+import unfalsify.solvers.barrier as barrier
+import unfalsify.solvers.bracket as br
+import unfalsify.solvers.toeplitz as tk
+from unfalsify.solvers.columns import CirculantDual
+from unfalsify.solvers.toeplitz import toeplitz_gram
 
 from _servo_arx import servo_arx_data  # tests/ helper
+from _structured_reference import solve_structured  # tests/ helper: the SVD barrier solver
 
 
 def _problem(n, seed, frac=0.5):
@@ -24,7 +26,7 @@ def _problem(n, seed, frac=0.5):
 
 @pytest.mark.parametrize("seed,n", [(0, 40), (3, 60)])
 def test_cholesky_barrier_equals_svd_barrier(seed, n):
-    # independent route: the SVD-based solver of unfalsify._structured on the same column form
+    # independent route: the SVD-based reference solver (tests/_structured_reference.py) on the same column form
     u, y, sigma = _problem(n, seed)
     f = uf.ArxProblem.from_data(u, y, 2, 2, sigma).column_form()
     B0 = f.project(f.B)
@@ -47,7 +49,7 @@ def test_circulant_dual_bound_equals_the_dense_circulant_block():
         W = br.circulant_dual(f, v, N, tail=rng.standard_normal(tail))
         col = W.column
         C = scipy.linalg.circulant(np.r_[col, np.zeros(N - col.size)])[:m, :m]
-        assert np.allclose(uf._columns.adjoint_toeplitz(C), f.apply_T(f.project(v[:, None]))[:, 0])
+        assert np.allclose(tk.adjoint(C), f.apply_T(f.project(v[:, None]))[:, 0])
         lo_c = f.lower_bound(v, W)
         lo_d = f.lower_bound(v, C)
         assert lo_c > 0
@@ -84,13 +86,13 @@ def test_bad_method_raises():
 def _record_brackets(monkeypatch):
     """Record (lower, upper) after every outer iteration of the barrier loop."""
     seen = []
-    orig = ab._ArxBarrier._progress
+    orig = barrier.tick_progress
 
-    def spy(self, bar, t_start, best):
+    def spy(bar, enabled, elapsed, desc, newton, best):
         seen.append((best["lower"], best["upper"]))
-        return orig(self, bar, t_start, best)
+        return orig(bar, enabled, elapsed, desc, newton, best)
 
-    monkeypatch.setattr(ab._ArxBarrier, "_progress", spy)
+    monkeypatch.setattr(barrier, "tick_progress", spy)
     return seen
 
 
@@ -129,7 +131,7 @@ def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
         clock[0] += 1.0
         return clock[0]
 
-    monkeypatch.setattr(ab, "_clock", fake_clock)
+    monkeypatch.setattr(barrier, "_clock", fake_clock)
     with pytest.warns(uf.SolverWarning, match="time_limit"):
         r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-12, time_limit=30.0, progress=False)
     assert r.status == "time_limit"
@@ -175,11 +177,11 @@ def test_gram_in_quadratic_time_equals_the_matrix_product():
     for n in (1, 2, 7, 300):
         h = np.random.default_rng(n).standard_normal(n)
         T = uf.toeplitz_matrix(h)
-        assert np.allclose(_toeplitz_gram(h), T.T @ T, rtol=0, atol=1e-12 * max(1.0, float(h @ h)))
+        assert np.allclose(toeplitz_gram(h), T.T @ T, rtol=0, atol=1e-12 * max(1.0, float(h @ h)))
 
 
 def test_certified_norm_routes():
-    from unfalsify.arx import certified_norm, symbol_bound
+    from unfalsify.solvers.toeplitz import certified_norm, symbol_bound
 
     rng = np.random.default_rng(4)
     for n in (5, 60, 500):
@@ -195,7 +197,7 @@ def test_certified_norm_routes():
 
 
 def test_certified_norm_falls_back_to_the_symbol_bound_when_lanczos_fails(monkeypatch):
-    import unfalsify.arx as arx
+    import unfalsify.solvers.toeplitz as arx
     from scipy.sparse.linalg import ArpackNoConvergence
 
     def no_convergence(h, method="auto", tol=1e-12):
@@ -209,7 +211,7 @@ def test_certified_norm_falls_back_to_the_symbol_bound_when_lanczos_fails(monkey
 
 def test_certified_norm_above_the_dense_limit_is_proven_never_a_bare_lanczos_value(monkeypatch):
     """Above the dense limit the Lanczos value is returned only once a Cholesky proves it."""
-    import unfalsify.arx as arx
+    import unfalsify.solvers.toeplitz as arx
 
     monkeypatch.setattr(arx, "DENSE_NORM_LIMIT", 10)
     rng = np.random.default_rng(7)
@@ -224,7 +226,7 @@ def test_certified_norm_above_the_dense_limit_is_proven_never_a_bare_lanczos_val
 
 
 def test_cholesky_norm_test_decides_both_ways():
-    from unfalsify.arx import _norm_below_by_cholesky
+    from unfalsify.solvers.toeplitz import norm_below_by_cholesky as _norm_below_by_cholesky
 
     h = np.random.default_rng(3).standard_normal(200)
     true = float(np.linalg.norm(uf.toeplitz_matrix(h), 2))

@@ -1,4 +1,4 @@
-"""The column barrier solver of (7.5) (``unfalsify._structured_columns``): against Clarabel, against
+"""The column barrier solver of (7.5) (``unfalsify.solvers.column_barrier``): against Clarabel, against
 dense linear algebra and finite differences, and its behaviour on time limits and interrupts."""
 import numpy as np
 import pytest
@@ -6,8 +6,8 @@ import scipy.signal
 
 import unfalsify as uf
 from synthesis import fit_predictor
-from unfalsify import _structured_columns as sc
-from unfalsify._toeplitz import toeplitz_matrix
+from unfalsify.solvers import column_barrier as sc
+from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_matrix
 from unfalsify.subspace import SubspaceProblem
 
 from _servo_arx import servo_arx_data  # tests/ helper
@@ -124,7 +124,7 @@ def test_fft_hessian_equals_trace_formula():
     T = toeplitz_matrix(h)
     F = np.block([[d * np.eye(m), T.T], [T, d * np.eye(m)]])
     S = np.linalg.inv(F)
-    H = sc._corr_hessian(S[None, :m, :m], S[None, m:, :m], S[None, m:, m:], m)[0]
+    H = corr_hessian(S[None, :m, :m], S[None, m:, :m], S[None, m:, m:], m)[0]
     E = []
     for a in range(m):
         Z = np.eye(m, k=-a)

@@ -8,7 +8,7 @@ import scipy.signal
 
 import unfalsify as uf
 from synthesis import DataError
-from unfalsify._toeplitz import DENSE_LIMIT
+from unfalsify.solvers.toeplitz import DENSE_LIMIT
 
 
 def _well_conditioned_input(rng, n):

@@ -8,6 +8,11 @@ Toeplitz structure), and the §7.4 pipeline from that bound δ to a robust Theor
 implemented loop is certified. The method, the two corrections to the thesis's §7.4 and the certificate
 are explained in ``docs/UNFALSIFICATION.md`` of the source tree.
 
+The front ends below validate the data, build the program (``ArxProblem``, ``SubspaceProblem``), hand it
+to a solver of the registry :data:`unfalsify.solvers.SOLVERS` (``backend=`` and ``method=`` name one)
+and build the certificate from its answer.  The solvers, the Toeplitz toolkit they share and the one
+barrier skeleton live in :mod:`unfalsify.solvers`; the exceptions and warnings in :mod:`unfalsify.exceptions`.
+
 Theorem 7.1
 -----------
 
@@ -38,7 +43,10 @@ Certificates and Toeplitz helpers
 ---------------------------------
 
    Certificate            -- two-sided bracket ``lower ≤ δ ≤ upper`` of an answer, ``verify()`` from the data
-   BACKENDS               -- the solver backends, ``("cvxpy", "structured")``
+   BACKENDS               -- the solver backends, ``("cvxpy", "structured")``, resolved by :mod:`unfalsify.solvers`
+   SOLVERS                -- the solver registry: name → ``solve(problem, **options) -> SolverOutput``
+   SolverOutput           -- what every registered solver returns (δ, primal and dual point, status, in data units)
+   SolverStatus           -- how a solve ended, shared by all solvers (a ``str`` enum: ``"optimal"``, …)
    COND_WARN              -- cond T(u) above which ``IllConditionedWarning`` is raised (1e8)
    toeplitz_matrix        -- dense lower-triangular Toeplitz matrix T(x)
    toeplitz_norm          -- spectral norm ‖T(h)‖₂
@@ -90,6 +98,7 @@ Errors and warnings
 -------------------
 
    UnfalsificationError   -- infeasible, unbounded or failed solve
+   UnknownSolverError     -- a ``backend=``/``method=`` the solver registry does not know (lists the valid names)
    NotCertifiedError      -- ``require_certified=True`` and no design of the search certifies
    NotCertifiedWarning    -- the pipeline could not certify the loop it returns (with the reason)
    FewDataWarning         -- the (7.5) window has few columns for the predictor it estimates
@@ -153,12 +162,14 @@ plant; its radius 1/‖K(I+PK)⁻¹‖∞ is far below this δ, which is why the
 >>> rob.stable, round(rob.peak, 1), bool(sub.delta * rob.peak < 1)
 (True, 13.7, False)
 """
-from ._common import BACKENDS, COND_WARN, Certificate, IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
-from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError, UnknownSolverError
+from ._common import BACKENDS, COND_WARN, Certificate
+from .solvers import SOLVERS, SolverOutput, SolverStatus
+from .solvers.toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
 from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
-from .split import split_solve
+from .solvers.split import split_solve
 from .model import predictor_model
 from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics
 from .premise import (
@@ -200,6 +211,10 @@ __all__ = [
     "NotAtRestWarning",
     "SolverWarning",
     "UnfalsificationError",
+    "UnknownSolverError",
+    "SOLVERS",
+    "SolverOutput",
+    "SolverStatus",
     "deconvolve",
     "toeplitz_cond",
     "toeplitz_matrix",

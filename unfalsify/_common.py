@@ -1,16 +1,18 @@
-"""Exceptions, warnings, thresholds and solver plumbing shared by the unfalsification modules."""
+"""Thresholds, argument checks and the certificate shared by the unfalsification front ends."""
 from __future__ import annotations
 
 import numbers
-import time
 import warnings
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 
-from synthesis._validation import DataError, as_signal
-from synthesis._repr import result
+from synthesis import DataError
+from synthesis.results import result
+from synthesis.validation import as_signal
+
+from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
+from .solvers import BACKENDS, SolverOutput
 
 __all__ = [
     "BACKENDS",
@@ -33,22 +35,6 @@ COND_WARN = 1e8
 
 #: Absolute/relative tolerance used when reading solver answers (δ = 0, feasibility checks).
 SOLVER_TOL = 1e-6
-
-
-class UnfalsificationError(ValueError):
-    """The unfalsification problem could not be solved (infeasible/unbounded/solver failure)."""
-
-
-class NotAtRestWarning(UserWarning):
-    """A program that assumes the system at rest before the record (7.3)/(7.4) got a record that starts mid-motion."""
-
-
-class IllConditionedWarning(UserWarning):
-    """cond T(u) is so large that the literal Chapter 7 quantities are numerically meaningless."""
-
-
-class SolverWarning(UserWarning):
-    """The conic solver returned a status other than ``optimal``."""
 
 
 def check_sigma(sigma) -> float:
@@ -92,55 +78,6 @@ def check_form(form: str) -> str:
     return form
 
 
-def solve(problem: cp.Problem, solver: str, solver_options: dict | None, what: str) -> tuple[str, float]:
-    """Solve ``problem`` with an explicit solver; return (status, wall time).
-
-    Raises :class:`UnfalsificationError` on solver failure or infeasible/unbounded status;
-    warns :class:`SolverWarning` for any other non-optimal status.
-    """
-    opts = dict(solver_options or {})
-    t0 = time.perf_counter()
-    try:
-        with warnings.catch_warnings():
-            # cvxpy's own "Solution may be inaccurate" warning: replaced by our SolverWarning below
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
-            problem.solve(solver=solver, **opts)
-    except cp.error.SolverError as exc:
-        raise UnfalsificationError(f"{what}: solver {solver} failed ({exc}); try another solver or smaller data") from exc
-    elapsed = time.perf_counter() - t0
-    status = problem.status
-    if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):
-        raise UnfalsificationError(
-            f"{what}: solver {solver} reports '{status}', which is impossible for this problem in exact "
-            "arithmetic (it is always feasible and δ ≥ 0): the data are too ill-conditioned for the solver; "
-            "use form='conditioned', fewer samples or rescale the data"
-        )
-    if status != cp.OPTIMAL:
-        warnings.warn(
-            f"{what}: solver {solver} returned status '{status}'; check the result's certificate",
-            SolverWarning,
-            stacklevel=3,
-        )
-    return status, elapsed
-
-
-def solved_value(status: str, value) -> float:
-    """δ from a solve: NaN unless the status is optimal or optimal_inaccurate."""
-    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or value is None:
-        return float("nan")
-    return float(value)
-
-
-BACKENDS = ("cvxpy", "structured")
-
-
-def check_backend(backend: str) -> str:
-    """``backend`` of :func:`arx_unfalsify` / :func:`subspace_unfalsify` (raises ValueError otherwise)."""
-    if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; use one of {', '.join(repr(b) for b in BACKENDS)}")
-    return backend
-
-
 @result
 @dataclass(frozen=True, eq=False)
 class Certificate:
@@ -162,7 +99,7 @@ class Certificate:
     ``T*(W_k) = T(u_k)ᵀ v_k`` holds exactly (``T*`` sums subdiagonals).  Derivation: for every
     feasible point ``Σ_k ⟨W_k, T(h_k)⟩ ≤ δ Σ_k ‖W_k‖_*`` (nuclear norm is the dual norm of ‖·‖₂),
     and the left side equals ``⟨V, H̃⟩ = ⟨V, B − model − Ξ⟩ ≥ ⟨V, B⟩ − σ√N ‖V‖_F``.  The bound is
-    invariant to scaling (V, W) together and holds for inexact duals; see :mod:`unfalsify._columns`.
+    invariant to scaling (V, W) together and holds for inexact duals; see :mod:`unfalsify.solvers.columns`.
     A PSD multiplier ``G`` of the LMI ``[δI T(h)ᵀ; T(h) δI] ⪰ 0`` corresponds to ``W = −2 G21``.
 
     Attributes
@@ -270,3 +207,41 @@ class Certificate:
         elif np.isfinite(self.lower_bound) and self.lower_bound > 0:
             return False
         return bool(ok)
+
+
+def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
+    """The :class:`Certificate` of a solver's output for the problem ``P``, and the δ to report.
+
+    Both sides are recomputed from the data: the primal point ``(impulses, params)`` and the dual point
+    ``(dual_v, dual_W)``.  For a structured solver (``out.bracketed``) δ is NaN unless the solve ended
+    with a certified bracket, and any status but ``optimal`` warns with the certificate's gap.
+    """
+    up, nn = P.evaluate_primal(out.impulses, out.params)
+    lo = P.evaluate_dual(out.dual_v, out.dual_W) if out.dual_v is not None else float("nan")
+    cert = Certificate(
+        delta=float(out.delta),
+        upper_bound=float(up),
+        lower_bound=float(lo),
+        noise_norm=float(nn),
+        noise_bound=float(P.sigma * np.sqrt(P.n_noise)),
+        sigma=P.sigma,
+        n_noise=P.n_noise,
+        impulses=out.impulses,
+        params=out.params,
+        dual_v=out.dual_v,
+        dual_G=out.dual_W,
+        problem=P,
+    )
+    delta = out.delta
+    if out.bracketed:
+        if not out.status.keeps_bracket or not np.isfinite(cert.upper_bound):
+            delta = float("nan")
+        if out.status != "optimal":
+            gap = cert.relative_gap
+            warnings.warn(
+                f"{what}: structured backend stopped with status '{out.status.value}'"
+                + (f"; the certified bracket has relative gap {gap:.3g}" if np.isfinite(gap) else ""),
+                SolverWarning,
+                stacklevel=4,
+            )
+    return cert, delta

@@ -39,9 +39,9 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis._validation import DataError, as_discrete_system, check_same_dt
+from synthesis.validation import DataError, as_discrete_system, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
-from synthesis._repr import result
+from synthesis.results import result
 
 __all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "loop_parts",
            "step_metrics"]

@@ -19,11 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synthesis._validation import DataError
+from synthesis import DataError
+from synthesis.results import result
 
-from ._common import COND_WARN, IllConditionedWarning, siso_signal
-from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_norm
-from synthesis._repr import result
+from ._common import COND_WARN, siso_signal
+from .exceptions import IllConditionedWarning
+from .solvers.toeplitz import deconvolve, toeplitz_cond, toeplitz_norm
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
 

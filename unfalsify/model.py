@@ -20,7 +20,7 @@ from __future__ import annotations
 import control
 import numpy as np
 
-from synthesis._validation import DataError, check_sample_time
+from synthesis.validation import DataError, check_sample_time
 
 __all__ = ["predictor_model"]
 

@@ -57,8 +57,8 @@ import numpy as np
 import scipy.signal
 import scipy.stats
 
-from synthesis._repr import result
-from synthesis._validation import DataError
+from synthesis.results import result
+from synthesis.validation import DataError
 
 from ._common import siso_pair
 from .arx import ArxResult, arx_unfalsify

@@ -57,14 +57,15 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis._validation import DataError, check_horizon
+from synthesis.validation import DataError, check_horizon
 
-from ._common import SolverWarning, UnfalsificationError, check_sigma, siso_pair
+from ._common import check_sigma, siso_pair
+from .exceptions import SolverWarning, UnfalsificationError
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry
 from .model import predictor_model
 from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
-from synthesis._repr import result
+from synthesis.results import result
 
 __all__ = [
     "DesignSearch",

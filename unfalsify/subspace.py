@@ -23,34 +23,22 @@ Layout follows :class:`synthesis.Predictor`: ``W_p = [U_p; Y_p]``, ``L_w`` is ``
 """
 from __future__ import annotations
 
-import time
 import warnings
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import cvxpy as cp
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
 
-from synthesis import Predictor, block_hankel
-from synthesis._validation import DataError, check_horizon
+from synthesis import DataError, Predictor, block_hankel
+from synthesis.results import result
+from synthesis.validation import check_horizon
 
-from ._columns import ColumnForm, _conv_cols
-from ._common import (
-    COND_WARN,
-    Certificate,
-    IllConditionedWarning,
-    check_backend,
-    check_form,
-    check_sigma,
-    rms_or_one,
-    siso_signal,
-    solve,
-    solved_value,
-)
-from ._lmi import toeplitz_expr, toeplitz_norm_lmi
-from ._toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
-from synthesis._repr import result
+from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one, siso_signal
+from .exceptions import IllConditionedWarning
+from .solvers import check_workers, resolve, run
+from .solvers.columns import ColumnForm
+from .solvers.toeplitz import conv_cols, toeplitz_cond, toeplitz_norm
 
 __all__ = ["SubspaceProblem", "SubspaceResult", "subspace_unfalsify", "subspace_data"]
 
@@ -152,19 +140,6 @@ def subspace_data(u, y, horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return np.vstack([Up, Yp, Uf]), Uf, Yf
 
 
-def _column_toeplitz_operator(Uf: np.ndarray) -> sp.csr_matrix:
-    """Block-diagonal sparse matrix mapping ``vec_F(H)`` to ``vec_F(H̃)``, ``H̃_{:,k} = T(U_f[:,k]) h_k``."""
-    return sp.block_diag([sp.csr_matrix(np.tril(toeplitz_matrix(Uf[:, k]))) for k in range(Uf.shape[1])], format="csr")
-
-
-def _l_value(L, L_fixed, Lscale, i) -> np.ndarray:
-    if L_fixed is not None:
-        return L_fixed.copy()
-    if L.value is None:
-        return np.full((i, 3 * i), np.nan)
-    return np.asarray(L.value, float) * Lscale
-
-
 @result
 @dataclass(frozen=True, eq=False)
 class SubspaceProblem:
@@ -184,11 +159,18 @@ class SubspaceProblem:
     A: np.ndarray
     Uf: np.ndarray
     Yf: np.ndarray
+    #: which program the solvers see (:data:`unfalsify.solvers.PROGRAMS`)
+    program: ClassVar[str] = "subspace"
 
     @property
     def n_columns(self) -> int:
         """j."""
         return int(self.Uf.shape[1])
+
+    @property
+    def n_noise(self) -> int:
+        """Number of noise samples ``ij`` the budget ``σ√(ij)`` covers."""
+        return int(self.horizon * self.n_columns)
 
     @classmethod
     def from_data(cls, u, y, horizon, sigma, predictor=None) -> "SubspaceProblem":
@@ -252,118 +234,20 @@ class SubspaceProblem:
         L = np.asarray(L, float)
         if not (np.all(np.isfinite(H)) and np.all(np.isfinite(L))):
             return float("inf"), float("nan")
-        Xi = self.Yf - L @ self.A - _conv_cols(self.Uf, H)
+        Xi = self.Yf - L @ self.A - conv_cols(self.Uf, H)
         d = max(toeplitz_norm(H[:, k]) for k in range(H.shape[1]))
         return float(d), float(np.linalg.norm(Xi))
+
+    def params_for(self, H) -> np.ndarray:
+        """``[L_w L_u]`` the impulses H leave (data units): the fixed predictor, or the least-squares fit."""
+        if self.L_fixed is not None:
+            return self.L_fixed.copy()
+        return np.linalg.lstsq(self.A.T, (self.Yf - conv_cols(self.Uf, H)).T, rcond=None)[0].T
 
     def evaluate_dual(self, V, W, sigma=None) -> float:
         """The weak-duality lower bound of :class:`Certificate` for any ``V`` (i, j) and ``W``."""
         sigma = self.sigma if sigma is None else float(sigma)
         return self.column_form(scaled=False).lower_bound(V, W, rho=sigma * np.sqrt(self.Uf.size))
-
-
-def _solve_cvxpy(P: SubspaceProblem, form, eliminate_L, solver, solver_options) -> dict:
-    """The reference cvxpy models (unchanged), in scaled units; returns a dict in data units."""
-    A, Uf, Yf = P.A, P.Uf, P.Yf
-    i, j = Uf.shape
-    su, sy = P.scale
-    L_fixed = P.L_fixed
-    As = P.scaled_A()
-    Ufs, Yfs, sig_s = Uf / su, Yf / sy, P.sigma / sy
-    bound = sig_s * np.sqrt(i * j)
-
-    delta = cp.Variable(name="delta")
-    Lscale = np.concatenate([np.full(i, sy / su), np.ones(i), np.full(i, sy / su)])  # L_orig = L_s * sy/s_col
-    L = None if L_fixed is None else cp.Constant(L_fixed / Lscale)
-    if form == "conditioned":
-        H = cp.Variable((i, j), name="H")
-        Bop = _column_toeplitz_operator(Ufs)
-        Ht = cp.reshape(Bop @ cp.vec(H, order="F"), (i, j), order="F")
-        if eliminate_L:
-            N = scipy.linalg.null_space(As)
-            resid = (Yfs - Ht) @ N if N.shape[1] else None
-            noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound] if resid is not None else []
-        else:
-            L = cp.Variable((i, 3 * i), name="L") if L is None else L
-            resid = Yfs - L @ As - Ht
-            noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound]
-        lmis = [toeplitz_norm_lmi(H[:, k], delta, i) for k in range(j)]
-        cons = noise_con + lmis
-    else:
-        L = cp.Variable((i, 3 * i), name="L") if L is None else L
-        Xi = cp.Variable((i, j), name="Xi")
-        G = Yfs - L @ As - Xi
-        xv = cp.reshape(cp.vec(Xi, order="F"), (i * j, 1), order="F") / np.sqrt(i * j)
-        cons = [cp.bmat([[np.array([[sig_s]]), xv.T], [xv, sig_s * np.eye(i * j)]]) >> 0]
-        lmis = []
-        for k in range(j):
-            Tk = toeplitz_matrix(Ufs[:, k])
-            Gk = toeplitz_expr(G[:, k], i)
-            lmis.append(cp.bmat([[delta * (Tk.T @ Tk), Gk.T], [Gk, delta * np.eye(i)]]) >> 0)
-        cons += lmis
-    prob = cp.Problem(cp.Minimize(delta), cons)
-    status, elapsed = solve(prob, solver, solver_options, f"subspace unfalsification (form={form}, i={i}, j={j})")
-    d_s = solved_value(status, delta.value)
-
-    # --- back to original units --------------------------------------------------------------
-    V = W = None
-    if form == "conditioned":
-        Hv = np.asarray(H.value, float) * (sy / su) if H.value is not None else np.full((i, j), np.nan)
-        Htil = _conv_cols(Uf, Hv)
-        if eliminate_L:
-            L_out = (Yf - Htil) @ np.linalg.pinv(A)
-        else:
-            L_out = _l_value(L, L_fixed, Lscale, i)
-        impulses = Hv
-        Zs = [c.dual_value for c in lmis]
-        lam = noise_con[0].dual_value if noise_con else None
-        Xi_s = (Yf - L_out @ A - Htil) / sy
-        if lam is not None and all(Z is not None for Z in Zs) and np.linalg.norm(Xi_s) > 0:
-            V = float(lam) * Xi_s / np.linalg.norm(Xi_s)
-            W = np.stack([-2.0 * np.asarray(Z, float)[i:, :i] for Z in Zs])
-    else:
-        L_out = _l_value(L, L_fixed, Lscale, i)
-        Xi_out = np.asarray(Xi.value, float) * sy if Xi.value is not None else np.full((i, j), np.nan)
-        G_out = Yf - L_out @ A - Xi_out
-        if np.all(np.isfinite(G_out)):
-            with np.errstate(over="ignore", invalid="ignore"):
-                impulses = np.column_stack([deconvolve(Uf[:, k], G_out[:, k], exact=True) for k in range(j)])
-        else:
-            impulses = np.full((i, j), np.nan)
-        Zs = [c.dual_value for c in lmis]
-        if all(Z is not None for Z in Zs):
-            Z21 = np.stack([np.asarray(Z, float)[i:, :i] for Z in Zs])
-            V = -2.0 * np.stack([np.trace(Z21, offset=-d, axis1=1, axis2=2) for d in range(i)])
-            W = np.stack([-2.0 * Z21[k] @ toeplitz_matrix(Ufs[:, k]).T for k in range(j)])
-    if V is not None and np.all(np.isfinite(V)) and np.all(np.isfinite(W)):
-        from .arx import _best_scaled_dual
-
-        V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
-        W = W * su
-    else:
-        V = W = None
-    return dict(delta=d_s * sy / su, H=impulses, L=L_out, status=status, time=elapsed, problem=prob, v=V, W=W)
-
-
-def _solve_structured(P: SubspaceProblem, tol, time_limit, progress, workers=1) -> dict:
-    """The column barrier solver (:mod:`unfalsify._structured_columns`); returns a dict in data units."""
-    from ._structured_columns import solve_columns_barrier
-
-    su, sy = P.scale
-    f = P.column_form(scaled=True)
-    i, j = P.Uf.shape
-    t0 = time.perf_counter()
-    B0 = f.project(f.B)
-    if np.linalg.norm(B0) <= f.rho:
-        out = dict(status="optimal", H=np.zeros((i, j)), V=None, W=None, upper=0.0)
-    else:
-        out = solve_columns_barrier(f, B0, tol=tol, time_limit=time_limit, progress=progress, workers=workers)
-    H = out["H"] * (sy / su)
-    Htil = _conv_cols(P.Uf, H)
-    L = P.L_fixed.copy() if P.L_fixed is not None else np.linalg.lstsq(P.A.T, (P.Yf - Htil).T, rcond=None)[0].T
-    W = None if out["W"] is None else out["W"] * su
-    return dict(delta=out["upper"] * sy / su, H=H, L=L, status=out["status"], time=time.perf_counter() - t0,
-                problem=None, v=out["V"], W=W)
 
 
 def subspace_unfalsify(
@@ -405,14 +289,16 @@ def subspace_unfalsify(
     solver, solver_options
         cvxpy backend: solver (passed explicitly) and extra ``Problem.solve`` arguments.
     backend : {"cvxpy", "structured"}
-        See :func:`unfalsify.arx_unfalsify`.
+        See :func:`unfalsify.arx_unfalsify`; ``"structured"`` is the solver ``"column_barrier"`` of
+        :mod:`unfalsify.solvers`.
     tol, time_limit, progress
         Structured backend, as for :func:`unfalsify.arx_unfalsify`.
     executor : concurrent.futures.Executor, optional
         With ``predictor`` fixed, (7.5) splits by columns: blocks of columns are solved as tasks
         on this executor (local processes, ``distributed.Client.get_executor()``, …) and the
-        one-dimensional outer problem in δ here (:mod:`unfalsify.split`); ``backend`` is then
-        ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate as serial.
+        one-dimensional outer problem in δ here (solver ``"split"``, :mod:`unfalsify.solvers.split`);
+        ``backend`` is then ignored and the result's ``backend`` is ``"split"``.  Same δ and certificate
+        as serial.
     workers : int or None
         Structured backend: threads over the column stack (default ``None``: every core,
         ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the
@@ -429,8 +315,10 @@ def subspace_unfalsify(
     DataError
         NaN/inf, lengths, MIMO, bad horizon / too few samples, σ ≤ 0, or a column of ``U_f``
         whose first entry ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
+    UnknownSolverError
+        Unknown backend (a ``ValueError``; the message lists the valid names).
     ValueError
-        Unknown form/backend; incompatible options.
+        Unknown form; incompatible options.
     UnfalsificationError
         cvxpy: solver failure or infeasible/unbounded status.
 
@@ -440,16 +328,14 @@ def subspace_unfalsify(
         As for :func:`unfalsify.arx_unfalsify`.
     """
     form = check_form(form)
-    backend = check_backend(backend)
+    name = resolve("subspace", backend)
     if backend == "structured" and form != "conditioned":
         raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
     if form == "thesis" and eliminate_L:
         raise ValueError("eliminate_L applies to form='conditioned' only")
     if predictor is not None and eliminate_L:
         raise ValueError("eliminate_L and a fixed predictor exclude each other")
-    from ._structured_columns import _worker_count
-
-    workers = _worker_count(workers)
+    workers = check_workers(workers)
     P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
     i, j = P.Uf.shape
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
@@ -463,29 +349,23 @@ def subspace_unfalsify(
         if predictor is None or form != "conditioned":
             raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
                             "form='conditioned': pass predictor=... (e.g. synthesis.fit_predictor(u, y, i))")
-        from .split import solve_split_problem
-
-        out, backend = solve_split_problem(P, executor), "split"
-    elif backend == "cvxpy":
-        out = _solve_cvxpy(P, form, eliminate_L, solver, solver_options)
+        name, backend, options = "split", "split", dict(executor=executor)
+    elif name == "cvxpy":
+        options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
     else:
-        out = _solve_structured(P, float(tol), time_limit, progress, workers)
-    from .arx import _finish_structured, certify
-
-    cert = certify(P, out["delta"], out["H"], out["L"], out["v"], out["W"])
-    delta = out["delta"]
-    if backend == "structured":
-        delta = _finish_structured(out["status"], f"subspace unfalsification (i={i}, j={j})", cert, delta)
-    L_out = out["L"]
+        options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
+    out = run(name, P, **options)
+    cert, delta = certify(P, out, f"subspace unfalsification (i={i}, j={j})")
+    L = out.params
     return SubspaceResult(
         delta=delta,
-        Lw=L_out[:, : 2 * i].copy(),
-        Lu=L_out[:, 2 * i :].copy(),
-        noise=P.Yf - L_out @ P.A - _conv_cols(P.Uf, out["H"]),
-        impulses=out["H"],
-        status=out["status"],
-        solve_time=out["time"],
-        problem=out["problem"],
+        Lw=L[:, : 2 * i].copy(),
+        Lu=L[:, 2 * i :].copy(),
+        noise=P.Yf - L @ P.A - conv_cols(P.Uf, out.impulses),
+        impulses=out.impulses,
+        status=out.status.value,
+        solve_time=out.solve_time,
+        problem=out.problem,
         form=form,
         eliminate_L=bool(eliminate_L and form == "conditioned"),
         sigma=P.sigma,

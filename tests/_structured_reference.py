@@ -1,4 +1,7 @@
-"""Structured barrier solver for the column form (C) of (7.4)/(7.5) (``backend="structured"``).
+"""The SVD barrier solver of the column form (C) of (7.4)/(7.5): the tests' independent reference.
+
+It was the first ``backend="structured"``; the Cholesky solvers of :mod:`unfalsify.solvers` replaced it,
+and it stays here as a second route to the same optimum (``tests/test_unfalsify_arx_large.py``).
 
 Barrier method (Boyd & Vandenberghe §11.3) on the n + 1 (resp. ij + 1) variables (h, δ), the
 model parameters eliminated by projection:
@@ -6,7 +9,7 @@ model parameters eliminated by projection:
     f_t(h, δ) = t δ − Σ_k log det F_k(h_k, δ) − log(ρ² − ‖P(B − H̃)‖²_F),
     F_k = [δI T(h_k)ᵀ; T(h_k) δI],
 
-P the projection onto 𝓛^⊥ (see :mod:`unfalsify._columns`).  Structure used (the references are
+P the projection onto 𝓛^⊥ (see :mod:`unfalsify.solvers.columns`).  Structure used (the references are
 Vandenberghe, Balakrishnan, Wallin & Hansson on structured/KYP LMIs and Genin, Hachez, Nesterov &
 Van Dooren on Toeplitz structure):
 
@@ -30,27 +33,11 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status, _tick_progress,
-                       _toeplitz_stack, adjoint_toeplitz)
+from unfalsify.solvers.barrier import SOLVE_ERRORS, Stop, cholesky_retry, gap_closed, stop_status, tick_progress
+from unfalsify.solvers.columns import ColumnForm
+from unfalsify.solvers.toeplitz import adjoint, ridge_lambda, toeplitz_stack
 
-__all__: list[str] = []
-
-
-
-
-
-def _cho(Hm):
-    """Cholesky factor; on a (rounding-level) failure, retry with a growing diagonal shift."""
-    try:
-        return scipy.linalg.cho_factor(Hm)
-    except np.linalg.LinAlgError:
-        scale = float(np.max(np.abs(np.diag(Hm))))
-        for e in (1e-14, 1e-12, 1e-10, 1e-8):
-            try:
-                return scipy.linalg.cho_factor(Hm + e * scale * np.eye(Hm.shape[0]))
-            except np.linalg.LinAlgError:
-                pass
-        raise
+__all__ = ["solve_structured"]
 
 
 def _corr_hessian(S11, S21, S22, m):
@@ -81,7 +68,7 @@ class _Solver:
         self.mu = 4.0
         f = form
         m, j = self.m, self.j
-        Tu = _toeplitz_stack(f.U)  # (j, m, m)
+        Tu = toeplitz_stack(f.U)  # (j, m, m)
         self.Tu = Tu
         if j == 1:
             PM = f.project(Tu[0])
@@ -93,7 +80,7 @@ class _Solver:
 
     # ---- evaluation --------------------------------------------------------------------------
     def _svd(self, H):
-        T = _toeplitz_stack(H)
+        T = toeplitz_stack(H)
         Uk, s, Vt = np.linalg.svd(T)
         return Uk, s, Vt
 
@@ -118,9 +105,9 @@ class _Solver:
         UD2V = (Uk * D2[:, None, :]) @ Vt
         psi = self.f.rho**2 - float(np.sum(r * r))
         g_noise = self.f.apply_T(r)  # Bᵀ r  (m, j)
-        grad_h = 2.0 * adjoint_toeplitz(UD2V) - 2.0 * g_noise / psi  # (m, j)
+        grad_h = 2.0 * adjoint(UD2V) - 2.0 * g_noise / psi  # (m, j)
         grad_d = t - 2.0 * float(D1.sum())
-        c = -4.0 * adjoint_toeplitz((Uk * (D1 * D2)[:, None, :]) @ Vt)  # (m, j)
+        c = -4.0 * adjoint((Uk * (D1 * D2)[:, None, :]) @ Vt)  # (m, j)
         dd = 2.0 * float(np.sum(D1 * D1 + D2 * D2))
         HF = np.empty((j, m, m))
         step = max(1, int(2e7 // (4 * m * m)))
@@ -130,7 +117,7 @@ class _Solver:
         gv = g_noise.reshape(-1, order="F")
         if j == 1:
             Hm = HF[0] + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(gv, gv)
-            cf = _cho(Hm)
+            cf = cholesky_retry(Hm)
             sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h[:, 0], c[:, 0]]))
             X_g, X_c = sol[:, 0:1], sol[:, 1:2]
         else:
@@ -150,7 +137,7 @@ class _Solver:
         """Solve ``(K − (2/ψ) Uw Uwᵀ + (4/ψ²) g gᵀ) X = [grad, c]`` with K block diagonal."""
         m, j = self.m, self.j
         K = HF + (2.0 / psi) * self.MtM
-        L = np.stack([np.tril(_cho(Kk)[0]) if _cho(Kk)[1] else np.triu(_cho(Kk)[0]).T for Kk in K])
+        L = np.stack([np.tril(cholesky_retry(Kk)[0]) if cholesky_retry(Kk)[1] else np.triu(cholesky_retry(Kk)[0]).T for Kk in K])
 
         def Kinv(X):  # X (m, j, p) -> (m, j, p)
             Y = np.linalg.solve(L, np.moveaxis(X, 1, 0))  # (j, m, p)
@@ -192,7 +179,7 @@ class _Solver:
         S11 = (V * D1[:, None, :]) @ Vt
         S22 = (Uk * D1[:, None, :]) @ Ut
         S21 = -(Uk * D2[:, None, :]) @ Vt
-        dT = _toeplitz_stack(dh)
+        dT = toeplitz_stack(dh)
         dTt = np.swapaxes(dT, -1, -2)
         SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ dTt @ S21 + S22 @ dT @ S11
         W = -2.0 * (S21 - SdFS21) / t
@@ -207,7 +194,7 @@ class _Solver:
         # F ⪰ 0: with T(h) = U S Vᵀ, F = Ω diag(δ ± s) Ωᵀ, Ω = [V V; U −U]/√2; the step to the
         # boundary is −1/λ_min(D^{-1/2} Ωᵀ ΔF Ω D^{-1/2})
         Uk, s, Vt = svd
-        K = np.swapaxes(Uk, -1, -2) @ _toeplitz_stack(dh) @ np.swapaxes(Vt, -1, -2)  # UᵀΔT V
+        K = np.swapaxes(Uk, -1, -2) @ toeplitz_stack(dh) @ np.swapaxes(Vt, -1, -2)  # UᵀΔT V
         Ks, Ka = 0.5 * (K + np.swapaxes(K, -1, -2)), 0.5 * (K - np.swapaxes(K, -1, -2))
         M = np.block([[Ks, Ka], [-Ka, -Ks]])
         ev = np.concatenate([d + s, d - s], axis=-1)  # (j, 2m)
@@ -233,7 +220,7 @@ class _Solver:
         beta = np.einsum("kia,ik->ka", Us, B0)  # (j, m)
         target = (0.7 * f.rho) ** 2
 
-        lam = _ridge_lambda(s, beta, target)
+        lam = ridge_lambda(s, beta, target)
         H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
         return H
 
@@ -254,11 +241,11 @@ class _Solver:
                 # centre
                 for _ in range(60):
                     if self.time_limit is not None and time.perf_counter() - t_start > self.time_limit:
-                        raise _Stop("time_limit")
+                        raise Stop("time_limit")
                     dh, dlt, lam2, aux = self._newton(t, H, d, svd, r)
                     n_newton += 1
                     if not np.isfinite(lam2) or n_newton > self.max_newton:
-                        raise _Stop("failed" if not np.isfinite(lam2) else "max_iter")
+                        raise Stop("failed" if not np.isfinite(lam2) else "max_iter")
                     if lam2 <= self.center_tol:
                         break
                     phi0 = self._phi(t, H, d, svd[1], r)
@@ -274,7 +261,7 @@ class _Solver:
                             break
                         a *= 0.5
                     else:
-                        raise _Stop("failed")
+                        raise Stop("failed")
                     H, d, svd, r = Hn, dn, svdn, rn
                 # bounds at the (approximately) centred point
                 upper = float(svd[1].max())
@@ -285,9 +272,9 @@ class _Solver:
                 if lower > best["lower"]:
                     best.update(lower=lower, V=Vd, W=Wd)
                 best.update(newton=n_newton, outer=best["outer"] + 1)
-                bar = _tick_progress(bar, self.progress, time.perf_counter() - t_start,
+                bar = tick_progress(bar, self.progress, time.perf_counter() - t_start,
                                      f"structured unfalsification ({self.m}×{self.j})", n_newton, best)
-                if _gap_closed(best, self.tol):
+                if gap_closed(best, self.tol):
                     break
                 t_new = t * self.mu
                 # predictor: follow the tangent of the central path to t_new (then re-centre)
@@ -301,8 +288,8 @@ class _Solver:
                     if np.isfinite(self._phi(t_new, Hn, dn, svdn[1], rn)):
                         H, d, svd, r = Hn, dn, svdn, rn
                 t = t_new
-        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
-            status = _stop_status(exc, best)
+        except (Stop, KeyboardInterrupt, *SOLVE_ERRORS) as exc:
+            status = stop_status(exc, best)
         finally:
             if bar is not None:
                 bar.close()

@@ -1,7 +1,7 @@
-"""Column barrier solver for the subspace program (7.5) in the column form (C) (``backend="structured"``).
+"""Solver ``"column_barrier"``: barrier method for the subspace program (7.5) in the column form (C).
 
 Barrier method (Boyd & Vandenberghe §11.3) on the ij + 1 variables (H, δ) of (C), the predictor
-eliminated by projection (:mod:`unfalsify._columns`):
+eliminated by projection (:mod:`unfalsify.solvers.columns`):
 
     f_t(H, δ) = t δ − Σ_k log det F_k(h_k, δ) − w log ψ,   ψ = ρ² − ‖P(B − H̃)‖²_F,
     F_k = [δI T(h_k)ᵀ; T(h_k) δI]      (the LMI of (7.5) per column, conditioned form),
@@ -55,27 +55,16 @@ far below its value at the next centre (8.6), and 40+ Newton steps crawled back.
 from __future__ import annotations
 
 import os
-import time
 
 import numpy as np
-import scipy.fft
 import scipy.linalg
 
-from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status, _tick_progress,
-                       _toeplitz_stack, adjoint_toeplitz)
+from .barrier import Deadline, Stop, linearised_dual, pcg, run_barrier
+from .base import SolverOutput, unscaled, zero_answer
+from .columns import ColumnForm
+from .toeplitz import _tr, adjoint, corr_hessian, ridge_lambda, toeplitz_stack
 
-__all__: list[str] = []
-
-
-
-def _tr(X: np.ndarray) -> np.ndarray:
-    """Transpose of the last two axes."""
-    return np.swapaxes(X, -1, -2)
-
-
-def _rfft2_padded(X: np.ndarray, N: int) -> np.ndarray:
-    """``rfft2(X, (N, N))`` of a stack of m × m matrices, without transforming the N − m zero rows."""
-    return scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2)
+__all__ = ["solve", "solve_columns_barrier", "check_workers"]
 
 
 class _Chunks:
@@ -120,28 +109,8 @@ class _Chunks:
 _SERIAL = _Chunks()
 
 
-def _corr_hessian(S11, S21, S22, m):
-    """``2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` for all (a, b), by 2-D FFT (batched).
-
-    Both terms are 2-D cross-correlations read at lags (−b, a) (the second after flipping the columns
-    of S11 and S22), so their spectra are added and one inverse transform serves both; the spectrum
-    of ``S12 = S21ᵀ`` is that of S21 transposed (completed by conjugate symmetry), and only the m
-    rows of lags that are read are inverse-transformed: three forward and one partial inverse FFT.
-    """
-    N = 2 * m
-    h = N // 2 + 1
-    F21 = _rfft2_padded(S21, N)  # F(S21)[u, v], v ≤ N/2
-    G = np.empty(F21.shape[:-2] + (h, N), complex)  # F(S21)[v, u] for v ≤ N/2, every u
-    G[..., :h] = F21[..., :h, :]
-    G[..., h:] = np.conj(F21[..., (-np.arange(h)) % N, :][..., :, N - np.arange(h, N)])
-    spec = _tr(G) * np.conj(F21)
-    spec += _rfft2_padded(S11[..., ::-1], N) * np.conj(_rfft2_padded(S22[..., ::-1], N))
-    rows = scipy.fft.ifft(spec, axis=-2)[..., (-np.arange(m)) % N, :]
-    return 2.0 * _tr(scipy.fft.irfft(rows, N, axis=-1)[..., :m])
-
-
 def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL):
-    """:func:`_corr_hessian` over the column stack in chunks (bounded FFT workspace), on ``chunks``' threads."""
+    """:func:`~unfalsify.solvers.toeplitz.corr_hessian` over the column stack in chunks (bounded FFT workspace), on ``chunks``' threads."""
     j, m = S11.shape[0], S11.shape[1]
     out = np.empty((j, m, m))
     step = max(1, int(1e7 // (4 * m * m * chunks.workers)))
@@ -149,7 +118,7 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL):
     def work(s):
         for k0 in range(s.start, s.stop, step):
             sl = slice(k0, min(k0 + step, s.stop))
-            out[sl] = _corr_hessian(S11[sl], S21[sl], S22[sl], m)
+            out[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m)
 
     chunks.map(work, j, S11.size)
     return out
@@ -333,7 +302,7 @@ class _ColumnBarrier:
         self.mu, self.max_newton = mu, max_newton
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
         self.far = False  # set by _centre: the next Newton solve is far from the centre (inexact CG)
-        self.Tu = _toeplitz_stack(form.U)
+        self.Tu = toeplitz_stack(form.U)
         self.TuTu = _tr(self.Tu) @ self.Tu
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
         self.W = _common_impulse_basis(form.U, self.Q) if self.Q is not None else None
@@ -342,6 +311,9 @@ class _ColumnBarrier:
         self.cg_iters = 0
         self.center_tol = 1.0
         self.stalled = 0
+        self.steps = 0
+        self.desc = f"structured unfalsification ({self.m}×{self.j})"
+        self._prev = None
 
     # ---- evaluation --------------------------------------------------------------------------
     def _resid(self, H):
@@ -349,7 +321,7 @@ class _ColumnBarrier:
 
     def _gram(self, H):
         """``(T_k, T_kᵀT_k)`` stacks of the impulses H."""
-        T = _toeplitz_stack(H)
+        T = toeplitz_stack(H)
         return T, self.chunks.matmul(_tr(T), T)
 
     def _point(self, H, d, gram=None) -> _Point | None:
@@ -370,7 +342,7 @@ class _ColumnBarrier:
 
         ``tr(F⁻¹ΔF) = dδ tr F⁻¹ + 2⟨S21, ΔT⟩`` and ``⟨S21, ΔT⟩ = −⟨K⁻¹, TᵀΔT⟩``: one product per column.
         """
-        dT = _toeplitz_stack(dh)
+        dT = toeplitz_stack(dh)
         tr_fdf = dlt * p.trace_S() - 2.0 * float(np.sum(p.Kinv * self.chunks.matmul(_tr(p.T), dT)))
         return t * dlt - tr_fdf - 2.0 * self.wn * float(np.sum(p.r * q)) / p.psi
 
@@ -380,9 +352,9 @@ class _ColumnBarrier:
         S11, S21, S22 = p.blocks()
         psi = p.psi
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
-        grad_h = -2.0 * adjoint_toeplitz(S21) - 2.0 * self.wn * g_noise / psi
+        grad_h = -2.0 * adjoint(S21) - 2.0 * self.wn * g_noise / psi
         grad_d = t - p.trace_S()
-        c = 4.0 * adjoint_toeplitz(self.chunks.matmul(S21, S11))  # (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K)
+        c = 4.0 * adjoint(self.chunks.matmul(S21, S11))  # (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K)
         dd = float(np.sum(S11 * S11) + np.sum(S22 * S22) + 2.0 * np.sum(S21 * S21))
         G = _chunked_hessian(S11, S21, S22, self.chunks)
         X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
@@ -458,47 +430,18 @@ class _ColumnBarrier:
         def dot(X, Y):
             return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
 
-        def project(Z):
-            return Z if deflation is None else deflation.project(Z)
-
-        tol = self.pcg_tol()
-
-        X, R = (np.zeros_like(B), B.copy()) if deflation is None else deflation.start(B)
-        Z = Minv(R)
-        P = project(Z)
-        rz = dot(R, Z)
-        bn = np.sqrt(dot(B, B))
-        bn[bn == 0] = 1.0
-        for _ in range(self.cg_maxiter):
-            AP = A(P)
-            pap = dot(P, AP)
-            a = np.where(pap > 0, rz / np.where(pap > 0, pap, 1.0), 0.0)
-            X += a * P
-            R -= a * AP
-            self.cg_iters += 1
-            if np.all(np.sqrt(dot(R, R)) <= tol * bn):
-                break
-            Z = Minv(R)
-            rz_new = dot(R, Z)
-            P = project(Z) + np.where(rz > 0, rz_new / np.where(rz > 0, rz, 1.0), 0.0) * P
-            rz = rz_new
+        start = None if deflation is None else deflation.start(B)
+        project = None if deflation is None else deflation.project
+        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol(), maxiter=self.cg_maxiter, start=start, project=project,
+                            dot=dot)
+        self.cg_iters += iterations
         return X
 
     # ---- dual point --------------------------------------------------------------------------
     def _dual(self, t, p: _Point, dh, dlt):
-        """Dual point of the Newton-linearised centrality conditions (exact on the central path).
-
-        ``G = (S − S ΔF S)/t`` (S = F⁻¹) gives ``W = −2 G21``; the noise multiplier is linearised the
-        same way.  Neither needs to be exact: the bound repairs and normalises them.
-        """
-        S11, S21, S22 = p.blocks()
-        dT = _toeplitz_stack(dh)
-        SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ _tr(dT) @ S21 + S22 @ dT @ S11
-        W = -2.0 * (S21 - SdFS21) / t
-        psi, r = p.psi, p.r
+        """Dual point of the Newton-linearised centrality conditions (:func:`linearised_dual`)."""
         dr = -self.f.project(self.f.apply(dh))
-        v = (2.0 * self.wn / t) * (r / psi + dr / psi + 2.0 * r * float(np.sum(r * dr)) / psi**2)
-        return v, W
+        return linearised_dual(t, p.blocks(), toeplitz_stack(dh), dlt, p.r, dr, p.psi, weight=self.wn)
 
     # ---- steps -------------------------------------------------------------------------------
     def _noise_step(self, r, q) -> float:
@@ -557,18 +500,18 @@ class _ColumnBarrier:
         Us, s, Vt = (np.concatenate(x) for x in zip(*parts))
         beta = np.einsum("kia,ik->ka", Us, B0)
         target = (0.7 * self.f.rho) ** 2
-        lam = _ridge_lambda(s, beta, target)
+        lam = ridge_lambda(s, beta, target)
         H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
         gram = self._gram(H)
         up = _max_norm(gram[1], self.chunks)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up), gram)
         if p is None:  # pragma: no cover - the ridge point is strictly inside by construction
-            raise _Stop("failed")
+            raise Stop("failed")
         return p
 
     # ---- main loop ---------------------------------------------------------------------------
-    def _centre(self, t, p, n_newton, t_start):
-        """Newton steps on f_t until λ² ≤ ``center_tol`` (or 60 steps); returns the point, the last step, counts.
+    def centre(self, t, p, deadline: Deadline):
+        """Newton steps on f_t until λ² ≤ ``center_tol`` (or 60 steps); returns the point and the last step.
 
         Inexact Newton far from the centre: while the last decrement exceeds :data:`_FAR_DECREMENT`
         (and on the first step after t grew) the CG solves of L optimised stop at the relative residual
@@ -579,13 +522,13 @@ class _ColumnBarrier:
         """
         lam2_prev = np.inf
         for _ in range(60):
-            self._check_time(t_start)
+            deadline.check()
             self.far = lam2_prev > _FAR_DECREMENT
             dh, dlt, lam2, tangent = self._newton(t, p)
             lam2_prev = lam2
-            n_newton += 1
-            if not np.isfinite(lam2) or n_newton > self.max_newton:
-                raise _Stop("failed" if not np.isfinite(lam2) else "max_iter")
+            self.steps += 1
+            if not np.isfinite(lam2) or self.steps > self.max_newton:
+                raise Stop("failed" if not np.isfinite(lam2) else "max_iter")
             if not lam2 > 0.0:  # not a descent direction: the Newton solve lost its digits, not centred
                 self.stalled += 1
                 break
@@ -596,46 +539,36 @@ class _ColumnBarrier:
                 self.stalled += 1
                 break
             p = pn
-        return p, (dh, dlt, tangent), n_newton
+        return p, (dh, dlt, tangent)
 
-    def _check_time(self, t_start):
-        if self.time_limit is not None and time.perf_counter() - t_start > self.time_limit:
-            raise _Stop("time_limit")
+    # ---- the plug-in of run_barrier ----------------------------------------------------------
+    def upper(self, p: _Point) -> float:
+        return p.upper()
+
+    def impulses(self, p: _Point) -> np.ndarray:
+        return p.H.copy()
+
+    def dual(self, t, p: _Point, step):
+        dh, dlt, _ = step
+        return self._dual(t, p, dh, dlt)
+
+    def advance(self, t, p: _Point, step, bounds, deadline: Deadline):
+        """``μt`` from the centred point (its first Newton step is the tangent of the central path); a
+        stall (no step possible) that brought no better bound is the end of double precision."""
+        upper, lower = bounds
+        if self.stalled and not (upper < self._prev[0] or lower > self._prev[1]):
+            raise Stop("failed")
+        self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
+        deadline.check()
+        return t * self.mu, p
 
     def run(self, p: _Point) -> dict:
-        f = self.f
-        t_start = time.perf_counter()
-        t = self.nu / p.d
-        best = dict(lower=0.0, upper=p.upper(), H=p.H.copy(), V=None, W=None, outer=0)
-        status, bar, n_newton = "optimal", None, 0
-        prev = (best["upper"], best["lower"])
-        try:
-            while True:
-                p, (dh, dlt, tangent), n_newton = self._centre(t, p, n_newton, t_start)
-                upper = p.upper()
-                if upper < best["upper"]:
-                    best.update(upper=upper, H=p.H.copy())
-                Vd, Wd = self._dual(t, p, dh, dlt)
-                lower = f.lower_bound(Vd, Wd)
-                if lower > best["lower"]:
-                    best.update(lower=lower, V=Vd, W=Wd)
-                best["outer"] += 1
-                bar = _tick_progress(bar, self.progress, time.perf_counter() - t_start,
-                                     f"structured unfalsification ({self.m}×{self.j})", n_newton, best)
-                if _gap_closed(best, self.tol):
-                    break
-                if self.stalled and not (upper < prev[0] or lower > prev[1]):
-                    raise _Stop("failed")  # no step possible and no better bound: the end of double precision
-                prev, self.stalled = (best["upper"], best["lower"]), 0
-                self._check_time(t_start)
-                t *= self.mu
-        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
-            status = _stop_status(exc, best)
-        finally:
-            if bar is not None:
-                bar.close()
-        best.update(status=status, newton=n_newton, cg=self.cg_iters, time=time.perf_counter() - t_start)
-        return best
+        deadline = Deadline(self.time_limit)
+        up = p.upper()
+        self._prev = (up, 0.0)
+        out = run_barrier(self, self.f, p, self.nu / p.d, deadline, up)
+        out["cg"] = self.cg_iters
+        return out
 
 
 def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_limit=None, progress=True,
@@ -668,7 +601,7 @@ def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_li
         ``W`` (j × m × m), Newton, outer and CG iteration counts, wall time.  Ctrl-C during the solve
         returns the bracket so far with status ``interrupted``.
     """
-    n = _worker_count(workers)
+    n = check_workers(workers)
     if n == 1:
         return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _SERIAL)
     from concurrent.futures import ThreadPoolExecutor
@@ -679,7 +612,7 @@ def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_li
         return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _Chunks(pool, n))
 
 
-def _worker_count(workers) -> int:
+def check_workers(workers) -> int:
     """``workers`` checked (a positive integer, or None for ``os.cpu_count()``)."""
     if workers is None:
         return max(1, os.cpu_count() or 1)
@@ -691,10 +624,24 @@ def _worker_count(workers) -> int:
 def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunks) -> dict:
     solver = _ColumnBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu, noise_weight=noise_weight,
                             chunks=chunks)
-    t0 = time.perf_counter()
+    clock = Deadline()
     try:
         p = solver.start(B0)
     except KeyboardInterrupt:
         return dict(status="interrupted", lower=0.0, upper=float("nan"), H=np.zeros((form.m, form.j)), V=None,
-                    W=None, outer=0, newton=0, cg=0, time=time.perf_counter() - t0)
+                    W=None, outer=0, newton=0, cg=0, time=clock.elapsed())
     return solver.run(p)
+
+
+def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
+          workers: int | None = 1) -> SolverOutput:
+    """Registered solver ``"column_barrier"``: (7.5) of an :class:`unfalsify.SubspaceProblem` (L optimised
+    or fixed), certified to the relative gap ``tol``; the answer in data units."""
+    f = problem.column_form(scaled=True)
+    clock = Deadline()
+    if zero_answer(f):
+        return unscaled(problem, np.zeros(f.U.shape), 0.0, "optimal", clock.elapsed())
+    out = solve_columns_barrier(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
+                                workers=workers)
+    return unscaled(problem, out["H"], out["upper"], out["status"], clock.elapsed(), V=out["V"], W=out["W"],
+                    stats={k: out[k] for k in ("newton", "outer", "cg") if k in out})

@@ -1,4 +1,4 @@
-"""The common column form of (7.4) and (7.5) and the bounds of its certificate.
+"""The problem every structured solver takes: the column form (C) of (7.4) and (7.5), and its dual bound.
 
 Both programs are instances of
 
@@ -38,7 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__: list[str] = []
+from .toeplitz import (adjoint, adjoint_lowrank, conv_cols, conv_cols_T, nuclear_norm_lowrank,
+                       toeplitz_nuclear_upper)
+
+__all__ = ["ColumnForm", "CirculantDual", "scale_dual"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +53,7 @@ class CirculantDual:
     ``T*(W)_d = (m − d) column_d`` (d < m) and ``‖W‖_* ≤ ‖fft([column; 0], N)‖₁`` (the circulant's singular
     values are the moduli of its DFT, and compressing a matrix does not increase its nuclear norm), so
     :meth:`ColumnForm.lower_bound` evaluates the bound in O(N log N) without forming W.  Used by the
-    bracket route (:mod:`unfalsify._bracket`) at sizes where W cannot be stored.
+    bracket route (:mod:`unfalsify.solvers.bracket`) at sizes where W cannot be stored.
     """
 
     column: np.ndarray
@@ -59,123 +62,6 @@ class CirculantDual:
     def scaled(self, a: float) -> "CirculantDual":
         """``a W``."""
         return CirculantDual(column=a * np.asarray(self.column, float), size=self.size)
-
-
-class _Stop(Exception):
-    """A barrier solver's own stop (time limit, iteration cap, failure); the message is the status."""
-
-
-#: numerical failures a barrier solver turns into status ``"failed"`` (the best bracket so far is kept)
-_SOLVE_ERRORS = (np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError)
-
-
-def _stop_status(exc: BaseException, best: dict) -> str:
-    """The status of a solve ended by ``exc`` (:class:`_Stop`, Ctrl-C or one of :data:`_SOLVE_ERRORS`);
-    a numerical failure is also recorded in ``best["error"]``."""
-    if isinstance(exc, _Stop):
-        return str(exc)
-    if isinstance(exc, KeyboardInterrupt):
-        return "interrupted"
-    best["error"] = f"{type(exc).__name__}: {exc}"
-    return "failed"
-
-
-def _tick_progress(bar, enabled: bool, elapsed: float, desc: str, newton: int, best: dict):
-    """One outer iteration of a barrier solve on its tqdm bar (iteration, Newton steps, bounds).
-
-    The bar is opened only once the solve has run 2 s (``enabled``: the solver's ``progress``);
-    returns it (or ``None``) for the next call.
-    """
-    if bar is None and enabled and elapsed > 2.0:
-        from tqdm import tqdm
-
-        bar = tqdm(desc=desc, unit=" outer", leave=False)
-    if bar is not None:
-        bar.update(1)
-        bar.set_postfix(newton=newton, lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
-    return bar
-
-
-def _gap_closed(best: dict, tol: float) -> bool:
-    """The stopping rule of the barrier solvers: certified relative gap ≤ ``tol`` (or δ = 0 reached)."""
-    return best["upper"] - best["lower"] <= tol * best["upper"] or best["upper"] <= 1e-14
-
-
-def _toeplitz_stack(H: np.ndarray) -> np.ndarray:
-    """Stack ``(j, m, m)`` of ``T(H[:, k])``."""
-    m = H.shape[0]
-    idx = np.subtract.outer(np.arange(m), np.arange(m))
-    T = H.T[:, idx.clip(0)]
-    T[:, idx < 0] = 0.0
-    return T
-
-
-def _ridge_lambda(s: np.ndarray, beta: np.ndarray, target: float) -> float:
-    """The ridge parameter λ with ``Σ (λ/(s² + λ))² β² = target`` (the residual ‖B0 − T(u)h_λ‖² of the
-    ridge impulses, s and β the singular values and data coordinates of T(u)), by bisection on log₁₀ λ
-    over [−40, 10] (the residual grows with λ); the side of the bracket that stays below ``target``."""
-    lo, hi = -40.0, 10.0
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lam = 10.0**mid
-        if float(np.sum((lam / (s * s + lam)) ** 2 * beta**2)) > target:
-            hi = mid
-        else:
-            lo = mid
-    return 10.0**lo
-
-
-def _nfft(m: int) -> int:
-    return int(2 ** np.ceil(np.log2(max(2 * m, 2))))
-
-
-def _conv_cols(U: np.ndarray, H: np.ndarray) -> np.ndarray:
-    """Columns ``T(U[:, k]) H[:, k]`` (causal convolution truncated to m samples), by FFT."""
-    m = U.shape[0]
-    if m <= 64:
-        out = np.empty(np.broadcast_shapes(U.shape, H.shape))
-        for t in range(m):
-            out[t] = np.einsum("ij,ij->j", U[t::-1], H[: t + 1])
-        return out
-    nf = _nfft(m)
-    return np.fft.irfft(np.fft.rfft(U, nf, axis=0) * np.fft.rfft(H, nf, axis=0), nf, axis=0)[:m]
-
-
-def _conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Columns ``T(U[:, k])ᵀ X[:, k]`` (``T(u)ᵀ = J T(u) J``, J the flip)."""
-    return _conv_cols(U, X[::-1])[::-1]
-
-
-def adjoint_toeplitz(W: np.ndarray) -> np.ndarray:
-    """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W, or a stack ``(j, m, m)`` → ``(m, j)``."""
-    W = np.asarray(W, float)
-    if W.ndim == 2:
-        return np.array([np.trace(W, offset=-d) for d in range(W.shape[0])])
-    m = W.shape[-1]
-    return np.stack([np.trace(W, offset=-d, axis1=1, axis2=2) for d in range(m)])
-
-
-def adjoint_toeplitz_lowrank(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """``T*(P Qᵀ)`` without forming ``P Qᵀ`` (sum over factors of the cross-correlations), O(r m log m)."""
-    m = P.shape[0]
-    nf = _nfft(m)
-    c = np.fft.irfft(np.fft.rfft(P, nf, axis=0) * np.conj(np.fft.rfft(Q, nf, axis=0)), nf, axis=0)[:m]
-    return c.sum(axis=1)
-
-
-def nuclear_norm_lowrank(P: np.ndarray, Q: np.ndarray) -> float:
-    """``‖P Qᵀ‖_*`` from thin QR factors (O(m r²))."""
-    if P.shape[1] == 0:
-        return 0.0
-    Rp = np.linalg.qr(P, mode="r")
-    Rq = np.linalg.qr(Q, mode="r")
-    return float(np.linalg.svd(Rp @ Rq.T, compute_uv=False).sum())
-
-
-def _toeplitz_nuclear_upper(c: np.ndarray) -> float:
-    """An upper bound on ``‖T(c)‖_*``: ``Σ_d |c_d| ‖Z_d‖_* = Σ_d |c_d| (m − d)``."""
-    m = c.size
-    return float(np.sum(np.abs(c) * (m - np.arange(m))))
 
 
 class ColumnForm:
@@ -211,11 +97,11 @@ class ColumnForm:
 
     def apply(self, H: np.ndarray) -> np.ndarray:
         """``H̃``: column k is ``T(u_k) h_k``."""
-        return _conv_cols(self.U, H)
+        return conv_cols(self.U, H)
 
     def apply_T(self, X: np.ndarray) -> np.ndarray:
         """Adjoint of :meth:`apply`: column k is ``T(u_k)ᵀ x_k``."""
-        return _conv_cols_T(self.U, X)
+        return conv_cols_T(self.U, X)
 
     def lower_bound(self, V, W, rho: float | None = None) -> float:
         """The weak-duality bound of the module docstring for any ``V`` and ``W``.
@@ -240,9 +126,9 @@ class ColumnForm:
             if P.ndim == 2:
                 P, Q = P[None], Q[None]
             for k in range(self.j):
-                d = g[:, k] - adjoint_toeplitz_lowrank(P[k], Q[k])
+                d = g[:, k] - adjoint_lowrank(P[k], Q[k])
                 c = d / (self.m - np.arange(self.m))
-                den += nuclear_norm_lowrank(P[k], Q[k]) + _toeplitz_nuclear_upper(c)
+                den += nuclear_norm_lowrank(P[k], Q[k]) + toeplitz_nuclear_upper(c)
         else:
             Ws = np.asarray(W, float)
             if Ws.ndim == 2:
@@ -251,7 +137,7 @@ class ColumnForm:
                 return float("nan")
             idx = np.arange(self.m)
             for k in range(self.j):
-                d = g[:, k] - adjoint_toeplitz(Ws[k])
+                d = g[:, k] - adjoint(Ws[k])
                 c = d / (self.m - idx)
                 Wk = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
                 den += float(np.linalg.svd(Wk, compute_uv=False).sum())
@@ -271,3 +157,16 @@ class ColumnForm:
         if not den > 0.0:
             return 0.0
         return max(0.0, num / den)
+
+
+def scale_dual(W, a: float):
+    """``a W`` for any form of norm multiplier: dense (stack), factor pair ``(P, Q)`` (P scaled only,
+    ``W = P Qᵀ``) or :class:`CirculantDual`; None stays None.  Solvers work in scaled units and
+    hand back duals in data units with this (``T(u)ᵀv = s_u T(u/s_u)ᵀv``: ``a = s_u``)."""
+    if W is None:
+        return None
+    if isinstance(W, CirculantDual):
+        return W.scaled(a)
+    if isinstance(W, tuple):
+        return (W[0] * a, W[1])
+    return W * a

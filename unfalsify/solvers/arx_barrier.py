@@ -1,6 +1,6 @@
-"""Cholesky-based barrier solver for the ARX program (7.4) in column form (C) (j = 1).
+"""Solver ``"arx_barrier"``: Cholesky-based barrier method for the ARX program (7.4) in column form (C) (j = 1).
 
-The same barrier method as :mod:`unfalsify._structured` (Boyd & Vandenberghe §11.3) on the n + 1
+The barrier method of :mod:`unfalsify.solvers.barrier` (Boyd & Vandenberghe §11.3) on the n + 1
 variables (h, δ) of (C) with ``𝓛 = range Φ`` projected out,
 
     f_t(h, δ) = t δ − log det F(h, δ) − log(ρ² − ‖P(B − T(u)h)‖²),   F = [δI T(h)ᵀ; T(h) δI],
@@ -11,7 +11,7 @@ but every quantity is read off one Cholesky factorisation instead of an SVD of T
   ``log det F = 2 Σ log L_ii`` and F ≻ 0 ⟺ (δ > 0 and the Cholesky factorisation succeeds);
 * ``F⁻¹ = [S11 S12; S21 S22]`` with ``S11 = δK⁻¹``, ``S21 = −T K⁻¹``, ``S22 = (I + T K⁻¹ Tᵀ)/δ``;
 * the gradient ``∂/∂h_a = 2 T*(T K⁻¹)_a``, ``∂/∂δ = t − 2δ tr K⁻¹``; the Hessian's h–h block is the
-  2-D-FFT correlation of :func:`unfalsify._structured_columns._corr_hessian`, its δ–δ entry
+  2-D-FFT correlation of :func:`unfalsify.solvers.toeplitz.corr_hessian`, its δ–δ entry
   ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)`` and its h–δ column ``−4δ T*(T K⁻²)``.
 
 A trial point of the line search costs one Cholesky (n³/3 flops) instead of an SVD (~20 n³), so
@@ -22,39 +22,24 @@ of the central path to the next t) backtracks on feasibility.  t grows by μ = 3
 iteration above n = 200 (8 below): with μ = 8 a re-centring near the optimum zig-zags for 30–80
 Newton steps (most singular values of T(h) cluster at δ and the Newton step runs into the
 boundary); measured at n = 400: 47 Newton steps with μ = 3, 45 with μ = 2, 86 with μ = 8 (the SVD
-solver of :mod:`unfalsify._structured`: 102).
+solver kept as the tests' reference, ``tests/_structured_reference.py``: 102).
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
-multiplier, as in :mod:`unfalsify._structured`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
-bound ``‖T(h)‖₂`` is recomputed by :func:`unfalsify.arx.certified_norm`.  The stopping rule uses
-these certified bounds only.  Memory O(n²).
+multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
+bound ``‖T(h)‖₂`` is recomputed by :func:`unfalsify.solvers.toeplitz.certified_norm`.  The stopping rule uses
+these certified bounds only (:func:`unfalsify.solvers.barrier.run_barrier`).  Memory O(n²).
 """
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import scipy.linalg
 
-from ._columns import (_SOLVE_ERRORS, ColumnForm, _gap_closed, _ridge_lambda, _Stop, _stop_status,
-                       _tick_progress)
-from ._structured import _cho
-from ._structured_columns import _corr_hessian
-from ._toeplitz import _toeplitz_gram, toeplitz_matrix
+from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
+from .base import SolverOutput, unscaled, zero_answer
+from .columns import ColumnForm
+from .toeplitz import adjoint, certified_norm, corr_hessian, ridge_lambda, toeplitz_gram, toeplitz_matrix
 
-__all__: list[str] = []
-
-
-def _norm(h) -> float:
-    from .arx import certified_norm  # the certificate's own route (dense SVD up to n = 4000)
-
-    return certified_norm(h)
-
-
-def _clock() -> float:
-    """Wall clock of the time limit (a function, so that tests can substitute a deterministic one)."""
-    return time.perf_counter()
-
+__all__ = ["solve", "solve_arx_barrier", "ridge_start"]
 
 
 class _State:
@@ -73,7 +58,7 @@ class _State:
         self.logdet = -np.inf
         if not (self.d > 0.0 and self.psi > 0.0):
             return
-        K = _toeplitz_gram(h)
+        K = toeplitz_gram(h)
         K *= -1.0
         K[np.diag_indices_from(K)] += self.d * self.d
         try:
@@ -93,13 +78,8 @@ class _State:
         return t * self.d - self.logdet - np.log(self.psi)
 
 
-def _adjoint(A: np.ndarray, lower_d: np.ndarray, lower_mask: np.ndarray, n: int) -> np.ndarray:
-    """``T*(A)_d = Σ_i A[i+d, i]`` (sum of the d-th subdiagonal) by one bincount."""
-    return np.bincount(lower_d, weights=A[lower_mask], minlength=n)
-
-
 class _ArxBarrier:
-    """The barrier path-following loop (see the module docstring)."""
+    """The barrier method of the module docstring, plugged into :func:`run_barrier`."""
 
     def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=3.0, center_tol=0.1, max_newton=3000):
         if form.j != 1:
@@ -108,17 +88,12 @@ class _ArxBarrier:
         self.n = form.m
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.center_tol, self.max_newton = mu, center_tol, max_newton
+        self.desc = f"structured ARX unfalsification (n={self.n})"
+        self.steps = 0
         Tu = toeplitz_matrix(form.U[:, 0])
         PM = form.project(Tu)
         self.MtPM = PM.T @ PM
         self.nbar = 2 * self.n + 1
-        ar = np.arange(self.n)
-        dmat = np.subtract.outer(ar, ar)
-        self._mask = dmat >= 0
-        self._dlow = dmat[self._mask]
-
-    def _Tstar(self, A):
-        return _adjoint(A, self._dlow, self._mask, self.n)
 
     # ---- one Newton step ---------------------------------------------------------------------
     def _inverse_blocks(self, s: _State):
@@ -137,13 +112,13 @@ class _ArxBarrier:
         S22 /= d
         g_noise = self.f.apply_T(s.r[:, None])[:, 0]
         psi = s.psi
-        grad_h = 2.0 * self._Tstar(A) - 2.0 * g_noise / psi
+        grad_h = 2.0 * adjoint(A) - 2.0 * g_noise / psi
         grad_d = t - 2.0 * d * float(np.trace(Kinv))
-        c = -4.0 * d * self._Tstar(A @ Kinv)
+        c = -4.0 * d * adjoint(A @ Kinv)
         dd = 2.0 * (d * d * float(np.sum(Kinv * Kinv)) + float(np.sum(A * A)))
-        HF = _corr_hessian(S11[None], -A[None], S22[None], n)[0]
+        HF = corr_hessian(S11[None], -A[None], S22[None], n)[0]
         Hm = HF + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(g_noise, g_noise)
-        cf = _cho(Hm)
+        cf = cholesky_retry(Hm)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
         xg, xc = sol[:, 0], sol[:, 1]
         dd_eff = dd - c @ xc
@@ -153,32 +128,19 @@ class _ArxBarrier:
         tangent = (xc / dd_eff, -1.0 / dd_eff)  # d(h, δ)/dt on the central path
         return dh, dlt, lam2, tangent, (S11, -A, S22)
 
-    def dual(self, t: float, s: _State, blocks, dh, dlt):
-        """Dual point of the Newton-linearised centrality conditions (as in :mod:`unfalsify._structured`)."""
-        S11, S21, S22 = blocks
-        dT = toeplitz_matrix(dh)
-        SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ dT.T @ S21 + S22 @ dT @ S11
-        W = -2.0 * (S21 - SdFS21) / t
-        psi, r = s.psi, s.r
-        dr = -self.f.project(self.f.apply(dh[:, None])[:, 0])
-        v = (2.0 / t) * (r / psi + dr / psi + 2.0 * r * float(r @ dr) / psi**2)
-        return v, W
-
-    # ---- loop --------------------------------------------------------------------------------
-    def _check_time(self, t_start):
-        if self.time_limit is not None and _clock() - t_start > self.time_limit:
-            raise _Stop("time_limit")
-
-    def _centre(self, t, s, t_start, counter):
+    # ---- the plug-in of run_barrier ----------------------------------------------------------
+    def centre(self, t, s, deadline: Deadline):
         """Damped Newton on ``f_t`` from ``s`` until λ² ≤ center_tol; returns the state and last step."""
+        if not s.ok:
+            raise Stop("failed")
         while True:
-            self._check_time(t_start)
+            deadline.check()
             dh, dlt, lam2, tangent, blocks = self.newton(t, s)
-            counter[0] += 1
+            self.steps += 1
             if not np.isfinite(lam2):
-                raise _Stop("failed")
-            if counter[0] > self.max_newton:
-                raise _Stop("max_iter")
+                raise Stop("failed")
+            if self.steps > self.max_newton:
+                raise Stop("max_iter")
             if lam2 <= self.center_tol:
                 return s, (dh, dlt, tangent, blocks)
             phi0 = s.phi(t)
@@ -189,7 +151,7 @@ class _ArxBarrier:
                     break
                 a *= 0.5
             else:
-                raise _Stop("failed")
+                raise Stop("failed")
             if a == 1.0:  # the full step was accepted: try longer ones while f_t decreases
                 phin = sn.phi(t)
                 for _ex in range(6):
@@ -200,57 +162,37 @@ class _ArxBarrier:
                     sn, phin = sx, sx.phi(t)
             s = sn
 
-    def _predict(self, t, t_new, s, tangent):
-        """Step along the central-path tangent towards ``t_new``, backtracking on feasibility."""
-        th, tdl = tangent
+    def upper(self, s: _State) -> float:
+        return certified_norm(s.h)  # the certificate's own route (dense SVD up to n = 4000)
+
+    def impulses(self, s: _State) -> np.ndarray:
+        return s.h[:, None].copy()
+
+    def dual(self, t, s: _State, step):
+        dh, dlt, _, blocks = step
+        dr = -self.f.project(self.f.apply(dh[:, None])[:, 0])
+        v, W = linearised_dual(t, blocks, toeplitz_matrix(dh), dlt, s.r, dr, s.psi)
+        return v[:, None], W[None]
+
+    def advance(self, t, s: _State, step, bounds, deadline):
+        """Step along the central-path tangent towards ``μt``, backtracking on feasibility."""
+        t_new = t * self.mu
+        th, tdl = step[2]
         ph, pdl = (t_new - t) * th, (t_new - t) * tdl
         a = 1.0
         for _ in range(8):
             sn = _State(s.h + a * ph, s.d + a * pdl, self.f)
             if np.isfinite(sn.phi(t_new)):
-                return sn
+                return t_new, sn
             a *= 0.5
-        return s
+        return t_new, s
 
     def run(self, h0):
-        f = self.f
-        t_start = _clock()
-        up0 = _norm(h0)
+        deadline = Deadline(self.time_limit)
+        up0 = certified_norm(h0)
         d0 = 1.2 * up0 + 1e-3 * (1.0 + up0)
-        s = _State(h0, d0, f)
-        t = self.nbar / d0
-        best = dict(lower=0.0, upper=up0, H=h0[:, None].copy(), V=None, W=None, newton=0, outer=0)
-        status, bar, counter = "optimal", None, [0]
-        try:
-            if not s.ok:
-                raise _Stop("failed")
-            while True:
-                s, (dh, dlt, tangent, blocks) = self._centre(t, s, t_start, counter)
-                upper = _norm(s.h)
-                if upper < best["upper"]:
-                    best.update(upper=upper, H=s.h[:, None].copy())
-                v, W = self.dual(t, s, blocks, dh, dlt)
-                lower = f.lower_bound(v, W)
-                if lower > best["lower"]:
-                    best.update(lower=lower, V=v[:, None], W=W[None])
-                best.update(newton=counter[0], outer=best["outer"] + 1)
-                bar = self._progress(bar, t_start, best)
-                if _gap_closed(best, self.tol):
-                    break
-                t_new = t * self.mu
-                s = self._predict(t, t_new, s, tangent)
-                t = t_new
-        except (_Stop, KeyboardInterrupt, *_SOLVE_ERRORS) as exc:
-            status = _stop_status(exc, best)
-        finally:
-            if bar is not None:
-                bar.close()
-        best.update(status=status, newton=counter[0], time=_clock() - t_start)
-        return best
+        return run_barrier(self, self.f, _State(h0, d0, self.f), self.nbar / d0, deadline, up0)
 
-    def _progress(self, bar, t_start, best):
-        return _tick_progress(bar, self.progress, _clock() - t_start,
-                              f"structured ARX unfalsification (n={self.n})", best["newton"], best)
 
 
 def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=None, progress=True, mu=None) -> dict:
@@ -259,7 +201,7 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     Parameters
     ----------
     form : ColumnForm
-        Program (C) with j = 1 (see :mod:`unfalsify._columns`).
+        Program (C) with j = 1 (see :mod:`unfalsify.solvers.columns`).
     h0 : ndarray, shape (n,)
         Strictly feasible start: ``‖P(B − T(u)h0)‖ < ρ``.
     tol : float
@@ -275,10 +217,10 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     Returns
     -------
     dict
-        ``status`` (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the best
-        certified ``upper`` and its impulses ``H`` (n × 1), the best ``lower`` and its dual point ``V``
-        (n × 1), ``W`` (1 × n × n), ``newton``, ``outer``, ``time``.  A KeyboardInterrupt inside the loop
-        ends it with status ``"interrupted"`` and the bracket found so far.
+        The bracket of :func:`unfalsify.solvers.barrier.run_barrier` (scaled units): ``status``
+        (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the best certified
+        ``upper`` and its impulses ``H`` (n × 1), the best ``lower`` and its dual point ``V`` (n × 1),
+        ``W`` (1 × n × n), ``newton``, ``outer``, ``time``.
     """
     if mu is None:
         mu = 8.0 if form.m <= 200 else 3.0
@@ -300,5 +242,20 @@ def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarr
     Us, sv, Vt = np.linalg.svd(Tu)
     beta = Us.T @ B0[:, 0]
     target = (frac * form.rho) ** 2
-    lam = _ridge_lambda(sv, beta, target)
+    lam = ridge_lambda(sv, beta, target)
     return Vt.T @ (sv / (sv * sv + lam) * beta)
+
+
+def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True) -> SolverOutput:
+    """Registered solver ``"arx_barrier"``: (7.4) of an :class:`unfalsify.ArxProblem`, certified to the
+    relative gap ``tol`` (see the module docstring); the answer in data units."""
+    f = problem.column_form(scaled=True)
+    deadline = Deadline()
+    if zero_answer(f):  # the least-squares model already explains the data: δ = 0
+        return unscaled(problem, np.zeros(problem.n), 0.0, "optimal", deadline.elapsed())
+    out = solve_arx_barrier(f, ridge_start(f, f.project(f.B)), tol=float(tol), time_limit=time_limit,
+                            progress=progress)
+    W = None if out["W"] is None else out["W"][0]
+    V = None if out["V"] is None else out["V"][:, 0]
+    return unscaled(problem, out["H"][:, 0], out["upper"], out["status"], deadline.elapsed(), V=V, W=W,
+                    stats=dict(newton=out["newton"], outer=out["outer"]))

@@ -1,4 +1,4 @@
-"""A certified bracket [lower, upper] for the ARX program (7.4) at sizes the barrier method cannot reach.
+"""Solver ``"bracket"``: a certified bracket [lower, upper] of the ARX program (7.4) where barriers cannot go.
 
 ``arx_unfalsify(..., backend="structured", method="bracket")``.  No O(n²) matrix is ever formed:
 every operation is a convolution by FFT, O(n log n) (measured: n = 2000 in 75 s under load).  The
@@ -13,10 +13,10 @@ a small ``‖T_n(h)‖₂``.  We minimise a weighted energy of the spectrum on a
 ``Σ_k w_k |ĥ_k|²``, subject to the fit (ridge normal equations, preconditioned conjugate gradients
 with FFT products, λ by bisection so that the fit is 0.999 ρ) and update the weights by Lawson's rule
 ``w ← w |ĥ|`` (the iteratively reweighted least-squares route to the minimax spectrum).  The certified
-upper bound is ``‖T_n(h)‖₂`` recomputed by :func:`unfalsify.arx.certified_norm` (Lanczos with FFT
+upper bound is ``‖T_n(h)‖₂`` recomputed by :func:`unfalsify.solvers.toeplitz.certified_norm` (Lanczos with FFT
 products above n = 4000 proven by a Cholesky of c²I − TᵀT, else the symbol bound), the fit by the certificate.
 
-Lower side (a dual point).  The weak-duality bound of :mod:`unfalsify._columns` holds for any
+Lower side (a dual point).  The weak-duality bound of :mod:`unfalsify.solvers.columns` holds for any
 (v, W).  Take W = the leading n × n block of the N × N circulant whose first column is
 ``[c; 0]`` (N ≥ n): its nuclear norm is at most that of the circulant, ``‖fft(c, N)‖₁`` (a
 compression does not increase the nuclear norm), and ``T*(W)_d = (n − d) c_d``, so
@@ -24,7 +24,7 @@ compression does not increase the nuclear norm), and ``T*(W)_d = (n − d) c_d``
 
     δ ≥ (⟨v, B⟩ − ρ‖v‖) / ‖fft(c(v), N)‖₁        (v projected orthogonally to range Φ).
 
-This is :class:`unfalsify._columns.CirculantDual`, evaluated by :meth:`ColumnForm.lower_bound`.  We
+This is :class:`unfalsify.solvers.columns.CirculantDual`, evaluated by :meth:`ColumnForm.lower_bound`.  We
 maximise the right-hand side over v by L-BFGS on a smoothed ``|·|`` (the bound itself is then
 recomputed exactly; the smoothing only steers the search).  The maximum equals the optimum of a
 relaxed program (the spectral norm replaced by a windowed-spectrum peak), so it is a true lower bound
@@ -32,24 +32,15 @@ but not tight: the gap is that of the two relaxations and is reported, never hid
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import scipy.optimize
 
-from ._columns import CirculantDual, ColumnForm, _nfft
+from .barrier import Deadline, Stop, pcg
+from .base import SolverOutput, unscaled, zero_answer
+from .columns import CirculantDual, ColumnForm
+from .toeplitz import certified_norm, nfft
 
-__all__: list[str] = []
-
-
-def _norm(h) -> float:
-    from .arx import certified_norm  # the certificate's own route
-
-    return certified_norm(h)
-
-
-class _Timeout(Exception):
-    pass
+__all__ = ["solve", "solve_bracket", "upper_point", "lower_point", "circulant_dual"]
 
 
 class _Ops:
@@ -79,28 +70,6 @@ class _Ops:
         return np.fft.irfft(w * np.fft.rfft(x, self.N), self.N)[: self.n]
 
 
-def _pcg(apply, rhs, precond, x0, tol=1e-9, maxiter=400):
-    """Preconditioned conjugate gradients (SPD ``apply``)."""
-    x = x0.copy()
-    r = rhs - apply(x)
-    z = precond(r)
-    p = z.copy()
-    rz = r @ z
-    nb = np.linalg.norm(rhs)
-    for _ in range(maxiter):
-        if np.linalg.norm(r) <= tol * nb:
-            break
-        Ap = apply(p)
-        a = rz / (p @ Ap)
-        x += a * p
-        r -= a * Ap
-        z = precond(r)
-        rz_new = r @ z
-        p = z + (rz_new / rz) * p
-        rz = rz_new
-    return x
-
-
 def _ridge_fit(ops: _Ops, w, target, h0, deadline):
     """h minimising ``Σ w_k |ĥ_k|² + ‖P(b − Mh)‖²/λ`` with λ such that ``‖P(b − Mh)‖ = target``."""
     Uabs2 = np.abs(ops.U) ** 2
@@ -112,14 +81,14 @@ def _ridge_fit(ops: _Ops, w, target, h0, deadline):
         def precond(x):
             return np.fft.irfft(np.fft.rfft(x, ops.N) / (Uabs2 + lam * w), ops.N)[: ops.n]
 
-        return _pcg(apply, ops.Mt(ops.b), precond, x0)
+        rhs = ops.Mt(ops.b)
+        return pcg(apply, precond, rhs, tol=1e-9, maxiter=400, start=(x0.copy(), rhs - apply(x0)), dot=np.dot)[0]
 
     lo, hi = -12.0, 6.0  # log10 λ: small λ fits the data (residual small), large λ shrinks h
     h = h0
     best = None
     for _ in range(30):
-        if time.perf_counter() > deadline:
-            raise _Timeout
+        deadline.check()
         mid = 0.5 * (lo + hi)
         h = solve(10.0**mid, h)
         rn = np.linalg.norm(ops.resid(h))
@@ -132,7 +101,7 @@ def _ridge_fit(ops: _Ops, w, target, h0, deadline):
     return best
 
 
-def upper_point(form: ColumnForm, *, iterations=12, deadline=np.inf, log=None):
+def upper_point(form: ColumnForm, *, iterations=12, deadline: Deadline | None = None, log=None):
     """A feasible h (``‖P(B − T(u)h)‖ ≤ 0.999 ρ``) with a small spectral peak (Lawson IRLS), and its
     certified ``‖T_n(h)‖₂``.
 
@@ -140,8 +109,9 @@ def upper_point(form: ColumnForm, *, iterations=12, deadline=np.inf, log=None):
     minimises); only that one's norm is recomputed.  Returns ``(h, upper, peaks, stopped)`` with
     ``stopped`` None, ``"time_limit"`` or ``"interrupted"`` (a KeyboardInterrupt keeps the best iterate).
     """
+    deadline = Deadline() if deadline is None else deadline
     n = form.m
-    N = 2 * _nfft(n)  # grid ≥ 4n: the grid peak is within a few per cent of the continuous one
+    N = 2 * nfft(n)  # grid ≥ 4n: the grid peak is within a few per cent of the continuous one
     ops = _Ops(form, N)
     w = np.ones(N // 2 + 1)
     h = np.zeros(n)
@@ -149,8 +119,8 @@ def upper_point(form: ColumnForm, *, iterations=12, deadline=np.inf, log=None):
     for it in range(iterations):
         try:
             hn = _ridge_fit(ops, w, 0.999 * form.rho, h, deadline)
-        except _Timeout:
-            stopped = "time_limit"
+        except Stop as exc:
+            stopped = str(exc)
             break
         except KeyboardInterrupt:
             stopped = "interrupted"
@@ -168,7 +138,7 @@ def upper_point(form: ColumnForm, *, iterations=12, deadline=np.inf, log=None):
         w /= w.mean()
     if best_h is None:
         return None, np.inf, peaks, stopped
-    return best_h, _norm(best_h), peaks, stopped
+    return best_h, certified_norm(best_h), peaks, stopped
 
 
 def _smooth_den(ops: _Ops, v, tail, N, eps):
@@ -185,14 +155,15 @@ def _smooth_den(ops: _Ops, v, tail, N, eps):
     return val, gv, gc[n : n + tail.size]
 
 
-def lower_point(form: ColumnForm, v0, *, N=None, free_tail=True, maxiter=300, deadline=np.inf):
+def lower_point(form: ColumnForm, v0, *, N=None, free_tail=True, maxiter=300, deadline: Deadline | None = None):
     """Maximise the circulant-dual bound over v (and the free tail of the column) from ``v0``.
 
     Returns ``(v, CirculantDual, bound)``, the bound recomputed exactly by :meth:`ColumnForm.lower_bound`.
     """
     n = form.m
     N = n if N is None else int(N)
-    ops = _Ops(form, _nfft(n))
+    deadline = Deadline() if deadline is None else deadline
+    ops = _Ops(form, nfft(n))
     b, rho = ops.b, form.rho
     nt = N - n if free_tail else 0
 
@@ -210,7 +181,7 @@ def lower_point(form: ColumnForm, v0, *, N=None, free_tail=True, maxiter=300, de
     v = ops.P(np.asarray(v0, float))
     x = np.concatenate([v / np.linalg.norm(v), np.zeros(nt)])
     for eps_rel in (1e-2, 1e-3, 1e-4):
-        if time.perf_counter() > deadline:
+        if deadline.expired():
             break
         den0 = _smooth_den(ops, x[:n], x[n:], N, 0.0)[0]
         eps = eps_rel * den0 / N
@@ -234,12 +205,11 @@ def circulant_dual(form: ColumnForm, v, N, tail=()) -> CirculantDual:
 def solve_bracket(form: ColumnForm, *, time_limit=None, progress=True) -> dict:
     """The bracket of the module docstring for the ARX column form (j = 1).
 
-    Returns the dict of :func:`unfalsify._arx_barrier.solve_arx_barrier`: ``status`` (``"bracket"``
+    Returns the dict of :func:`unfalsify.solvers.arx_barrier.solve_arx_barrier`: ``status`` (``"bracket"``
     when both sides finished, ``"time_limit"``/``"interrupted"`` otherwise), ``upper``, ``H``, ``lower``,
     ``V``, ``W`` (a :class:`CirculantDual`), ``time``.
     """
-    t0 = time.perf_counter()
-    deadline = np.inf if time_limit is None else t0 + float(time_limit)
+    deadline = Deadline(time_limit)
     log = None
     if progress:
         from tqdm import tqdm
@@ -249,10 +219,10 @@ def solve_bracket(form: ColumnForm, *, time_limit=None, progress=True) -> dict:
     h, up, peaks, stopped = upper_point(form, deadline=deadline, log=log)
     if h is None:
         out["status"] = stopped or "failed"
-        out["time"] = time.perf_counter() - t0
+        out["time"] = deadline.elapsed()
         return out
     out.update(upper=up, H=h[:, None], peaks=peaks)
-    v0 = _Ops(form, _nfft(form.m)).resid(h)  # the KKT direction of the upper point
+    v0 = _Ops(form, nfft(form.m)).resid(h)  # the KKT direction of the upper point
     out.update(lower=0.0, V=v0[:, None], W=circulant_dual(form, v0, form.m))  # unoptimised, already valid
     out["lower"] = form.lower_bound(v0, out["W"])
     if stopped is None:
@@ -263,8 +233,21 @@ def solve_bracket(form: ColumnForm, *, time_limit=None, progress=True) -> dict:
                     out.update(lower=lo, V=v[:, None], W=W)
         except KeyboardInterrupt:
             stopped = "interrupted"
-    if stopped is None and time.perf_counter() > deadline:
+    if stopped is None and deadline.expired():
         stopped = "time_limit"
     out["status"] = stopped or "bracket"
-    out["time"] = time.perf_counter() - t0
+    out["time"] = deadline.elapsed()
     return out
+
+
+def solve(problem, *, time_limit=None, progress: bool = True) -> SolverOutput:
+    """Registered solver ``"bracket"``: the FFT-only bracket of (7.4) for an :class:`unfalsify.ArxProblem`
+    (status ``"bracket"`` when both sides finished); the answer in data units."""
+    f = problem.column_form(scaled=True)
+    clock = Deadline()
+    if zero_answer(f):  # the least-squares model already explains the data: δ = 0
+        return unscaled(problem, np.zeros(problem.n), 0.0, "optimal", clock.elapsed())
+    out = solve_bracket(f, time_limit=time_limit, progress=progress)
+    h = out["H"][:, 0] if out["H"] is not None else np.full(problem.n, np.nan)
+    V = None if out["V"] is None else out["V"][:, 0]
+    return unscaled(problem, h, out["upper"], out["status"], clock.elapsed(), V=V, W=out["W"])

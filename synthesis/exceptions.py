@@ -1,0 +1,79 @@
+"""Exceptions and warnings of :mod:`synthesis` (as python-control's ``exception.py``).
+
+Every class is also importable from ``synthesis`` itself and from the module that raises it
+(``synthesis.weights.WeightError``, ``synthesis.minimax.InfeasibleGammaError``, …), where users find them.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "DataError",
+    "InputTypeError",
+    "WeightError",
+    "ControllerFileError",
+    "PersistenceWarning",
+    "DowndateError",
+    "RefactorWarning",
+    "InfeasibleGammaError",
+    "NearGammaMinWarning",
+    "StageSaddleError",
+]
+
+
+class DataError(ValueError):
+    """Invalid input data (shape, length, NaN/inf, too few samples, ...)."""
+
+
+class InputTypeError(DataError, TypeError):
+    """An argument of the wrong type (e.g. a string where an LTI system is expected).
+
+    Both a :class:`DataError` (a ``ValueError``) and a ``TypeError``, so either ``except`` catches it.
+    """
+
+
+class WeightError(DataError):
+    """A weighting filter is unusable (improper, continuous, wrong size, wrong dt, NaN)."""
+
+
+class ControllerFileError(DataError):
+    """A controller file cannot be written or read (unknown ending, missing or inconsistent variables)."""
+
+
+class PersistenceWarning(UserWarning):
+    """The input is not persistently exciting of order 2mi (§5.1, comment 1)."""
+
+
+class DowndateError(np.linalg.LinAlgError):
+    """``L Lᵀ − x xᵀ`` is not (numerically) positive definite: the downdate is impossible."""
+
+
+class RefactorWarning(RuntimeWarning):
+    """A Cholesky downdate lost positive definiteness; the factor was recomputed from the window."""
+
+
+class InfeasibleGammaError(ValueError):
+    """γ ≤ γ_min: no saddle point, the level-γ problem has no solution (3.29)."""
+
+    def __init__(self, gamma: float, gamma_min: float, threshold: float | None = None):
+        self.gamma = float(gamma)
+        self.gamma_min = float(gamma_min)
+        #: smallest accepted level (γ_min plus the accuracy of its computation), when known
+        self.threshold = self.gamma_min if threshold is None else float(threshold)
+        super().__init__(
+            f"gamma = {self.gamma:.6g} is not above gamma_min = {self.gamma_min:.6g}: the level-gamma "
+            f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = "
+            f"{1.1 * self.gamma_min:.6g} (§5.1 comment 4)")
+
+
+class NearGammaMinWarning(UserWarning):
+    """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
+
+
+class StageSaddleError(InfeasibleGammaError):
+    """A stage of the H∞ Riccati recursion (4.17) has no saddle point: γ is too small."""
+
+    def __init__(self, gamma: float, message: str):
+        self.gamma = float(gamma)
+        self.gamma_min = float("nan")
+        ValueError.__init__(self, message)

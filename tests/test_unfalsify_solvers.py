@@ -1,0 +1,157 @@
+"""The solver registry of ``unfalsify.solvers``: one contract for every solver, names that resolve, errors that
+list the valid names, and the layout rules of issue 25 (no import circles, no private names across packages)."""
+import ast
+import pathlib
+import pickle
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+import synthesis as sy
+import unfalsify as uf
+from unfalsify import solvers
+
+from _servo_arx import servo_arx_data  # tests/ helper
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _arx():
+    u, y = servo_arx_data(30, 0)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    return uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+
+
+def _subspace(fixed):
+    u, y = servo_arx_data(120, 1)
+    i = 4
+    pred = sy.fit_predictor(u, y, i)
+    n = 2 * i + 20 - 1
+    A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T  # the window's own least squares: δ > 0 with L free too
+    sigma = 0.5 * np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size)
+    return uf.SubspaceProblem.from_data(u[:n], y[:n], i, sigma, predictor=pred if fixed else None)
+
+
+def test_backend_and_method_resolve_to_registered_solvers():
+    assert uf.SOLVERS is solvers.SOLVERS
+    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "bracket", "column_barrier", "split"}
+    assert solvers.resolve("arx", "cvxpy") == solvers.resolve("subspace", "cvxpy") == "cvxpy"
+    assert solvers.resolve("arx", "structured") == "arx_barrier"
+    assert solvers.resolve("arx", "structured", "bracket") == "bracket"
+    assert solvers.resolve("subspace", "structured") == "column_barrier"
+    for program, name in [(p, n) for n, ps in solvers.PROGRAMS.items() for p in ps]:
+        assert name in solvers.SOLVERS and program in ("arx", "subspace")
+
+
+def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
+    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'structured'") as err:
+        solvers.resolve("arx", "mosek")
+    assert isinstance(err.value, ValueError)
+    with pytest.raises(uf.UnknownSolverError, match="'barrier', 'bracket'"):
+        solvers.resolve("arx", "structured", "admm")
+    with pytest.raises(uf.UnknownSolverError, match="'barrier'"):
+        solvers.resolve("subspace", "structured", "bracket")
+    with pytest.raises(uf.UnknownSolverError, match="'arx_barrier'"):
+        solvers.run("nope", _arx())
+    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'column_barrier', 'split'"):
+        solvers.run("arx_barrier", _subspace(fixed=True))
+
+
+@pytest.mark.parametrize("name, problem, options", [
+    ("cvxpy", "arx", {}),
+    ("arx_barrier", "arx", dict(progress=False)),
+    ("bracket", "arx", dict(progress=False)),
+    ("cvxpy", "subspace", {}),
+    ("column_barrier", "subspace", dict(progress=False)),
+    ("split", "subspace-fixed", dict(executor=None)),
+])
+def test_every_solver_meets_the_contract(name, problem, options):
+    P = {"arx": _arx, "subspace": lambda: _subspace(False), "subspace-fixed": lambda: _subspace(True)}[problem]()
+    out = solvers.run(name, P, **options)
+    assert isinstance(out, uf.SolverOutput) and isinstance(out.status, uf.SolverStatus)
+    assert out.status in (uf.SolverStatus.OPTIMAL, uf.SolverStatus.BRACKET)
+    assert out.bracketed == (name in ("arx_barrier", "bracket", "column_barrier"))
+    up, noise = P.evaluate_primal(out.impulses, out.params)  # data units: the primal point is feasible
+    assert noise <= P.sigma * np.sqrt(P.n_noise) * (1 + 1e-6)
+    assert up <= out.delta * (1 + 1e-6)
+    assert 0 < P.evaluate_dual(out.dual_v, out.dual_W) <= up * (1 + 1e-6)
+    back = pickle.loads(pickle.dumps(out))
+    assert back.status is out.status and back.delta == out.delta and back.problem is None
+
+
+def test_split_with_an_executor_equals_the_serial_split():
+    P = _subspace(True)
+    serial = solvers.run("split", P)
+    with ThreadPoolExecutor(2) as ex:
+        pooled = solvers.run("split", P, executor=ex)
+    assert pooled.delta == serial.delta
+
+
+def test_status_strings_of_results_are_the_shared_enum_values():
+    u, y = servo_arx_data(30, 0)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", method="bracket", progress=False)
+    assert type(r.status) is str and uf.SolverStatus(r.status) is uf.SolverStatus.BRACKET
+
+
+def _imports(path):
+    pkg = list(path.relative_to(ROOT).with_suffix("").parts[:-1])
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom):
+            base = pkg[: len(pkg) - node.level + 1] if node.level else []
+            module = base + (node.module.split(".") if node.module else [])
+            for alias in node.names:
+                yield pkg, module, alias.name
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                yield pkg, alias.name.split("."), None
+
+
+@pytest.mark.parametrize("package", ["synthesis", "unfalsify"])
+def test_no_private_names_across_packages(package):
+    bad = []
+    for path in sorted((ROOT / package).rglob("*.py")):
+        for pkg, module, name in _imports(path):
+            if module[0] not in ("synthesis", "unfalsify", "experiments"):
+                continue
+            home = module if name is None or module == pkg else module[:-1]
+            private = [p for p in module[1:] if p.startswith("_")] + ([name] if name and name.startswith("_")
+                                                                        and not name.startswith("__") else [])
+            if private and home != pkg:
+                bad.append((str(path.relative_to(ROOT)), ".".join(module), name))
+    assert not bad, f"private names imported from another (sub)package: {bad}"
+
+
+@pytest.mark.parametrize("package", ["synthesis", "unfalsify"])
+def test_no_import_circles(package):
+    edges = {}
+    for path in sorted((ROOT / package).rglob("*.py")):
+        me = ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+        targets = edges.setdefault(me, set())
+        for _, module, name in _imports(path):
+            for cand in (".".join(module + [name]) if name else None, ".".join(module)):
+                if cand and (ROOT / pathlib.Path(*cand.split("."))).with_suffix(".py").exists():
+                    targets.add(cand)
+                    break
+    # packages' __init__ re-export their modules: an edge into a package face is not a circle of modules
+    edges = {m: {t for t in ts if not (ROOT / pathlib.Path(*t.split(".")) / "__init__.py").exists()}
+             for m, ts in edges.items()}
+    state = {}
+
+    def visit(m, stack):
+        state[m] = "open"
+        for t in edges.get(m, ()):
+            if state.get(t) == "open":
+                pytest.fail(f"import circle: {' -> '.join(stack[stack.index(t):] + [t])}")
+            if t not in state:
+                visit(t, stack + [t])
+        state[m] = "done"
+
+    for m in sorted(edges):
+        if m not in state:
+            visit(m, [m])

@@ -1,0 +1,38 @@
+"""Exceptions and warnings of :mod:`unfalsify` (as python-control's ``exception.py``).
+
+Every class is also importable from ``unfalsify`` itself, where users find them.  The pipeline's own
+warnings (``FewDataWarning``, ``LongSolveWarning``, ``NotCertifiedWarning``, ``NotCertifiedError``) still
+live in :mod:`unfalsify.robust` while that module is being reworked; they move here with it.
+"""
+from __future__ import annotations
+
+__all__ = [
+    "UnfalsificationError",
+    "UnknownSolverError",
+    "NotAtRestWarning",
+    "IllConditionedWarning",
+    "SolverWarning",
+]
+
+
+class UnfalsificationError(ValueError):
+    """The unfalsification problem could not be solved (infeasible/unbounded/solver failure)."""
+
+
+class UnknownSolverError(ValueError):
+    """A ``backend=``, ``method=`` or solver name that the solver registry does not know.
+
+    The message lists the valid names (:data:`unfalsify.solvers.SOLVERS` and the aliases).
+    """
+
+
+class NotAtRestWarning(UserWarning):
+    """A program that assumes the system at rest before the record (7.3)/(7.4) got a record that starts mid-motion."""
+
+
+class IllConditionedWarning(UserWarning):
+    """cond T(u) is so large that the literal Chapter 7 quantities are numerically meaningless."""
+
+
+class SolverWarning(UserWarning):
+    """The conic solver returned a status other than ``optimal``."""

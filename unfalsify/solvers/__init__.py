@@ -1,0 +1,110 @@
+"""Solvers of the unfalsification programs (7.4) and (7.5), behind one contract.
+
+Every solver is a function ``solve(problem, **options) -> SolverOutput`` registered by name in
+:data:`SOLVERS` (the way cvxpy maps names to its conic solvers in ``SOLVER_MAP_CONIC``); the front
+ends (:func:`unfalsify.arx_unfalsify`, :func:`unfalsify.subspace_unfalsify`) validate, build the
+problem, call :func:`run` and build the certificate from the :class:`SolverOutput`.
+
+==================  =========================================================================  ==========
+name                what                                                                       programs
+==================  =========================================================================  ==========
+``cvxpy``           the reference LMI models through cvxpy and a conic solver                  arx, subspace
+``arx_barrier``     Cholesky barrier method, certified to a relative gap (O(n²) memory)        arx
+``bracket``         FFT-only certified bracket, gap reported (O(n) memory, n = 10⁴)             arx
+``column_barrier``  column barrier method with threads over the columns                        subspace
+``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
+==================  =========================================================================  ==========
+
+Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
+:mod:`~unfalsify.solvers.columns` (the column form every structured solver takes and its dual bound),
+:mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG) and
+:mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms).
+
+The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
+``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``) or ``bracket``
+(``method="bracket"``) for (7.4), ``column_barrier`` for (7.5); ``executor=`` → ``split``.
+
+>>> from unfalsify import solvers
+>>> sorted(solvers.SOLVERS)
+['arx_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
+>>> solvers.resolve("arx", "structured", "bracket")
+'bracket'
+"""
+from __future__ import annotations
+
+from ..exceptions import UnknownSolverError
+from . import arx_barrier, bracket, column_barrier, cvxpy_models, split
+from .base import SolverOutput, SolverStatus
+from .column_barrier import check_workers
+
+# the registry and its contract, re-exported by ``unfalsify``; resolve, run, PROGRAMS, METHODS and
+# check_workers serve the front ends
+__all__ = ["SOLVERS", "BACKENDS", "SolverOutput", "SolverStatus"]
+
+#: name → ``solve(problem, **options) -> SolverOutput``
+SOLVERS = {
+    "cvxpy": cvxpy_models.solve,
+    "arx_barrier": arx_barrier.solve,
+    "bracket": bracket.solve,
+    "column_barrier": column_barrier.solve,
+    "split": split.solve,
+}
+
+#: the programs each solver accepts (``problem.program``)
+PROGRAMS = {
+    "cvxpy": ("arx", "subspace"),
+    "arx_barrier": ("arx",),
+    "bracket": ("arx",),
+    "column_barrier": ("subspace",),
+    "split": ("subspace",),
+}
+
+#: ``backend=`` of the front ends
+BACKENDS = ("cvxpy", "structured")
+
+#: ``method=`` of the structured backend of (7.4)
+METHODS = ("barrier", "bracket")
+
+# (program, method) of backend="structured" -> solver
+_STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket",
+               ("subspace", "barrier"): "column_barrier"}
+
+
+def _names(xs) -> str:
+    return ", ".join(repr(x) for x in xs)
+
+
+def resolve(program: str, backend: str, method: str = "barrier") -> str:
+    """The registry name of ``backend=`` / ``method=`` for ``program`` (``"arx"`` or ``"subspace"``).
+
+    Raises
+    ------
+    UnknownSolverError
+        Unknown ``backend`` or ``method`` (the message lists the valid names).
+    ValueError
+        ``method`` other than ``"barrier"`` without ``backend="structured"``.
+    """
+    if backend not in BACKENDS:
+        raise UnknownSolverError(f"unknown backend {backend!r}; use one of {_names(BACKENDS)} "
+                                 f"(solvers behind them: {_names(SOLVERS)})")
+    if method not in METHODS:
+        raise UnknownSolverError(f"unknown method {method!r}; use one of {_names(METHODS)}")
+    if backend == "cvxpy":
+        if method != "barrier":
+            raise ValueError(f"method={method!r} needs backend='structured'")
+        return "cvxpy"
+    name = _STRUCTURED.get((program, method))
+    if name is None:
+        raise UnknownSolverError(f"method={method!r} is not available for the {program} program; "
+                                 f"use {_names(m for p, m in _STRUCTURED if p == program)}")
+    return name
+
+
+def run(name: str, problem, **options) -> SolverOutput:
+    """``SOLVERS[name](problem, **options)``, after checking that the solver takes this program."""
+    if name not in SOLVERS:
+        raise UnknownSolverError(f"unknown solver {name!r}; use one of {_names(SOLVERS)}")
+    if problem.program not in PROGRAMS[name]:
+        raise UnknownSolverError(f"solver {name!r} does not solve the {problem.program} program; "
+                                 f"use one of {_names(n for n in SOLVERS if problem.program in PROGRAMS[n])}")
+    return SOLVERS[name](problem, **options)

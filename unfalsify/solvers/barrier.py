@@ -1,0 +1,205 @@
+"""The one barrier skeleton the barrier solvers plug into, and what they share.
+
+Both barrier solvers (:mod:`~unfalsify.solvers.arx_barrier`, :mod:`~unfalsify.solvers.column_barrier`)
+follow the central path of ``f_t = t δ − Σ_k log det F_k − w log ψ`` (Boyd & Vandenberghe §11.3) and
+read a certified bracket off every centred point.  :func:`run_barrier` is that outer loop, written once:
+
+* centre (the method's Newton steps), then the **upper bound** (the method's norm of its impulses) and
+  the **lower bound** (:meth:`ColumnForm.lower_bound` of the method's dual point), each kept when it
+  improves;
+* **stop on the certified gap** (:func:`gap_closed`), never on the solver's own duality gap;
+* the **time limit** (:class:`Deadline`, checked by the method between Newton steps), **Ctrl-C** and
+  numerical failures (:data:`SOLVE_ERRORS`) end the loop with the best bracket so far and a status
+  (:func:`stop_status`);
+* a **progress** bar once the solve has run 2 s (:func:`tick_progress`).
+
+A method provides ``centre(t, point, deadline) -> (point, step)``, ``upper(point)``,
+``impulses(point)``, ``dual(t, point, step) -> (V, W)``, ``advance(t, point, step, bounds, deadline)
+-> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.
+The linearised dual point (:func:`linearised_dual`) and conjugate gradients (:func:`pcg`) are shared the
+same way.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg
+
+__all__ = [
+    "Stop",
+    "SOLVE_ERRORS",
+    "Deadline",
+    "stop_status",
+    "tick_progress",
+    "gap_closed",
+    "run_barrier",
+    "linearised_dual",
+    "pcg",
+    "cholesky_retry",
+]
+
+
+def _clock() -> float:
+    """Wall clock of every time limit (a function, so that tests can substitute a deterministic one)."""
+    return time.perf_counter()
+
+
+class Stop(Exception):
+    """A solver's own stop (time limit, iteration cap, failure); the message is the status."""
+
+
+#: numerical failures a barrier solver turns into status ``"failed"`` (the best bracket so far is kept)
+SOLVE_ERRORS = (np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError)
+
+
+class Deadline:
+    """The time limit of one solve: ``time_limit`` seconds (None: none) from construction."""
+
+    def __init__(self, time_limit=None):
+        self.limit = None if time_limit is None else float(time_limit)
+        self.start = _clock()
+
+    def elapsed(self) -> float:
+        """Seconds since the solve started."""
+        return _clock() - self.start
+
+    def expired(self) -> bool:
+        """Whether the limit has passed."""
+        return self.limit is not None and self.elapsed() > self.limit
+
+    def check(self) -> None:
+        """Raise :class:`Stop` ``("time_limit")`` once the limit has passed."""
+        if self.expired():
+            raise Stop("time_limit")
+
+
+def stop_status(exc: BaseException, best: dict) -> str:
+    """The status of a solve ended by ``exc`` (:class:`Stop`, Ctrl-C or one of :data:`SOLVE_ERRORS`);
+    a numerical failure is also recorded in ``best["error"]``."""
+    if isinstance(exc, Stop):
+        return str(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    best["error"] = f"{type(exc).__name__}: {exc}"
+    return "failed"
+
+
+def tick_progress(bar, enabled: bool, elapsed: float, desc: str, newton: int, best: dict):
+    """One outer iteration of a barrier solve on its tqdm bar (iteration, Newton steps, bounds).
+
+    The bar is opened only once the solve has run 2 s (``enabled``: the solver's ``progress``);
+    returns it (or ``None``) for the next call.
+    """
+    if bar is None and enabled and elapsed > 2.0:
+        from tqdm import tqdm
+
+        bar = tqdm(desc=desc, unit=" outer", leave=False)
+    if bar is not None:
+        bar.update(1)
+        bar.set_postfix(newton=newton, lower=f"{best['lower']:.8g}", upper=f"{best['upper']:.8g}")
+    return bar
+
+
+def gap_closed(best: dict, tol: float) -> bool:
+    """The stopping rule of the barrier solvers: certified relative gap ≤ ``tol`` (or δ = 0 reached)."""
+    return best["upper"] - best["lower"] <= tol * best["upper"] or best["upper"] <= 1e-14
+
+
+def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float) -> dict:
+    """The outer loop of the module docstring from ``point`` at path parameter ``t``.
+
+    ``upper`` is the certified norm of the starting point's impulses.  Returns the best bracket:
+    ``lower``, ``upper``, the impulses ``H`` of the upper side, the dual point ``V``, ``W`` of the lower
+    side, ``status``, ``newton``, ``outer`` and ``time``.
+    """
+    best = dict(lower=0.0, upper=upper, H=method.impulses(point), V=None, W=None, newton=0, outer=0)
+    status, bar = "optimal", None
+    try:
+        while True:
+            point, step = method.centre(t, point, deadline)
+            upper = method.upper(point)
+            if upper < best["upper"]:
+                best.update(upper=upper, H=method.impulses(point))
+            V, W = method.dual(t, point, step)
+            lower = form.lower_bound(V, W)
+            if lower > best["lower"]:
+                best.update(lower=lower, V=V, W=W)
+            best.update(newton=method.steps, outer=best["outer"] + 1)
+            bar = tick_progress(bar, method.progress, deadline.elapsed(), method.desc, method.steps, best)
+            if gap_closed(best, method.tol):
+                break
+            t, point = method.advance(t, point, step, (upper, lower), deadline)
+    except (Stop, KeyboardInterrupt, *SOLVE_ERRORS) as exc:
+        status = stop_status(exc, best)
+    finally:
+        if bar is not None:
+            bar.close()
+    best.update(status=status, newton=method.steps, time=deadline.elapsed())
+    return best
+
+
+def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight: float = 1.0):
+    """Dual point of the Newton-linearised centrality conditions (exact on the central path).
+
+    ``G = (S − S ΔF S)/t`` (``S = F⁻¹`` with blocks ``(S11, S21, S22)``, ``ΔF`` the last Newton step
+    ``(dT, dδ)``) gives ``W = −2 G21``; the noise multiplier ``2w r/(ψ t)`` (weight w of the noise
+    barrier, ``r`` the projected residual, ``dr`` its change along the step) is linearised the same way.
+    The Newton equations make them satisfy ``T*(W) = T(u)ᵀ v`` to first order, so the repair in the
+    bound is small even off the path; neither needs to be PSD (the bound uses ``‖W‖_*``).
+    Works on one matrix or on a stack ``(j, m, m)``.
+    """
+    S11, S21, S22 = blocks
+    SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ np.swapaxes(dT, -1, -2) @ S21 + S22 @ dT @ S11
+    W = -2.0 * (S21 - SdFS21) / t
+    v = (2.0 * weight / t) * (r / psi + dr / psi + 2.0 * r * float(np.sum(r * dr)) / psi**2)
+    return v, W
+
+
+def pcg(A, Minv, B, *, tol: float, maxiter: int, start=None, project=None, dot=None):
+    """Preconditioned conjugate gradients on ``A X = B`` (A symmetric positive definite), one or many
+    right-hand sides at once; returns ``(X, iterations)``.
+
+    ``start``: ``(X0, B − A X0)`` (default ``(0, B)``); ``project``: applied to every preconditioned
+    residual (deflation: keeps the search directions A-orthogonal to a subspace); ``dot``: the inner
+    product (default the plain one; for a stack of right-hand sides one value per stack entry).
+    Stops when every residual is within ``tol`` of its right-hand side's norm.
+    """
+    if dot is None:
+        def dot(X, Y):
+            return float(np.sum(X * Y))
+    X, R = (np.zeros_like(B), B.copy()) if start is None else start
+    Z = Minv(R)
+    P = Z.copy() if project is None else project(Z)
+    rz = dot(R, Z)
+    bn = np.sqrt(dot(B, B))
+    bn = np.where(bn == 0, 1.0, bn)
+    iterations = 0
+    for _ in range(maxiter):
+        if np.all(np.sqrt(dot(R, R)) <= tol * bn):
+            break
+        AP = A(P)
+        pap = dot(P, AP)
+        a = np.where(pap > 0, rz / np.where(pap > 0, pap, 1.0), 0.0)
+        X += a * P
+        R -= a * AP
+        iterations += 1
+        Z = Minv(R)
+        rz_new = dot(R, Z)
+        P = (Z if project is None else project(Z)) + np.where(rz > 0, rz_new / np.where(rz > 0, rz, 1.0), 0.0) * P
+        rz = rz_new
+    return X, iterations
+
+
+def cholesky_retry(Hm):
+    """Cholesky factor (``cho_factor``); on a (rounding-level) failure, retry with a growing diagonal shift."""
+    try:
+        return scipy.linalg.cho_factor(Hm)
+    except np.linalg.LinAlgError:
+        scale = float(np.max(np.abs(np.diag(Hm))))
+        for e in (1e-14, 1e-12, 1e-10, 1e-8):
+            try:
+                return scipy.linalg.cho_factor(Hm + e * scale * np.eye(Hm.shape[0]))
+            except np.linalg.LinAlgError:
+                pass
+        raise

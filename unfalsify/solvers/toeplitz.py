@@ -1,0 +1,394 @@
+"""The Toeplitz toolkit every solver uses: ``T(x)``, its products, adjoint, stacks, Gram and norms.
+
+``T(x)`` is the n×n lower-triangular Toeplitz matrix with first column ``x``: it is
+the matrix of the causal convolution ``y = x * u`` truncated to n samples.  Such
+matrices commute, ``T(a) b = T(b) a``, and ``T(a) T(b) = T(a * b)``.
+
+Products
+    :func:`conv_cols` (columns ``T(u_k) h_k`` by FFT), :func:`conv_cols_T` (``T(u_k)ᵀ x_k``),
+    :func:`toeplitz_matrix` (the dense matrix), :func:`toeplitz_stack` (a stack ``(j, m, m)`` of
+    ``T(H[:, k])``: one axis convention, column k of H is matrix k of the stack).
+Adjoint
+    :func:`adjoint` ``T*(W)_d = Σ_i W[i+d, i]`` (sum of the d-th subdiagonal), for a matrix or a
+    stack; :func:`adjoint_lowrank` for ``W = P Qᵀ`` without forming it.
+Gram and Hessian
+    :func:`toeplitz_gram` ``T(h)ᵀT(h)`` in O(n²); :func:`corr_hessian` the barrier Hessian
+    ``tr(F⁻¹E_aF⁻¹E_b)`` of ``F = [δI T(h)ᵀ; T(h) δI]`` by 2-D FFT.
+Norms
+    :func:`toeplitz_norm` (dense SVD or Lanczos with FFT products), :func:`certified_norm` (never an
+    underestimate: what a certificate's upper side uses), :func:`symbol_bound`,
+    :func:`toeplitz_cond`, and the nuclear-norm bounds of the certificate's dual side.
+Solves
+    :func:`deconvolve` ``T(u)⁻¹ y`` (float, or exact in rational arithmetic), :func:`ridge_lambda`.
+
+By Carathéodory–Fejér, ``‖T_n(h)‖₂`` is the smallest H∞ norm of any causal LTI
+system whose first n Markov parameters are ``h``.
+"""
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import scipy.fft
+import scipy.linalg
+import scipy.signal
+from scipy.sparse.linalg import LinearOperator, svds
+
+from synthesis import DataError
+
+__all__ = [
+    "toeplitz_matrix",
+    "toeplitz_norm",
+    "deconvolve",
+    "toeplitz_cond",
+    "DENSE_LIMIT",
+    "nfft",
+    "conv_cols",
+    "conv_cols_T",
+    "adjoint",
+    "adjoint_lowrank",
+    "nuclear_norm_lowrank",
+    "toeplitz_nuclear_upper",
+    "toeplitz_stack",
+    "toeplitz_gram",
+    "corr_hessian",
+    "ridge_lambda",
+    "certified_norm",
+    "symbol_bound",
+    "norm_below_by_cholesky",
+    "DENSE_NORM_LIMIT",
+]
+
+#: Above this size :func:`toeplitz_norm` switches from a dense SVD to Lanczos.
+DENSE_LIMIT = 400
+
+
+def toeplitz_matrix(x) -> np.ndarray:
+    """Dense lower-triangular Toeplitz matrix ``T(x)`` with first column ``x`` (Thm 7.1)."""
+    x = np.asarray(x, dtype=float).reshape(-1)
+    return scipy.linalg.toeplitz(x, np.zeros_like(x))
+
+
+def _fft_operator(h: np.ndarray) -> LinearOperator:
+    """``T(h)`` as a LinearOperator with O(n log n) FFT products.
+
+    ``T(h) x`` is the first n samples of the full convolution; ``T(h)ᵀ = J T(h) J``
+    with ``J`` the flip (lower-triangular Toeplitz matrices are persymmetric).
+    """
+    n = h.size
+    nfft = int(2 ** np.ceil(np.log2(max(2 * n - 1, 2))))
+    H = np.fft.rfft(h, nfft)
+
+    def mv(x):
+        x = np.asarray(x, dtype=float).reshape(-1)
+        return np.fft.irfft(H * np.fft.rfft(x, nfft), nfft)[:n]
+
+    def rmv(x):
+        x = np.asarray(x, dtype=float).reshape(-1)
+        return mv(x[::-1])[::-1]
+
+    return LinearOperator((n, n), matvec=mv, rmatvec=rmv, dtype=float)
+
+
+def toeplitz_gram(h: np.ndarray) -> np.ndarray:
+    """``T(h)ᵀT(h)`` in O(n²) (no matrix product): along the k-th diagonal,
+    ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h`` reversed
+    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``)."""
+    n = h.size
+    nf = nfft(n)
+    H = np.fft.rfft(h, nf)
+    r = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
+    a = h[::-1]
+    G = np.empty((n, n))
+    flat = G.reshape(-1)
+    for k in range(n):
+        diag = np.empty(n - k)
+        diag[0] = r[k]
+        np.cumsum(a[: n - 1 - k] * a[k : n - 1], out=diag[1:])
+        diag[1:] = r[k] - diag[1:]
+        flat[k : (n - k) * (n + 1) : n + 1] = diag  # upper diagonal k
+        flat[k * n : n * n : n + 1] = diag  # lower diagonal k
+    return G
+
+
+def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
+    """Spectral norm ``‖T(h)‖₂`` of the lower-triangular Toeplitz matrix with first column ``h``.
+
+    Parameters
+    ----------
+    h : array_like, shape (n,)
+        First column (Markov parameters).
+    method : {"auto", "dense", "lanczos"}
+        ``"dense"``: LAPACK SVD of the dense matrix, O(n³).  ``"lanczos"``: ARPACK
+        (:func:`scipy.sparse.linalg.svds`) on a LinearOperator whose products are
+        FFT convolutions, O(n log n) each.  ``"auto"``: dense for ``n <= DENSE_LIMIT``.
+    tol : float
+        Relative tolerance passed to ARPACK.
+    """
+    if method not in ("auto", "dense", "lanczos"):
+        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
+    h = np.asarray(h, dtype=float).reshape(-1)
+    n = h.size
+    if n == 0:
+        return 0.0
+    scale = float(np.max(np.abs(h)))
+    if scale == 0.0:
+        return 0.0
+    if method == "auto":
+        method = "dense" if n <= DENSE_LIMIT else "lanczos"
+    if method == "dense" or n < 3:
+        return float(np.linalg.norm(toeplitz_matrix(h), 2))
+    op = _fft_operator(h / scale)
+    v0 = np.ones(n) / np.sqrt(n)
+    s = svds(op, k=1, which="LM", tol=tol, v0=v0, return_singular_vectors=False, solver="arpack")
+    return float(s[0]) * scale
+
+
+def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
+    """Solve ``T(u) h = y`` (so that ``y = h * u`` on the window), requires ``u[0] != 0``.
+
+    Parameters
+    ----------
+    u, y : array_like, shape (n,)
+    exact : bool
+        If True, forward substitution in exact rational arithmetic on the binary
+        values of ``u`` and ``y`` (:class:`fractions.Fraction`), rounded to float only
+        at the end: the result is the correctly rounded ``T(u)⁻¹ y`` regardless of
+        cond ``T(u)`` (O(n²) big-number operations; fine for n up to a few hundred).
+        If False, :func:`scipy.signal.lfilter` (IIR filter ``1/u(q)``), O(n²) flops,
+        whose error grows like cond ``T(u)``.
+
+    Raises
+    ------
+    DataError
+        ``u[0] == 0`` (``T(u)`` singular) or ``u``, ``y`` of different lengths.
+    """
+    u = np.asarray(u, dtype=float).reshape(-1)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if u.size == 0 or u.size != y.size:
+        raise DataError(f"u and y must be non-empty and of the same length, got {u.size} and {y.size} samples")
+    if u[0] == 0.0:
+        raise DataError(
+            "T(u) is singular: u[0] == 0; start the record at the first non-zero input sample "
+            "(the system is at rest before it)"
+        )
+    if not exact:
+        return scipy.signal.lfilter([1.0], u, y)
+    n = y.size
+    uf = [Fraction(float(v)) for v in u]
+    yf = [Fraction(float(v)) for v in y]
+    h: list[Fraction] = []
+    for t in range(n):
+        acc = yf[t]
+        for k in range(1, t + 1):
+            if uf[k]:
+                acc -= uf[k] * h[t - k]
+        h.append(acc / uf[0])
+    return np.array([_to_float(v) for v in h])
+
+
+def _to_float(v: Fraction) -> float:
+    try:
+        return float(v)
+    except OverflowError:
+        return float("inf") if v > 0 else float("-inf")
+
+
+def toeplitz_cond(u) -> float:
+    """2-norm condition number of ``T(u)``: ``‖T(u)‖₂ · ‖T(u)⁻¹‖₂``.
+
+    ``T(u)⁻¹ = T(g)`` with ``g = T(u)⁻¹ e₁`` (the impulse response of ``1/u(q)``), so
+    both factors are Toeplitz norms; this avoids the dense inverse and stays
+    meaningful up to ~1e300.  Returns ``inf`` when ``u[0] == 0``.
+    """
+    u = np.asarray(u, dtype=float).reshape(-1)
+    if u[0] == 0.0:
+        return float("inf")
+    e1 = np.zeros_like(u)
+    e1[0] = 1.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        g = deconvolve(u, e1)
+    if not np.all(np.isfinite(g)):
+        return float("inf")
+    return toeplitz_norm(u) * toeplitz_norm(g)
+
+
+def nfft(m: int) -> int:
+    """FFT length for a linear (not circular) convolution of two length-m sequences: a power of 2 ≥ 2m."""
+    return int(2 ** np.ceil(np.log2(max(2 * m, 2))))
+
+
+def conv_cols(U: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Columns ``T(U[:, k]) H[:, k]`` (causal convolution truncated to m samples), by FFT."""
+    m = U.shape[0]
+    if m <= 64:
+        out = np.empty(np.broadcast_shapes(U.shape, H.shape))
+        for t in range(m):
+            out[t] = np.einsum("ij,ij->j", U[t::-1], H[: t + 1])
+        return out
+    nf = nfft(m)
+    return np.fft.irfft(np.fft.rfft(U, nf, axis=0) * np.fft.rfft(H, nf, axis=0), nf, axis=0)[:m]
+
+
+def conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Columns ``T(U[:, k])ᵀ X[:, k]`` (``T(u)ᵀ = J T(u) J``, J the flip)."""
+    return conv_cols(U, X[::-1])[::-1]
+
+
+def adjoint(W: np.ndarray) -> np.ndarray:
+    """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W (→ (m,)), or a stack ``(j, m, m)`` → ``(m, j)``."""
+    W = np.asarray(W, float)
+    if W.ndim == 2:
+        return np.array([np.trace(W, offset=-d) for d in range(W.shape[0])])
+    m = W.shape[-1]
+    return np.stack([np.trace(W, offset=-d, axis1=1, axis2=2) for d in range(m)])
+
+
+def adjoint_lowrank(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """``T*(P Qᵀ)`` without forming ``P Qᵀ`` (sum over factors of the cross-correlations), O(r m log m)."""
+    m = P.shape[0]
+    nf = nfft(m)
+    c = np.fft.irfft(np.fft.rfft(P, nf, axis=0) * np.conj(np.fft.rfft(Q, nf, axis=0)), nf, axis=0)[:m]
+    return c.sum(axis=1)
+
+
+def nuclear_norm_lowrank(P: np.ndarray, Q: np.ndarray) -> float:
+    """``‖P Qᵀ‖_*`` from thin QR factors (O(m r²))."""
+    if P.shape[1] == 0:
+        return 0.0
+    Rp = np.linalg.qr(P, mode="r")
+    Rq = np.linalg.qr(Q, mode="r")
+    return float(np.linalg.svd(Rp @ Rq.T, compute_uv=False).sum())
+
+
+def toeplitz_nuclear_upper(c: np.ndarray) -> float:
+    """An upper bound on ``‖T(c)‖_*``: ``Σ_d |c_d| ‖Z_d‖_* = Σ_d |c_d| (m − d)``."""
+    m = c.size
+    return float(np.sum(np.abs(c) * (m - np.arange(m))))
+
+
+def toeplitz_stack(H: np.ndarray) -> np.ndarray:
+    """Stack ``(j, m, m)`` of ``T(H[:, k])`` (a sequence per row instead: pass ``X.T``)."""
+    m = H.shape[0]
+    idx = np.subtract.outer(np.arange(m), np.arange(m))
+    T = H.T[:, idx.clip(0)]
+    T[:, idx < 0] = 0.0
+    return T
+
+
+def _tr(X: np.ndarray) -> np.ndarray:
+    """Transpose of the last two axes."""
+    return np.swapaxes(X, -1, -2)
+
+
+def _rfft2_padded(X: np.ndarray, N: int) -> np.ndarray:
+    """``rfft2(X, (N, N))`` of a stack of m × m matrices, without transforming the N − m zero rows."""
+    return scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2)
+
+
+def corr_hessian(S11, S21, S22, m):
+    """``2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` for all (a, b), by 2-D FFT (batched).
+
+    The Hessian ``tr(F⁻¹E_aF⁻¹E_b)`` of ``−log det F``, ``F = [δI T(h)ᵀ; T(h) δI]``, E_a its derivative
+    in ``h_a`` and ``S = F⁻¹`` (Z_a the shift matrices).  Both terms are 2-D cross-correlations read at
+    lags (−b, a) (the second after flipping the columns of S11 and S22), so their spectra are added and
+    one inverse transform serves both; the spectrum of ``S12 = S21ᵀ`` is that of S21 transposed
+    (completed by conjugate symmetry), and only the m rows of lags that are read are
+    inverse-transformed: three forward and one partial inverse FFT.
+    """
+    N = 2 * m
+    h = N // 2 + 1
+    F21 = _rfft2_padded(S21, N)  # F(S21)[u, v], v ≤ N/2
+    G = np.empty(F21.shape[:-2] + (h, N), complex)  # F(S21)[v, u] for v ≤ N/2, every u
+    G[..., :h] = F21[..., :h, :]
+    G[..., h:] = np.conj(F21[..., (-np.arange(h)) % N, :][..., :, N - np.arange(h, N)])
+    spec = _tr(G) * np.conj(F21)
+    spec += _rfft2_padded(S11[..., ::-1], N) * np.conj(_rfft2_padded(S22[..., ::-1], N))
+    rows = scipy.fft.ifft(spec, axis=-2)[..., (-np.arange(m)) % N, :]
+    return 2.0 * _tr(scipy.fft.irfft(rows, N, axis=-1)[..., :m])
+
+
+def ridge_lambda(s: np.ndarray, beta: np.ndarray, target: float) -> float:
+    """The ridge parameter λ with ``Σ (λ/(s² + λ))² β² = target`` (the residual ‖B0 − T(u)h_λ‖² of the
+    ridge impulses, s and β the singular values and data coordinates of T(u)), by bisection on log₁₀ λ
+    over [−40, 10] (the residual grows with λ); the side of the bracket that stays below ``target``."""
+    lo, hi = -40.0, 10.0
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lam = 10.0**mid
+        if float(np.sum((lam / (s * s + lam)) ** 2 * beta**2)) > target:
+            hi = mid
+        else:
+            lo = mid
+    return 10.0**lo
+
+
+#: up to this n, ``‖T(h)‖₂`` of a certificate is the largest singular value of the dense matrix (LAPACK)
+DENSE_NORM_LIMIT = 4000
+
+
+def certified_norm(h) -> float:
+    """An upper bound on ``‖T(h)‖₂`` for a certificate's upper side (never an underestimate).
+
+    Up to :data:`DENSE_NORM_LIMIT`: the largest singular value of the dense matrix (LAPACK; near the
+    optimum of (7.4) most singular values of T(h) cluster at δ and ARPACK does not converge, measured
+    at n = 1000).  Above it, the smaller of two proven bounds:
+
+    * the symbol bound :func:`symbol_bound` (``‖T_n(h)‖₂ ≤ sup_ω |ĥ(e^{jω})|`` with Bernstein's
+      inequality on the grid);
+    * a Lanczos estimate s (FFT products) raised to ``c = s(1 + 1e-6)`` and *proven* by a Cholesky
+      factorisation of ``c²I − T(h)ᵀT(h) − τI`` (:func:`norm_below_by_cholesky`): if it succeeds,
+      ``‖T(h)‖₂ ≤ c``.  A Lanczos value alone is only a lower estimate, so it is never returned
+      unproven.
+    """
+    h = np.asarray(h, float).reshape(-1)
+    if not np.all(np.isfinite(h)):
+        return float("inf")
+    if h.size <= DENSE_NORM_LIMIT:
+        return toeplitz_norm(h, method="dense")
+    bound = symbol_bound(h)
+    try:
+        estimate = toeplitz_norm(h, method="lanczos")
+    except RuntimeError:  # ArpackNoConvergence
+        return bound
+    c = estimate * (1.0 + 1e-6)
+    if c < bound and norm_below_by_cholesky(h, c):
+        return c
+    return bound
+
+
+def norm_below_by_cholesky(h: np.ndarray, c: float) -> bool:
+    """True only if ``‖T(h)‖₂ ≤ c`` is proven by a Cholesky factorisation of ``c²I − TᵀT − τI``.
+
+    ``TᵀT`` is formed in O(n²) (:func:`toeplitz_gram`: each entry an FFT correlation
+    minus a partial sum, absolute error ≲ 2n·u·‖h‖², so ‖ΔG‖₂ ≤ 2n²u‖h‖²; u the unit roundoff).  A
+    floating-point Cholesky that runs to completion is the exact factorisation of the matrix plus E,
+    ``‖E‖₂ ≤ γ_{n+1}·n·max_i a_ii ≤ 2n(n+1)u·c²`` (Demmel's componentwise backward error).  With the
+    shift ``τ = 2n²u‖h‖² + 2n(n+1)u·c²`` success proves ``c²I − TᵀT ⪰ 0``.  (``‖h‖ > c`` already
+    refutes the bound: h is the first column of T.)
+    """
+    n = h.size
+    u = np.finfo(float).eps / 2
+    hh = float(h @ h)
+    if hh > c * c:
+        return False
+    tau = 2.0 * n * n * u * hh + 2.0 * n * (n + 1) * u * c * c
+    if tau >= 0.5 * c * c:
+        return False
+    A = toeplitz_gram(h)
+    A *= -1.0
+    A.flat[:: n + 1] += c * c - tau
+    try:
+        scipy.linalg.cholesky(A, lower=False, overwrite_a=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def symbol_bound(h, oversample: int = 64) -> float:
+    """``max_k |ĥ(2πk/M)| / (1 − π(n−1)/M)`` ≥ ``sup_ω |ĥ(e^{jω})|`` ≥ ``‖T_n(h)‖₂`` (M = oversample·n, power of 2)."""
+    h = np.asarray(h, float).reshape(-1)
+    n = h.size
+    M = int(2 ** np.ceil(np.log2(oversample * max(n, 1))))
+    peak = float(np.abs(np.fft.rfft(h, M)).max())
+    return peak / (1.0 - np.pi * (n - 1) / M)
