@@ -16,8 +16,9 @@ Order criteria (``order=``):
 ``"floor"`` (default)
     The stated singular-value criterion: ``n`` is the number of ``σ_k`` (``k ≤ max_order``) above
     ``floor_ratio`` (default 5) times the *noise floor*, the median of the lower half of the singular
-    values (``k > i·l/2``: on data from a plant of order ``< i·l/2`` these are noise alone).  On
-    noise-free data the floor is at rounding level and ``n`` is exact.  Measured on PRBS data with
+    values (``k > i·l/2``: on data from a plant of order ``< i·l/2`` these are noise alone), and at
+    least ``1000·eps·σ₁`` (rounding).  On noise-free data the floor is that rounding level and ``n`` is
+    exact.  Measured on PRBS data with
     noise (``experiments compare``): the physical order on the 10 Hz catalogue plants, 6–7 on the
     three-disk plant (order 6).
 ``"gap"``
@@ -259,7 +260,7 @@ def subspace_id(u, y, horizon: int, *, order="floor", floor_ratio: float = 5.0, 
         if i * l < 2 * max_order:
             raise DataError(f"order='floor' needs i·l ≥ 2·max_order (the lower half of the {i * l} singular values "
                             f"is the noise floor): raise the horizon above {2 * max_order // l} or lower max_order")
-        floor = max(float(np.median(s[i * l // 2:])), 1e-300)
+        floor = max(float(np.median(s[i * l // 2:])), 1e3 * np.finfo(float).eps * float(s[0]), 1e-300)
         scores = s[:max_order] / floor
         n, criterion = max(1, int(np.sum(scores > floor_ratio))), "floor"
     elif order == "gap":
