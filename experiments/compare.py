@@ -326,7 +326,10 @@ def aggregate(records: list[dict]) -> list[dict]:
                 continue
             st = [r for r in rs if r["stable"]]
             rad = _median([r["additive_radius"] for r in st])
+            cert = [r for r in rs if "certified" in r]
             out.append({"plant": plant, "method": method, "runs": len(rs), "stable": len(st),
+                        "certified": sum(r["certified"] for r in cert) if cert else None,
+                        "certified_unstable": sum(r["certified"] and not r["stable"] for r in cert) if cert else None,
                         "weighted_norm": _median([r["weighted_norm"] for r in st]),
                         "additive_radius": rad,
                         "radius_vs_ideal": rad / ideal[plant] if ideal.get(plant) else float("nan"),
@@ -367,10 +370,13 @@ def verdicts(agg: list[dict]) -> list[str]:
         itd = [k for k in always if k.startswith(("arx", "sid"))]
         best_itd = max(itd, key=lambda k: data_based[k]["additive_radius"]) if itd else None
         text = f"**{plant}**: "
+        ideal = rows.get("ideal")
         if best:
+            b = data_based[best]
             text += (f"largest median robustness radius among the always-stable data-based methods: "
-                     f"{METHODS[best]} ({data_based[best]['additive_radius']:.3g}, "
-                     f"{data_based[best]['radius_vs_ideal']:.2f}× the ideal's). ")
+                     f"{METHODS[best]} ({b['additive_radius']:.3g}, {b['radius_vs_ideal']:.2f}× the ideal's; "
+                     f"‖[W1 S; W2 KS]‖∞ {b['weighted_norm']:.3g}"
+                     + (f" vs the ideal's {ideal['weighted_norm']:.3g}" if ideal else "") + "). ")
         else:
             text += "no data-based method was stable in every run. "
         if mf is not None:
@@ -380,6 +386,10 @@ def verdicts(agg: list[dict]) -> list[str]:
                 text += (f"; the best always-stable identify-then-design route ({METHODS[best_itd]}) has "
                          f"{ratio:.2g}× its radius")
             text += ". "
+        rob = rows.get("mf_robust")
+        if rob is not None and rob["certified"] is not None:
+            text += (f"The robust pipeline certified {rob['certified']}/{rob['runs']} runs; certified but unstable "
+                     f"on the true plant: {rob['certified_unstable']}. ")
         unstable = [f"{METHODS[k]} ({v['runs'] - v['stable']}/{v['runs']})" for k, v in rows.items()
                     if v["stable"] < v["runs"]]
         text += ("Unstable on the true plant in some runs: " + "; ".join(unstable) + "."
@@ -494,7 +504,7 @@ def _radius_figure(out: Path, agg: list[dict]):
 
 
 # ---------------------------------------------------------------------------------------------
-_AGG_HEADERS = ["plant", "method", "stable runs", "median ‖[W1 S; W2 KS]‖∞", "median radius 1/‖K(I+PK)⁻¹‖∞",
+_AGG_HEADERS = ["plant", "method", "stable runs", "certified (unstable)", "median ‖[W1 S; W2 KS]‖∞", "median radius 1/‖K(I+PK)⁻¹‖∞",
                 "radius / ideal's", "median rise time (s)", "median overshoot (%)", "median design time (s)"]
 _RUN_HEADERS = ["plant", "n", "seed", "method", "note", "stable", "spectral radius", "‖[W1 S; W2 KS]‖∞",
                 "radius", "rise time (s)", "overshoot (%)", "ss error", "design time (s)"]
@@ -525,19 +535,23 @@ def run(opts) -> dict:
     rep.text(_intro(cfg))
     rep.section("Where each method wins and loses (from the table below)", "\n".join(f"- {w}" for w in wins))
     rep.section("Summary per plant and method")
-    rep.table(_AGG_HEADERS, [[a["plant"], METHODS[a["method"]], f"{a['stable']}/{a['runs']}", a["weighted_norm"],
+    rep.table(_AGG_HEADERS, [[a["plant"], METHODS[a["method"]], f"{a['stable']}/{a['runs']}",
+                              "–" if a["certified"] is None else f"{a['certified']} ({a['certified_unstable']})",
+                              a["weighted_norm"],
                               a["additive_radius"], a["radius_vs_ideal"], a["rise_time_s"], a["overshoot_pct"],
                               a["design_seconds"]] for a in agg])
     rep.figure(figs["radius"], "Median additive robustness radius relative to the ideal design")
-    rep.section("Stable runs and median radius by data length")
-    all_n = sorted({c["n"] for row in lengths for c in row["cells"]})
+    rep.section("Stable runs and median radius by data length",
+                "Each cell: stable runs / runs, median radius over the stable runs; n₁ < n₂ < n₃ are the plant's "
+                "data lengths (in its name).")
+    width = max((len(row["cells"]) for row in lengths), default=0)
     rows = []
     for row in lengths:
-        cells = {c["n"]: c for c in row["cells"]}
-        rows.append([row["plant"], METHODS[row["method"]]] + [
-            f"{cells[n]['stable']}/{cells[n]['runs']}, {cells[n]['additive_radius']:.3g}" if n in cells else "–"
-            for n in all_n])
-    rep.table(["plant", "method"] + [f"n = {n}: stable, radius" for n in all_n], rows)
+        ns = "/".join(str(c["n"]) for c in row["cells"])
+        rows.append([f"{row['plant']} (n = {ns})", METHODS[row["method"]]] + [
+            f"{c['stable']}/{c['runs']}, {c['additive_radius']:.3g}" for c in row["cells"]]
+            + ["–"] * (width - len(row["cells"])))
+    rep.table(["plant", "method"] + [f"n{chr(0x2081 + k)}" for k in range(width)], rows)
     rep.section("Physics models (stated parameter errors)",
                 "\n".join(f"- {k}: {v}" for k, v in PHYSICS_ERRORS.items() if k in cfg.plants))
     _fig66_report(rep, fig66, figs)
