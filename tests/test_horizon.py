@@ -84,3 +84,13 @@ def test_bad_input_names_the_fix(nmp):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(10, 10.5))
     with pytest.raises(sy.DataError, match="dt"):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=0)
+
+
+def test_the_cancellation_check_sees_a_controller_pole_on_a_right_half_plane_zero():
+    from synthesis.horizon import _cancels
+
+    P = control.ss(control.tf([1.0, -1.2], [1.0, -0.5, 0.06], DT))     # zero at z = 1.2
+    assert _cancels(P, control.ss(control.tf([1.0], [1.0, -1.21], DT)), 0.02)
+    assert not _cancels(P, control.ss(control.tf([1.0], [1.0, -1.3], DT)), 0.02)
+    assert not _cancels(control.ss(control.tf([1.0, -0.8], [1.0, -0.5, 0.06], DT)),   # a zero inside: no check
+                        control.ss(control.tf([1.0], [1.0, -0.8], DT)), 0.02)
