@@ -331,6 +331,7 @@ def aggregate(records: list[dict]) -> list[dict]:
             rad = _median([r["additive_radius"] for r in st])
             cert = [r for r in rs if "certified" in r]
             out.append({"plant": plant, "method": method, "runs": len(rs), "stable": len(st),
+                        "failed": sum(r["failed"] for r in rs),
                         "certified": sum(r["certified"] for r in cert) if cert else None,
                         "certified_unstable": sum(r["certified"] and not r["stable"] for r in cert) if cert else None,
                         "weighted_norm": _median([r["weighted_norm"] for r in st]),
@@ -393,9 +394,10 @@ def verdicts(agg: list[dict]) -> list[str]:
         if rob is not None and rob["certified"] is not None:
             text += (f"The robust pipeline certified {rob['certified']}/{rob['runs']} runs; certified but unstable "
                      f"on the true plant: {rob['certified_unstable']}. ")
-        unstable = [f"{METHODS[k]} ({v['runs'] - v['stable']}/{v['runs']})" for k, v in rows.items()
-                    if v["stable"] < v["runs"]]
-        text += ("Unstable on the true plant in some runs: " + "; ".join(unstable) + "."
+        unstable = [f"{METHODS[k]} ({v['runs'] - v['stable']}/{v['runs']}"
+                    + (f", {v['failed']} of them no design" if v["failed"] else "") + ")"
+                    for k, v in rows.items() if v["stable"] < v["runs"]]
+        text += ("Unstable on the true plant (or no controller designed) in some runs: " + "; ".join(unstable) + "."
                  if unstable else "Every method was stable in every run.")
         lines.append(text)
     return lines
@@ -513,7 +515,7 @@ def _radius_figure(out: Path, agg: list[dict]):
 
 
 # ---------------------------------------------------------------------------------------------
-_AGG_HEADERS = ["plant", "method", "stable runs", "certified (unstable)", "median ‖[W1 S; W2 KS]‖∞", "median radius 1/‖K(I+PK)⁻¹‖∞",
+_AGG_HEADERS = ["plant", "method", "stable runs", "no design", "certified (unstable)", "median ‖[W1 S; W2 KS]‖∞", "median radius 1/‖K(I+PK)⁻¹‖∞",
                 "radius / ideal's", "median rise time (s)", "median overshoot (%)", "median design time (s)"]
 _RUN_HEADERS = ["plant", "n", "seed", "method", "note", "stable", "spectral radius", "‖[W1 S; W2 KS]‖∞",
                 "radius", "rise time (s)", "overshoot (%)", "ss error", "design time (s)"]
@@ -544,7 +546,7 @@ def run(opts) -> dict:
     rep.text(_intro(cfg))
     rep.section("Where each method wins and loses (from the table below)", "\n".join(f"- {w}" for w in wins))
     rep.section("Summary per plant and method")
-    rep.table(_AGG_HEADERS, [[a["plant"], METHODS[a["method"]], f"{a['stable']}/{a['runs']}",
+    rep.table(_AGG_HEADERS, [[a["plant"], METHODS[a["method"]], f"{a['stable']}/{a['runs']}", a["failed"],
                               "–" if a["certified"] is None else f"{a['certified']} ({a['certified_unstable']})",
                               a["weighted_norm"],
                               a["additive_radius"], a["radius_vs_ideal"], a["rise_time_s"], a["overshoot_pct"],

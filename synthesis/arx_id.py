@@ -33,7 +33,7 @@ from scipy.signal import lfilter
 from ._repr import result
 from ._validation import DataError, as_signal, check_sample_time
 
-__all__ = ["ArxModel", "arx_id", "ARX_CRITERIA"]
+__all__ = ["ArxModel", "arx_id"]
 
 #: the order criteria of :func:`arx_id` (besides a stated integer order)
 ARX_CRITERIA = ("aic", "validation")

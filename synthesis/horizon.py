@@ -40,7 +40,7 @@ from .hinf import HinfDesign, hinf_design
 from .predictor import PersistenceWarning, fit_predictor
 from .subspace_id import subspace_id
 
-__all__ = ["HorizonCandidate", "HorizonChoice", "choose_horizon", "DEFAULT_HORIZONS"]
+__all__ = ["HorizonCandidate", "HorizonChoice", "choose_horizon"]
 
 #: candidate horizons of :func:`choose_horizon` (those the record supports are tried)
 DEFAULT_HORIZONS = (10, 15, 20, 30, 40, 50, 60, 80)

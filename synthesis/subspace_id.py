@@ -46,7 +46,7 @@ from ._repr import result
 from ._validation import DataError, as_signal, check_horizon, check_sample_time
 from .predictor import block_hankel, fit_predictor
 
-__all__ = ["SubspaceModel", "subspace_id", "ORDER_CRITERIA"]
+__all__ = ["SubspaceModel", "subspace_id"]
 
 #: the order criteria of :func:`subspace_id` (besides a stated integer order)
 ORDER_CRITERIA = ("floor", "gap", "validation")
