@@ -75,7 +75,7 @@ The command line (``python -m experiments --help``):
 >>> list(COMMANDS)  # doctest: +NORMALIZE_WHITESPACE
 ['demo', 'design-example', 'noncollocated', 'adaptive', 'chapter7', 'robust-pipeline', 'robust-adversarial',
  'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep', 'design',
- 'cd-player']
+ 'cd-player', 'compare']
 """
 from .plants import (
     PLANT_CATALOGUE,

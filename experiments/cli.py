@@ -80,6 +80,9 @@ COMMANDS: dict[str, tuple] = {
     "cd-player": ("experiments.cd_player", "run",
                   "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
                   "(--quick: i = 10)"),
+    "compare": ("experiments.compare", "run",
+                "model-free vs identify-then-design (ARX, N4SID, physics model) and the ideal, judged on the true "
+                "plant; thesis Figs 6.6/6.7"),
 }
 
 

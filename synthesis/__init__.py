@@ -78,6 +78,17 @@ Model-based comparators (§4.2, §6.2)
    mixsyn_closed_loop     -- the closed loop ``r → [W1 S r; W2 K S r]`` of an error-feedback controller
    peak_gain              -- dense-grid estimate of an H∞ norm (a lower bound, kept for comparison)
 
+Identify-then-design baselines and the horizon from data
+--------------------------------------------------------
+
+   subspace_id            -- state-space model from the SVD of the predictor's ``L_w W_p`` (N4SID/MOESP style)
+   SubspaceModel          -- result of ``subspace_id``: model, order and the order criterion's scores
+   arx_id                 -- least-squares SISO ARX model, order by AIC, hold-out output error or given
+   ArxModel               -- result of ``arx_id``
+   choose_horizon         -- the prediction horizon ``i`` chosen from the data by a stated rule, explained
+   HorizonChoice          -- result of ``choose_horizon``: ``horizon``, ``reason``, the design, every candidate
+   HorizonCandidate       -- one horizon tried by ``choose_horizon`` and its checks
+
 Certified H∞ norm
 -----------------
 
@@ -258,6 +269,9 @@ from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop,
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 from .noise import NoiseEstimate, estimate_noise
 from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, save_controller
+from .subspace_id import SubspaceModel, subspace_id
+from .arx_id import ArxModel, arx_id
+from .horizon import HorizonCandidate, HorizonChoice, choose_horizon
 
 __all__ = [
     "DataError",
@@ -339,6 +353,14 @@ __all__ = [
     "check_horizon",
     "check_sample_time",
     "check_same_dt",
+    # identify-then-design baselines and the horizon from data
+    "SubspaceModel",
+    "subspace_id",
+    "ArxModel",
+    "arx_id",
+    "HorizonCandidate",
+    "HorizonChoice",
+    "choose_horizon",
 ]
 
 try:
