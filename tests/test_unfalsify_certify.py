@@ -159,7 +159,12 @@ def test_pipeline_invariant_on_true_plants(plant):
             assert c["bounded_real_model"] and c["bounded_real_reference"]  # the second proof, re-checked
         else:
             assert c["warned"] and c["reason"]
-    assert sum(c["certified"] for c in runs) >= 1  # measured: 2 of 2 on each plant
+    if plant == "servo":
+        # the integrator: P − P̂ is unbounded at low frequency (true premise ratio ∞), and the low band of the
+        # premise test sees it at i = 10 (both seeds; certified at i = 20 and 40 in robust-pipeline)
+        assert all(not c["certified"] and "at low frequency" in c["reason"] for c in runs)
+    else:
+        assert sum(c["certified"] for c in runs) >= 1  # measured: 2 of 2 on each plant
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ import synthesis
 import unfalsify as uf
 from experiments._servo import design_weights, servo_data, step_response
 from experiments.plants import servo
+from synthesis.validation import DataError
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
 
@@ -201,3 +202,29 @@ def test_uncertified_delta_is_raised_to_the_certified_value_and_warned(setup):
 def test_fixed_point_rejects_bad_arguments(setup, kw):
     with pytest.raises(ValueError, match="must be"):
         uf.additive_weight_fixed_point(setup["pred"], setup["W1"], setup["W2"], **kw)
+
+
+def test_option_objects_and_the_earlier_keywords_give_the_same_pipeline(setup):
+    s, res = setup, setup["res"]
+    # step 1 alone: the same (7.5) solve as inside the pipeline (second route: the pipeline's own result)
+    unf = uf.estimate_delta(s["u"], s["y"], I, res.unfalsification.sigma, predictor=s["pred"])
+    assert unf.delta == res.unfalsification.delta and unf.certificate.verify()
+    common = dict(predictor=s["pred"], predictor_for=s["pfor"], validation=s["val"], unfalsification=unf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        grouped = uf.robust_design_from_data(
+            s["u"], s["y"], I, s["W1"], s["W2"], unf.sigma, design=uf.DesignOptions(gamma_ratio=1.5, causal=True),
+            certificate=uf.CertificateOptions(margin=0.3, tracking_floor=0.2), search=False, **common)
+        legacy = uf.robust_design_from_data(s["u"], s["y"], I, s["W1"], s["W2"], unf.sigma, gamma_ratio=1.5,
+                                            causal=True, certificate_margin=0.3, tracking_floor=0.2, search=False,
+                                            **common)
+    assert grouped.gamma == legacy.gamma and grouped.w3_gain == legacy.w3_gain and grouped.design.causal
+    assert grouped.certificate.margin == legacy.certificate.margin == 0.3
+    assert grouped.certificate.tracking_floor == 0.2 and grouped.reason == legacy.reason
+    with pytest.raises(TypeError, match="gamma_ration"):
+        uf.robust_design_from_data(s["u"], s["y"], I, s["W1"], s["W2"], unf.sigma, gamma_ration=1.5, **common)
+    with pytest.raises(DataError, match="DesignOptions"):
+        uf.robust_design_from_data(s["u"], s["y"], I, s["W1"], s["W2"], unf.sigma, design={"gamma_ratio": 1.5},
+                                   **common)
+    with pytest.raises(DataError, match="w3_rule"):
+        uf.DesignOptions(w3_rule="inverse")

@@ -59,6 +59,10 @@ Robust design from data (§7.4)
    robust_design_from_data -- δ by (7.5), a Theorem 3.7 design, searched until its shipped loop is certified
    RobustDesignResult     -- result: δ, the design, its controller, certificates, the search
    DesignSearch           -- the family of designs the search tries (γ ratios, W3 gains, causality, horizons)
+   DesignOptions          -- the first design (γ ratio, W3 rule and margin, causal law)
+   CertificateOptions     -- the loop certificate (margin, performance floor, reference model)
+   EstimationOptions      -- how (7.5) is solved (form, backend, cvxpy solver)
+   estimate_delta         -- step 1 alone: window checks and δ of (7.5)
    SearchRecord           -- one design tried by the search and why it failed
    additive_weight_fixed_point -- the W3 gain ``c = (1 + margin) δ γ(c)``
    solve_estimate         -- rough time and memory of a (7.5) solve, which the pipeline checks before solving
@@ -189,7 +193,11 @@ from .premise import (
 )
 from .robust import (
     AdditiveRobustness,
+    CertificateOptions,
+    DesignOptions,
     DesignSearch,
+    EstimationOptions,
+    estimate_delta,
     FewDataWarning,
     LongSolveWarning,
     NotCertifiedError,
@@ -266,6 +274,10 @@ __all__ = [
     "additive_robustness",
     "additive_weight_fixed_point",
     "robust_design_from_data",
+    "DesignOptions",
+    "CertificateOptions",
+    "EstimationOptions",
+    "estimate_delta",
 ]
 
 from synthesis import __version__  # noqa: E402 - one distribution, one version

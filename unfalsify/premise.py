@@ -27,7 +27,11 @@ power).  So the premise is tested three ways, each from the record itself:
    P itself would bias a direct estimate of P far beyond its confidence disk).  Where the input
    excites the plant (input spectrum above ``EXCITATION_FLOOR`` × its peak) and ``|D̂| − r > δ``, P̂
    is inconsistent with the record by more than the δ being certified: the certificate is refused
-   and the reason names the frequencies.
+   and the reason names the frequencies.  Below the first Welch frequency -- where each detrended
+   segment is blind, and where a slow pole or an integrator that P̂ misses lives -- the whole record's
+   DFT is fitted by the local polynomial method (:func:`low_band_estimate`) with its own disks, and
+   the same rule applies (measured: a 4th-order 50 Hz plant whose P̂ had 0.27 of the DC gain passed
+   every Welch frequency and Theorem 7.1's noise ball, and its certified loop did not track).
 3. **Excitation where the loop is sensitive** (:func:`check_excitation`, per design).  With
    ``M̂ = (I − C_y P̂)⁻¹ C_y`` (= ``−K(I + P̂K)⁻¹``), the loop is certified only when at every Welch
    frequency the whole confidence disk lies where the loop is stable frequency by frequency:

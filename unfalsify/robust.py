@@ -44,6 +44,7 @@ so (:class:`NotCertifiedWarning`) when nothing certifies.  With a plant model in
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 import math
@@ -68,6 +69,10 @@ from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from synthesis.results import result
 
 __all__ = [
+    "DesignOptions",
+    "CertificateOptions",
+    "EstimationOptions",
+    "estimate_delta",
     "DesignSearch",
     "FewDataWarning",
     "LongSolveWarning",
@@ -532,30 +537,21 @@ def robust_design_from_data(
     horizon: int,
     W1,
     W2,
-    sigma: float,
+    sigma,
     *,
-    gamma_ratio: float = 1.1,
-    margin: float = 0.1,
-    w3_rule: str = "small-gain",
+    design: DesignOptions | None = None,
+    certificate: CertificateOptions | None = None,
+    estimation: EstimationOptions | None = None,
+    premise: PremiseOptions | None = None,
+    search: DesignSearch | bool | None = True,
     predictor=None,
     predictor_for=None,
-    causal: bool = False,
     unfalsification: SubspaceResult | None = None,
-    form: str = "conditioned",
-    solver: str = "CLARABEL",
-    solver_options: dict | None = None,
-    dt=None,
-    search: DesignSearch | bool | None = True,
-    tracking_floor: float = TRACKING_FLOOR,
-    step_samples: int = STEP_SAMPLES,
-    require_certified: bool = False,
-    reference_horizon: int | None = None,
-    certificate_margin: float = CERTIFICATE_MARGIN,
-    require_reference: bool = True,
     validation=None,
-    premise: PremiseOptions | None = None,
     window=None,
-    backend: str | None = None,
+    dt=None,
+    require_certified: bool = False,
+    **legacy,
 ) -> RobustDesignResult:
     """§7.4 steps 1–5 -- δ by subspace unfalsification (7.5), a robust Theorem 3.7 design -- and a
     certificate of the LTI loop that ships.
@@ -604,13 +600,16 @@ def robust_design_from_data(
         of the model on the window.  ``"auto"``: half that residual rms (the rule of our
         experiments: half of what the model leaves unexplained is called noise, the rest must be
         explained by Δ).
-    gamma_ratio : float
-        ``γ = gamma_ratio · γ_min_a`` of the first design (step 4).
-    margin : float
-        Relative margin of the W3 rule: the finite-horizon design covers ``(1 + margin) δ``.
-    w3_rule : {"small-gain", "thesis"}
-        ``"small-gain"`` (default): ``W3 = c I`` with ``c = (1 + margin) δ γ(c)`` (module docstring).
-        ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only.
+    design : DesignOptions, optional
+        The first design: level ``gamma_ratio``, W3 rule and its ``margin``, causal law (step 4).
+    certificate : CertificateOptions, optional
+        The loop certificate: its margin (default 0.25), performance floor, reference model.
+    estimation : EstimationOptions, optional
+        How (7.5) is solved: ``form``, ``backend`` (default ``"structured"`` for the conditioned form:
+        faster, O(i²j) memory), cvxpy ``solver`` and its options.
+    search : DesignSearch, bool or None
+        The design family searched when the first design does not certify (True: the default
+        :class:`DesignSearch`; False/None: no search).
     predictor : synthesis.Predictor, optional
         A fixed predictor of horizon i (e.g. least squares on a longer record): δ is computed for
         this model (L fixed in (7.5)), the design and P̂ use it.  Default: the ``(L_w, L_u)`` found
@@ -619,36 +618,13 @@ def robust_design_from_data(
         ``horizon -> Predictor`` for the search's other horizons (e.g.
         ``lambda h: fit_predictor(u_long, y_long, h)``).  Without it the search fits them by least
         squares on ``(u, y)`` when ``predictor`` is None, and skips them otherwise.
-    causal : bool
-        Causal law (Thm 3.2 variant) for the first design.
     unfalsification : SubspaceResult, optional
-        Reuse a (7.5) solution instead of solving again (it must come from the same data).
-    form, solver, solver_options
-        Passed to :func:`subspace_unfalsify`.
+        Reuse a (7.5) solution (:func:`estimate_delta`) instead of solving again (same data).
     dt : float, optional
         The data's sample time; the weights' must equal it (``WeightError`` otherwise).  Default:
         the weights' common sample time.
-    search : DesignSearch, bool or None
-        The design family searched when the first design does not certify (True: the default
-        :class:`DesignSearch`; False/None: no search).
-    tracking_floor, step_samples
-        Performance floor of :func:`unfalsify.certify_loop`.
     require_certified : bool
         Raise :class:`NotCertifiedError` instead of warning when nothing certifies.
-    certificate_margin : float
-        The certificate needs ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + certificate_margin)`` on P̂ and P̂_ref
-        (default 0.25: measured on four plants, the true loop's ``‖K(I+PK)⁻¹‖∞`` was within
-        10 % of the models').
-    reference_horizon : int, optional
-        Horizon of the reference model ``P̂_ref`` on which every design must certify too
-        (default ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on
-        ``(u, y)`` when ``predictor`` is None and the window is long enough; otherwise there is
-        no reference and ``result.reference_note`` says why).
-    require_reference : bool
-        Without a reference model the loop is not certified (default): measured on an
-        integrating plant with a resonance (i = 10), certificates on P̂ alone failed on the true
-        plant, while P̂ and P̂_ref together never did on the plants tried.  ``False`` certifies on
-        P̂ alone (weaker; say so when you report it).
     validation : tuple of array_like, optional
         ``(u_v, y_v)``: a record of the same plant *not used to fit the predictors* (e.g. the end of
         the experiment), on which P̂'s output error is unfalsified.  Without it the window itself is
@@ -664,10 +640,16 @@ def robust_design_from_data(
         least squares -- no lambda needed.  ``"auto"``: the first ``2i + j − 1`` samples with
         ``j = 3·i(2m + l)`` columns (three per regressor of the predictor), or as many as the fitting
         part holds.  None (default): ``u, y`` are the window itself.
-    backend : {"structured", "cvxpy"}, optional
-        Solver of (7.5) (:func:`subspace_unfalsify`); default ``"structured"`` (faster, O(i²j) memory)
-        for ``form="conditioned"``, the cvxpy models otherwise.
+    **legacy
+        The keywords of earlier releases (``gamma_ratio``, ``margin``, ``w3_rule``, ``causal``,
+        ``certificate_margin``, ``tracking_floor``, ``step_samples``, ``reference_horizon``,
+        ``require_reference``, ``form``, ``solver``, ``solver_options``, ``backend``) still work: each
+        sets the field of its option object.
 
+    The steps can be run one by one: :func:`estimate_delta` (data checks and δ of (7.5)),
+    :func:`unfalsify.predictor_model` (P̂), :func:`unfalsify.check_premise` (δ of the output error, the
+    frequency-response tests), :func:`unfalsify.certify_loop` and :func:`unfalsify.check_excitation`
+    (the loop).
     Returns
     -------
     RobustDesignResult
@@ -692,125 +674,37 @@ def robust_design_from_data(
     SolverWarning
         The (7.5) answer is not certified: δ is raised to the certified value.
     """
-    if w3_rule not in ("small-gain", "thesis"):
-        raise ValueError(f"unknown w3_rule {w3_rule!r}; use 'small-gain' or 'thesis'")
-    gamma_ratio = _positive_real(gamma_ratio, "gamma_ratio", above=1.0)
-    margin = _positive_real(margin, "margin", allow_equal=True)
-    if not (isinstance(sigma, str) and sigma == "auto"):
-        sigma = check_sigma(sigma)
-    if search is True:
-        search = DesignSearch()
-    elif search is False:
-        search = None
-    elif search is not None and not isinstance(search, DesignSearch):
-        raise DataError(f"search must be a DesignSearch, True or False/None, got {search!r}")
+    design, certificate, estimation = _gather_options(design, certificate, estimation, legacy)
+    search = _search_family(search)
+    if not isinstance(premise if premise is not None else PremiseOptions(), PremiseOptions):
+        raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
     if window is not None:
         u, y, validation, predictor, predictor_for = _record_mode(u, y, horizon, window, validation, predictor,
                                                                   predictor_for)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
-    if isinstance(sigma, str) and sigma == "auto":
-        sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]
-    if backend is None:
-        backend = "structured" if form == "conditioned" else "cvxpy"
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
     _warn_few_columns(predictor)
-    premise_opts = PremiseOptions() if premise is None else premise
-    if not isinstance(premise_opts, PremiseOptions):
-        raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
     unf = unfalsification
     if unf is None:
-        _check_window(u, y, i, sigma, predictor)
-        _guard_size(i, np.asarray(u).shape[0] - 2 * i + 1, backend)
-        unf = subspace_unfalsify(u, y, i, sigma, form=form, predictor=predictor, solver=solver,
-                                 solver_options=solver_options, backend=backend)
+        unf = estimate_delta(u, y, i, sigma, predictor=predictor, estimation=estimation)
     elif unf.horizon != i:
         raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
-    delta_sub = _delta_of(unf)
-    pred = unf.predictor
-    if predictor is not None:
-        if not np.allclose(np.hstack([unf.Lw, unf.Lu]), np.hstack([predictor.Lw, predictor.Lu])):
-            raise DataError("the given unfalsification was not computed for the given predictor")
-        pred = predictor
+    pred = _model_predictor(unf, predictor)
     model = predictor_model(pred, _data_dt(dt, W1, W2))
-    prem = check_premise(model, u, y, i, delta_sub, dt=float(model.dt), validation=validation, options=premise_opts)
+    prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
+                         options=premise or PremiseOptions())
     delta = prem.delta
-    premise_reason = "; ".join(r for r in (prem.reason, _persistence_reason(pred, u, i, "predictor of P̂")) if r)
-    if w3_rule == "thesis" and delta == 0:
+    if design.w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
-
-    # the search revisits horizons and (horizon, causal, γ ratio) triples with other W3 factors: fit each
-    # predictor and solve each fixed point once
-    predictors = {i: pred}
-
-    @functools.lru_cache(maxsize=None)
-    def fixed_point(h, cz, ratio):
-        if w3_rule == "thesis":
-            return 1.0 / delta
-        return additive_weight_fixed_point(predictor_at(h), W1, W2, delta, gamma_ratio=ratio, margin=margin,
-                                           causal=cz, dt=dt)
-
-    def predictor_at(h):
-        if h not in predictors:
-            predictors[h] = _predictor_at(h, u, y, predictor, predictor_for)
-        return predictors[h]
-
-    def build(h, cz, ratio, factor):
-        c = factor * fixed_point(h, cz, ratio)
-        # δ = 0: no uncertainty at all, the nominal design.  (W3 = 0 alone would not do: W4 = I keeps
-        # the channel s → z_w1 of Fig. 3.5, so γ_min_a(c → 0) stays above the nominal γ_min.)
-        return _design(predictor_at(h), W1, W2, delta, c=c, gamma_ratio=ratio, causal=cz, dt=dt), c
-
-    first, c0 = build(i, bool(causal), gamma_ratio, 1.0)
-    ref_h = 2 * i if reference_horizon is None else int(reference_horizon)
-    ref_model, ref_note = None, ""
-    try:
-        ref_pred = predictor_at(ref_h)
-        ref_model = predictor_model(ref_pred, first.dt)
-        premise_reason = "; ".join(r for r in (premise_reason, _persistence_reason(
-            ref_pred, u, ref_h, f"reference predictor (horizon {ref_h})")) if r)
-    except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
-        ref_note = (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
-                    "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)")
-    if premise_reason:
-        search = None  # the data falsify (or cannot test) the premise: no design of the family can fix that
-    certificate_margin = _positive_real(certificate_margin, "certificate_margin", allow_equal=True)
-    cert_opts = dict(margin=certificate_margin, tracking_floor=tracking_floor, step_samples=step_samples)
-    missing = None
-    if ref_model is None and require_reference:
-        # measured without a reference: certificates on P̂ alone that failed on the true plant (an
-        # integrating plant with a resonance, i = 10), so a missing reference is a reason not to certify
-        missing = LoopCertificate(certified=False, reason=ref_note, delta=delta, margin=certificate_margin,
-                                  spectral_radius=float("nan"), norm=None, small_gain=float("nan"), step=None,
-                                  tracking_floor=float(tracking_floor))
-        search = None  # no design can certify without it
-
-    def check(d):
-        ref = certify_loop(ref_model, d.controller, delta, **cert_opts) if ref_model is not None else missing
-        cert = certify_loop(model, d.controller, delta, **cert_opts)
-        exc = (check_excitation(model, d.controller, prem.frf, prem.low_band)
-               if prem.frf is not None and cert.stable else None)
-        gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
-        track = (_steady_state_reason(model, d.controller, (1.0 + certificate_margin) * delta, float(tracking_floor),
-                                      gain) if cert.stable else "")
-        return cert, ref, premise_reason, exc, track
-
-    records = [_record(i, bool(causal), gamma_ratio, c0, first, *check(first))]
-    chosen = (first, c0, records[0])
-    if not records[0].certified and search is not None:
-        for h, cz, ratio, factor in _candidates(search, i, bool(causal), gamma_ratio)[1:]:
-            try:
-                d, c = build(h, cz, ratio, factor)
-                rec = _record(h, cz, ratio, c, d, *check(d))
-            except (ValueError, np.linalg.LinAlgError) as exc:  # DataError / InfeasibleGammaError / no predictor
-                records.append(SearchRecord(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
-                                            error=f"{type(exc).__name__}: {exc}"))
-                continue
-            records.append(rec)
-            if rec.certified:
-                chosen = (d, c, rec)
-                break
-    design, c, rec = chosen
+    space = _DesignSpace(u, y, pred, predictor, predictor_for, W1, W2, delta, design, dt)
+    ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
+    premise_reason = "; ".join(r for r in (prem.reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason)
+                               if r)
+    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate)
+    if premise_reason or judge.missing is not None:
+        search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
+    chosen, c, rec, records = _search_designs(space, judge, search, i)
     if not rec.certified:
         tried = len(records)
         msg = (f"the §7.4 loop is NOT certified for δ = {delta:.4g}: {rec.reason}"
@@ -818,30 +712,282 @@ def robust_design_from_data(
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
-    g_nom = synthesis.gamma_min(design.predictor, W1, W2, causal=design.causal, dt=dt)
-    covered = c / design.gamma if design.gamma > 0 else np.inf
+    g_nom = synthesis.gamma_min(chosen.predictor, W1, W2, causal=chosen.causal, dt=dt)
     return RobustDesignResult(
-        unfalsification=unf,
-        design=design,
-        delta=delta,
-        w3_gain=float(c),
-        w3_rule=w3_rule,
-        margin=float(margin),
-        gamma=float(design.gamma),
-        gamma_min_a=float(design.gamma_min),
-        gamma_min_nominal=float(g_nom),
-        covered_delta=float(covered),
-        model=model,
-        certificate=rec.certificate,
-        search=tuple(records),
-        reference_model=ref_model,
-        reference_certificate=rec.reference_certificate,
-        reference_note=ref_note,
-        premise=prem,
-        premise_reason=premise_reason,
-        excitation=rec.excitation,
-        tracking_reason=rec.tracking_reason,
-    )
+        unfalsification=unf, design=chosen, delta=delta, w3_gain=float(c), w3_rule=design.w3_rule,
+        margin=float(design.margin), gamma=float(chosen.gamma), gamma_min_a=float(chosen.gamma_min),
+        gamma_min_nominal=float(g_nom), covered_delta=float(c / chosen.gamma if chosen.gamma > 0 else np.inf),
+        model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
+        reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
+        premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason)
+
+
+def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
+                   estimation: EstimationOptions | None = None) -> SubspaceResult:
+    """Step 1 of the §7.4 pipeline: check the window and solve (7.5) for δ.
+
+    Parameters
+    ----------
+    u, y : array_like
+        SISO window, ``2i + j − 1`` samples.
+    horizon : int
+    sigma : float or "auto"
+        Admissible rms noise of (7.5) (``"auto"``: half the residual rms of the model on the window).
+    predictor : synthesis.Predictor, optional
+        Fixed ``(L_w, L_u)``; default: estimated by (7.5) jointly with δ.
+    estimation : EstimationOptions, optional
+
+    Returns
+    -------
+    SubspaceResult
+
+    Raises
+    ------
+    DataError
+        σ not a positive number below the window's residual rms; a window with no more columns than
+        the predictor estimated on it has regressors; a solve too large for this machine's memory.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(80)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:80] + 0.05 * rng.standard_normal(80)
+    >>> unf = estimate_delta(u, y, 3, "auto")
+    >>> bool(unf.certificate.verify())
+    True
+    """
+    opts = estimation or EstimationOptions()
+    i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+    if isinstance(sigma, str) and sigma == "auto":
+        sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]
+    sigma = check_sigma(sigma)
+    backend = opts.backend or ("structured" if opts.form == "conditioned" else "cvxpy")
+    _check_window(u, y, i, sigma, predictor)
+    _guard_size(i, np.asarray(u).shape[0] - 2 * i + 1, backend)
+    return subspace_unfalsify(u, y, i, sigma, form=opts.form, predictor=predictor, solver=opts.solver,
+                              solver_options=opts.solver_options, backend=backend)
+
+
+def _model_predictor(unf: SubspaceResult, predictor):
+    """The predictor of P̂: the given one (which (7.5) must have used), else (7.5)'s own."""
+    if predictor is None:
+        return unf.predictor
+    if not np.allclose(np.hstack([unf.Lw, unf.Lu]), np.hstack([predictor.Lw, predictor.Lu])):
+        raise DataError("the given unfalsification was not computed for the given predictor")
+    return predictor
+
+
+def _search_family(search) -> DesignSearch | None:
+    if search is True:
+        return DesignSearch()
+    if search is False or search is None:
+        return None
+    if not isinstance(search, DesignSearch):
+        raise DataError(f"search must be a DesignSearch, True or False/None, got {search!r}")
+    return search
+
+
+class _DesignSpace:
+    """The designs the pipeline can build: predictors per horizon, W3 fixed points, Theorem 3.7 designs.
+
+    The search revisits horizons and (horizon, causal, γ ratio) triples with other W3 factors: each
+    predictor is fitted and each fixed point solved once.
+    """
+
+    def __init__(self, u, y, pred, predictor, predictor_for, W1, W2, delta, options: DesignOptions, dt):
+        self.u, self.y, self.W1, self.W2, self.delta, self.options, self.dt = u, y, W1, W2, delta, options, dt
+        self.given, self.predictor_for = predictor, predictor_for
+        self.predictors = {int(pred.horizon): pred}
+        self.fixed_point = functools.lru_cache(maxsize=None)(self._fixed_point)
+
+    def predictor_at(self, h: int):
+        if h not in self.predictors:
+            self.predictors[h] = _predictor_at(h, self.u, self.y, self.given, self.predictor_for)
+        return self.predictors[h]
+
+    def _fixed_point(self, h, cz, ratio) -> float:
+        if self.options.w3_rule == "thesis":
+            return 1.0 / self.delta
+        return additive_weight_fixed_point(self.predictor_at(h), self.W1, self.W2, self.delta, gamma_ratio=ratio,
+                                           margin=self.options.margin, causal=cz, dt=self.dt)
+
+    def build(self, h, cz, ratio, factor):
+        c = factor * self.fixed_point(h, cz, ratio)
+        # δ = 0: no uncertainty at all, the nominal design.  (W3 = 0 alone would not do: W4 = I keeps
+        # the channel s → z_w1 of Fig. 3.5, so γ_min_a(c → 0) stays above the nominal γ_min.)
+        return _design(self.predictor_at(h), self.W1, self.W2, self.delta, c=c, gamma_ratio=ratio, causal=cz,
+                       dt=self.dt), c
+
+
+def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, dt: float):
+    """``(P̂_ref, note, persistence reason)``: the model at the reference horizon, or why there is none."""
+    ref_h = 2 * i if options.reference_horizon is None else int(options.reference_horizon)
+    try:
+        ref_pred = space.predictor_at(ref_h)
+        return (predictor_model(ref_pred, dt), "",
+                _persistence_reason(ref_pred, space.u, ref_h, f"reference predictor (horizon {ref_h})"))
+    except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
+        return None, (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
+                      "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)"), ""
+
+
+class _LoopJudge:
+    """Every check a design's loop must pass: certificates on P̂ and P̂_ref, the premise, excitation, tracking."""
+
+    def __init__(self, model, ref_model, ref_note, prem, premise_reason, delta, options: CertificateOptions):
+        self.model, self.ref_model, self.prem = model, ref_model, prem
+        self.premise_reason, self.delta = premise_reason, delta
+        self.margin = _positive_real(options.margin, "certificate_margin", allow_equal=True)
+        self.floor = float(options.tracking_floor)
+        self.cert_opts = dict(margin=self.margin, tracking_floor=options.tracking_floor,
+                              step_samples=options.step_samples)
+        self.missing = None
+        if ref_model is None and options.require_reference:
+            # measured without a reference: certificates on P̂ alone that failed on the true plant (an
+            # integrating plant with a resonance, i = 10), so a missing reference is a reason not to certify
+            self.missing = LoopCertificate(certified=False, reason=ref_note, delta=delta, margin=self.margin,
+                                           spectral_radius=float("nan"), norm=None, small_gain=float("nan"),
+                                           step=None, tracking_floor=self.floor)
+
+    def record(self, h, cz, ratio, c, d) -> SearchRecord:
+        prem = self.prem
+        ref = (certify_loop(self.ref_model, d.controller, self.delta, **self.cert_opts)
+               if self.ref_model is not None else self.missing)
+        cert = certify_loop(self.model, d.controller, self.delta, **self.cert_opts)
+        exc = (check_excitation(self.model, d.controller, prem.frf, prem.low_band)
+               if prem.frf is not None and cert.stable else None)
+        gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
+        track = (_steady_state_reason(self.model, d.controller, (1.0 + self.margin) * self.delta, self.floor, gain)
+                 if cert.stable else "")
+        return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+
+
+def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch | None, i: int):
+    """``(design, c, record, records)``: the requested design, then the search's first certified one."""
+    o = space.options
+    first, c0 = space.build(i, bool(o.causal), o.gamma_ratio, 1.0)
+    records = [judge.record(i, bool(o.causal), o.gamma_ratio, c0, first)]
+    if records[0].certified or search is None:
+        return first, c0, records[0], records
+    for h, cz, ratio, factor in _candidates(search, i, bool(o.causal), o.gamma_ratio)[1:]:
+        try:
+            d, c = space.build(h, cz, ratio, factor)
+            rec = judge.record(h, cz, ratio, c, d)
+        except (ValueError, np.linalg.LinAlgError) as exc:  # DataError / InfeasibleGammaError / no predictor
+            records.append(SearchRecord(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
+                                        error=f"{type(exc).__name__}: {exc}"))
+            continue
+        records.append(rec)
+        if rec.certified:
+            return d, c, rec, records
+    return first, c0, records[0], records
+
+
+@dataclass(frozen=True)
+class DesignOptions:
+    """The first design of :func:`robust_design_from_data` (step 4).
+
+    Attributes
+    ----------
+    gamma_ratio : float
+        ``γ = gamma_ratio · γ_min_a``.
+    margin : float
+        Relative margin of the W3 rule: the finite-horizon design covers ``(1 + margin) δ``.
+    w3_rule : {"small-gain", "thesis"}
+        ``"small-gain"``: ``W3 = c I`` with ``c = (1 + margin) δ γ(c)`` (module docstring).
+        ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only.
+    causal : bool
+        Causal law (Thm 3.2 variant).
+    """
+
+    gamma_ratio: float = 1.1
+    margin: float = 0.1
+    w3_rule: str = "small-gain"
+    causal: bool = False
+
+    def __post_init__(self):
+        if self.w3_rule not in ("small-gain", "thesis"):
+            raise DataError(f"unknown w3_rule {self.w3_rule!r}; use 'small-gain' or 'thesis'")
+        _positive_real(self.gamma_ratio, "gamma_ratio", above=1.0)
+        _positive_real(self.margin, "margin", allow_equal=True)
+
+
+@dataclass(frozen=True)
+class CertificateOptions:
+    """The loop certificate of :func:`robust_design_from_data` (step 5).
+
+    Attributes
+    ----------
+    margin : float
+        The certificate needs ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + margin)`` on P̂ and P̂_ref (default 0.25:
+        measured on four plants, the true loop's ``‖K(I+PK)⁻¹‖∞`` was within 10 % of the models').
+    tracking_floor, step_samples
+        Performance floor of :func:`unfalsify.certify_loop`.
+    reference_horizon : int or None
+        Horizon of the reference model ``P̂_ref`` on which every design must certify too (default
+        ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on the window when
+        no predictor is given and the window is long enough).
+    require_reference : bool
+        Without a reference model the loop is not certified (default): measured on an integrating
+        plant with a resonance (i = 10), certificates on P̂ alone failed on the true plant, while P̂ and
+        P̂_ref together never did on the plants tried.  ``False`` certifies on P̂ alone (weaker).
+    """
+
+    margin: float = CERTIFICATE_MARGIN
+    tracking_floor: float = TRACKING_FLOOR
+    step_samples: int = STEP_SAMPLES
+    reference_horizon: int | None = None
+    require_reference: bool = True
+
+
+@dataclass(frozen=True)
+class EstimationOptions:
+    """How :func:`estimate_delta` solves (7.5), passed to :func:`unfalsify.subspace_unfalsify`.
+
+    Attributes
+    ----------
+    form : {"conditioned", "thesis"}
+    solver : str
+        cvxpy solver of the cvxpy backend.
+    solver_options : dict or None
+    backend : {"structured", "cvxpy"} or None
+        None: ``"structured"`` for the conditioned form (faster, O(i²j) memory), the cvxpy models otherwise.
+    """
+
+    form: str = "conditioned"
+    solver: str = "CLARABEL"
+    solver_options: dict | None = None
+    backend: str | None = None
+
+
+#: the keywords of earlier releases and the option field each sets
+_LEGACY = {
+    "gamma_ratio": ("design", "gamma_ratio"), "margin": ("design", "margin"), "w3_rule": ("design", "w3_rule"),
+    "causal": ("design", "causal"), "certificate_margin": ("certificate", "margin"),
+    "tracking_floor": ("certificate", "tracking_floor"), "step_samples": ("certificate", "step_samples"),
+    "reference_horizon": ("certificate", "reference_horizon"),
+    "require_reference": ("certificate", "require_reference"), "form": ("estimation", "form"),
+    "solver": ("estimation", "solver"), "solver_options": ("estimation", "solver_options"),
+    "backend": ("estimation", "backend"),
+}
+
+
+def _gather_options(design, certificate, estimation, legacy: dict):
+    """The three option objects, with the earlier releases' keywords applied to their fields."""
+    unknown = sorted(set(legacy) - set(_LEGACY))
+    if unknown:
+        raise TypeError(f"robust_design_from_data() got unexpected keyword argument(s) {', '.join(unknown)}")
+    groups = {"design": design or DesignOptions(), "certificate": certificate or CertificateOptions(),
+              "estimation": estimation or EstimationOptions()}
+    for name, kind in (("design", DesignOptions), ("certificate", CertificateOptions),
+                       ("estimation", EstimationOptions)):
+        if not isinstance(groups[name], kind):
+            raise DataError(f"{name} must be a {kind.__name__}, got {groups[name]!r}")
+    for key, value in legacy.items():
+        group, field = _LEGACY[key]
+        groups[group] = dataclasses.replace(groups[group], **{field: value})
+    return groups["design"], groups["certificate"], groups["estimation"]
 
 
 #: fraction of a record held out for the premise test in record mode (``window=``)
