@@ -285,15 +285,8 @@ def discrete_mixsyn(P, W1, W2, gamma: float | None = None, *, gamma_ratio: float
     return _discrete_mixsyn(P, W1, W2, gamma, gamma_ratio=gamma_ratio, rtol=rtol, epsilon=epsilon)
 
 
-def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsilon=None,
-                     route: str = "certified") -> MixsynResult:
-    """:func:`discrete_mixsyn` with a choice of the level check.
-
-    ``route="certified"`` (the public function): :func:`norm_below` in the bisection and
-    :func:`hinf_norm` for the result.  ``route="grid"``: the former dense-grid check by
-    :func:`peak_gain` (kept for the ``bench-norms`` comparison; ``bracket`` is then None and
-    ``norm`` the grid estimate).
-    """
+def _mixsyn_options(gamma, gamma_ratio, rtol, epsilon, route: str):
+    """Checked ``(gamma, gamma_ratio, rtol, epsilon)`` of :func:`discrete_mixsyn`."""
     if route not in ("certified", "grid"):
         raise DataError(f"route must be 'certified' or 'grid', got {route!r}")
     if gamma is not None:
@@ -309,6 +302,51 @@ def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsil
                 np.isfinite(epsilon) and epsilon >= 0):
             raise DataError(f"epsilon must be a finite number >= 0 (or None for the default), got {epsilon!r}")
         epsilon = float(epsilon)
+    return gamma, gamma_ratio, rtol, epsilon
+
+
+def _bisect_level(attempt, rtol: float) -> tuple[float, int]:
+    """``(γ_opt, attempts)``: the least feasible level to relative ``rtol``, ``attempt(g)`` None when infeasible.
+
+    Doubling from 1 finds a feasible level, halving finds an infeasible one below it, bisection closes the gap.
+    """
+    hi = 1.0
+    best = attempt(hi)
+    steps = 1
+    while best is None:
+        hi *= 2.0
+        steps += 1
+        if hi > 1e12:
+            raise DataError("no stabilising controller found for gamma up to 1e12: check stabilisability/detectability")
+        best = attempt(hi)
+    lo = 0.0
+    if hi == 1.0:
+        lo = 0.5
+        while attempt(lo) is not None and lo > 1e-9:
+            hi, lo = lo, lo / 2.0
+            steps += 1
+    else:
+        lo = hi / 2.0
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        steps += 1
+        if attempt(mid) is not None:
+            hi = mid
+        else:
+            lo = mid
+    return hi, steps
+
+
+def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsilon=None,
+                     route: str = "certified") -> MixsynResult:
+    """:func:`discrete_mixsyn` with a choice of the level check.
+
+    ``route="certified"`` (the public function): :func:`norm_below` in the bisection and
+    :func:`hinf_norm` for the result.  ``route="grid"``: the former dense-grid check by
+    :func:`peak_gain` (kept for the ``bench-norms`` comparison; ``bracket`` is then None and
+    ``norm`` the grid estimate).
+    """
+    gamma, gamma_ratio, rtol, epsilon = _mixsyn_options(gamma, gamma_ratio, rtol, epsilon, route)
     P, W1, W2, dt = _check(P, W1, W2)
     pr = _problem(P, W1, W2)
     A = pr["A"]
@@ -372,31 +410,7 @@ def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsil
             return None
         return Kd, sys, br.upper, br
 
-    hi = 1.0
-    best = attempt(hi)
-    steps = 1
-    while best is None:
-        hi *= 2.0
-        steps += 1
-        if hi > 1e12:
-            raise DataError("no stabilising controller found for gamma up to 1e12: check stabilisability/detectability")
-        best = attempt(hi)
-    lo = 0.0
-    if hi == 1.0:
-        lo = 0.5
-        while attempt(lo) is not None and lo > 1e-9:
-            hi, lo = lo, lo / 2.0
-            steps += 1
-    else:
-        lo = hi / 2.0
-    while hi - lo > rtol * hi:
-        mid = 0.5 * (lo + hi)
-        steps += 1
-        if attempt(mid) is not None:
-            hi = mid
-        else:
-            lo = mid
-    gamma_opt = hi
+    gamma_opt, steps = _bisect_level(attempt, rtol)
     if gamma is None:
         gamma = gamma_ratio * gamma_opt
     res = attempt(float(gamma), n_grid=4000, final=True)
