@@ -233,3 +233,23 @@ def test_cholesky_norm_test_decides_both_ways():
     assert _norm_below_by_cholesky(h, true * (1 + 1e-6))
     assert not _norm_below_by_cholesky(h, true * (1 - 1e-6))
     assert not _norm_below_by_cholesky(h, 0.5 * float(np.linalg.norm(h)))
+
+
+@pytest.mark.parametrize("progress", [True, False])
+def test_a_long_solve_shows_its_progress_on_stderr(monkeypatch, capsys, progress):
+    # a fake clock (one second per reading): past 2 s the barrier opens a tqdm bar with the bracket so far
+    u, y, sigma = _problem(60, 1)
+    clock = [0.0]
+
+    def fake_clock():
+        clock[0] += 1.0
+        return clock[0]
+
+    monkeypatch.setattr(barrier, "_clock", fake_clock)
+    r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-6, progress=progress)
+    err = capsys.readouterr().err
+    if progress:
+        assert "outer" in err and "lower=" in err and "upper=" in err and "newton=" in err
+    else:
+        assert "outer" not in err
+    assert r.certificate.verify()  # the bar does not change the answer
