@@ -370,3 +370,23 @@ def test_chunked_dot_equals_matmul():
     with ThreadPoolExecutor(3) as pool:
         out = sc._Chunks(pool, 3, min_size=0).dot(A, B)
     np.testing.assert_allclose(out, A @ B, rtol=1e-13)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_blas_is_pinned_to_one_thread_per_worker(monkeypatch, workers):
+    import threadpoolctl
+
+    import unfalsify.solvers.column_barrier as cb
+
+    seen = []
+    real = cb._solve
+
+    def spy(*args):
+        seen.append(max((p["num_threads"] for p in threadpoolctl.threadpool_info() if p["user_api"] == "blas"),
+                        default=1))
+        return real(*args)
+
+    monkeypatch.setattr(cb, "_solve", spy)
+    u, y = _other_plant(2 * 4 + 20 - 1, 0)
+    uf.subspace_unfalsify(u, y, 4, _sigma(u, y, 4), backend="structured", progress=False, workers=workers)
+    assert seen == [1]
