@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 from tqdm import tqdm
 
-from .report import LiveTable, Report, write_json
+from ..lab.report import LiveTable, Report, write_json
 
 __all__ = ["run"]
 
@@ -107,7 +107,7 @@ def _series(quick: bool) -> list[dict]:
 
 
 def _data(n: int, seed: int):
-    from ._servo import servo_data
+    from ..lab._servo import servo_data
 
     d = servo_data(n, seed=seed)
     return d.u, d.y
@@ -322,7 +322,7 @@ def _plot_scaling(series: list[dict], path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .report import save_figure
+    from ..lab.report import save_figure
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for s in series:

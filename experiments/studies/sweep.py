@@ -40,8 +40,8 @@ from pathlib import Path
 
 from synthesis.validation import DataError
 
-from .plants import PLANT_CATALOGUE
-from .report import Report, save_figure, write_json
+from ..lab.plants import PLANT_CATALOGUE
+from ..lab.report import Report, save_figure, write_json
 
 __all__ = ["SweepConfig", "Case", "run", "run_sweep", "sweep_cases", "make_executor", "case_task",
            "load_finished", "strip_timing", "summary_line", "WORKER_ENV"]

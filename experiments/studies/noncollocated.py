@@ -36,9 +36,9 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from . import simulate
-from ._torsional import DT, NONCOLLOCATED
-from .report import Report, save_figure, write_csv, write_json
+from ..lab import simulate
+from ..lab._torsional import DT, NONCOLLOCATED
+from ..lab.report import Report, save_figure, write_csv, write_json
 
 __all__ = ["run", "step_metrics", "closed_loop_system", "THESIS"]
 
@@ -172,7 +172,7 @@ def _model_based(plant, W1, W2, ratio: float):
 def _compute(opts):
     import synthesis
 
-    from . import plants, signals, simulate
+    from ..lab import plants, signals, simulate
 
     rng = np.random.default_rng(opts.seed)
     seeds = rng.integers(0, 2**31, size=2)
@@ -206,7 +206,7 @@ def _seed_spread(P, u, i, W1, W2, seeds) -> list[dict]:
     import synthesis
     from tqdm import tqdm
 
-    from . import simulate
+    from ..lab import simulate
 
     rows = []
     for seed in tqdm(seeds, desc="noncollocated: noise seeds", leave=False):

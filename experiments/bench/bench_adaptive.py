@@ -29,8 +29,8 @@ import warnings
 
 import numpy as np
 
-from ._torsional import COLLOCATED, DT
-from .report import Report, format_table, median_time, save_figure, write_csv, write_json
+from ..lab._torsional import COLLOCATED, DT
+from ..lab.report import Report, format_table, median_time, save_figure, write_csv, write_json
 
 __all__ = ["run", "GOAL_P99_S", "N_UPDATES"]
 
@@ -88,7 +88,7 @@ def _legacy_class():
 def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = False):
     from synthesis import AdaptiveHinf, GammaPolicy
 
-    from . import plants, signals, simulate
+    from ..lab import plants, signals, simulate
 
     rng = np.random.default_rng(seed)
     seeds = rng.integers(0, 2**31, size=3)

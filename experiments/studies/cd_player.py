@@ -21,13 +21,13 @@ import time
 from pathlib import Path
 
 from .design_cli import default_weights, design_record, report_design
-from .records import load_record
-from .report import Report, finish_report
+from ..lab.records import load_record
+from ..lab.report import Report, finish_report
 
 __all__ = ["run", "summary_lines", "DATA_FILE", "HORIZONS", "U_COLUMN", "Y_COLUMN"]
 
 #: the shipped record (package data)
-DATA_FILE = Path(__file__).resolve().parent / "data" / "CD_player_arm_dat.mat"
+DATA_FILE = Path(__file__).resolve().parents[1] / "data" / "CD_player_arm_dat.mat"
 VARIABLE = "CD_player_arm_dat"
 #: 0-based columns of the channel designed for: u1 → y1
 U_COLUMN, Y_COLUMN = 0, 2

@@ -15,11 +15,11 @@ from pathlib import Path
 import synthesis
 import unfalsify as uf
 
-from .plants import servo
-from .report import Report, finish_report
-from .signals import prbs
-from .simulate import collect_data
-from .sweep import make_executor
+from ..lab.plants import servo
+from ..lab.report import Report, finish_report
+from ..lab.signals import prbs
+from ..lab.simulate import collect_data
+from ..studies.sweep import make_executor
 
 __all__ = ["run"]
 

@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor
 
-from .report import Report, format_table, median_time, write_csv, write_json
+from ..lab.report import Report, format_table, median_time, write_csv, write_json
 
 __all__ = ["run"]
 
@@ -261,7 +261,7 @@ def _scaling_figure(out, rows, fits):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .report import save_figure
+    from ..lab.report import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     labels = {"qr_s": "qr", "cholesky_s": "cholesky", "before_s": "cholesky before"}
