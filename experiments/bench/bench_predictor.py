@@ -84,7 +84,8 @@ def _legacy_fit(u, y, i):
     input rank from ``eigvalsh`` — always the rank-revealing route.
     """
     from synthesis.hankel import _interleaved_gram_loop, hankel_order
-    from synthesis.predictor import _input_rank_from_factor, _resolve_rcond, _solve_from_r, _split
+    from synthesis import default_rcond
+    from synthesis.predictor import _input_rank_from_factor, _solve_from_r, _split
 
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
@@ -94,7 +95,7 @@ def _legacy_fit(u, y, i):
     perm = hankel_order(i, m, l)
     G = _interleaved_gram_loop(np.ascontiguousarray(np.hstack([u, y])), 2 * i, j)[np.ix_(perm, perm)]
     R = np.linalg.cholesky(G)
-    tol = _resolve_rcond(None, "cholesky", n_reg, j)
+    tol = default_rcond("cholesky", n_reg, j)
     L, _, q = _solve_from_r(R, n_reg, tol, squared=True)
     _input_rank_from_factor(R, i, m, l, tol, squared=True)
     return _split(L, i, m, l)
@@ -113,7 +114,8 @@ def _dense_fit(u, y, i):
     from numpy.lib.stride_tricks import sliding_window_view
 
     from synthesis.hankel import hankel_order
-    from synthesis.predictor import _predictor_from_gram, _resolve_rcond
+    from synthesis import default_rcond
+    from synthesis.predictor import _predictor_from_gram
 
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
@@ -125,7 +127,7 @@ def _dense_fit(u, y, i):
     G = blas.dsyrk(1.0, At, trans=1, lower=1)  # lower triangle of AAᵀ: all _predictor_from_gram reads
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PersistenceWarning)
-        p = _predictor_from_gram(G, i, m, l, j, _resolve_rcond(None, "cholesky", i * (2 * m + l), j), "cholesky")
+        p = _predictor_from_gram(G, i, m, l, j, default_rcond("cholesky", i * (2 * m + l), j), "cholesky")
     return p.Lw, p.Lu
 
 
