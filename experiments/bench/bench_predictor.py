@@ -437,7 +437,7 @@ def run(opts) -> dict:
     rep.text(
         f"Peak: {peak:.1f} GFLOP/s (median {scale[1]}×{scale[1]} matrix product at the start of the run; "
         f"{peak_after:.1f} at the end). Three counts of the arithmetic of one Cholesky fit "
-        "(`experiments.bench_predictor._flops`), each divided by the fit's time and by the peak. "
+        "(`experiments.bench.bench_predictor._flops`), each divided by the fit's time and by the peak. "
         "`dense-equivalent` (N²j + n³/3 + 2il·n²: AAᵀ as one dense product of the explicit Hankel data, then "
         "the Cholesky and the solves) is a fixed measure of the problem, the same for every route: it is the "
         "count under which the route before the fast paths reaches the 20–33 % of peak measured before they were written "

@@ -7,7 +7,7 @@ nothing here is checked against a true plant: the result is what :func:`unfalsif
 decides from the data -- a certificate, or a refusal whose reason *is* the result.
 
 For the u1 → y1 channel and each horizon i of ``HORIZONS`` (``--quick``: the first only):
-:func:`experiments.design_cli.design_record` in record mode with ``window="auto"`` (the first
+:func:`experiments.studies.design_cli.design_record` in record mode with ``window="auto"`` (the first
 ``2i + j − 1`` samples, ``j = 9i`` columns), ``sigma="auto"`` (half the window's residual rms) and the
 default weights of ``design`` at dt = 1 (W1 = makeweight(100, (π/30, 1), 0.2, 1), W2 =
 makeweight(0.05, (π/10, 0.3), 1, 1)); the predictors are fitted on samples [0, 1366) and the last 682

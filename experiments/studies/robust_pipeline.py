@@ -116,7 +116,7 @@ def plant_and_weights(plant: str):
     """``(P, W1, W2)`` for a key of :data:`PIPELINE_PLANTS` or :data:`experiments.plants.PLANT_CATALOGUE`.
 
     The 10 Hz plants use the §5.4 weights W11/W21; the 64 Hz three-disk plant the Ch. 6 weights of
-    :mod:`experiments._torsional` (collocated ``y1``: §6.3; ``y3``: §6.2).
+    :mod:`experiments.lab._torsional` (collocated ``y1``: §6.3; ``y3``: §6.2).
     """
     if plant in PIPELINE_PLANTS:
         P = PIPELINE_PLANTS[plant]()
