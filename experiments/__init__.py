@@ -5,8 +5,29 @@ Plants, signals, simulations and the thesis experiments (Ch. 5–7)
 The building blocks of the thesis's experiments, and the experiments themselves as a command line,
 ``python -m experiments NAME [--quick] [--json] [--out DIR] [--seed N]`` (one subcommand per experiment or
 benchmark; each writes a markdown report, a JSON summary, figures and CSV tables under
-``results/<name>/``). The subcommands, their options and files are described in ``experiments/README.md``
-and their measured results in ``experiments/BENCHMARKS.md`` of the source tree.
+``results/<name>/``). The subcommands and their common options are listed in ``experiments/README.md`` of
+the source tree; each kind below documents its own runs beside its code.
+
+Layout
+------
+
+``experiments/lab/``
+    the library the runs use: ``plants``, ``signals``, ``simulate``, ``records`` (lab records), ``report``
+    (tables, figures, markdown reports), and the shared set-ups ``_servo`` (§5.4) and ``_torsional`` (Ch. 6).
+    Their public names are re-exported here (below).
+``experiments/studies/``
+    the thesis experiments and studies, one module per subcommand (``design_example``, ``chapter7``,
+    ``robust_pipeline``, ``adversarial``, ``noncollocated``, ``adaptive``, ``compare``, ``sweep``, ``demo``,
+    ``design_cli``, ``cd_player``); what each runs and writes: ``studies/README.md``, measured results:
+    ``studies/RESULTS.md``.
+``experiments/bench/``
+    the benchmarks (``bench_predictor``, ``bench_adaptive``, ``bench_unfalsify``, ``bench_norms``,
+    ``bench_split``); ``bench/README.md`` and the measurement log ``bench/BENCHMARKS.md``.
+``experiments/cli.py``, ``experiments/data/``
+    the command line (``COMMANDS``: subcommand → module) and the shipped CD-player record.
+
+The library modules' former paths ``experiments.plants``, ``experiments.signals``, ``experiments.simulate``,
+``experiments.records`` and ``experiments.report`` are aliases of the same module objects in ``lab``.
 
 Plants
 ------
@@ -77,7 +98,10 @@ The command line (``python -m experiments --help``):
  'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep', 'design',
  'cd-player', 'compare']
 """
-from .plants import (
+import sys as _sys
+
+from .lab import plants, records, report, signals, simulate
+from .lab.plants import (
     PLANT_CATALOGUE,
     SERVO_DT,
     THREE_DISK,
@@ -90,9 +114,9 @@ from .plants import (
     third_order,
     three_disk,
 )
-from .records import RECORD_FORMATS, Record, RecordError, load_record
-from .signals import prbs, step, step_sequence, white_noise
-from .simulate import (
+from .lab.records import RECORD_FORMATS, Record, RecordError, load_record
+from .lab.signals import prbs, step, step_sequence, white_noise
+from .lab.simulate import (
     AlgebraicLoopError,
     ClosedLoopResult,
     OpenLoopData,
@@ -130,5 +154,10 @@ __all__: list[str] = [
     "RecordError",
     "load_record",
 ]
+
+# the library modules' paths before they moved into lab/: the same module objects under their old names
+for _module in (plants, records, report, signals, simulate):
+    _sys.modules[f"{__name__}.{_module.__name__.rsplit('.', 1)[1]}"] = _module
+del _module
 
 from synthesis import __version__  # noqa: E402 - one distribution, one version

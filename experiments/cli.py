@@ -17,6 +17,8 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .lab.report import json_default
+
 __all__ = ["Options", "COMMANDS", "main", "output_dir", "summary_text"]
 
 
@@ -36,34 +38,34 @@ class Options:
 #: tuple of argparse specs ``(("--flag", ...), {add_argument kwargs, with "dest"})`` for options of that
 #: subcommand only; their values reach ``run`` as ``opts.extra[dest]``.
 COMMANDS: dict[str, tuple] = {
-    "demo": ("experiments.demo", "run", "quick Chapter 7 pipeline + Table 5.1, markdown report (the README's main job)"),
-    "design-example": ("experiments.design_example", "run", "§5.4 design example: Tables 5.1-5.5 and figures"),
-    "noncollocated": ("experiments.noncollocated", "run", "§6.2 non-collocated three-disk design"),
-    "adaptive": ("experiments.adaptive", "run", "§6.3 adaptive simulation"),
-    "chapter7": ("experiments.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
-    "robust-pipeline": ("experiments.robust_pipeline", "run",
+    "demo": ("experiments.studies.demo", "run", "quick Chapter 7 pipeline + Table 5.1, markdown report (the README's main job)"),
+    "design-example": ("experiments.studies.design_example", "run", "§5.4 design example: Tables 5.1-5.5 and figures"),
+    "noncollocated": ("experiments.studies.noncollocated", "run", "§6.2 non-collocated three-disk design"),
+    "adaptive": ("experiments.studies.adaptive", "run", "§6.3 adaptive simulation"),
+    "chapter7": ("experiments.studies.chapter7", "run", "§7.4 pipeline: δ by ARX and subspace unfalsification, robust design"),
+    "robust-pipeline": ("experiments.studies.robust_pipeline", "run",
                         "§7.4 pipeline on plants it was not designed on: certified or not, checked on the true plant"),
-    "robust-adversarial": ("experiments.adversarial", "run",
+    "robust-adversarial": ("experiments.studies.adversarial", "run",
                            "§7.4 certificate against an adversarial catalogue (band-limited, closed-loop, delayed, "
                            "drifting, nonlinear data), judged on the true plant",
                            ((("--only",), dict(dest="only", default=None, metavar="TEXT",
                                                help="run only the cases whose name contains TEXT "
                                                     "(comma-separated: any of them)")),)),
-    "bench-predictor": ("experiments.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
-    "bench-adaptive": ("experiments.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
-    "bench-unfalsify": ("experiments.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",
+    "bench-predictor": ("experiments.bench.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
+    "bench-adaptive": ("experiments.bench.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
+    "bench-unfalsify": ("experiments.bench.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
                                                                      "(default: cvxpy)")),
                          (("--series",), dict(dest="series", choices=("all", "arx", "subspace"), default="all",
                                               help="structured backend: all series, the ARX rows or the "
                                                    "subspace rows only")))),
-    "bench-norms": ("experiments.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
-    "bench-split": ("experiments.bench_split", "run",
+    "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
+    "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",
                     ((("--workers",), dict(dest="workers", type=int, default=2,
                                            help="worker processes of the parallel run (default: 2)")),)),
-    "sweep": ("experiments.sweep", "run",
+    "sweep": ("experiments.studies.sweep", "run",
               "Monte Carlo sweep of the §7.4 pipeline (plants × seeds × (i, j) × σ), one case per task on "
               "local processes or a Dask cluster",
               ((("--workers",), dict(dest="workers", type=int, default=None,
@@ -74,13 +76,13 @@ COMMANDS: dict[str, tuple] = {
                                      help="seconds to wait for the scheduler (default: 30)")),
                (("--resume",), dict(dest="resume", action="store_true",
                                     help="skip the cases already finished in the report under --out")))),
-    "design": ("experiments.design_cli", "run",
+    "design": ("experiments.studies.design_cli", "run",
                "§7.4 workflow on a measured SISO record (CSV/NPZ/MAT): δ, robust design, certificate or the "
-               "reason for refusing, controller files", "experiments.design_cli:OPTIONS"),
-    "cd-player": ("experiments.cd_player", "run",
+               "reason for refusing, controller files", "experiments.studies.design_cli:OPTIONS"),
+    "cd-player": ("experiments.studies.cd_player", "run",
                   "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
                   "(--quick: i = 10)"),
-    "compare": ("experiments.compare", "run",
+    "compare": ("experiments.studies.compare", "run",
                 "model-free vs identify-then-design (ARX, N4SID, physics model) and the ideal, judged on the true "
                 "plant; thesis Figs 6.6/6.7"),
 }
@@ -153,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         sub = parser._subparsers._group_actions[0].choices[args.command]  # the subcommand's own usage line
         sub.error(str(exc))
     if args.json:
-        json.dump(summary, sys.stdout, indent=2, default=_jsonable)
+        json.dump(summary, sys.stdout, indent=2, default=json_default)
         sys.stdout.write("\n")
     else:
         print(summary_text(args.command, summary, getattr(mod, "summary_lines", None), opts.out), flush=True)
@@ -181,18 +183,3 @@ def summary_text(command: str, summary: dict, lines=None, out: Path | None = Non
     if lines is not None:
         text += [f"  {line}" for line in lines(summary)]
     return "\n".join(text)
-
-
-def _jsonable(obj):
-    try:
-        import numpy as np
-
-        if isinstance(obj, np.generic):
-            return obj.item()
-        if isinstance(obj, np.ndarray):
-            return obj.tolist()
-    except ImportError:  # pragma: no cover
-        pass
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from experiments.report import FIGURE_PROBLEMS, markdown_tables
+from experiments.lab.report import FIGURE_PROBLEMS, markdown_tables
 
 
 def table_problems(md: Path) -> list[str]:
@@ -39,6 +39,6 @@ def assert_reports_complete(run_dir: Path, command: str | None = None) -> None:
     problems = [p for md in mds for p in table_problems(md)]
     pngs = sorted(Path(run_dir).rglob("*.png"))
     for png in pngs:
-        assert str(png) in FIGURE_PROBLEMS, f"{png.name} was not written by experiments.report.save_figure"
+        assert str(png) in FIGURE_PROBLEMS, f"{png.name} was not written by experiments.lab.report.save_figure"
         problems += [f"{png.name}: {p}" for p in FIGURE_PROBLEMS[str(png)]]
     assert not problems, "\n".join(problems)

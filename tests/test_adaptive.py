@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import synthesis
-from experiments.plants import servo
-from experiments.signals import prbs, step_sequence
-from experiments.simulate import closed_loop, closed_loop_adaptive, collect_data
+from experiments.lab.plants import servo
+from experiments.lab.signals import prbs, step_sequence
+from experiments.lab.simulate import closed_loop, closed_loop_adaptive, collect_data
 from synthesis.adaptive import AdaptiveHinf, GammaPolicy
 
 s = ct.tf("s")

@@ -1,4 +1,4 @@
-"""The adversarial catalogue of experiments.adversarial: its signals have the stated properties, its
+"""The adversarial catalogue of experiments.studies.adversarial: its signals have the stated properties, its
 judge catches a false certificate, and ``robust-adversarial --quick`` runs end to end."""
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from scipy.signal import welch
 
 import unfalsify as uf
 from experiments import adversarial as adv
-from experiments.adversarial import Case, Excitation, Noise
-from experiments.plants import third_order
+from experiments.studies.adversarial import Case, Excitation, Noise
+from experiments.lab.plants import third_order
 from synthesis._validation import DataError
 
 N = 1200

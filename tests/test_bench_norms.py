@@ -2,7 +2,7 @@ import pytest
 """Smoke test of ``python -m experiments bench-norms --quick``."""
 import json
 
-from experiments.bench_norms import run
+from experiments.bench.bench_norms import run
 from experiments.cli import Options, main
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'

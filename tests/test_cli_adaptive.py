@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from experiments import cli
-from experiments._torsional import COLLOCATED, DT
+from experiments.lab._torsional import COLLOCATED, DT
 
 import synthesis
 

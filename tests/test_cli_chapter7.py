@@ -10,10 +10,10 @@ import control
 import numpy as np
 import pytest
 
-from experiments import chapter7 as c7
-from experiments._servo import closed_loop_matrix, design_weights, servo_data
+from experiments.studies import chapter7 as c7
+from experiments.lab._servo import closed_loop_matrix, design_weights, servo_data
 from experiments.cli import main
-from experiments.plants import servo
+from experiments.lab.plants import servo
 from synthesis import fit_predictor, hinf_design
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'

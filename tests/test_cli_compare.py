@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import synthesis as sy
-from experiments import cli, compare
-from experiments.report import FIGURE_PROBLEMS, markdown_tables
+from experiments import cli
+from experiments.studies import compare
+from experiments.lab.report import FIGURE_PROBLEMS, markdown_tables
 
 
 @pytest.fixture(scope="module")
@@ -66,8 +67,8 @@ def test_compare_quick_reproduces_the_papers_mechanisms(quick):
 
 
 def test_evaluate_matches_a_frequency_grid():
-    from experiments._servo import design_weights
-    from experiments.plants import servo
+    from experiments.lab._servo import design_weights
+    from experiments.lab.plants import servo
 
     P = servo()
     W = design_weights(0.1)

@@ -14,10 +14,10 @@ import pytest
 
 import unfalsify as uf
 from experiments.cli import main
-from experiments.design_cli import default_weights
-from experiments.plants import third_order
-from experiments.signals import prbs
-from experiments.simulate import closed_loop, collect_data
+from experiments.studies.design_cli import default_weights
+from experiments.lab.plants import third_order
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import closed_loop, collect_data
 from synthesis import load_controller
 
 from _reports import assert_reports_complete

@@ -13,7 +13,7 @@ import pytest
 import scipy.linalg
 
 from experiments import design_example as de
-from experiments._servo import (
+from experiments.lab._servo import (
     DESIGNS,
     THESIS_TABLE_5_1,
     closed_loop_matrix,
@@ -22,7 +22,7 @@ from experiments._servo import (
     step_response,
 )
 from experiments.cli import main
-from experiments.plants import servo
+from experiments.lab.plants import servo
 from synthesis import hinf_design
 from synthesis.predictor import Predictor
 

@@ -1,7 +1,7 @@
 """`python -m experiments noncollocated --quick` (§6.2): files, and its numbers by second routes.
 
 The plant is rebuilt here from the §6.1 transfer function (python-control ``tf`` + ZOH), not
-from ``experiments.plants``; closed loops are formed with python-control's ``feedback``, not
+from ``experiments.lab.plants``; closed loops are formed with python-control's ``feedback``, not
 with the experiment's own interconnection; γ_min is recomputed with the QR predictor.
 """
 import csv
@@ -11,8 +11,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from experiments import cli, noncollocated
-from experiments._torsional import DT, NONCOLLOCATED
+from experiments import cli
+from experiments.studies import noncollocated
+from experiments.lab._torsional import DT, NONCOLLOCATED
 
 import synthesis
 
@@ -137,7 +138,7 @@ def test_step_metrics_on_closed_forms():
 
 
 def test_chosen_weights_match_their_documentation():
-    from experiments import _torsional
+    from experiments.lab import _torsional
 
     for spec, crossing in ((NONCOLLOCATED, 23.06), (_torsional.COLLOCATED, 64.59)):
         W1c, W2c = spec.continuous()

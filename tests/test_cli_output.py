@@ -8,7 +8,7 @@ import types
 import pytest
 
 from experiments import cli
-from experiments.report import LiveTable, check_figure, format_table, markdown_tables
+from experiments.lab.report import LiveTable, check_figure, format_table, markdown_tables
 
 
 @pytest.fixture

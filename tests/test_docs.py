@@ -21,7 +21,9 @@ def test_every_public_name_is_in_the_package_index(pkg):
     assert not sorted(indexed - set(pkg.__all__)), "index entries that are not public names"
 
 
-@pytest.mark.parametrize("doc", ["README.md", "experiments/README.md", "experiments/BENCHMARKS.md",
+@pytest.mark.parametrize("doc", ["README.md", "experiments/README.md", "experiments/studies/README.md",
+                                 "experiments/studies/RESULTS.md", "experiments/bench/README.md",
+                                 "experiments/bench/BENCHMARKS.md", "experiments/data/README.md",
                                  "docs/UNFALSIFICATION.md", "docs/ERRATA.md", "docs/ERRORS.md", "CHANGELOG.md"])
 def test_relative_links_point_to_files(doc):
     path = ROOT / doc

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import synthesis as sy
-from experiments._servo import design_weights
-from experiments.plants import nonminimum_phase, servo
-from experiments.signals import prbs
-from experiments.simulate import closed_loop_system, collect_data
+from experiments.lab._servo import design_weights
+from experiments.lab.plants import nonminimum_phase, servo
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import closed_loop_system, collect_data
 
 DT = 0.1
 

@@ -124,7 +124,7 @@ def test_noise_floor_criterion_finds_the_order_on_noisy_data(seed):
 
 
 def test_gap_criterion_stops_at_a_dominant_integrator_where_the_floor_does_not():
-    from experiments.plants import servo
+    from experiments.lab.plants import servo
 
     P = servo()
     u, y = _data(P, 1000, 4, noise=0.05)
@@ -207,8 +207,8 @@ def test_arx_errors_name_the_fix():
 
 
 def test_models_pickle_and_drive_discrete_mixsyn():
-    from experiments._servo import design_weights
-    from experiments.plants import servo
+    from experiments.lab._servo import design_weights
+    from experiments.lab.plants import servo
 
     P = servo()
     u, y = _data(P, 1000, 6, noise=0.05)

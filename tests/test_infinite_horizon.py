@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import synthesis
-from experiments.plants import servo
+from experiments.lab.plants import servo
 from synthesis.infinite_horizon import discrete_mixsyn, mixsyn_closed_loop, peak_gain
 
 s = ct.tf("s")

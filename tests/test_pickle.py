@@ -17,8 +17,8 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments._servo import design_weights, servo_data
-from experiments.plants import servo
+from experiments.lab._servo import design_weights, servo_data
+from experiments.lab.plants import servo
 from synthesis._repr import values_equal
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +28,7 @@ _CHILD = r"""
 import pickle, sys
 import control, numpy as np
 import unfalsify as uf
-from experiments.plants import servo
+from experiments.lab.plants import servo
 with open(sys.argv[1], "rb") as f:
     objs = pickle.load(f)
 out = {}

@@ -3,7 +3,7 @@ import control as ct
 import numpy as np
 import pytest
 
-from experiments.plants import THREE_DISK, servo, three_disk
+from experiments.lab.plants import THREE_DISK, servo, three_disk
 
 
 def _tf_coeffs(sys):

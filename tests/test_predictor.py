@@ -300,7 +300,7 @@ def test_predict_and_past_vector_check_sizes():
 
 # ----------------------------------------------------------------------------- benchmark smoke test
 def test_bench_predictor_quick(tmp_path):
-    from experiments.bench_predictor import run
+    from experiments.bench.bench_predictor import run
     from experiments.cli import Options
 
     summary = run(Options(quick=True, out=tmp_path))
@@ -326,7 +326,7 @@ def test_bench_predictor_quick(tmp_path):
 
 def test_dense_route_of_the_benchmark_equals_fit_predictor():
     """The explicit-Hankel SYRK Gram is a second route to the recursion (2.8)-(2.9): same predictor."""
-    from experiments.bench_predictor import _dense_fit
+    from experiments.bench.bench_predictor import _dense_fit
 
     u, y = noisy_mimo(seed=17, n=500)
     Lw, Lu = _dense_fit(u, y, 4)
@@ -335,7 +335,7 @@ def test_dense_route_of_the_benchmark_equals_fit_predictor():
 
 
 def test_legacy_route_of_the_benchmark_equals_fit_predictor():
-    from experiments.bench_predictor import _legacy_fit
+    from experiments.bench.bench_predictor import _legacy_fit
 
     u, y = noisy_mimo(seed=16, n=500)
     Lw, Lu = _legacy_fit(u, y, 4)
@@ -487,7 +487,7 @@ def test_conditioning_estimate_is_a_close_lower_bound_for_either_factor_layout()
 def test_bench_predictor_flop_counts_written_out():
     """The three counts of the rate table, for (i, j, m, l) = (2, 9, 1, 1) written out by hand:
     c = 2, N = 8, n = 6, P = 4, Q = 2."""
-    from experiments.bench_predictor import _flops
+    from experiments.bench.bench_predictor import _flops
 
     fl = _flops(2, 9, 1, 1)
     gemm, tail, recursion, sym = 2 * (4 * 2) * (8 * 2) * 2, 2 * 4 * 4 * 1, 3 * 4 * 16, 64

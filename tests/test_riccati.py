@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import synthesis
-from experiments.plants import servo
-from experiments.signals import prbs
-from experiments.simulate import collect_data
+from experiments.lab.plants import servo
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import collect_data
 from synthesis.riccati import StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 
 
@@ -178,7 +178,7 @@ def test_bad_input():
 @pytest.mark.filterwarnings("ignore::synthesis.PersistenceWarning")
 def test_theorem_4_3_mimo_three_disk():
     # one input, three outputs (order 6 < i = 10), diagonal dynamic W1
-    from experiments.plants import three_disk
+    from experiments.lab.plants import three_disk
 
     P, i, n, k = three_disk("all"), 10, 800, 600
     u = prbs(n, seed=0)

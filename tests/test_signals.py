@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from experiments.signals import prbs, step, step_sequence, white_noise
+from experiments.lab.signals import prbs, step, step_sequence, white_noise
 
 
 def test_prbs_is_binary_unit_power_and_periodic():

@@ -3,9 +3,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from experiments.plants import servo, three_disk
-from experiments.signals import prbs, step
-from experiments.simulate import AlgebraicLoopError, closed_loop, closed_loop_system, collect_data
+from experiments.lab.plants import servo, three_disk
+from experiments.lab.signals import prbs, step
+from experiments.lab.simulate import AlgebraicLoopError, closed_loop, closed_loop_system, collect_data
 
 
 def _forced(sys, u):

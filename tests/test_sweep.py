@@ -19,9 +19,9 @@ import synthesis
 import unfalsify as uf
 from experiments import cli
 from experiments import sweep as sw
-from experiments.plants import servo
-from experiments.signals import prbs
-from experiments.simulate import collect_data
+from experiments.lab.plants import servo
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import collect_data
 from synthesis._validation import DataError
 
 try:

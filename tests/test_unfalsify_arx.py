@@ -180,9 +180,9 @@ def test_unknown_form_raises():
 
 def test_record_not_at_rest_is_warned():
     """(7.4) takes the samples before the record as zero: a window cut mid-record is flagged."""
-    from experiments.plants import servo
-    from experiments.signals import prbs
-    from experiments.simulate import collect_data
+    from experiments.lab.plants import servo
+    from experiments.lab.signals import prbs
+    from experiments.lab.simulate import collect_data
 
     d = collect_data(servo(), prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=1)
     u, y = d.u[:, 0], d.y[:, 0]

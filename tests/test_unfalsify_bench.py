@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from experiments.bench_unfalsify import run
+from experiments.bench.bench_unfalsify import run
 from experiments.cli import Options, main
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'

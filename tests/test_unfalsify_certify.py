@@ -14,11 +14,11 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments._servo import design_weights
-from experiments.plants import nonminimum_phase, resonant, servo, third_order
-from experiments.robust_pipeline import run_case
-from experiments.signals import prbs
-from experiments.simulate import collect_data
+from experiments.lab._servo import design_weights
+from experiments.lab.plants import nonminimum_phase, resonant, servo, third_order
+from experiments.studies.robust_pipeline import run_case
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import collect_data
 
 
 def _freq(sys, w):

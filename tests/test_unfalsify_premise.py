@@ -9,10 +9,10 @@ import scipy.signal
 
 import synthesis
 import unfalsify as uf
-from experiments._servo import design_weights
-from experiments.plants import third_order
-from experiments.signals import prbs
-from experiments.simulate import collect_data
+from experiments.lab._servo import design_weights
+from experiments.lab.plants import third_order
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import collect_data
 from synthesis._validation import DataError
 
 FIR = np.array([0.0, 1.0, 0.5, -0.25])

@@ -1,6 +1,6 @@
 """§7.4 pipeline: subspace δ → Theorem 3.7 additive-uncertainty design, checked on the servo.
 
-Servo 1/(s(s+1)) ZOH at 10 Hz (experiments.plants), §5.4 data (PRBS ±1, process and sensor
+Servo 1/(s(s+1)) ZOH at 10 Hz (experiments.lab.plants), §5.4 data (PRBS ±1, process and sensor
 noise σ = 0.05, seed 0), Design 1 weights.  The predictor is the least-squares fit on 1000
 samples (i = 20, the §5.4 horizon); δ is unfalsified for that predictor on the first
 2i + j − 1 samples with j = 20 (a few seconds).
@@ -13,8 +13,8 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments._servo import design_weights, servo_data, step_response
-from experiments.plants import servo
+from experiments.lab._servo import design_weights, servo_data, step_response
+from experiments.lab.plants import servo
 from synthesis.validation import DataError
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'

@@ -37,7 +37,8 @@ def test_dependencies_flow_one_way(pkg, forbidden):
     assert not bad, f"{pkg} must not import {forbidden}: {bad}"
 
 
-@pytest.mark.parametrize("pkg, modules", [(unfalsify, None), (experiments, ("plants", "signals", "simulate"))])
+@pytest.mark.parametrize("pkg, modules", [(unfalsify, None),
+                                          (experiments, ("lab.plants", "lab.signals", "lab.simulate", "lab.records"))])
 def test_public_module_names_are_reexported(pkg, modules):
     names = modules or [m.name for m in pkgutil.iter_modules(pkg.__path__) if not m.name.startswith("_")]
     for name in names:

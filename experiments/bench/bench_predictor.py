@@ -48,7 +48,7 @@ from tqdm import tqdm
 
 from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor
 
-from .report import Report, format_table, median_time, write_csv, write_json
+from ..lab.report import Report, format_table, median_time, write_csv, write_json
 
 __all__ = ["run"]
 
@@ -84,7 +84,8 @@ def _legacy_fit(u, y, i):
     input rank from ``eigvalsh`` — always the rank-revealing route.
     """
     from synthesis.hankel import _interleaved_gram_loop, hankel_order
-    from synthesis.predictor import _input_rank_from_factor, _resolve_rcond, _solve_from_r, _split
+    from synthesis import default_rcond
+    from synthesis.predictor import _input_rank_from_factor, _solve_from_r, _split
 
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
@@ -94,7 +95,7 @@ def _legacy_fit(u, y, i):
     perm = hankel_order(i, m, l)
     G = _interleaved_gram_loop(np.ascontiguousarray(np.hstack([u, y])), 2 * i, j)[np.ix_(perm, perm)]
     R = np.linalg.cholesky(G)
-    tol = _resolve_rcond(None, "cholesky", n_reg, j)
+    tol = default_rcond("cholesky", n_reg, j)
     L, _, q = _solve_from_r(R, n_reg, tol, squared=True)
     _input_rank_from_factor(R, i, m, l, tol, squared=True)
     return _split(L, i, m, l)
@@ -113,7 +114,8 @@ def _dense_fit(u, y, i):
     from numpy.lib.stride_tricks import sliding_window_view
 
     from synthesis.hankel import hankel_order
-    from synthesis.predictor import _predictor_from_gram, _resolve_rcond
+    from synthesis import default_rcond
+    from synthesis.predictor import _predictor_from_gram
 
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
@@ -125,7 +127,7 @@ def _dense_fit(u, y, i):
     G = blas.dsyrk(1.0, At, trans=1, lower=1)  # lower triangle of AAᵀ: all _predictor_from_gram reads
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PersistenceWarning)
-        p = _predictor_from_gram(G, i, m, l, j, _resolve_rcond(None, "cholesky", i * (2 * m + l), j), "cholesky")
+        p = _predictor_from_gram(G, i, m, l, j, default_rcond("cholesky", i * (2 * m + l), j), "cholesky")
     return p.Lw, p.Lu
 
 
@@ -261,7 +263,7 @@ def _scaling_figure(out, rows, fits):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .report import save_figure
+    from ..lab.report import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     labels = {"qr_s": "qr", "cholesky_s": "cholesky", "before_s": "cholesky before"}
@@ -435,7 +437,7 @@ def run(opts) -> dict:
     rep.text(
         f"Peak: {peak:.1f} GFLOP/s (median {scale[1]}×{scale[1]} matrix product at the start of the run; "
         f"{peak_after:.1f} at the end). Three counts of the arithmetic of one Cholesky fit "
-        "(`experiments.bench_predictor._flops`), each divided by the fit's time and by the peak. "
+        "(`experiments.bench.bench_predictor._flops`), each divided by the fit's time and by the peak. "
         "`dense-equivalent` (N²j + n³/3 + 2il·n²: AAᵀ as one dense product of the explicit Hankel data, then "
         "the Cholesky and the solves) is a fixed measure of the problem, the same for every route: it is the "
         "count under which the route before the fast paths reaches the 20–33 % of peak measured before they were written "

@@ -18,12 +18,13 @@ row carries the solver status, δ, the independent certificate (``δ_certified``
 the returned variables, ``max_violation``) and cond T(u).  Clarabel, explicitly.
 
 ``--backend structured`` times the structured backends on large sizes instead: ARX (7.4)
-n = 80 … 1000 (:mod:`unfalsify._arx_barrier`; n = 1000 with a 1800 s limit), ARX n = 10⁴ by
-``method="bracket"`` (:mod:`unfalsify._bracket`) and subspace (7.5) (:mod:`unfalsify._structured_columns`,
-600 s limit) with L fixed (the least-squares predictor) and with L optimised at (i, j) = (10, 200) …
-(100, 1000) (``--series arx`` / ``--series subspace``: those rows only); each row carries the certified
-bracket [lower, upper] (:class:`unfalsify.Certificate`, recomputed from the data), its relative gap,
-``verify()`` and the child's peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
+n = 80 … 1000 (solver ``"arx_barrier"``, :mod:`unfalsify.solvers.arx_barrier`; n = 1000 with a 1800 s
+limit), ARX n = 10⁴ by ``method="bracket"`` (solver ``"bracket"``, :mod:`unfalsify.solvers.bracket`) and
+subspace (7.5) (solver ``"column_barrier"``, :mod:`unfalsify.solvers.column_barrier`, 600 s limit) with L
+fixed (the least-squares predictor) and with L optimised at (i, j) = (10, 200) … (100, 1000) (``--series
+arx`` / ``--series subspace``: those rows only); each row carries the certified bracket [lower, upper]
+(:class:`unfalsify.Certificate`, recomputed from the data), its relative gap, ``verify()`` and the child's
+peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
 (δ difference and speed ratio; Clarabel's child gets 900 s).  ``both`` runs the cvxpy series and the
 structured series.
 """
@@ -40,7 +41,7 @@ import warnings
 import numpy as np
 from tqdm import tqdm
 
-from .report import LiveTable, Report, write_json
+from ..lab.report import LiveTable, Report, write_json
 
 __all__ = ["run"]
 
@@ -107,7 +108,7 @@ def _series(quick: bool) -> list[dict]:
 
 
 def _data(n: int, seed: int):
-    from ._servo import servo_data
+    from ..lab._servo import servo_data
 
     d = servo_data(n, seed=seed)
     return d.u, d.y
@@ -322,7 +323,7 @@ def _plot_scaling(series: list[dict], path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .report import save_figure
+    from ..lab.report import save_figure
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for s in series:
@@ -400,11 +401,12 @@ def _run_structured(opts, rep: Report) -> dict:
 
     rep.section("Structured backend")
     rep.text(
-        f"`backend=\"structured\"` (Toeplitz-structured barrier methods: ARX `unfalsify._arx_barrier`, subspace "
-        f"`unfalsify._structured_columns`), each solve in a child process with `time_limit={limit:.0f}` s (ARX "
+        f"`backend=\"structured\"` (Toeplitz-structured barrier methods: ARX solver `arx_barrier`, subspace "
+        f"`column_barrier`, in `unfalsify.solvers`), each solve in a child process with "
+        f"`time_limit={limit:.0f}` s (ARX "
         f"n = 1000: {ARX_1000_LIMIT_S:.0f} s; subspace rows: {limit if opts.quick else SUBSPACE_LIMIT_S:.0f} s) "
         "(then the best certified bracket is returned). The ARX n = 10⁴ row is "
-        "`method=\"bracket\"` (`unfalsify._bracket`, FFT only): a certified bracket whose gap is reported, "
+        "`method=\"bracket\"` (solver `bracket`, FFT only): a certified bracket whose gap is reported, "
         f"not driven to a tolerance (limit {ARX_BRACKET_LIMIT_S:.0f} s). `lower`, "
         "`upper` are the certificate's bounds recomputed from the data and the returned primal/dual points; "
         "`verify` re-checks them; `gap` = (upper − lower)/upper. Subspace: σ = ½ × rms residual of the "

@@ -7,7 +7,7 @@ nothing here is checked against a true plant: the result is what :func:`unfalsif
 decides from the data -- a certificate, or a refusal whose reason *is* the result.
 
 For the u1 → y1 channel and each horizon i of ``HORIZONS`` (``--quick``: the first only):
-:func:`experiments.design_cli.design_record` in record mode with ``window="auto"`` (the first
+:func:`experiments.studies.design_cli.design_record` in record mode with ``window="auto"`` (the first
 ``2i + j − 1`` samples, ``j = 9i`` columns), ``sigma="auto"`` (half the window's residual rms) and the
 default weights of ``design`` at dt = 1 (W1 = makeweight(100, (π/30, 1), 0.2, 1), W2 =
 makeweight(0.05, (π/10, 0.3), 1, 1)); the predictors are fitted on samples [0, 1366) and the last 682
@@ -21,13 +21,13 @@ import time
 from pathlib import Path
 
 from .design_cli import default_weights, design_record, report_design
-from .records import load_record
-from .report import Report, finish_report
+from ..lab.records import load_record
+from ..lab.report import Report, finish_report
 
 __all__ = ["run", "summary_lines", "DATA_FILE", "HORIZONS", "U_COLUMN", "Y_COLUMN"]
 
 #: the shipped record (package data)
-DATA_FILE = Path(__file__).resolve().parent / "data" / "CD_player_arm_dat.mat"
+DATA_FILE = Path(__file__).resolve().parents[1] / "data" / "CD_player_arm_dat.mat"
 VARIABLE = "CD_player_arm_dat"
 #: 0-based columns of the channel designed for: u1 → y1
 U_COLUMN, Y_COLUMN = 0, 2

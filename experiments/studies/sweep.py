@@ -1,6 +1,6 @@
 """Monte Carlo sweep of the §7.4 pipeline: plants × noise seeds × (i, j) × σ ratio, one case per task.
 
-Each case is :func:`experiments.robust_pipeline.run_case` -- data, δ by (7.5), robust design with its
+Each case is :func:`experiments.studies.robust_pipeline.run_case` -- data, δ by (7.5), robust design with its
 certificate, and the independent check on the true plant -- for one (plant, seed, i, j, σ ratio).
 The cases run as tasks on a ``concurrent.futures.Executor``:
 
@@ -23,7 +23,7 @@ recorded as failed -- never silently missing.  The summary counts done / failed 
 The plants are :data:`experiments.plants.PLANT_CATALOGUE`: the integrating §5.4 servo, a stable third-
 order plant, a lightly damped resonance (ζ = 0.05), a non-minimum-phase plant (zero at s = +1), all at
 10 Hz with the §5.4 weights, and the three-disk plant (collocated y1, two lightly damped modes and an
-integrator) at 64 Hz with the §6.3 weights of :mod:`experiments._torsional`.
+integrator) at 64 Hz with the §6.3 weights of :mod:`experiments.lab._torsional`.
 """
 from __future__ import annotations
 
@@ -40,8 +40,8 @@ from pathlib import Path
 
 from synthesis.validation import DataError
 
-from .plants import PLANT_CATALOGUE
-from .report import Report, save_figure, write_json
+from ..lab.plants import PLANT_CATALOGUE
+from ..lab.report import Report, save_figure, write_json
 
 __all__ = ["SweepConfig", "Case", "run", "run_sweep", "sweep_cases", "make_executor", "case_task",
            "load_finished", "strip_timing", "summary_line", "WORKER_ENV"]
@@ -297,7 +297,7 @@ def _write(out: Path, s: dict, partial: bool, figure: Path | None = None, second
     ex = s["executor"]
     rep.text(f"Executor: {ex.get('kind')} ({ex.get('workers', '?')} workers"
              + (f", {ex['address']}" if ex.get("address") else "") + "). Each case: "
-             "experiments.robust_pipeline.run_case (1000-sample PRBS experiment with process and sensor noise "
+             "experiments.studies.robust_pipeline.run_case (1000-sample PRBS experiment with process and sensor noise "
              "σ = 0.05, least-squares predictor, δ by (7.5) with σ = ratio × residual rms, robust design with "
              "certificate, check on the true plant).")
     rep.section("Summary", summary_line(s) + "." + (f" Wall time {seconds:.1f} s." if seconds else ""))

@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 
-from .report import Report, format_table, median_time, save_figure, write_csv, write_json
+from ..lab.report import Report, format_table, median_time, save_figure, write_csv, write_json
 
 __all__ = ["run"]
 
@@ -41,8 +41,8 @@ def _old_additive(plant, controller):
 def _setup(quick: bool, seed: int):
     import synthesis
 
-    from . import plants, signals, simulate
-    from ._torsional import DT, NONCOLLOCATED
+    from ..lab import plants, signals, simulate
+    from ..lab._torsional import DT, NONCOLLOCATED
 
     rng = np.random.default_rng(seed)
     if quick:
@@ -98,7 +98,7 @@ def run(opts) -> dict:
     from synthesis.infinite_horizon import _discrete_mixsyn
     from unfalsify import additive_robustness
 
-    from . import simulate
+    from ..lab import simulate
 
     quick = bool(opts.quick)
     reps_slow, reps_fast = (1, 1) if quick else (3, 7)

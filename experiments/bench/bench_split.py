@@ -2,7 +2,7 @@
 
 Data: the §5.4 servo, PRBS ±1 with process and sensor noise σ = 0.05, the least-squares predictor of
 horizon i on the whole record, σ = 0.05 in (7.5).  The same split runs on an executor of one worker
-process and of ``--workers`` (default 2) processes (:func:`experiments.sweep.make_executor`: Dask
+process and of ``--workers`` (default 2) processes (:func:`experiments.studies.sweep.make_executor`: Dask
 ``LocalCluster`` when installed, else ``ProcessPoolExecutor``; one BLAS thread per worker); the
 serial reference is :func:`unfalsify.subspace_unfalsify` without an executor (cvxpy/Clarabel).  The
 workers are started before the clock starts.  Full size (i, j) = (20, 400); ``--quick`` (6, 40).
@@ -15,11 +15,11 @@ from pathlib import Path
 import synthesis
 import unfalsify as uf
 
-from .plants import servo
-from .report import Report, finish_report
-from .signals import prbs
-from .simulate import collect_data
-from .sweep import make_executor
+from ..lab.plants import servo
+from ..lab.report import Report, finish_report
+from ..lab.signals import prbs
+from ..lab.simulate import collect_data
+from ..studies.sweep import make_executor
 
 __all__ = ["run"]
 

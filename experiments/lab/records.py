@@ -247,7 +247,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     >>> load_record(path, u="force", y="speed", t="time")
     Traceback (most recent call last):
     ...
-    experiments.records.RecordError: '...step.csv' has no column 'speed' (columns: time, force, position); pass y= one of them or an integer index
+    experiments.lab.records.RecordError: '...step.csv' has no column 'speed' (columns: time, force, position); pass y= one of them or an integer index
 
     A MATLAB matrix with the channels in its columns and no time (``dt=1``: one unit per sample):
 

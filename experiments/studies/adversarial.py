@@ -21,7 +21,7 @@ nonlinearity are outside the model class.  This module generates such conditions
 * another sample rate and order (a 4th-order plant at 50 Hz) and a 1st-order plant.
 
 Each record (``Case.record`` samples) is split into a *fitting* part (the first ``fit_fraction``)
-and a *held-out* part.  As in :func:`experiments.robust_pipeline.run_case`: the predictor is the
+and a *held-out* part.  As in :func:`experiments.studies.robust_pipeline.run_case`: the predictor is the
 least-squares fit on the fitting part, δ's window its first ``2i + j − 1`` samples, σ half the
 predictor's residual rms on that window; the pipeline gets ``predictor_for`` on the fitting part,
 the search over horizon ``2i``, and -- when :func:`unfalsify.robust_design_from_data` accepts it --
@@ -30,7 +30,7 @@ the search over horizon ``2i``, and -- when :func:`unfalsify.robust_design_from_
 What is judged, independently of the pipeline, on the **true** plant (for time-varying and
 nonlinear cases: the LTI plant at the record's midpoint, or the linear part; each run's
 ``judge_note`` says which): the loop's stability, ``δ‖K(I+PK)⁻¹‖∞`` with the proven upper bound,
-a unit step, and the size-δ perturbations of :func:`experiments.robust_pipeline._true_loop`; and
+a unit step, and the size-δ perturbations of :func:`experiments.studies.robust_pipeline._true_loop`; and
 the premise ratio ``‖P − P̂‖∞ / δ`` (proven upper bound; ``inf`` when P or P̂ is not stable, with
 the reason).  Verdicts (:func:`verdict`): ``certified``; ``false_certificate`` (certified, yet the
 true loop is unstable, has ``δ‖M‖ ≥ 1``, does not track or does not survive a perturbation);
@@ -67,12 +67,12 @@ import synthesis
 import unfalsify as uf
 from synthesis.validation import DataError
 
-from ._servo import design_weights
-from .plants import SERVO_DT, _modal_ss, _pair, _zoh, nonminimum_phase, resonant, third_order
-from .report import LiveTable, Report, finish_report, write_csv
+from ..lab._servo import design_weights
+from ..lab.plants import SERVO_DT, _modal_ss, _pair, _zoh, nonminimum_phase, resonant, third_order
+from ..lab.report import LiveTable, Report, finish_report, write_csv
 from .robust_pipeline import _true_loop, premise_ratio
-from .signals import prbs
-from .simulate import closed_loop, collect_data
+from ..lab.signals import prbs
+from ..lab.simulate import closed_loop, collect_data
 
 __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excitation_class", "catalogue",
            "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",
@@ -471,7 +471,7 @@ def make_record(case: Case) -> Record:
 
 # ----------------------------------------------------------------------------------------------- judge
 def judge(P, controller, delta: float, tracking_floor: float) -> dict:
-    """The true-plant check of :func:`experiments.robust_pipeline._true_loop` plus its failure flags.
+    """The true-plant check of :func:`experiments.studies.robust_pipeline._true_loop` plus its failure flags.
 
     Returns its dict with ``fails`` (list of what failed: unstable, small gain ≥ 1, no tracking,
     does not survive a size-δ perturbation) and ``ok`` (none failed).

@@ -44,13 +44,13 @@ import numpy as np
 
 import synthesis
 
-from ._servo import design_weights
-from ._torsional import weights as torsional_weights
+from ..lab._servo import design_weights
+from ..lab._torsional import weights as torsional_weights
 from .noncollocated import step_metrics
-from .plants import THREE_DISK, nonminimum_phase, resonant, servo, three_disk
-from .report import Report, finish_report, save_figure, write_csv
-from .signals import prbs
-from .simulate import closed_loop_system, collect_data
+from ..lab.plants import THREE_DISK, nonminimum_phase, resonant, servo, three_disk
+from ..lab.report import Report, finish_report, save_figure, write_csv
+from ..lab.signals import prbs
+from ..lab.simulate import closed_loop_system, collect_data
 
 __all__ = ["run", "evaluate", "PLANTS", "PHYSICS_ERRORS", "METHODS", "Config", "summary_lines"]
 

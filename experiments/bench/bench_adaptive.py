@@ -29,8 +29,8 @@ import warnings
 
 import numpy as np
 
-from ._torsional import COLLOCATED, DT
-from .report import Report, format_table, median_time, save_figure, write_csv, write_json
+from ..lab._torsional import COLLOCATED, DT
+from ..lab.report import Report, format_table, median_time, save_figure, write_csv, write_json
 
 __all__ = ["run", "GOAL_P99_S", "N_UPDATES"]
 
@@ -60,8 +60,8 @@ def _legacy_class():
     (weights validated and Toeplitz / observability blocks rebuilt) and the ``StateSpace`` built.
     (The Gram push is the current one.)
     """
-    from synthesis import AdaptiveHinf, AdaptiveUpdate, hinf_design
-    from synthesis.predictor import _predictor_from_gram, _resolve_rcond
+    from synthesis import AdaptiveHinf, AdaptiveUpdate, default_rcond, hinf_design
+    from synthesis.predictor import _predictor_from_gram
 
     class _LegacyAdaptiveHinf(AdaptiveHinf):
         def _design(self, step, t0, t_push=0.0, c0=None):
@@ -70,7 +70,8 @@ def _legacy_class():
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 t1 = time.perf_counter()
-                tol = _resolve_rcond(rp._rcond, "recursive", i * (2 * m + l), j)
+                # rp's rcond was validated when it was built; None means the default
+                tol = default_rcond("recursive", i * (2 * m + l), j) if rp._rcond is None else rp._rcond
                 pred = _predictor_from_gram(rp.gram, i, m, l, j, tol, "recursive", route="spectral")
                 t2 = time.perf_counter()
                 design = hinf_design(pred, self.W1, self.W2, gamma=self.policy, **self._design_kwargs)
@@ -88,7 +89,7 @@ def _legacy_class():
 def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = False):
     from synthesis import AdaptiveHinf, GammaPolicy
 
-    from . import plants, signals, simulate
+    from ..lab import plants, signals, simulate
 
     rng = np.random.default_rng(seed)
     seeds = rng.integers(0, 2**31, size=3)
@@ -110,23 +111,22 @@ def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = 
 
 def _components(ad, W1, W2, policy, repeats: int) -> dict:
     """Time the pieces of one update on the final window; the route before the fast paths; agreement."""
-    from synthesis import hinf_design
-    from synthesis.controller import lti_controller
-    from synthesis.hinf import _design_from_plan, _predictor_parts
-    from synthesis.minimax import _gains, _saddle, solve_minimax
-    from synthesis.predictor import _predictor_from_gram, _resolve_rcond
+    from synthesis import default_rcond, hinf_design, lti_controller, solve_minimax
+    from synthesis.hinf import _design_from_plan
+    from synthesis.minimax import _gains, _saddle
+    from synthesis.predictor import _predictor_from_gram
 
     rp = ad.recursive
     plan = ad._plan
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         pred = rp.predictor()
-        Lw, Lu, *_ = _predictor_parts(pred)
+        Lw, Lu = np.asarray(pred.Lw, dtype=float), np.asarray(pred.Lu, dtype=float)
         pm = plan.fill(Lw, Lu)
         design = _design_from_plan(pred, Lw, Lu, plan, policy)
         sd = plan.saddle(Lu)
         i, m, l, j = rp.horizon, rp.m, rp.l, rp.n_columns
-        tol = _resolve_rcond(None, "recursive", i * (2 * m + l), j)
+        tol = default_rcond("recursive", i * (2 * m + l), j)
         G = rp.gram
 
         def legacy():  # before: rank-revealing predictor, weights and map from scratch, eager StateSpace

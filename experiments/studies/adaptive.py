@@ -20,7 +20,7 @@ Pipeline (``python -m experiments adaptive``):
 4. ``γ_min(t)`` (Fig. 6.11; thesis: settles near 2.25, the ∞-horizon model-based value, after
    ``t = 15 s``) and the wall-clock time of each update (median, max).
 
-Weights: :data:`experiments._torsional.COLLOCATED` (Fig. 6.8, chosen so that the ∞-horizon
+Weights: :data:`experiments.lab._torsional.COLLOCATED` (Fig. 6.8, chosen so that the ∞-horizon
 model-based ``γ_opt`` is about 2.25).  ``--quick``: 5 s of closed loop and ``i = 32``.
 """
 from __future__ import annotations
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._torsional import COLLOCATED, DT
-from .report import Report, save_figure, write_csv, write_json
+from ..lab._torsional import COLLOCATED, DT
+from ..lab.report import Report, save_figure, write_csv, write_json
 
 __all__ = ["run", "THESIS", "STEP_LEVELS", "STEP_HOLD_S"]
 
@@ -80,7 +80,7 @@ class _Progress:
 
 
 def _compute(opts):
-    from . import plants, signals, simulate
+    from ..lab import plants, signals, simulate
 
     rng = np.random.default_rng(opts.seed)
     seeds = rng.integers(0, 2**31, size=3)
@@ -205,7 +205,7 @@ def summary_lines(s: dict) -> list[str]:
 
 
 def _spectral_radius(P, K) -> float:
-    from .simulate import closed_loop_system
+    from ..lab.simulate import closed_loop_system
 
     return float(np.max(np.abs(np.linalg.eigvals(np.asarray(closed_loop_system(P, K).A)))))
 

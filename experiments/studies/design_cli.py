@@ -39,7 +39,7 @@ import numpy as np
 
 from synthesis.validation import DataError
 
-from .records import RecordError, _read_arrays, _read_csv, load_record
+from ..lab.records import RecordError, _read_arrays, _read_csv, load_record
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "INPUT_ERRORS"]
 
@@ -225,7 +225,7 @@ def _fmt(x) -> str:
 
 def _simulate(sys, u):
     """Output of ``sys`` driven by ``u`` from rest (NaN from where it blows up: an unstable P̂ does)."""
-    from .simulate import _lsim
+    from ..lab.simulate import _lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (sys.A, sys.B, sys.C, sys.D))
     with np.errstate(all="ignore"):
@@ -242,8 +242,8 @@ def _figures(out: Path, rec, res, fit_end: int, window: tuple[int, int]) -> tupl
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .report import save_figure
-    from .simulate import closed_loop_system
+    from ..lab.report import save_figure
+    from ..lab.simulate import closed_loop_system
 
     u, y, dt = rec.u[:, 0], rec.y[:, 0], rec.dt
     t = np.arange(rec.n) * dt
@@ -320,7 +320,7 @@ def _freq(sys, z):
 
 
 def _step(loop, n: int):
-    from .simulate import _lsim
+    from ..lab.simulate import _lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (loop.A, loop.B, loop.C, loop.D))
     with np.errstate(all="ignore"):
@@ -333,7 +333,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     """Write the report, the controller files and the JSON summary of one design; return the summary."""
     from synthesis import save_controller
 
-    from .report import Report, finish_report
+    from ..lab.report import Report, finish_report
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ _PIPE = re.compile(r"(?<!\\)\|")
 
 __all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time", "finish_report",
            "markdown_tables", "LiveTable",
-           "check_figure", "FIGURE_PROBLEMS"]
+           "check_figure", "FIGURE_PROBLEMS", "json_default"]
 
 
 def format_table(headers: Sequence[str], rows: Iterable[Sequence], floatfmt: str = ".4g") -> str:
@@ -43,12 +43,26 @@ def write_csv(path: Path, headers: Sequence[str], rows: Iterable[Sequence]) -> P
 
 
 def write_json(path: Path, data) -> Path:
-    from .cli import _jsonable
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, default=_jsonable))
+    path.write_text(json.dumps(data, indent=2, default=json_default))
     return path
+
+
+def json_default(obj):
+    """``default=`` of :func:`json.dumps` for the summaries: numpy scalars and arrays, paths."""
+    try:
+        import numpy as np
+
+        if isinstance(obj, np.generic):
+            return obj.item()
+        if isinstance(obj, np.ndarray):
+            return obj.tolist()
+    except ImportError:  # pragma: no cover
+        pass
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 #: ``str(path) -> list of problems`` of every figure saved by :func:`save_figure` in this process
