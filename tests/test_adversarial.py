@@ -11,7 +11,7 @@ import pytest
 from scipy.signal import welch
 
 import unfalsify as uf
-from experiments import adversarial as adv
+from experiments.studies import adversarial as adv
 from experiments.studies.adversarial import Case, Excitation, Noise
 from experiments.lab.plants import third_order
 from synthesis._validation import DataError

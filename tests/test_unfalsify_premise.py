@@ -123,7 +123,7 @@ def test_a_model_missing_slow_dynamics_is_refused_at_low_frequency():
     """The adversarial case that was a false certificate: a 4th-order 50 Hz plant with a pole at 1 rad/s,
     i = 15, white PRBS.  P̂ has 0.27 of the DC gain (true ‖P − P̂‖∞ = 6δ, all of it below Welch's first
     frequency): certified before the low band, and its loop settled too slowly to track on the plant."""
-    from experiments import adversarial as adv
+    from experiments.studies import adversarial as adv
 
     case = next(c for c in adv.catalogue(seed=1) if c.name == "rate_order/fourth_order_50hz/prbs")
     run = adv.run_case(case)
