@@ -147,3 +147,137 @@ def test_gain_of_the_exact_models_residual_is_zero():
 def test_gain_bad_shapes_name_the_fix(u, y, match):
     with pytest.raises(DataError, match=match):
         uf.unfalsified_gain(u, y)
+
+
+# ---- (7.5) with l × m operators Δ_k ----------------------------------------------------------------
+
+def _mimo_data(l, m, seed, i=3, j=24, noise=0.1):
+    rng = np.random.default_rng(seed)
+    n = 2 * i + j - 1
+    u = np.sign(rng.standard_normal((n, m)))
+    mix = rng.standard_normal((l, m))
+    y = np.stack([scipy.signal.lfilter([0, 0.5, 0.3], [1, -0.6], u[:, b]) for b in range(m)], axis=1) @ mix.T
+    y = y + noise * rng.standard_normal((n, l))
+    A, _, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    sigma = 0.5 * float(np.sqrt(np.mean((Yf - L @ A) ** 2)))
+    return u, y, i, sigma
+
+
+def _cvx_subspace(u, y, i, sigma, L_fixed=None):
+    """(7.5) for l × m operators written from the definitions: per column k, Markov parameters
+    h_{k,0..i−1} (l × m variables), the data relation sample by sample, ‖T(h_k)‖₂ ≤ δ by the LMI,
+    ‖Ξ‖_F ≤ σ√(ilj), L free (or fixed)."""
+    n, m = u.shape
+    l = y.shape[1]
+    j = n - 2 * i + 1
+    # block Hankel columns: block row r of column k holds sample k + r of every channel
+    Uf = np.array([u[k + i:k + 2 * i].ravel() for k in range(j)]).T
+    Yf = np.array([y[k + i:k + 2 * i].ravel() for k in range(j)]).T
+    Up = np.array([u[k:k + i].ravel() for k in range(j)]).T
+    Yp = np.array([y[k:k + i].ravel() for k in range(j)]).T
+    A = np.vstack([Up, Yp, Uf])
+    d = cp.Variable()
+    L = cp.Variable((i * l, A.shape[0])) if L_fixed is None else L_fixed
+    cols, cons = [], []
+    for k in range(j):
+        hs = [cp.Variable((l, m)) for _ in range(i)]
+        uk = u[k + i:k + 2 * i]
+        cols.append(cp.hstack([sum(hs[t] @ uk[s - t] for t in range(s + 1)) for s in range(i)]))
+        T = _cvx_bt(hs, i, l, m)
+        cons.append(cp.bmat([[d * np.eye(i * m), T.T], [T, d * np.eye(i * l)]]) >> 0)
+    Htil = cp.vstack(cols).T  # (il, j)
+    Xi = Yf - L @ A - Htil
+    cons.append(cp.norm(cp.vec(Xi, order="F"), 2) <= sigma * np.sqrt(i * l * j))
+    cp.Problem(cp.Minimize(d), cons).solve(solver="CLARABEL")
+    return float(d.value)
+
+
+@pytest.mark.parametrize("l, m", SHAPES)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_subspace_equals_the_cvxpy_program_with_two_sided_certificate(l, m, seed):
+    u, y, i, sigma = _mimo_data(l, m, seed)
+    r = uf.subspace_unfalsify(u, y, i, sigma)
+    ref = _cvx_subspace(u, y, i, sigma)
+    assert r.status == "optimal" and r.delta > 0
+    assert r.delta == pytest.approx(ref, rel=2e-5)
+    c = r.certificate
+    assert c.verify() and c.ok(1e-5)
+    assert c.lower_bound <= ref * (1 + 1e-6) and c.relative_gap < 1e-4
+    j = u.shape[0] - 2 * i + 1
+    assert r.impulses.shape == (i, l, m, j) and r.noise.shape == (i * l, j)
+    assert r.Lw.shape == (i * l, i * (m + l)) and r.Lu.shape == (i * l, i * m)
+    assert (r.predictor.m, r.predictor.l) == (m, l)
+    re = uf.subspace_unfalsify(u, y, i, sigma, eliminate_L=True)
+    assert re.delta == pytest.approx(r.delta, rel=2e-5) and re.certificate.verify()
+
+
+@pytest.mark.parametrize("l, m", [(2, 2)])
+def test_subspace_with_a_fixed_predictor_equals_the_cvxpy_program(l, m):
+    import synthesis as sy
+
+    u, y, i, sigma = _mimo_data(l, m, 5, j=30)
+    pred = sy.fit_predictor(u, y, i)
+    r = uf.subspace_unfalsify(u, y, i, sigma, predictor=pred)
+    ref = _cvx_subspace(u, y, i, sigma, L_fixed=np.hstack([pred.Lw, pred.Lu]))
+    assert r.delta == pytest.approx(ref, rel=2e-5)
+    assert r.certificate.verify() and r.certificate.relative_gap < 1e-4
+    np.testing.assert_array_equal(np.hstack([r.Lw, r.Lu]), np.hstack([pred.Lw, pred.Lu]))
+
+
+def test_subspace_with_one_channel_through_the_mimo_machinery_is_siso():
+    """The block model and block dual bound at l = m = 1 give the SISO δ and the SISO bound."""
+    from unfalsify.solvers import cvxpy_models
+    from unfalsify.solvers.columns import BlockColumnForm
+
+    u, y, i, sigma = _mimo_data(1, 1, 7)
+    r = uf.subspace_unfalsify(u[:, 0], y[:, 0], i, sigma)
+    r2 = uf.subspace_unfalsify(u, y, i, sigma)  # (n, 1) arrays: the same SISO code path
+    assert r2.delta == r.delta and r2.impulses.shape == r.impulses.shape
+    P = uf.SubspaceProblem.from_data(u, y, i, sigma)
+    out = cvxpy_models._subspace_channels_model(P, "CLARABEL", None)
+    assert out.delta == pytest.approx(r.delta, rel=1e-6)
+    np.testing.assert_allclose(out.impulses[:, 0, 0], r.impulses, atol=1e-5 * np.abs(r.impulses).max())
+    c = r.certificate
+    f = P.column_form(scaled=False)
+    g = BlockColumnForm(f.U, f.B, f.rho, n_inputs=1, n_outputs=1, basis_right=f.Qr)
+    assert g.lower_bound(c.dual_v, c.dual_G) == pytest.approx(f.lower_bound(c.dual_v, c.dual_G), rel=1e-12)
+
+
+def test_subspace_noise_free_2x2_exact_model_gives_zero():
+    import synthesis as sy
+
+    A, B, C, D = _plant_2x2()
+    u = np.sign(np.random.default_rng(2).standard_normal((80, 2)))
+    y = _simulate(A, B, C, D, u)
+    i = 4  # ≥ the plant order: the least-squares predictor is exact on noise-free data
+    with pytest.warns(sy.PersistenceWarning):  # noise free: the regressor is rank deficient, as it should be
+        pred = sy.fit_predictor(u, y, i)
+    r = uf.subspace_unfalsify(u, y, i, 1e-6, predictor=pred)
+    assert abs(r.delta) < 1e-6 and r.certificate.verify()
+    r2 = uf.subspace_unfalsify(u, y, i, 1e-6)  # L optimised: the exact model is in the search
+    assert abs(r2.delta) < 1e-6 and r2.certificate.verify()
+
+
+def test_subspace_refusals_name_the_fix():
+    from unfalsify import UnknownSolverError
+
+    u, y, i, sigma = _mimo_data(2, 2, 0)
+    with pytest.raises(UnknownSolverError, match="backend='cvxpy'"):
+        uf.subspace_unfalsify(u, y, i, sigma, backend="structured", progress=False)
+    with pytest.raises(ValueError, match="form='conditioned'"):
+        uf.subspace_unfalsify(u, y, i, sigma, form="thesis")
+    with pytest.raises(DataError, match=r"u\.T"):
+        uf.subspace_unfalsify(u.T, y, i, sigma)
+    with pytest.raises(DataError, match=r"y\.T"):
+        uf.subspace_unfalsify(u, y.T, i, sigma)
+    with pytest.raises(DataError, match="samples"):
+        uf.subspace_unfalsify(u, y[:-1], i, sigma)
+    u0 = u.copy()
+    u0[i + 2] = 0.0  # the first sample of column 2 of U_f: both channels zero
+    with pytest.raises(DataError, match="U_f"):
+        uf.subspace_unfalsify(u0, y, i, sigma)
+    import synthesis as sy
+
+    with pytest.raises(DataError, match="fit_predictor"):
+        uf.subspace_unfalsify(u, y, i, sigma, predictor=sy.fit_predictor(u[:, 0], y[:, 0], i))

@@ -15,6 +15,9 @@ name                what                                                        
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
 
+Several channels (u: (n, m), y: (n, l), issue 28): only ``cvxpy`` (:data:`CHANNELS`) takes them; the
+others raise :class:`~unfalsify.UnknownSolverError` naming ``backend="cvxpy"``.
+
 Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
 :mod:`~unfalsify.solvers.columns` (the column form every structured solver takes and its dual bound),
 :mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG) and
@@ -58,6 +61,9 @@ PROGRAMS = {
     "column_barrier": ("subspace",),
     "split": ("subspace",),
 }
+
+#: the solvers that take several channels (``problem.siso`` False: u (n, m), y (n, l) with m + l > 2)
+CHANNELS = ("cvxpy",)
 
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")
@@ -107,4 +113,8 @@ def run(name: str, problem, **options) -> SolverOutput:
     if problem.program not in PROGRAMS[name]:
         raise UnknownSolverError(f"solver {name!r} does not solve the {problem.program} program; "
                                  f"use one of {_names(n for n in SOLVERS if problem.program in PROGRAMS[n])}")
+    if not getattr(problem, "siso", True) and name not in CHANNELS:
+        raise UnknownSolverError(
+            f"solver {name!r} solves single-channel data only; for {problem.n_outputs}×{problem.n_inputs} data "
+            "(several inputs or outputs) use backend='cvxpy' (and no executor=)")
     return SOLVERS[name](problem, **options)
