@@ -211,62 +211,27 @@ class SubspaceProblem:
 
     @classmethod
     def from_data(cls, u, y, horizon, sigma, predictor=None) -> "SubspaceProblem":
-        """Validate (raises :class:`DataError`) and scale."""
+        """Validate (raises :class:`DataError`) and scale; u (n, m), y (n, l), time along axis 0."""
         u = as_signal(u, "u")
         y = as_signal(y, "y", n=u.shape[0])
         m, l = u.shape[1], y.shape[1]
-        if m == 1 and l == 1:
+        if m == 1 and l == 1:  # SISO: 1-D signals, as before several channels were accepted
             u, y = u[:, 0].copy(), y[:, 0].copy()
-        else:
-            return cls._from_channels(u, y, horizon, sigma, predictor)
-        sigma = check_sigma(sigma)
-        A, Uf, Yf = subspace_data(u, y, horizon)
-        i, j = Uf.shape
-        zero_cols = np.flatnonzero(Uf[0] == 0.0)
-        if zero_cols.size:
-            raise DataError(
-                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
-                f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
-                "samples (e.g. a ±1 PRBS)"
-            )
-        L_fixed = None
-        if predictor is not None:
-            L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
-            if int(predictor.horizon) != i or L_fixed.shape != (i, 3 * i) or not np.all(np.isfinite(L_fixed)):
-                raise DataError(
-                    f"predictor must be a finite SISO predictor of horizon {i} (Lw {i}×{2 * i}, Lu {i}×{i}); "
-                    f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
-                )
-        cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
-        # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
-        # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
-        su = rms_or_one(u)
-        Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
-        sy = rms_or_one(Yf - Lref @ A)
-        if not sy > 1e-12 * rms_or_one(y):
-            sy = rms_or_one(y)
-        return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
-                   A=A, Uf=Uf, Yf=Yf)
-
-    @classmethod
-    def _from_channels(cls, u, y, horizon, sigma, predictor) -> "SubspaceProblem":
-        """:meth:`from_data` for u (n, m), y (n, l) with m + l > 2."""
-        m, l = u.shape[1], y.shape[1]
         sigma = check_sigma(sigma)
         A, Uf, Yf = subspace_data(u, y, horizon)
         i, j = Uf.shape[0] // m, Uf.shape[1]
         zero_cols = np.flatnonzero(np.all(Uf[:m] == 0.0, axis=0))
         if zero_cols.size:
             raise DataError(
-                f"{zero_cols.size} column(s) of U_f start with a zero input vector (first: column {zero_cols[0]}, "
-                f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) has no full column rank there; use an input "
-                "whose samples are never all zero at once (e.g. independent ±1 PRBS per channel)"
+                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
+                f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
+                "samples (e.g. a ±1 PRBS on every channel)"
             )
         L_fixed = None
-        shape = (i * l, i * (2 * m + l))
         if predictor is not None:
             L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
-            if int(predictor.horizon) != i or L_fixed.shape != shape or not np.all(np.isfinite(L_fixed)):
+            if int(predictor.horizon) != i or L_fixed.shape != (i * l, i * (2 * m + l)) or not np.all(
+                    np.isfinite(L_fixed)):
                 raise DataError(
                     f"predictor must be a finite predictor of horizon {i} for {m} input(s) and {l} output(s) "
                     f"(Lw {i * l}×{i * (m + l)}, Lu {i * l}×{i * m}); got horizon {predictor.horizon}, [Lw Lu] of "
@@ -277,6 +242,8 @@ class SubspaceProblem:
         else:
             sv = [np.linalg.svd(signal_toeplitz(Uf[:, k].reshape(i, m)), compute_uv=False) for k in range(j)]
             cond = max(float(s[0] / s[-1]) if s[-1] > 0 else float("inf") for s in sv)
+        # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
+        # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
         su = rms_or_one(u)
         Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         sy = rms_or_one(Yf - Lref @ A)
@@ -447,9 +414,10 @@ def subspace_unfalsify(
         raise ValueError("eliminate_L and a fixed predictor exclude each other")
     workers = check_workers(workers)
     P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
-    if not P.siso:
-        return _channels_unfalsify(P, form, name, backend, executor, solver, solver_options, eliminate_L)
-    i, j = P.Uf.shape
+    i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
+    if not P.siso and form != "conditioned":
+        raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
+                         "form='conditioned'")
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
@@ -467,53 +435,20 @@ def subspace_unfalsify(
     else:
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
     out = run(name, P, **options)
-    cert, delta = certify(P, out, f"subspace unfalsification (i={i}, j={j})")
+    cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
     L = out.params
+    w = i * (m + l)  # columns of L_w
     return SubspaceResult(
         delta=delta,
-        Lw=L[:, : 2 * i].copy(),
-        Lu=L[:, 2 * i :].copy(),
-        noise=P.Yf - L @ P.A - conv_cols(P.Uf, out.impulses),
-        impulses=out.impulses,
-        status=out.status.value,
-        solve_time=out.solve_time,
-        problem=out.problem,
-        form=form,
-        eliminate_L=bool(eliminate_L and form == "conditioned"),
-        sigma=P.sigma,
-        horizon=i,
-        n_columns=j,
-        cond_Tu=P.cond_Tu,
-        certificate=cert,
-        scale=P.scale,
-        regressor_singular_values=np.linalg.svd(P.A, compute_uv=False),
-        backend=backend,
-    )
-
-
-def _channels_unfalsify(P: SubspaceProblem, form, name, backend, executor, solver, solver_options,
-                        eliminate_L) -> SubspaceResult:
-    """:func:`subspace_unfalsify` for several channels (cvxpy backend, conditioned form)."""
-    i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
-    if form != "conditioned":
-        raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
-                         "form='conditioned'")
-    if executor is not None:
-        name, backend = "split", "split"
-    out = run(name, P, form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
-    cert, delta = certify(P, out, f"subspace unfalsification ({l}×{m}, i={i}, j={j})")
-    L = out.params
-    return SubspaceResult(
-        delta=delta,
-        Lw=L[:, : i * (m + l)].copy(),
-        Lu=L[:, i * (m + l):].copy(),
+        Lw=L[:, :w].copy(),
+        Lu=L[:, w:].copy(),
         noise=P.Yf - L @ P.A - P._conv(out.impulses),
         impulses=out.impulses,
         status=out.status.value,
         solve_time=out.solve_time,
         problem=out.problem,
         form=form,
-        eliminate_L=bool(eliminate_L),
+        eliminate_L=bool(eliminate_L and form == "conditioned"),
         sigma=P.sigma,
         horizon=i,
         n_columns=j,

@@ -121,6 +121,15 @@ def _best_scaled_dual(form: ColumnForm, v, W) -> tuple[np.ndarray, object]:
     return best[1], best[2]
 
 
+def _data_units_dual(P, V, W, su: float):
+    """A subspace model's (V, W) with the best relative scale (:func:`_best_scaled_dual`), W in data units;
+    ``(None, None)`` when the solver gave no finite dual point."""
+    if V is None or not (np.all(np.isfinite(V)) and np.all(np.isfinite(W))):
+        return None, None
+    V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
+    return V, W * su
+
+
 def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
     """The reference cvxpy models (unchanged), in scaled units; returns a dict in data units."""
     n, na, nb = P.n, P.na, P.nb
@@ -278,11 +287,7 @@ def _subspace_model(P, form, solver, solver_options, eliminate_L=False) -> Solve
             Z21 = np.stack([np.asarray(Z, float)[i:, :i] for Z in Zs])
             V = -2.0 * adjoint(Z21)
             W = np.stack([-2.0 * Z21[k] @ toeplitz_matrix(Ufs[:, k]).T for k in range(j)])
-    if V is not None and np.all(np.isfinite(V)) and np.all(np.isfinite(W)):
-        V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
-        W = W * su
-    else:
-        V = W = None
+    V, W = _data_units_dual(P, V, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=impulses, params=L_out, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=V, dual_W=W, problem=prob)
 
@@ -361,10 +366,6 @@ def _subspace_channels_model(P, solver, solver_options, eliminate_L=False) -> So
     if lam is not None and all(Z is not None for Z in Zs) and np.all(np.isfinite(Xi_s)) and np.linalg.norm(Xi_s) > 0:
         V = float(lam) * Xi_s / np.linalg.norm(Xi_s)
         W = np.stack([-2.0 * np.asarray(Z, float)[i * m:, : i * m] for Z in Zs])
-    if V is not None and np.all(np.isfinite(V)) and np.all(np.isfinite(W)):
-        V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
-        W = W * su
-    else:
-        V = W = None
+    V, W = _data_units_dual(P, V, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=H, params=L_out, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=V, dual_W=W, problem=prob)
