@@ -10,7 +10,10 @@ half the least-squares residual rms so that δ > 0):
 
 * ARX (7.4), na = nb = 2, ``form="conditioned"`` and ``form="thesis"``, growing n;
 * subspace (7.5), ``form="conditioned"`` (L optimised, and L eliminated analytically) and
-  ``form="thesis"``, growing j at fixed i.
+  ``form="thesis"``, growing j at fixed i;
+* subspace (7.5) with two inputs and two outputs (issue 28), ``form="conditioned"``, at (i, j) = (10, 200)
+  and (20, 400): two servo channels with input coupling ``[[1, 0.3], [0.2, 1]]``, independent PRBS ±1
+  inputs, the same noise levels (:func:`_mimo_data`).
 
 Each solve runs in a child process with a wall-clock budget (120 s; 30 s with ``--quick``);
 a series stops growing at the first solve that exceeds it (recorded as ``timeout``).  Every
@@ -92,6 +95,8 @@ def _series(quick: bool) -> list[dict]:
             dict(name="subspace conditioned, L eliminated, i=3", kind="subspace", form="conditioned", eliminate=True,
                  i=3, sizes=[12, 16]),
             dict(name="subspace thesis i=3", kind="subspace", form="thesis", i=3, sizes=[12, 16]),
+            dict(name="subspace 2×2 conditioned i=3", kind="subspace", form="conditioned", i=3, sizes=[40],
+                 channels=2),  # j > i(2m + l) = 18 regressors: the least-squares residual is not zero
         ]
     return [
         dict(name="ARX conditioned", kind="arx", form="conditioned", sizes=[10, 20, 30, 40, 60, 80, 100, 120]),
@@ -103,6 +108,10 @@ def _series(quick: bool) -> list[dict]:
              sizes=[50, 100, 200, 400]),
         dict(name="subspace thesis i=3", kind="subspace", form="thesis", i=3, sizes=[10, 20, 40, 80, 160]),
         dict(name="subspace thesis i=5", kind="subspace", form="thesis", i=5, sizes=[20, 40, 80, 160]),
+        dict(name="subspace 2×2 conditioned i=10", kind="subspace", form="conditioned", i=10, sizes=[200],
+             channels=2),
+        dict(name="subspace 2×2 conditioned i=20", kind="subspace", form="conditioned", i=20, sizes=[400],
+             channels=2),
     ]
 
 
@@ -110,6 +119,25 @@ def _data(n: int, seed: int):
     from ._servo import servo_data
 
     d = servo_data(n, seed=seed)
+    return d.u, d.y
+
+
+def _mimo_data(n: int, seed: int):
+    """Two inputs, two outputs: two servo channels (§5.4) behind the input coupling ``[[1, 0.3], [0.2, 1]]``,
+    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments._servo.servo_data`."""
+    import control as ct
+
+    from ._servo import SIGMA_PROCESS, SIGMA_SENSOR
+    from .plants import servo
+    from .signals import prbs
+    from .simulate import collect_data
+
+    s1 = servo()
+    plant = ct.append(s1, servo()) * ct.ss([], [], [], np.array([[1.0, 0.3], [0.2, 1.0]]), s1.dt)
+    streams = np.random.SeedSequence(seed).spawn(3)
+    u = np.column_stack([prbs(n, seed=np.random.default_rng(s)) for s in streams[:2]])
+    d = collect_data(plant, u, process_noise=SIGMA_PROCESS, sensor_noise=SIGMA_SENSOR,
+                     seed=np.random.default_rng(streams[2]))
     return d.u, d.y
 
 
@@ -130,7 +158,7 @@ def _solve_one(spec: dict, size: int, seed: int) -> dict:
     else:
         i, j = spec["i"], size
         n = 2 * i + j - 1
-        u, y = _data(n, seed)
+        u, y = _mimo_data(n, seed) if spec.get("channels", 1) > 1 else _data(n, seed)
         A, _, Yf = uf.subspace_data(u, y, i)
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         sigma = 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
