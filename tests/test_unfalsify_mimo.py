@@ -210,6 +210,11 @@ def test_subspace_equals_the_cvxpy_program_with_two_sided_certificate(l, m, seed
     assert (r.predictor.m, r.predictor.l) == (m, l)
     re = uf.subspace_unfalsify(u, y, i, sigma, eliminate_L=True)
     assert re.delta == pytest.approx(r.delta, rel=2e-5) and re.certificate.verify()
+    rs = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", progress=False)  # block_barrier
+    cs = rs.certificate
+    assert rs.status == "optimal" and rs.backend == "structured" and cs.verify() and cs.relative_gap <= 1e-6
+    assert cs.lower_bound <= ref * (1 + 2e-5) and cs.upper_bound >= ref * (1 - 2e-5)
+    assert rs.delta == pytest.approx(ref, rel=2e-5) and rs.impulses.shape == r.impulses.shape
 
 
 @pytest.mark.parametrize("l, m", [(2, 2)])
@@ -223,10 +228,14 @@ def test_subspace_with_a_fixed_predictor_equals_the_cvxpy_program(l, m):
     assert r.delta == pytest.approx(ref, rel=2e-5)
     assert r.certificate.verify() and r.certificate.relative_gap < 1e-4
     np.testing.assert_array_equal(np.hstack([r.Lw, r.Lu]), np.hstack([pred.Lw, pred.Lu]))
+    rs = uf.subspace_unfalsify(u, y, i, sigma, predictor=pred, backend="structured", progress=False)
+    assert rs.status == "optimal" and rs.certificate.verify() and rs.certificate.relative_gap <= 1e-6
+    assert rs.delta == pytest.approx(ref, rel=2e-5)
 
 
 def test_subspace_with_one_channel_through_the_mimo_machinery_is_siso():
     """The block model and block dual bound at l = m = 1 give the SISO δ and the SISO bound."""
+    from unfalsify import solvers
     from unfalsify.solvers import cvxpy_models
     from unfalsify.solvers.columns import BlockColumnForm
 
@@ -238,6 +247,10 @@ def test_subspace_with_one_channel_through_the_mimo_machinery_is_siso():
     out = cvxpy_models._subspace_channels_model(P, "CLARABEL", None)
     assert out.delta == pytest.approx(r.delta, rel=1e-6)
     np.testing.assert_allclose(out.impulses[:, 0, 0], r.impulses, atol=1e-5 * np.abs(r.impulses).max())
+    rb = solvers.run("block_barrier", P, progress=False)  # the structured MIMO solver on one channel
+    rc = solvers.run("column_barrier", P, progress=False)
+    assert rb.impulses.shape == rc.impulses.shape == r.impulses.shape
+    assert rb.delta == pytest.approx(rc.delta, rel=2e-6) and rb.delta == pytest.approx(r.delta, rel=2e-6)
     c = r.certificate
     f = P.column_form(scaled=False)
     g = BlockColumnForm(f.U, f.B, f.rho, n_inputs=1, n_outputs=1, basis_right=f.Qr)
@@ -257,14 +270,20 @@ def test_subspace_noise_free_2x2_exact_model_gives_zero():
     assert abs(r.delta) < 1e-6 and r.certificate.verify()
     r2 = uf.subspace_unfalsify(u, y, i, 1e-6)  # L optimised: the exact model is in the search
     assert abs(r2.delta) < 1e-6 and r2.certificate.verify()
+    r3 = uf.subspace_unfalsify(u, y, i, 1e-6, backend="structured", progress=False)
+    assert r3.delta == 0.0 and r3.status == "optimal" and r3.certificate.verify()
 
 
 def test_subspace_refusals_name_the_fix():
     from unfalsify import UnknownSolverError
 
+    from concurrent.futures import ThreadPoolExecutor
+
+    import synthesis as sy
+
     u, y, i, sigma = _mimo_data(2, 2, 0)
-    with pytest.raises(UnknownSolverError, match="backend='cvxpy'"):
-        uf.subspace_unfalsify(u, y, i, sigma, backend="structured", progress=False)
+    with ThreadPoolExecutor(1) as ex, pytest.raises(UnknownSolverError, match="backend='cvxpy'"):
+        uf.subspace_unfalsify(u, y, i, sigma, predictor=sy.fit_predictor(u, y, i), executor=ex)
     with pytest.raises(ValueError, match="form='conditioned'"):
         uf.subspace_unfalsify(u, y, i, sigma, form="thesis")
     with pytest.raises(DataError, match=r"u\.T"):
@@ -277,7 +296,5 @@ def test_subspace_refusals_name_the_fix():
     u0[i + 2] = 0.0  # the first sample of column 2 of U_f: both channels zero
     with pytest.raises(DataError, match="U_f"):
         uf.subspace_unfalsify(u0, y, i, sigma)
-    import synthesis as sy
-
     with pytest.raises(DataError, match="fit_predictor"):
         uf.subspace_unfalsify(u, y, i, sigma, predictor=sy.fit_predictor(u[:, 0], y[:, 0], i))

@@ -418,6 +418,8 @@ def subspace_unfalsify(
     if not P.siso and form != "conditioned":
         raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
                          "form='conditioned'")
+    if not P.siso and name == "column_barrier":
+        name = "block_barrier"  # the structured solver for several channels
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
