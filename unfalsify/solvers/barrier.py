@@ -37,6 +37,7 @@ __all__ = [
     "linearised_dual",
     "pcg",
     "cholesky_retry",
+    "PathAdvance",
 ]
 
 
@@ -203,3 +204,19 @@ def cholesky_retry(Hm):
             except np.linalg.LinAlgError:
                 pass
         raise
+
+
+class PathAdvance:
+    """The ``advance`` step both column barrier methods share (a mix-in; needs ``stalled``, ``_prev``, ``mu``).
+
+    ``μt`` from the centred point (its first Newton step is the tangent of the central path); a stall (no
+    step possible) that brought no better bound is the end of double precision: status ``"failed"``.
+    """
+
+    def advance(self, t, p, step, bounds, deadline: Deadline):
+        upper, lower = bounds
+        if self.stalled and not (upper < self._prev[0] or lower > self._prev[1]):
+            raise Stop("failed")
+        self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
+        deadline.check()
+        return t * self.mu, p

@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
+from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
 from .toeplitz import ridge_lambda
@@ -112,7 +112,7 @@ class _Point:
         return float(np.linalg.svd(self.T, compute_uv=False)[:, 0].max()) if self.T.size else 0.0
 
 
-class _BlockBarrier:
+class _BlockBarrier(PathAdvance):
     """The barrier method of the module docstring on a :class:`BlockColumnForm`."""
 
     def __init__(self, form: BlockColumnForm, *, tol, time_limit, progress, mu=5.0, max_newton=3000,
@@ -293,14 +293,6 @@ class _BlockBarrier:
         blocks = (p.S[:, :im, :im], p.S[:, im:, :im], p.S[:, im:, im:])
         return linearised_dual(t, blocks, _toeplitz_blocks(dH, self.i, self.l, self.m), dlt, p.r, dr, p.psi,
                                weight=self.wn)
-
-    def advance(self, t, p: _Point, step, bounds, deadline: Deadline):
-        upper, lower = bounds
-        if self.stalled and not (upper < self._prev[0] or lower > self._prev[1]):
-            raise Stop("failed")
-        self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
-        deadline.check()
-        return t * self.mu, p
 
     def run(self) -> dict:
         deadline = Deadline(self.time_limit)
