@@ -18,9 +18,10 @@ Several inputs and outputs (issue 28): ``unfalsified_gain`` and ``subspace_unfal
 Markov parameters h (n, l, m) enter the data relation linearly, and ``‖T(h)‖₂`` of the nl × nm block
 lower-triangular Toeplitz matrix is the least H∞ norm with those Markov parameters (matrix
 Carathéodory–Fejér); (7.5) has one l × m operator per column of ``U_f`` and ``‖Ξ‖_F ≤ σ√(ilj)``.  With
-several channels (7.5) runs on the cvxpy backend in the conditioned form (``backend="structured"`` and
-``executor=`` raise :class:`UnknownSolverError` naming ``backend="cvxpy"``) and returns the same two-sided
-certificate (the MIMO dual bound is derived in :class:`unfalsify.solvers.columns.BlockColumnForm`).
+several channels (7.5) runs in the conditioned form on both backends, cvxpy and ``backend="structured"``
+(the solver ``block_barrier``; ``executor=`` raises :class:`UnknownSolverError` naming ``backend="cvxpy"``),
+and both return the same two-sided certificate (the MIMO dual bound is derived in
+:class:`unfalsify.solvers.columns.BlockColumnForm`).
 One channel each runs the SISO code unchanged.  ``arx_unfalsify``, ``robust_design_from_data`` and the
 premise tests are still SISO.
 
@@ -172,6 +173,9 @@ Several channels: a 2 × 2 record (two independent PRBS inputs through a coupled
 >>> mimo = uf.subspace_unfalsify(u2, y2, 3, 0.02)
 >>> mimo.impulses.shape, mimo.status, bool(mimo.certificate.verify()), bool(mimo.certificate.relative_gap < 1e-4)
 ((3, 2, 2, 35), 'optimal', True, True)
+>>> fast = uf.subspace_unfalsify(u2, y2, 3, 0.02, backend="structured", progress=False)
+>>> bool(abs(fast.delta - mimo.delta) <= 1e-5 * mimo.delta), bool(fast.certificate.verify())
+(True, True)
 >>> bool(uf.unfalsified_gain(u2[:20], y2[:20]) > 0)
 True
 

@@ -30,9 +30,10 @@ H∞ norm of such an operator (matrix Carathéodory–Fejér).  The program is (
 :class:`~unfalsify.solvers.columns.BlockColumnForm`: ``‖T(h_k)‖₂ ≤ δ`` for every k and
 ``‖Ξ‖_F ≤ σ√(ilj)`` (the rms budget σ over all il·j noise entries); its dual (lower) bound is derived
 there.  The reparametrisation is exact when the first sample of every column, the vector ``u_{i+k}``,
-is not zero (the data relation is then solvable for h_k).  Only ``form="conditioned"`` and the cvxpy
-backend take several channels; ``backend="structured"`` refuses them naming ``backend="cvxpy"``.
-With one channel each the SISO code runs unchanged.
+is not zero (the data relation is then solvable for h_k).  Several channels take ``form="conditioned"``
+on both backends: cvxpy (the reference model) and ``backend="structured"``, which is the solver
+``block_barrier`` there (:mod:`unfalsify.solvers.block_barrier`); ``executor=`` (the split solver) is
+SISO only and names ``backend="cvxpy"``.  With one channel each the SISO code runs unchanged.
 """
 from __future__ import annotations
 
@@ -366,7 +367,7 @@ def subspace_unfalsify(
         cvxpy backend: solver (passed explicitly) and extra ``Problem.solve`` arguments.
     backend : {"cvxpy", "structured"}
         See :func:`unfalsify.arx_unfalsify`; ``"structured"`` is the solver ``"column_barrier"`` of
-        :mod:`unfalsify.solvers`.
+        :mod:`unfalsify.solvers` (``"block_barrier"`` for several channels).
     tol, time_limit, progress
         Structured backend, as for :func:`unfalsify.arx_unfalsify`.
     executor : concurrent.futures.Executor, optional
@@ -393,7 +394,7 @@ def subspace_unfalsify(
         σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
     UnknownSolverError
         Unknown backend (a ``ValueError``; the message lists the valid names), or several channels with
-        ``backend="structured"`` or ``executor=`` (the message names ``backend="cvxpy"``).
+        ``executor=`` (the message names ``backend="cvxpy"``).
     ValueError
         Unknown form (``form="thesis"`` with several channels); incompatible options.
     UnfalsificationError

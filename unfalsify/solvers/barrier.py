@@ -13,6 +13,7 @@ read a certified bracket off every centred point.  :func:`run_barrier` is that o
   (:func:`stop_status`);
 * a **progress** bar once the solve has run 2 s (:func:`tick_progress`).
 
+The ``advance`` step shared by the column methods is the mix-in :class:`PathAdvance`.
 A method provides ``centre(t, point, deadline) -> (point, step)``, ``upper(point)``,
 ``impulses(point)``, ``dual(t, point, step) -> (V, W)``, ``advance(t, point, step, bounds, deadline)
 -> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.

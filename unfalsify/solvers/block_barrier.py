@@ -203,7 +203,8 @@ class _BlockBarrier(PathAdvance):
             il, r = self.i * self.l, Q.shape[1]
             DinvMt = np.stack([scipy.linalg.cho_solve(Dc[k], self.M[k].T) for k in range(self.j)])  # (j, p, il)
             E = -(self.M @ DinvMt)  # −M_k D_k⁻¹ M_kᵀ, (j, il, il)
-            C = np.einsum("kr,ks,kab->rasb", Q, Q, E).reshape(r * il, r * il)
+            QQ = (Q[:, :, None] * Q[:, None, :]).reshape(self.j, r * r)  # rows q_k q_kᵀ
+            C = (QQ.T @ E.reshape(self.j, il * il)).reshape(r, r, il, il).transpose(0, 2, 1, 3).reshape(r * il, r * il)
             C[np.diag_indices_from(C)] += 1.0 / cc  # Σ_k q_k q_kᵀ = I
             MY = self.M @ Y  # (j, il, s)
             Ub = np.einsum("kr,kas->ras", Q, MY).reshape(r * il, -1)  # 𝓤 D⁻¹ R
