@@ -298,3 +298,41 @@ def test_subspace_refusals_name_the_fix():
         uf.subspace_unfalsify(u0, y, i, sigma)
     with pytest.raises(DataError, match="fit_predictor"):
         uf.subspace_unfalsify(u, y, i, sigma, predictor=sy.fit_predictor(u[:, 0], y[:, 0], i))
+
+
+def test_structured_time_limit_returns_certified_bracket_with_warning():
+    u, y, i, sigma = _mimo_data(2, 2, 3)
+    with pytest.warns(uf.SolverWarning, match="time_limit"):
+        r = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", time_limit=0.0, progress=False)
+    assert r.status == "time_limit"
+    c = r.certificate
+    assert c.verify() and c.ok() and r.delta == pytest.approx(c.upper_bound)
+
+
+def test_structured_newton_system_matches_the_dense_hessian():
+    """One Newton step of block_barrier (L optimised: Woodbury + Sherman–Morrison + δ Schur complement)
+    against the dense Hessian of f_t assembled from finite differences of its gradient."""
+    from unfalsify.solvers.block_barrier import _BlockBarrier
+
+    u, y, i, sigma = _mimo_data(2, 2, 1, i=2, j=20)
+    f = uf.SubspaceProblem.from_data(u, y, i, sigma).column_form(scaled=True)
+    s = _BlockBarrier(f, tol=1e-6, time_limit=None, progress=False)
+    p = s.start()
+    t = 3.0
+
+    def grad(x):
+        H, d = x[:-1].reshape(s.p, s.j), x[-1]
+        q = s._point(H, d)
+        im = s.i * s.m
+        from unfalsify.solvers.block_barrier import _block_adjoint_stack
+
+        gh = -2.0 * _block_adjoint_stack(q.S[:, im:, :im], s.i, s.l, s.m) - 2.0 * s.wn * s._apply_T(q.r) / q.psi
+        return np.r_[gh.ravel(), t - np.trace(q.S, axis1=1, axis2=2).sum()]
+
+    x0 = np.r_[p.H.ravel(), p.d]
+    g0 = grad(x0)
+    eps = 1e-6
+    Hess = np.column_stack([(grad(x0 + eps * e) - grad(x0 - eps * e)) / (2 * eps) for e in np.eye(x0.size)])
+    step = -np.linalg.solve(0.5 * (Hess + Hess.T), g0)
+    dH, dlt, _ = s._newton(t, p)
+    np.testing.assert_allclose(np.r_[dH.ravel(), dlt], step, rtol=1e-4, atol=1e-6 * np.abs(step).max())
