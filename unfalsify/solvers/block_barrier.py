@@ -71,23 +71,32 @@ def _barrier_hessian(S: np.ndarray, i: int, l: int, m: int) -> np.ndarray:
         tr(S12 T_a S12 T_b)   = Σ_{q,s} R[q+d, α, s, δ] R[s+e, γ, q, β]
         tr(S11 T_aᵀ S22 T_b)  = Σ_{q,s} A11[s, δ, q, β] A22[q+d, α, s+e, γ]
 
-    for a = (d, α, β), b = (e, γ, δ) (q < i − d, s < i − e).
+    for a = (d, α, β), b = (e, γ, δ) (q < i − d, s < i − e): zero-padded shifted stacks make each a
+    batched matrix product over (q, s).
     """
     j = S.shape[0]
     im = i * m
     R = S[:, im:, :im].reshape(j, i, l, i, m)
     A11 = S[:, :im, :im].reshape(j, i, m, i, m)
     A22 = S[:, im:, im:].reshape(j, i, l, i, l)
-    G = np.empty((j, i, l, m, i, l, m))  # (k, d, α, β, e, γ, δ)
+    # zero padding past i makes the ranges q < i − d, s < i − e automatic: each term is a batched matrix
+    # product over (q, s) per column
+    Rp = np.zeros((j, 2 * i, l, i, m))
+    Rp[:, :i] = R
+    Rd = np.stack([Rp[:, d:d + i] for d in range(i)], axis=1)  # (k, d, q, α, s, δ) = R[q+d, α, s, δ]
+    left = Rd.transpose(0, 1, 3, 5, 2, 4).reshape(j, i * l * m, i * i)  # rows (d, α, δ), columns (q, s)
+    right = Rd.transpose(0, 4, 2, 1, 3, 5).reshape(j, i * i, i * l * m)  # rows (q, s), columns (e, γ, β)
+    G = (left @ right).reshape(j, i, l, m, i, l, m).transpose(0, 1, 2, 6, 4, 5, 3)  # (k, d, α, β, e, γ, δ)
+    G = np.ascontiguousarray(G)
+    A22p = np.zeros((j, 2 * i, l, 2 * i, l))
+    A22p[:, :i, :, :i] = A22
+    M1 = A11.transpose(0, 4, 2, 3, 1).reshape(j, m * m, i * i)  # rows (β, δ), columns (q, s)
     for d in range(i):
-        nq = i - d
-        for e in range(i):
-            ns = i - e
-            t1 = np.einsum("kqasD,ksgqb->kabgD", R[:, d:, :, :ns], R[:, e:, :, :nq], optimize=True)
-            t2 = np.einsum("ksDqb,kqasg->kabgD", A11[:, :ns, :, :nq], A22[:, d:, :, e:], optimize=True)
-            G[:, d, :, :, e] = 2.0 * (t1 + t2)
+        Xe = np.stack([A22p[:, d:d + i, :, e:e + i] for e in range(i)], axis=1)  # (k, e, q, α, s, γ)
+        M2 = Xe.transpose(0, 2, 4, 1, 3, 5).reshape(j, i * i, i * l * l)  # rows (q, s), columns (e, α, γ)
+        G[:, d] += (M1 @ M2).reshape(j, m, m, i, l, l).transpose(0, 4, 1, 3, 5, 2)  # (k, α, β, e, γ, δ)
     p = i * l * m
-    return G.reshape(j, p, p)
+    return 2.0 * G.reshape(j, p, p)
 
 
 def _column_operators(form: BlockColumnForm) -> np.ndarray:
