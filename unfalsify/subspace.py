@@ -380,7 +380,8 @@ def subspace_unfalsify(
         Structured backend: threads over the column stack (default ``None``: every core,
         ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the
         threads do not compete with BLAS's own; the result equals the one-thread solve up to the
-        order of floating-point sums.
+        order of floating-point sums.  One channel only: the solver for several channels
+        (``block_barrier``) runs on one thread and ignores it.
 
     Returns
     -------

@@ -20,8 +20,9 @@ with the noise weight ``w = √(Nj)`` (barrier parameter ν = Nj + w).  Structur
 * the Newton system: block diagonal (p × p per column: the barrier plus ``c M_kᵀM_k``,
   c = 2w/ψ, ``M_k h = T(h) u_k``), the rank-one noise term by Sherman–Morrison and, with L optimised,
   the coupling ``−c 𝓤ᵀ𝓤`` (``𝓤 dH = (𝓜 dH) Q``) by Woodbury with the dense capacitance
-  ``Σ_k q_k q_kᵀ ⊗ (c⁻¹I − M_k D_k⁻¹ M_kᵀ)`` (size il·r, r = rank A: fine to (i, j) = (10, 200) for
-  2 × 2 data, the reason the SISO solver's CG machinery exists at larger sizes);
+  ``Σ_k q_k q_kᵀ ⊗ (c⁻¹I − M_k D_k⁻¹ M_kᵀ)`` (size il·r, r = rank A; measured on 2 × 2 data: (10, 200)
+  certified in 11 s, (20, 400) in 341 s with 1.1 GB, the capacitance's Cholesky dominating — the SISO
+  solver's conjugate gradients on it are the way to larger sizes);
 * the dual point of the Newton-linearised centrality conditions (``W_k = −2 (S_k)21 / t`` on the
   central path, :func:`~unfalsify.solvers.barrier.linearised_dual`), bounded by
   :meth:`BlockColumnForm.lower_bound` (which repairs it into an exact dual point): the stopping rule
