@@ -17,6 +17,7 @@ def test_bench_unfalsify_quick(tmp_path):
     assert data["quick"] is True
     forms = {(s["kind"], s["form"], s["eliminate_L"]) for s in summary["series"]}
     assert ("arx", "thesis", False) in forms and ("subspace", "conditioned", True) in forms
+    assert any("2×2" in s["series"] for s in summary["series"])  # the MIMO row (issue 28)
     for s in summary["series"]:
         assert s["largest_within_budget"] == s["rows"][-1]["size"]
         for r in s["rows"]:

@@ -37,7 +37,8 @@ def _subspace(fixed):
 
 def test_backend_and_method_resolve_to_registered_solvers():
     assert uf.SOLVERS is solvers.SOLVERS
-    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "bracket", "column_barrier", "split"}
+    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "bracket", "column_barrier",
+                                   "block_barrier", "split"}
     assert solvers.resolve("arx", "cvxpy") == solvers.resolve("subspace", "cvxpy") == "cvxpy"
     assert solvers.resolve("arx", "structured") == "arx_barrier"
     assert solvers.resolve("arx", "structured", "bracket") == "bracket"
@@ -56,7 +57,7 @@ def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
         solvers.resolve("subspace", "structured", "bracket")
     with pytest.raises(uf.UnknownSolverError, match="'arx_barrier'"):
         solvers.run("nope", _arx())
-    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'column_barrier', 'split'"):
+    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'column_barrier', 'block_barrier', 'split'"):
         solvers.run("arx_barrier", _subspace(fixed=True))
 
 

@@ -136,7 +136,7 @@ def test_zero_first_input_in_a_column_raises():
         (np.ones(20), np.ones(20), 11, 0.1),  # too few samples
         (np.ones(20), np.ones(20), 0, 0.1),
         (np.ones(20), np.ones(20), 3, 0.0),
-        (np.ones((20, 2)), np.ones(20), 3, 0.1),
+        (np.ones((2, 20)), np.ones(20), 3, 0.1),  # time along axis 1 (several channels are accepted since issue 28)
     ],
 )
 def test_bad_input_raises(u, y, i, sigma):

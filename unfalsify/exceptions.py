@@ -20,7 +20,8 @@ class UnfalsificationError(ValueError):
 
 
 class UnknownSolverError(ValueError):
-    """A ``backend=``, ``method=`` or solver name that the solver registry does not know.
+    """A ``backend=``, ``method=`` or solver name that the solver registry does not know, or a solver
+    that does not take the problem (another program, or several channels: the message names the fix).
 
     The message lists the valid names (:data:`unfalsify.solvers.SOLVERS` and the aliases).
     """

@@ -1,4 +1,4 @@
-"""Theorem 7.1: the smallest H∞ gain of a causal LTI operator that explains SISO data.
+"""Theorem 7.1: the smallest H∞ gain of a causal LTI operator that explains input/output data.
 
 Data ``(u, y)`` of length n are explained by some LTI ``Δ`` with ``‖Δ‖∞ ≤ γ`` (system at
 rest before t = 0) iff (7.1) ``T(y)ᵀT(y) ⪯ γ² T(u)ᵀT(u)``.  When ``u₀ ≠ 0``, ``T(u)`` is
@@ -11,6 +11,25 @@ causal operator that maps u to y on the window).  (7.1) is then ``T(h)ᵀT(h) �
 which by Carathéodory–Fejér is also the smallest H∞ norm of any causal LTI system with
 Markov parameters h.  This never forms ``T(u)ᵀT(u)`` (whose condition number is
 ``cond(T(u))²``).
+
+Several channels (u: (n, m), y: (n, l), time along axis 0).  The data relation
+``y_s = Σ_{t≤s} h_t u_{s−t}`` is linear in the l × m Markov parameters h, and the least H∞ norm of a
+causal LTI Δ with first n Markov parameters h is ``‖T(h)‖₂`` (T(h) the nl × nm block lower-triangular
+Toeplitz matrix; matrix Carathéodory–Fejér), so Theorem 7.1 becomes ``γ_min = min ‖T(h)‖₂`` subject to
+the data relation.  In block-Toeplitz form the relation is ``T(y) = T(h) T(u)`` with the signal
+matrices ``T(u)`` (nm × n) and ``T(y)`` (nl × n) of :func:`~unfalsify.solvers.toeplitz.signal_toeplitz`,
+and (7.1) keeps its form, ``T(y)ᵀT(y) ⪯ γ² T(u)ᵀT(u)`` (Poolla et al. 1994, time-domain model
+validation, which holds for several channels).  With ``T(u) = QR`` (thin QR, R n × n invertible when
+``u₀ ≠ 0``) that is
+
+    γ_min = ‖T(y) R⁻¹‖₂,
+
+computed without forming the Gram matrix.  For one input (m = 1) T(u) is square, h is unique
+(``h = T(u)⁻¹ y``, one deconvolution per output) and γ_min = ‖T(h)‖₂ as for SISO; for m > 1 many h
+explain the data and only γ_min is returned (``impulse`` is None).  Necessity is one line: any
+feasible h gives ``T(y)ᵀT(y) = T(u)ᵀT(h)ᵀT(h)T(u) ⪯ ‖T(h)‖₂² T(u)ᵀT(u)``; sufficiency is the
+commutant-lifting step of Poolla et al., checked in ``tests/test_unfalsify_mimo.py`` against the
+semidefinite program ``min ‖T(h)‖₂`` written out in cvxpy.
 """
 from __future__ import annotations
 
@@ -18,13 +37,16 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from synthesis import DataError
 from synthesis.results import result
 
-from ._common import COND_WARN, siso_signal
+from synthesis.validation import as_signal
+
+from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
-from .solvers.toeplitz import deconvolve, toeplitz_cond, toeplitz_norm
+from .solvers.toeplitz import block_toeplitz_norm, deconvolve, signal_toeplitz, toeplitz_cond, toeplitz_norm
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
 
@@ -38,18 +60,19 @@ class GainResult:
     ----------
     gamma : float
         Smallest γ satisfying (7.1), ``‖T(h)‖₂``.
-    impulse : ndarray, shape (n,)
-        ``h = T(u)⁻¹ y``: Markov parameters of the causal operator mapping u to y.
+    impulse : ndarray or None
+        ``h = T(u)⁻¹ y``: Markov parameters of the causal operator mapping u to y; shape (n,) for SISO,
+        (n, l, 1) for one input and l outputs, None for several inputs (h is not unique then).
     cond_Tu : float
-        2-norm condition number of ``T(u)``; above :data:`COND_WARN` the answer is flagged.
+        2-norm condition number of ``T(u)`` (nm × n for m inputs); above :data:`COND_WARN` the answer is flagged.
     exact : bool
         Whether ``h`` was computed in exact rational arithmetic.
     method : str
-        How ``‖T(h)‖₂`` was computed (``"dense"`` or ``"lanczos"``).
+        How ``‖T(h)‖₂`` was computed (``"dense"`` or ``"lanczos"``; ``"qr"``: ``‖T(y)R⁻¹‖₂`` for m > 1).
     """
 
     gamma: float
-    impulse: np.ndarray
+    impulse: np.ndarray | None
     cond_Tu: float
     exact: bool
     method: str
@@ -61,9 +84,10 @@ class GainResult:
 
 
 def _checked_pair(u, y) -> tuple[np.ndarray, np.ndarray]:
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
-    if u[0] == 0.0:
+    """``(u, y)`` as (n, m) and (n, l) float arrays (time along axis 0), ``u[0] ≠ 0``."""
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])
+    if not np.any(u[0] != 0.0):
         raise DataError(
             "u[0] == 0: T(u) is singular, so Theorem 7.1 cannot be applied as stated (if y[0] != 0 no "
             "causal Δ explains the data at all). If the system was at rest and the input starts later, "
@@ -77,37 +101,92 @@ def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "a
 
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO input/output data, system at rest before t = 0.
+    u : array_like, shape (n,) or (n, m)
+    y : array_like, shape (n,) or (n, l)
+        Input/output data, time along axis 0, system at rest before t = 0.  One channel each is the
+        SISO Theorem 7.1; several channels see the module docstring (γ = ‖T(y)R⁻¹‖₂ for m > 1).
     exact : bool, optional
-        Compute ``h = T(u)⁻¹ y`` in exact rational arithmetic (default: when n ≤ 400).
+        One input: compute ``h = T(u)⁻¹ y`` in exact rational arithmetic (default: when n ≤ 400).
         Forward substitution in floating point is usually accurate too (triangular
-        systems are), but the exact route needs no such argument.
+        systems are), but the exact route needs no such argument.  Ignored for m > 1.
     method : {"auto", "dense", "lanczos"}
-        How ``‖T(h)‖₂`` is computed, see :func:`unfalsify.toeplitz_norm`.
+        How ``‖T(h)‖₂`` is computed (one input), see :func:`unfalsify.toeplitz_norm`.
     warn : bool
         Emit :class:`IllConditionedWarning` when ``cond T(u) > COND_WARN`` (1e8).
 
     Raises
     ------
     DataError
-        On NaN/inf, length mismatch, more than one channel, or ``u[0] == 0``.
+        On NaN/inf, length mismatch, time along axis 1 (the message names ``u.T``), or ``u[0] == 0``.
+
+    Examples
+    --------
+    Two inputs, two outputs: y = D u for a constant D is explained by the static Δ = D, whose H∞ norm
+    is the largest singular value of D:
+
+    >>> import numpy as np
+    >>> import unfalsify as uf
+    >>> u = np.random.default_rng(0).standard_normal((40, 2))
+    >>> D = np.array([[1.0, 2.0], [0.0, 1.0]])
+    >>> r = uf.unfalsified_gain_result(u, u @ D.T)
+    >>> bool(np.isclose(r.gamma, np.linalg.norm(D, 2))), r.impulse is None, r.method
+    (True, True, 'qr')
     """
     u, y = _checked_pair(u, y)
+    if u.shape[1] == 1 and y.shape[1] == 1:
+        return _siso_result(u[:, 0].copy(), y[:, 0].copy(), exact, method, warn)
+    return _mimo_result(u, y, exact, method, warn)
+
+
+def _warn_cond(cond: float) -> None:
+    if not cond <= COND_WARN:
+        warnings.warn(
+            f"cond T(u) = {cond:.3g} > {COND_WARN:.0e}: T(u)ᵀT(u) is numerically singular and the "
+            "unfalsified gain is dominated by the unstable inverse of u(q); it may change completely under "
+            "data perturbations far below sensor resolution (use shorter records or a minimum-phase input)",
+            IllConditionedWarning,
+            stacklevel=4,
+        )
+
+
+def _mimo_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -> GainResult:
+    """Several channels: h per output by deconvolution (m = 1), or ``‖T(y)R⁻¹‖₂`` (m > 1)."""
+    n, m = u.shape
+    if m == 1:
+        if exact is None:
+            exact = n <= 400
+        with np.errstate(over="ignore", invalid="ignore"):
+            h = np.stack([deconvolve(u[:, 0], y[:, a], exact=exact) for a in range(y.shape[1])], axis=1)[:, :, None]
+        cond = toeplitz_cond(u[:, 0])
+        if warn:
+            _warn_cond(cond)
+        if not np.all(np.isfinite(h)):
+            return GainResult(gamma=float("inf"), impulse=h, cond_Tu=cond, exact=bool(exact), method="overflow")
+        used = method if method != "auto" else ("dense" if n * y.shape[1] <= 400 else "lanczos")
+        return GainResult(gamma=block_toeplitz_norm(h, method=used), impulse=h, cond_Tu=cond, exact=bool(exact),
+                          method=used)
+    Tu = signal_toeplitz(u)
+    s = np.linalg.svd(Tu, compute_uv=False)
+    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    if warn:
+        _warn_cond(cond)
+    R = np.linalg.qr(Tu, mode="r")
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        X = scipy.linalg.solve_triangular(R, signal_toeplitz(y).T, trans="T", lower=False).T  # T(y) R⁻¹
+    gamma = float(np.linalg.norm(X, 2)) if np.all(np.isfinite(X)) else float("inf")
+    return GainResult(gamma=gamma, impulse=None, cond_Tu=cond, exact=False, method="qr")
+
+
+def _siso_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -> GainResult:
+    """The SISO Theorem 7.1 (unchanged)."""
     n = u.size
     if exact is None:
         exact = n <= 400
     with np.errstate(over="ignore", invalid="ignore"):
         h = deconvolve(u, y, exact=exact)
     cond = toeplitz_cond(u)
-    if warn and not cond <= COND_WARN:
-        warnings.warn(
-            f"cond T(u) = {cond:.3g} > {COND_WARN:.0e}: T(u)ᵀT(u) is numerically singular and the "
-            "unfalsified gain is dominated by the unstable inverse of u(q); it may change completely under "
-            "data perturbations far below sensor resolution (use shorter records or a minimum-phase input)",
-            IllConditionedWarning,
-            stacklevel=2,
-        )
+    if warn:
+        _warn_cond(cond)
     if not np.all(np.isfinite(h)):
         gamma = float("inf")
         used = "overflow"

@@ -1,4 +1,4 @@
-"""Subspace uncertainty-model unfalsification, thesis §7.3 and program (7.5) (SISO).
+"""Subspace uncertainty-model unfalsification, thesis §7.3 and program (7.5), for one or several channels.
 
 Error model: ``Y_f − [L_w L_u][W_p; U_f] = E = Ξ + Δ̄(q) U_f``, where ``Δ̄`` is a set of j
 causal LTI operators, operator k acting on column k of ``U_f`` (system at rest at the
@@ -20,6 +20,20 @@ start of each column), and ``(1/(ij))‖Ξ‖_F² ≤ σ²``.  The smallest comm
 
 Layout follows :class:`synthesis.Predictor`: ``W_p = [U_p; Y_p]``, ``L_w`` is ``i × 2i`` and
 ``L_u`` is ``i × i`` (SISO); column k of ``U_f`` is ``[u_{i+k} … u_{2i−1+k}]`` (0-based k).
+
+Several channels (u: (n, m), y: (n, l), time along axis 0; issue 28).  ``U_f`` is im × j and ``Y_f`` is
+il × j (block Hankel, the samples of column k stacked), ``L_w`` is ``il × i(m + l)`` and ``L_u`` is
+``il × im``.  Δ̄ is a set of j causal LTI operators with l outputs and m inputs, operator k acting on
+column k of ``U_f``; its first i Markov parameters ``h_k`` (i, l, m) give ``(E − Ξ)_{:,k} = T(h_k) (U_f)_{:,k}``
+with the il × im block lower-triangular Toeplitz matrix ``T(h_k)``, whose spectral norm is the least
+H∞ norm of such an operator (matrix Carathéodory–Fejér).  The program is (C) of
+:class:`~unfalsify.solvers.columns.BlockColumnForm`: ``‖T(h_k)‖₂ ≤ δ`` for every k and
+``‖Ξ‖_F ≤ σ√(ilj)`` (the rms budget σ over all il·j noise entries); its dual (lower) bound is derived
+there.  The reparametrisation is exact when the first sample of every column, the vector ``u_{i+k}``,
+is not zero (the data relation is then solvable for h_k).  Several channels take ``form="conditioned"``
+on both backends: cvxpy (the reference model) and ``backend="structured"``, which is the solver
+``block_barrier`` there (:mod:`unfalsify.solvers.block_barrier`); ``executor=`` (the split solver) is
+SISO only and names ``backend="cvxpy"``.  With one channel each the SISO code runs unchanged.
 """
 from __future__ import annotations
 
@@ -32,13 +46,14 @@ import numpy as np
 
 from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
-from synthesis.validation import check_horizon
+from synthesis.validation import as_signal, check_horizon
 
-from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one, siso_signal
+from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one
 from .exceptions import IllConditionedWarning
 from .solvers import check_workers, resolve, run
-from .solvers.columns import ColumnForm
-from .solvers.toeplitz import conv_cols, toeplitz_cond, toeplitz_norm
+from .solvers.columns import BlockColumnForm, ColumnForm
+from .solvers.toeplitz import (block_conv_cols, block_toeplitz_norm, conv_cols, signal_toeplitz, toeplitz_cond,
+                               toeplitz_norm)
 
 __all__ = ["SubspaceProblem", "SubspaceResult", "subspace_unfalsify", "subspace_data"]
 
@@ -54,12 +69,14 @@ class SubspaceResult:
         δ_unf (NaN if the solve failed).
     Lw : ndarray, shape (i, 2i)
     Lu : ndarray, shape (i, i)
-        Predictor of the unfalsified model, same layout as :class:`synthesis.Predictor`.
+        Predictor of the unfalsified model, same layout as :class:`synthesis.Predictor`
+        (m inputs, l outputs: ``il × i(m + l)`` and ``il × im``).
     noise : ndarray, shape (i, j)
-        Ξ.
+        Ξ (il × j).
     impulses : ndarray, shape (i, j)
         Column k is h_k, the first i Markov parameters of Δ_k:
-        ``(E − Ξ)_{:,k} = T((U_f)_{:,k}) h_k``.
+        ``(E − Ξ)_{:,k} = T((U_f)_{:,k}) h_k``.  Several channels: shape (i, l, m, j),
+        ``impulses[..., k]`` the l × m Markov parameters of Δ_k.
     status : str
     solve_time : float
         Wall time of ``problem.solve`` (includes cvxpy compilation).
@@ -103,6 +120,8 @@ class SubspaceResult:
     scale: tuple
     regressor_singular_values: np.ndarray
     backend: str = "cvxpy"
+    n_inputs: int = 1
+    n_outputs: int = 1
 
     @property
     def max_violation(self) -> float:
@@ -118,8 +137,8 @@ class SubspaceResult:
             Lw=self.Lw,
             Lu=self.Lu,
             horizon=self.horizon,
-            m=1,
-            l=1,
+            m=self.n_inputs,
+            l=self.n_outputs,
             n_columns=self.n_columns,
             singular_values=s,
             rank=int(np.count_nonzero(s > tol)),
@@ -128,11 +147,23 @@ class SubspaceResult:
 
 
 def subspace_data(u, y, horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(A, U_f, Y_f)`` with ``A = [U_p; Y_p; U_f]`` (3i × j), SISO, j = n − 2i + 1 (§2.1)."""
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
-    i = check_horizon(horizon, u.size)
-    j = u.size - 2 * i + 1
+    """``(A, U_f, Y_f)`` with ``A = [U_p; Y_p; U_f]`` (3i × j for SISO), j = n − 2i + 1 (§2.1).
+
+    u (n, m) and y (n, l), time along axis 0 (1-D: one channel): ``A`` is ``i(2m + l) × j``, ``U_f`` is
+    ``im × j`` and ``Y_f`` is ``il × j`` (block Hankel, :func:`synthesis.block_hankel`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import unfalsify as uf
+    >>> A, Uf, Yf = uf.subspace_data(np.ones((30, 2)), np.ones((30, 3)), 4)
+    >>> A.shape, Uf.shape, Yf.shape
+    ((28, 23), (8, 23), (12, 23))
+    """
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])
+    i = check_horizon(horizon, u.shape[0])
+    j = u.shape[0] - 2 * i + 1
     Up = block_hankel(u, i, j, 0)
     Yp = block_hankel(y, i, j, 0)
     Uf = block_hankel(u, i, j, i)
@@ -159,6 +190,8 @@ class SubspaceProblem:
     A: np.ndarray
     Uf: np.ndarray
     Yf: np.ndarray
+    n_inputs: int = 1
+    n_outputs: int = 1
     #: which program the solvers see (:data:`unfalsify.solvers.PROGRAMS`)
     program: ClassVar[str] = "subspace"
 
@@ -169,33 +202,47 @@ class SubspaceProblem:
 
     @property
     def n_noise(self) -> int:
-        """Number of noise samples ``ij`` the budget ``σ√(ij)`` covers."""
-        return int(self.horizon * self.n_columns)
+        """Number of noise samples ``ilj`` the budget ``σ√(ilj)`` covers (``ij`` for SISO)."""
+        return int(self.horizon * self.n_outputs * self.n_columns)
+
+    @property
+    def siso(self) -> bool:
+        """One input and one output (the SISO code paths)."""
+        return self.n_inputs == 1 and self.n_outputs == 1
 
     @classmethod
     def from_data(cls, u, y, horizon, sigma, predictor=None) -> "SubspaceProblem":
-        """Validate (raises :class:`DataError`) and scale."""
-        u = siso_signal(u, "u")
-        y = siso_signal(y, "y", n=u.size)
+        """Validate (raises :class:`DataError`) and scale; u (n, m), y (n, l), time along axis 0."""
+        u = as_signal(u, "u")
+        y = as_signal(y, "y", n=u.shape[0])
+        m, l = u.shape[1], y.shape[1]
+        if m == 1 and l == 1:  # SISO: 1-D signals, as before several channels were accepted
+            u, y = u[:, 0].copy(), y[:, 0].copy()
         sigma = check_sigma(sigma)
         A, Uf, Yf = subspace_data(u, y, horizon)
-        i, j = Uf.shape
-        zero_cols = np.flatnonzero(Uf[0] == 0.0)
+        i, j = Uf.shape[0] // m, Uf.shape[1]
+        zero_cols = np.flatnonzero(np.all(Uf[:m] == 0.0, axis=0))
         if zero_cols.size:
             raise DataError(
                 f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
                 f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
-                "samples (e.g. a ±1 PRBS)"
+                "samples (e.g. a ±1 PRBS on every channel)"
             )
         L_fixed = None
         if predictor is not None:
             L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
-            if int(predictor.horizon) != i or L_fixed.shape != (i, 3 * i) or not np.all(np.isfinite(L_fixed)):
+            if int(predictor.horizon) != i or L_fixed.shape != (i * l, i * (2 * m + l)) or not np.all(
+                    np.isfinite(L_fixed)):
                 raise DataError(
-                    f"predictor must be a finite SISO predictor of horizon {i} (Lw {i}×{2 * i}, Lu {i}×{i}); "
-                    f"got horizon {predictor.horizon}, [Lw Lu] of shape {L_fixed.shape}"
+                    f"predictor must be a finite predictor of horizon {i} for {m} input(s) and {l} output(s) "
+                    f"(Lw {i * l}×{i * (m + l)}, Lu {i * l}×{i * m}); got horizon {predictor.horizon}, [Lw Lu] of "
+                    f"shape {L_fixed.shape} (fit it on the same data: synthesis.fit_predictor(u, y, {i}))"
                 )
-        cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
+        if m == 1:
+            cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
+        else:
+            sv = [np.linalg.svd(signal_toeplitz(Uf[:, k].reshape(i, m)), compute_uv=False) for k in range(j)]
+            cond = max(float(s[0] / s[-1]) if s[-1] > 0 else float("inf") for s in sv)
         # u to unit rms; y so that the residual of the predictor (least squares, or the fixed one)
         # has unit rms: that is the error the program splits between Ξ and Δ̄U_f
         su = rms_or_one(u)
@@ -204,21 +251,33 @@ class SubspaceProblem:
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
         return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
-                   A=A, Uf=Uf, Yf=Yf)
+                   A=A, Uf=Uf, Yf=Yf, n_inputs=m, n_outputs=l)
 
     def scaled_A(self) -> np.ndarray:
         """``A`` with rows scaled as the data (``u/s_u``, ``y/s_y``)."""
         i = self.horizon
         su, sy = self.scale
         As = self.A.copy()
+        if not self.siso:
+            im, il = i * self.n_inputs, i * self.n_outputs
+            As[:im] /= su
+            As[im : im + il] /= sy
+            As[im + il :] /= su
+            return As
         As[:i] /= su
         As[i : 2 * i] /= sy
         As[2 * i :] /= su
         return As
 
+    def _conv(self, H) -> np.ndarray:
+        """``H̃``: column k is ``T(h_k) (U_f)_{:,k}`` (SISO: ``conv_cols``)."""
+        return conv_cols(self.Uf, H) if self.siso else block_conv_cols(self.Uf, H, self.n_inputs)
+
     def column_form(self, scaled: bool = True) -> ColumnForm:
         """(7.5) as the column form (C) (𝓛 = {L A}, or {0} with the predictor fixed)."""
         su, sy = self.scale if scaled else (1.0, 1.0)
+        if not self.siso:
+            return self._block_form(su, sy, scaled)
         i, j = self.Uf.shape
         rho = self.sigma / sy * np.sqrt(i * j)
         if self.L_fixed is not None:
@@ -228,12 +287,26 @@ class SubspaceProblem:
         rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
         return ColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T)
 
+    def _block_form(self, su, sy, scaled) -> BlockColumnForm:
+        rho = self.sigma / sy * np.sqrt(self.n_noise)
+        kw = dict(n_inputs=self.n_inputs, n_outputs=self.n_outputs)
+        if self.L_fixed is not None:
+            return BlockColumnForm(self.Uf / su, (self.Yf - self.L_fixed @ self.A) / sy, rho, **kw)
+        As = self.scaled_A() if scaled else self.A
+        Vt, sv = np.linalg.svd(As, full_matrices=False)[2], np.linalg.svd(As, compute_uv=False)
+        rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
+        return BlockColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T, **kw)
+
     def evaluate_primal(self, H, L) -> tuple[float, float]:
         """``(max_k ‖T(h_k)‖₂, ‖Y_f − L A − H̃‖_F)`` recomputed from the data."""
         H = np.asarray(H, float)
         L = np.asarray(L, float)
         if not (np.all(np.isfinite(H)) and np.all(np.isfinite(L))):
             return float("inf"), float("nan")
+        if not self.siso:
+            Xi = self.Yf - L @ self.A - self._conv(H)
+            d = max(block_toeplitz_norm(H[..., k]) for k in range(H.shape[-1]))
+            return float(d), float(np.linalg.norm(Xi))
         Xi = self.Yf - L @ self.A - conv_cols(self.Uf, H)
         d = max(toeplitz_norm(H[:, k]) for k in range(H.shape[1]))
         return float(d), float(np.linalg.norm(Xi))
@@ -242,11 +315,13 @@ class SubspaceProblem:
         """``[L_w L_u]`` the impulses H leave (data units): the fixed predictor, or the least-squares fit."""
         if self.L_fixed is not None:
             return self.L_fixed.copy()
-        return np.linalg.lstsq(self.A.T, (self.Yf - conv_cols(self.Uf, H)).T, rcond=None)[0].T
+        return np.linalg.lstsq(self.A.T, (self.Yf - self._conv(H)).T, rcond=None)[0].T
 
     def evaluate_dual(self, V, W, sigma=None) -> float:
         """The weak-duality lower bound of :class:`Certificate` for any ``V`` (i, j) and ``W``."""
         sigma = self.sigma if sigma is None else float(sigma)
+        if not self.siso:
+            return self.column_form(scaled=False).lower_bound(V, W, rho=sigma * np.sqrt(self.n_noise))
         return self.column_form(scaled=False).lower_bound(V, W, rho=sigma * np.sqrt(self.Uf.size))
 
 
@@ -272,8 +347,10 @@ def subspace_unfalsify(
 
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO data; ``j = n − 2i + 1`` columns.
+    u : array_like, shape (n,) or (n, m)
+    y : array_like, shape (n,) or (n, l)
+        Data, time along axis 0; ``j = n − 2i + 1`` columns.  Several channels: see the module
+        docstring (cvxpy backend, conditioned form).
     horizon : int
         The prediction horizon i.
     sigma : float
@@ -284,13 +361,13 @@ def subspace_unfalsify(
         cvxpy conditioned form: eliminate ``[L_w L_u]`` analytically.  (The structured backend
         always eliminates L by projection.)
     predictor : synthesis.Predictor, optional
-        Fix ``[L_w L_u]`` to a given SISO predictor of horizon i and compute the δ of that model:
+        Fix ``[L_w L_u]`` to a given predictor of horizon i (the data's channels) and compute the δ of that model:
         (7.5) with L a constant.  Default: L is optimised jointly, as in the thesis.
     solver, solver_options
         cvxpy backend: solver (passed explicitly) and extra ``Problem.solve`` arguments.
     backend : {"cvxpy", "structured"}
         See :func:`unfalsify.arx_unfalsify`; ``"structured"`` is the solver ``"column_barrier"`` of
-        :mod:`unfalsify.solvers`.
+        :mod:`unfalsify.solvers` (``"block_barrier"`` for several channels).
     tol, time_limit, progress
         Structured backend, as for :func:`unfalsify.arx_unfalsify`.
     executor : concurrent.futures.Executor, optional
@@ -303,7 +380,8 @@ def subspace_unfalsify(
         Structured backend: threads over the column stack (default ``None``: every core,
         ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the
         threads do not compete with BLAS's own; the result equals the one-thread solve up to the
-        order of floating-point sums.
+        order of floating-point sums.  One channel only: the solver for several channels
+        (``block_barrier``) runs on one thread and ignores it.
 
     Returns
     -------
@@ -313,12 +391,13 @@ def subspace_unfalsify(
     Raises
     ------
     DataError
-        NaN/inf, lengths, MIMO, bad horizon / too few samples, σ ≤ 0, or a column of ``U_f``
-        whose first entry ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
+        NaN/inf, lengths, time along axis 1 (the message names ``u.T``), bad horizon / too few samples,
+        σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
     UnknownSolverError
-        Unknown backend (a ``ValueError``; the message lists the valid names).
+        Unknown backend (a ``ValueError``; the message lists the valid names), or several channels with
+        ``executor=`` (the message names ``backend="cvxpy"``).
     ValueError
-        Unknown form; incompatible options.
+        Unknown form (``form="thesis"`` with several channels); incompatible options.
     UnfalsificationError
         cvxpy: solver failure or infeasible/unbounded status.
 
@@ -337,7 +416,12 @@ def subspace_unfalsify(
         raise ValueError("eliminate_L and a fixed predictor exclude each other")
     workers = check_workers(workers)
     P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
-    i, j = P.Uf.shape
+    i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
+    if not P.siso and form != "conditioned":
+        raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
+                         "form='conditioned'")
+    if not P.siso and name == "column_barrier":
+        name = "block_barrier"  # the structured solver for several channels
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
@@ -355,13 +439,14 @@ def subspace_unfalsify(
     else:
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
     out = run(name, P, **options)
-    cert, delta = certify(P, out, f"subspace unfalsification (i={i}, j={j})")
+    cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
     L = out.params
+    w = i * (m + l)  # columns of L_w
     return SubspaceResult(
         delta=delta,
-        Lw=L[:, : 2 * i].copy(),
-        Lu=L[:, 2 * i :].copy(),
-        noise=P.Yf - L @ P.A - conv_cols(P.Uf, out.impulses),
+        Lw=L[:, :w].copy(),
+        Lu=L[:, w:].copy(),
+        noise=P.Yf - L @ P.A - P._conv(out.impulses),
         impulses=out.impulses,
         status=out.status.value,
         solve_time=out.solve_time,
@@ -376,4 +461,6 @@ def subspace_unfalsify(
         scale=P.scale,
         regressor_singular_values=np.linalg.svd(P.A, compute_uv=False),
         backend=backend,
+        n_inputs=m,
+        n_outputs=l,
     )

@@ -10,7 +10,11 @@ half the least-squares residual rms so that δ > 0):
 
 * ARX (7.4), na = nb = 2, ``form="conditioned"`` and ``form="thesis"``, growing n;
 * subspace (7.5), ``form="conditioned"`` (L optimised, and L eliminated analytically) and
-  ``form="thesis"``, growing j at fixed i.
+  ``form="thesis"``, growing j at fixed i;
+* subspace (7.5) with two inputs and two outputs (issue 28), ``form="conditioned"``, at (i, j) = (10, 200):
+  two servo channels with input coupling ``[[1, 0.3], [0.2, 1]]``, independent PRBS ±1 inputs, the same
+  noise levels (:func:`_mimo_data`).  (20, 400) is a structured row only: Clarabel's child passed 19 GB of
+  resident memory after 3.5 CPU-minutes there and was stopped.
 
 Each solve runs in a child process with a wall-clock budget (120 s; 30 s with ``--quick``);
 a series stops growing at the first solve that exceeds it (recorded as ``timeout``).  Every
@@ -71,6 +75,8 @@ def _structured_series(quick: bool) -> list[dict]:
             dict(name="subspace structured, L fixed", kind="subspace", fixed=True, sizes=[(3, 12), (4, 20)], tol=1e-6),
             dict(name="subspace structured, L optimised", kind="subspace", fixed=False, sizes=[(3, 12), (4, 20)],
                  tol=1e-6),
+            dict(name="subspace structured 2×2, L optimised", kind="subspace", fixed=False, channels=2,
+                 sizes=[(3, 40)], tol=1e-6),
         ]
     return [
         # n = 1000 gets a 30-minute limit (no time target there, only the gap)
@@ -81,6 +87,9 @@ def _structured_series(quick: bool) -> list[dict]:
              sizes=[(10, 200), (20, 400), (50, 500), (100, 1000)], tol=1e-4, limit_s=SUBSPACE_LIMIT_S),
         dict(name="subspace structured, L optimised", kind="subspace", fixed=False,
              sizes=[(10, 200), (20, 400), (50, 500), (100, 1000)], tol=1e-4, limit_s=SUBSPACE_LIMIT_S),
+        # several channels (issue 28): solver block_barrier
+        dict(name="subspace structured 2×2, L optimised", kind="subspace", fixed=False, channels=2,
+             sizes=[(10, 200), (20, 400)], tol=1e-4, limit_s=SUBSPACE_LIMIT_S),
     ]
 
 
@@ -93,6 +102,8 @@ def _series(quick: bool) -> list[dict]:
             dict(name="subspace conditioned, L eliminated, i=3", kind="subspace", form="conditioned", eliminate=True,
                  i=3, sizes=[12, 16]),
             dict(name="subspace thesis i=3", kind="subspace", form="thesis", i=3, sizes=[12, 16]),
+            dict(name="subspace 2×2 conditioned i=3", kind="subspace", form="conditioned", i=3, sizes=[40],
+                 channels=2),  # j > i(2m + l) = 18 regressors: the least-squares residual is not zero
         ]
     return [
         dict(name="ARX conditioned", kind="arx", form="conditioned", sizes=[10, 20, 30, 40, 60, 80, 100, 120]),
@@ -104,6 +115,8 @@ def _series(quick: bool) -> list[dict]:
              sizes=[50, 100, 200, 400]),
         dict(name="subspace thesis i=3", kind="subspace", form="thesis", i=3, sizes=[10, 20, 40, 80, 160]),
         dict(name="subspace thesis i=5", kind="subspace", form="thesis", i=5, sizes=[20, 40, 80, 160]),
+        dict(name="subspace 2×2 conditioned i=10", kind="subspace", form="conditioned", i=10, sizes=[200],
+             channels=2),
     ]
 
 
@@ -111,6 +124,25 @@ def _data(n: int, seed: int):
     from ..lab._servo import servo_data
 
     d = servo_data(n, seed=seed)
+    return d.u, d.y
+
+
+def _mimo_data(n: int, seed: int):
+    """Two inputs, two outputs: two servo channels (§5.4) behind the input coupling ``[[1, 0.3], [0.2, 1]]``,
+    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments._servo.servo_data`."""
+    import control as ct
+
+    from ._servo import SIGMA_PROCESS, SIGMA_SENSOR
+    from .plants import servo
+    from .signals import prbs
+    from .simulate import collect_data
+
+    s1 = servo()
+    plant = ct.append(s1, servo()) * ct.ss([], [], [], np.array([[1.0, 0.3], [0.2, 1.0]]), s1.dt)
+    streams = np.random.SeedSequence(seed).spawn(3)
+    u = np.column_stack([prbs(n, seed=np.random.default_rng(s)) for s in streams[:2]])
+    d = collect_data(plant, u, process_noise=SIGMA_PROCESS, sensor_noise=SIGMA_SENSOR,
+                     seed=np.random.default_rng(streams[2]))
     return d.u, d.y
 
 
@@ -131,7 +163,7 @@ def _solve_one(spec: dict, size: int, seed: int) -> dict:
     else:
         i, j = spec["i"], size
         n = 2 * i + j - 1
-        u, y = _data(n, seed)
+        u, y = _mimo_data(n, seed) if spec.get("channels", 1) > 1 else _data(n, seed)
         A, _, Yf = uf.subspace_data(u, y, i)
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         sigma = 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
@@ -198,7 +230,8 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     else:
         i, j = size
         n = 2 * i + j - 1
-        u, y = _data(n, seed)
+        channels = spec.get("channels", 1)
+        u, y = _mimo_data(n, seed) if channels > 1 else _data(n, seed)
         pred = sy.fit_predictor(u, y, i)
         A, _, Yf = uf.subspace_data(u, y, i)
         sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
@@ -206,7 +239,7 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         res = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred if spec["fixed"] else None,
                                     tol=spec["tol"], time_limit=limit, progress=False)
         wall = time.perf_counter() - t0
-        unknowns = i * j
+        unknowns = i * j * channels**2
     cert = res.certificate
     return {
         "label": _structured_label(spec, size), "size": unknowns, "i": i, "j": j, "n_samples": n,

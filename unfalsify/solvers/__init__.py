@@ -12,8 +12,13 @@ name                what                                                        
 ``arx_barrier``     Cholesky barrier method, certified to a relative gap (O(n²) memory)        arx
 ``bracket``         FFT-only certified bracket, gap reported (O(n) memory, n = 10⁴)             arx
 ``column_barrier``  column barrier method with threads over the columns                        subspace
+``block_barrier``   barrier method for several channels (l × m operators, dense block Hessians)  subspace
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
+
+Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy`` and ``block_barrier`` (:data:`CHANNELS`) take
+them, ``backend="structured"`` resolves to ``block_barrier`` there; the others raise
+:class:`~unfalsify.UnknownSolverError` naming ``backend="cvxpy"``.
 
 Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
 :mod:`~unfalsify.solvers.columns` (the column form every structured solver takes and its dual bound),
@@ -26,14 +31,14 @@ The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`reso
 
 >>> from unfalsify import solvers
 >>> sorted(solvers.SOLVERS)
-['arx_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
+['arx_barrier', 'block_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
 >>> solvers.resolve("arx", "structured", "bracket")
 'bracket'
 """
 from __future__ import annotations
 
 from ..exceptions import UnknownSolverError
-from . import arx_barrier, bracket, column_barrier, cvxpy_models, split
+from . import arx_barrier, block_barrier, bracket, column_barrier, cvxpy_models, split
 from .base import SolverOutput, SolverStatus
 from .column_barrier import check_workers
 
@@ -47,6 +52,7 @@ SOLVERS = {
     "arx_barrier": arx_barrier.solve,
     "bracket": bracket.solve,
     "column_barrier": column_barrier.solve,
+    "block_barrier": block_barrier.solve,
     "split": split.solve,
 }
 
@@ -56,8 +62,12 @@ PROGRAMS = {
     "arx_barrier": ("arx",),
     "bracket": ("arx",),
     "column_barrier": ("subspace",),
+    "block_barrier": ("subspace",),
     "split": ("subspace",),
 }
+
+#: the solvers that take several channels (``problem.siso`` False: u (n, m), y (n, l) with m + l > 2)
+CHANNELS = ("cvxpy", "block_barrier")
 
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")
@@ -107,4 +117,8 @@ def run(name: str, problem, **options) -> SolverOutput:
     if problem.program not in PROGRAMS[name]:
         raise UnknownSolverError(f"solver {name!r} does not solve the {problem.program} program; "
                                  f"use one of {_names(n for n in SOLVERS if problem.program in PROGRAMS[n])}")
+    if not getattr(problem, "siso", True) and name not in CHANNELS:
+        raise UnknownSolverError(
+            f"solver {name!r} solves single-channel data only; for {problem.n_outputs}×{problem.n_inputs} data "
+            "(several inputs or outputs) use backend='cvxpy' or backend='structured' without executor=")
     return SOLVERS[name](problem, **options)

@@ -13,6 +13,7 @@ read a certified bracket off every centred point.  :func:`run_barrier` is that o
   (:func:`stop_status`);
 * a **progress** bar once the solve has run 2 s (:func:`tick_progress`).
 
+The ``advance`` step shared by the column methods is the mix-in :class:`PathAdvance`.
 A method provides ``centre(t, point, deadline) -> (point, step)``, ``upper(point)``,
 ``impulses(point)``, ``dual(t, point, step) -> (V, W)``, ``advance(t, point, step, bounds, deadline)
 -> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.
@@ -37,6 +38,7 @@ __all__ = [
     "linearised_dual",
     "pcg",
     "cholesky_retry",
+    "PathAdvance",
 ]
 
 
@@ -203,3 +205,19 @@ def cholesky_retry(Hm):
             except np.linalg.LinAlgError:
                 pass
         raise
+
+
+class PathAdvance:
+    """The ``advance`` step both column barrier methods share (a mix-in; needs ``stalled``, ``_prev``, ``mu``).
+
+    ``μt`` from the centred point (its first Newton step is the tangent of the central path); a stall (no
+    step possible) that brought no better bound is the end of double precision: status ``"failed"``.
+    """
+
+    def advance(self, t, p, step, bounds, deadline: Deadline):
+        upper, lower = bounds
+        if self.stalled and not (upper < self._prev[0] or lower > self._prev[1]):
+            raise Stop("failed")
+        self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
+        deadline.check()
+        return t * self.mu, p

@@ -59,7 +59,7 @@ import os
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, Stop, linearised_dual, pcg, run_barrier
+from .barrier import Deadline, PathAdvance, Stop, linearised_dual, pcg, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
 from .toeplitz import _tr, adjoint, corr_hessian, ridge_lambda, toeplitz_stack
@@ -290,7 +290,7 @@ _FAR_DECREMENT = 10.0
 _CG_TOL_FAR = 1e-3
 
 
-class _ColumnBarrier:
+class _ColumnBarrier(PathAdvance):
     """The barrier method of the module docstring on a :class:`ColumnForm` with j ≥ 1 columns."""
 
     def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=5.0, max_newton=3000,
@@ -551,16 +551,6 @@ class _ColumnBarrier:
     def dual(self, t, p: _Point, step):
         dh, dlt, _ = step
         return self._dual(t, p, dh, dlt)
-
-    def advance(self, t, p: _Point, step, bounds, deadline: Deadline):
-        """``μt`` from the centred point (its first Newton step is the tangent of the central path); a
-        stall (no step possible) that brought no better bound is the end of double precision."""
-        upper, lower = bounds
-        if self.stalled and not (upper < self._prev[0] or lower > self._prev[1]):
-            raise Stop("failed")
-        self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
-        deadline.check()
-        return t * self.mu, p
 
     def run(self, p: _Point) -> dict:
         deadline = Deadline(self.time_limit)

@@ -38,10 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .toeplitz import (adjoint, adjoint_lowrank, conv_cols, conv_cols_T, nuclear_norm_lowrank,
-                       toeplitz_nuclear_upper)
+from .toeplitz import (adjoint, adjoint_lowrank, block_adjoint, block_conv_cols, block_conv_cols_T,
+                       block_toeplitz_matrix, conv_cols, conv_cols_T, nuclear_norm_lowrank, toeplitz_nuclear_upper)
 
-__all__ = ["ColumnForm", "CirculantDual", "scale_dual"]
+__all__ = ["ColumnForm", "BlockColumnForm", "CirculantDual", "scale_dual"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,3 +170,91 @@ def scale_dual(W, a: float):
     if isinstance(W, tuple):
         return (W[0] * a, W[1])
     return W * a
+
+
+class BlockColumnForm(ColumnForm):
+    """Program (C) of (7.5) for l × m operators Δ_k (several inputs and outputs).
+
+    Column k of the data holds i samples: ``u_k`` (i·m, the column of ``U_f``, samples stacked) and the
+    target ``b_k`` (i·l).  Operator k has Markov parameters ``h_k`` (i, l, m) and acts on its column as
+    ``T(h_k) u_k`` (``T(h_k)`` the il × im block lower-triangular Toeplitz matrix)::
+
+        min δ   s.t.   ‖T(h_k)‖₂ ≤ δ  (k = 0 … j−1),   ‖B − H̃ − X‖_F ≤ ρ  for some X ∈ 𝓛,
+
+    ``H̃ = [T(h_0)u_0 … T(h_{j−1})u_{j−1}]`` (il × j), ρ = σ√(ilj).  By the matrix Carathéodory–Fejér
+    theorem ‖T(h_k)‖₂ is the least H∞ norm (largest singular value over frequency) of a causal LTI
+    operator with those Markov parameters, so δ is the least common bound on ‖Δ_k‖∞ as in the SISO case.
+
+    The lower bound (weak duality), derived as for one channel.  Write ``M_k h = T(h) u_k`` (linear in
+    h) and ``M_k*`` for its adjoint, ``(M_k* v)_t = Σ_{s≥t} v_s u_{k,s−t}ᵀ`` (l × m, v_s the s-th block of
+    v); write ``T*`` for the adjoint of h ↦ T(h), ``T*(W)_d = Σ_s W[block s+d, block s]`` (the d-th block
+    subdiagonal summed; :func:`~unfalsify.solvers.toeplitz.block_adjoint`).  For ANY ``V`` (il × j) and ANY
+    ``W_k`` (il × im):
+
+    1. project V onto 𝓛^⊥, so ``⟨V, X⟩ = 0`` for every X ∈ 𝓛;
+    2. with ``g_k = M_k* v_k`` replace ``W_k`` by ``W_k + T(c_k)``, ``c_{k,d} = (g_{k,d} − T*(W_k)_d)/(i − d)``
+       (``T*(T(c))_d = (i − d) c_d``), so that ``T*(W_k) = g_k`` holds exactly;
+    3. for every feasible (δ, h, X, Ξ = B − H̃ − X):
+       ``⟨v_k, T(h_k)u_k⟩ = ⟨M_k* v_k, h_k⟩ = ⟨T*(W_k), h_k⟩ = ⟨W_k, T(h_k)⟩ ≤ ‖W_k‖_* ‖T(h_k)‖₂ ≤ δ‖W_k‖_*``
+       (the nuclear norm is the dual of the spectral norm), and summing over k,
+       ``Σ_k ⟨v_k, T(h_k)u_k⟩ = ⟨V, H̃⟩ = ⟨V, B⟩ − ⟨V, X⟩ − ⟨V, Ξ⟩ ≥ ⟨V, B⟩ − ρ‖V‖_F``;
+
+    so ``δ ≥ (⟨V, B⟩ − ρ‖V‖_F) / Σ_k ‖W_k‖_*`` (and δ ≥ 0), for any (V, W), exact or not.  The multiplier
+    ``Z ⪰ 0`` of the LMI ``[δI_im T(h)ᵀ; T(h) δI_il] ⪰ 0`` gives ``W = −2 Z21`` (the il × im block).  With
+    l = m = 1 every quantity is that of :class:`ColumnForm` (tested).
+
+    Parameters
+    ----------
+    U : ndarray, shape (i·m, j)
+    B : ndarray, shape (i·l, j)
+    rho : float
+    n_inputs, n_outputs : int
+        m and l.
+    basis_right : ndarray (j, r), optional
+        𝓛 = ``{X Qᵀ}`` (L optimised).
+    """
+
+    def __init__(self, U, B, rho, *, n_inputs: int, n_outputs: int, basis_right=None):
+        super().__init__(U, B, rho, basis_right=basis_right)
+        self.n_in, self.n_out = int(n_inputs), int(n_outputs)
+        self.i = self.U.shape[0] // self.n_in
+        if self.U.shape[0] != self.i * self.n_in or self.B.shape != (self.i * self.n_out, self.j):
+            raise ValueError(f"U ({self.U.shape}) and B ({self.B.shape}) do not hold i samples of "
+                             f"{self.n_in} input(s) and {self.n_out} output(s) per column")
+        self.m = self.B.shape[0]  # the rows of V and B (ColumnForm's m)
+
+    def apply(self, H: np.ndarray) -> np.ndarray:
+        """``H̃``: column k is ``T(h_k) u_k`` (H of shape (i, l, m, j))."""
+        return block_conv_cols(self.U, H, self.n_in)
+
+    def apply_T(self, X: np.ndarray) -> np.ndarray:
+        """Adjoint of :meth:`apply`: ``M_k* x_k`` stacked as (i, l, m, j)."""
+        return block_conv_cols_T(self.U, X, self.n_in)
+
+    def lower_bound(self, V, W, rho: float | None = None) -> float:
+        """The weak-duality bound of the class docstring; ``W`` a dense stack (j, il, im) (or (il, im) for j = 1)."""
+        rho = self.rho if rho is None else float(rho)
+        if W is None:
+            return float("nan")
+        V = np.asarray(V, float).reshape(self.m, self.j, order="F")
+        Ws = np.asarray(W, float)
+        if Ws.ndim == 2:
+            Ws = Ws[None]
+        i, l, m = self.i, self.n_out, self.n_in
+        if Ws.shape != (self.j, i * l, i * m):
+            raise ValueError(f"W must be a stack ({self.j}, {i * l}, {i * m}) of norm multipliers, got {Ws.shape}")
+        if not (np.all(np.isfinite(V)) and np.all(np.isfinite(Ws))):
+            return float("nan")
+        V = self.project(V)
+        num = float(np.sum(V * self.B)) - rho * float(np.linalg.norm(V))
+        if not num > 0.0:
+            return 0.0
+        g = self.apply_T(V)  # (i, l, m, j)
+        scale = (i - np.arange(i))[:, None, None]
+        den = 0.0
+        for k in range(self.j):
+            c = (g[..., k] - block_adjoint(Ws[k], i, l, m)) / scale
+            den += float(np.linalg.svd(Ws[k] + block_toeplitz_matrix(c), compute_uv=False).sum())
+        if not den > 0.0:
+            return 0.0
+        return max(0.0, num / den)

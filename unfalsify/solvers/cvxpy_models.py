@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from ..exceptions import SolverWarning, UnfalsificationError
 from .base import SolverOutput, SolverStatus
-from .toeplitz import adjoint, conv_cols, deconvolve, toeplitz_matrix
+from .toeplitz import adjoint, block_conv_cols, conv_cols, deconvolve, toeplitz_matrix
 
 __all__ = ["solve"]
 
@@ -35,6 +35,8 @@ def solve(problem, *, form: str = "conditioned", solver: str = "CLARABEL", solve
     """
     if problem.program == "arx":
         return _arx_model(problem, form, solver, solver_options)
+    if not getattr(problem, "siso", True):
+        return _subspace_channels_model(problem, solver, solver_options, eliminate_L=eliminate_L)
     return _subspace_model(problem, form, solver, solver_options, eliminate_L=eliminate_L)
 
 
@@ -117,6 +119,15 @@ def _best_scaled_dual(form: ColumnForm, v, W) -> tuple[np.ndarray, object]:
             if val > best[0]:
                 best = (val, a * v, Ws)
     return best[1], best[2]
+
+
+def _data_units_dual(P, V, W, su: float):
+    """A subspace model's (V, W) with the best relative scale (:func:`_best_scaled_dual`), W in data units;
+    ``(None, None)`` when the solver gave no finite dual point."""
+    if V is None or not (np.all(np.isfinite(V)) and np.all(np.isfinite(W))):
+        return None, None
+    V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
+    return V, W * su
 
 
 def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
@@ -276,12 +287,85 @@ def _subspace_model(P, form, solver, solver_options, eliminate_L=False) -> Solve
             Z21 = np.stack([np.asarray(Z, float)[i:, :i] for Z in Zs])
             V = -2.0 * adjoint(Z21)
             W = np.stack([-2.0 * Z21[k] @ toeplitz_matrix(Ufs[:, k]).T for k in range(j)])
-    if V is not None and np.all(np.isfinite(V)) and np.all(np.isfinite(W)):
-        V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
-        W = W * su
-    else:
-        V = W = None
+    V, W = _data_units_dual(P, V, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=impulses, params=L_out, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=V, dual_W=W, problem=prob)
 
 
+@lru_cache(maxsize=32)
+def _block_selector(i: int, l: int, m: int) -> sp.csr_matrix:
+    """Sparse ``S`` ((il·im) × ilm) with ``vec_F(T(h)) = S vec_C(h)`` for h (i, l, m): entry of block (s, q),
+    s ≥ q, row a, column b is ``h[s−q, a, b]``."""
+    s, q, a, b = (x.ravel() for x in np.meshgrid(np.arange(i), np.arange(i), np.arange(l), np.arange(m), indexing="ij"))
+    keep = s >= q
+    s, q, a, b = s[keep], q[keep], a[keep], b[keep]
+    rows = (s * l + a) + (q * m + b) * (i * l)
+    cols = (s - q) * l * m + a * m + b
+    return sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(i * l * i * m, i * l * m))
+
+
+def _block_column_operator(Uf: np.ndarray, l: int, m: int) -> sp.csr_matrix:
+    """Block-diagonal sparse matrix mapping ``vec_F`` of the impulse matrix (ilm × j, column k = ``vec_C(h_k)``)
+    to ``vec_F(H̃)``, ``H̃_{:,k} = T(h_k) (U_f)_{:,k}``: row (s, a), column (t, a, b) holds ``u_{k, s−t, b}``."""
+    i = Uf.shape[0] // m
+    s, t, a, b = (x.ravel() for x in np.meshgrid(np.arange(i), np.arange(i), np.arange(l), np.arange(m), indexing="ij"))
+    keep = s >= t
+    s, t, a, b = s[keep], t[keep], a[keep], b[keep]
+    rows, cols = s * l + a, t * l * m + a * m + b
+    blocks = [sp.csr_matrix((Uf[(s - t) * m + b, k], (rows, cols)), shape=(i * l, i * l * m)) for k in range(Uf.shape[1])]
+    return sp.block_diag(blocks, format="csr")
+
+
+def _subspace_channels_model(P, solver, solver_options, eliminate_L=False) -> SolverOutput:
+    """(7.5) for l × m operators Δ_k, conditioned form (:class:`~unfalsify.solvers.columns.BlockColumnForm`):
+    per column ``[δI_im T(h_k)ᵀ; T(h_k) δI_il] ⪰ 0`` and the noise cone ``‖Y_f − L A − H̃‖_F ≤ σ√(ilj)``, in
+    rms-scaled units; the answer (impulses (i, l, m, j), ``[L_w L_u]``, the dual point) in data units."""
+    A, Uf, Yf = P.A, P.Uf, P.Yf
+    i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
+    su, sy = P.scale
+    As = P.scaled_A()
+    Ufs, Yfs = Uf / su, Yf / sy
+    bound = P.sigma / sy * np.sqrt(P.n_noise)
+    p = i * l * m
+    delta = cp.Variable(name="delta")
+    Hv = cp.Variable((p, j), name="H")
+    Ht = cp.reshape(_block_column_operator(Ufs, l, m) @ cp.vec(Hv, order="F"), (i * l, j), order="F")
+    Lscale = np.concatenate([np.full(i * m, sy / su), np.ones(i * l), np.full(i * m, sy / su)])
+    L = None
+    if P.L_fixed is not None:
+        resid = Yfs - (P.L_fixed / Lscale) @ As - Ht
+    elif eliminate_L:
+        N = scipy.linalg.null_space(As)
+        resid = (Yfs - Ht) @ N if N.shape[1] else None
+    else:
+        L = cp.Variable((i * l, i * (2 * m + l)), name="L")
+        resid = Yfs - L @ As - Ht
+    noise_con = [cp.norm(cp.vec(resid, order="F"), 2) <= bound] if resid is not None else []
+    S = _block_selector(i, l, m)
+    lmis = []
+    for k in range(j):
+        T = cp.reshape(S @ Hv[:, k], (i * l, i * m), order="F")
+        lmis.append(cp.bmat([[delta * np.eye(i * m), T.T], [T, delta * np.eye(i * l)]]) >> 0)
+    prob = cp.Problem(cp.Minimize(delta), noise_con + lmis)
+    status, elapsed = _conic_solve(prob, solver, solver_options,
+                                   f"subspace unfalsification ({l}×{m}, i={i}, j={j})")
+    d_s = _solved_value(status, delta.value)
+    H = (np.asarray(Hv.value, float) * (sy / su)).reshape(i, l, m, j) if Hv.value is not None \
+        else np.full((i, l, m, j), np.nan)
+    Htil = block_conv_cols(Uf, H, m)
+    if P.L_fixed is not None:
+        L_out = P.L_fixed.copy()
+    elif eliminate_L:
+        L_out = (Yf - Htil) @ np.linalg.pinv(A)
+    else:
+        L_out = np.asarray(L.value, float) * Lscale if L.value is not None else np.full((i * l, A.shape[0]), np.nan)
+    V = W = None
+    Zs = [c.dual_value for c in lmis]
+    lam = noise_con[0].dual_value if noise_con else None
+    Xi_s = (Yf - L_out @ A - Htil) / sy
+    if lam is not None and all(Z is not None for Z in Zs) and np.all(np.isfinite(Xi_s)) and np.linalg.norm(Xi_s) > 0:
+        V = float(lam) * Xi_s / np.linalg.norm(Xi_s)
+        W = np.stack([-2.0 * np.asarray(Z, float)[i * m:, : i * m] for Z in Zs])
+    V, W = _data_units_dual(P, V, W, su)
+    return SolverOutput(delta=d_s * sy / su, impulses=H, params=L_out, status=SolverStatus(status),
+                        solve_time=elapsed, dual_v=V, dual_W=W, problem=prob)

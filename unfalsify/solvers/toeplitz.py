@@ -18,6 +18,10 @@ Norms
     :func:`toeplitz_norm` (dense SVD or Lanczos with FFT products), :func:`certified_norm` (never an
     underestimate: what a certificate's upper side uses), :func:`symbol_bound`,
     :func:`toeplitz_cond`, and the nuclear-norm bounds of the certificate's dual side.
+Block (MIMO) Toeplitz
+    l × m Markov parameters h (n, l, m): :func:`block_toeplitz_matrix` (nl × nm), :func:`block_toeplitz_norm`
+    (dense, or Lanczos on block convolutions by FFT), :func:`block_adjoint`, :func:`block_conv_cols` /
+    :func:`block_conv_cols_T` (the columns ``T(h_k) u_k`` of (7.5) and their adjoint), :func:`signal_toeplitz`.
 Solves
     :func:`deconvolve` ``T(u)⁻¹ y`` (float, or exact in rational arithmetic), :func:`ridge_lambda`.
 
@@ -57,6 +61,12 @@ __all__ = [
     "symbol_bound",
     "norm_below_by_cholesky",
     "DENSE_NORM_LIMIT",
+    "block_toeplitz_matrix",
+    "block_toeplitz_norm",
+    "signal_toeplitz",
+    "block_adjoint",
+    "block_conv_cols",
+    "block_conv_cols_T",
 ]
 
 #: Above this size :func:`toeplitz_norm` switches from a dense SVD to Lanczos.
@@ -392,3 +402,150 @@ def symbol_bound(h, oversample: int = 64) -> float:
     M = int(2 ** np.ceil(np.log2(oversample * max(n, 1))))
     peak = float(np.abs(np.fft.rfft(h, M)).max())
     return peak / (1.0 - np.pi * (n - 1) / M)
+
+
+# ---- block (MIMO) Toeplitz: l × m Markov parameters ------------------------------------------------
+#
+# ``h`` of shape (n, l, m) holds the first n Markov parameters h_0 … h_{n−1} (each l × m) of a causal
+# LTI operator; ``T(h)`` is the nl × nm block lower-triangular Toeplitz matrix with block (s, q) equal
+# to h_{s−q} (s ≥ q).  It maps a stacked input [u_0; …; u_{n−1}] (u_t ∈ R^m) to the first n outputs of
+# the convolution (y_s = Σ_{t≤s} h_t u_{s−t} ∈ R^l).  By the matrix Carathéodory–Fejér theorem
+# ``‖T(h)‖₂`` is the least H∞ norm (largest singular value over frequency) of a causal LTI system with
+# those n Markov parameters.  For l = m = 1 every function below equals its SISO counterpart.
+
+
+def _markov(h) -> np.ndarray:
+    """``h`` as a float array (n, l, m); a 1-D h is SISO (n, 1, 1)."""
+    h = np.asarray(h, float)
+    if h.ndim == 1:
+        return h[:, None, None]
+    if h.ndim != 3:
+        raise DataError(f"Markov parameters must have shape (n, l, m) (or (n,) for SISO), got {h.shape}")
+    return h
+
+
+def block_toeplitz_matrix(h) -> np.ndarray:
+    """Dense block lower-triangular Toeplitz matrix ``T(h)`` (nl × nm) of Markov parameters h (n, l, m).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = np.arange(8.0).reshape(2, 2, 2)          # h_0 = [[0, 1], [2, 3]], h_1 = [[4, 5], [6, 7]]
+    >>> block_toeplitz_matrix(h)
+    array([[0., 1., 0., 0.],
+           [2., 3., 0., 0.],
+           [4., 5., 0., 1.],
+           [6., 7., 2., 3.]])
+    """
+    h = _markov(h)
+    n, l, m = h.shape
+    idx = np.subtract.outer(np.arange(n), np.arange(n))
+    T = h[idx.clip(0)]  # (n, n, l, m)
+    T[idx < 0] = 0.0
+    return np.ascontiguousarray(T.transpose(0, 2, 1, 3).reshape(n * l, n * m))
+
+
+def signal_toeplitz(x) -> np.ndarray:
+    """``T(x)`` of a signal x (n, k): the nk × n block lower-triangular Toeplitz matrix with first column
+    ``[x_0; …; x_{n−1}]``, so that ``T(y) = T(h) T(u)`` for ``y = h * u`` (the matrices of Theorem 7.1)."""
+    x = np.asarray(x, float)
+    x = x[:, None] if x.ndim == 1 else x
+    return block_toeplitz_matrix(x[:, :, None])
+
+
+def _block_fft_operator(h: np.ndarray) -> LinearOperator:
+    """``T(h)`` (nl × nm) as a LinearOperator with FFT products, O(lm n log n) each.
+
+    ``T(h) x`` is the first n samples of the block convolution; ``T(h)ᵀ y`` is the time-reversed
+    convolution of the transposed parameters with the time-reversed y.
+    """
+    n, l, m = h.shape
+    nf = nfft(n)
+    Hf = np.fft.rfft(h, nf, axis=0)  # (F, l, m)
+    HfT = np.fft.rfft(h.transpose(0, 2, 1), nf, axis=0)  # (F, m, l)
+
+    def mv(x):
+        X = np.fft.rfft(np.asarray(x, float).reshape(n, m), nf, axis=0)
+        return np.fft.irfft(np.einsum("fab,fb->fa", Hf, X), nf, axis=0)[:n].reshape(-1)
+
+    def rmv(y):
+        Y = np.fft.rfft(np.asarray(y, float).reshape(n, l)[::-1], nf, axis=0)
+        return np.fft.irfft(np.einsum("fab,fb->fa", HfT, Y), nf, axis=0)[:n][::-1].reshape(-1)
+
+    return LinearOperator((n * l, n * m), matvec=mv, rmatvec=rmv, dtype=float)
+
+
+def block_toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
+    """Spectral norm ``‖T(h)‖₂`` of the block lower-triangular Toeplitz matrix of h (n, l, m).
+
+    The least H∞ norm of a causal LTI system (l outputs, m inputs) whose first n Markov parameters are h
+    (matrix Carathéodory–Fejér).  ``method`` as for :func:`toeplitz_norm`: ``"dense"`` (LAPACK SVD),
+    ``"lanczos"`` (ARPACK on block-convolution products by FFT), ``"auto"`` (dense while
+    ``n·max(l, m) ≤ DENSE_LIMIT``).  A 1-D h (SISO) is handed to :func:`toeplitz_norm` unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = np.zeros((3, 2, 2)); h[0] = np.diag([2.0, 0.5])          # a static gain diag(2, 0.5)
+    >>> float(block_toeplitz_norm(h))
+    2.0
+    """
+    if method not in ("auto", "dense", "lanczos"):
+        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
+    if np.ndim(h) == 1:
+        return toeplitz_norm(h, method=method, tol=tol)
+    h = _markov(h)
+    n, l, m = h.shape
+    if h.size == 0:
+        return 0.0
+    scale = float(np.max(np.abs(h)))
+    if scale == 0.0:
+        return 0.0
+    if not np.isfinite(scale):
+        return float("inf")
+    if method == "auto":
+        method = "dense" if n * max(l, m) <= DENSE_LIMIT else "lanczos"
+    if method == "dense" or min(n * l, n * m) < 3:
+        return float(np.linalg.norm(block_toeplitz_matrix(h), 2))
+    op = _block_fft_operator(h / scale)
+    k = n * min(l, m)
+    v0 = np.ones(k) / np.sqrt(k)
+    s = svds(op, k=1, which="LM", tol=tol, v0=v0, return_singular_vectors=False, solver="arpack")
+    return float(s[0]) * scale
+
+
+def block_adjoint(W, n: int, l: int, m: int) -> np.ndarray:
+    """``T*(W)`` (n, l, m) of an nl × nm matrix W: ``T*(W)_d = Σ_s W[block s+d, block s]`` (the sum of
+    the d-th block subdiagonal), the adjoint of h ↦ T(h): ``⟨W, T(h)⟩ = Σ_d ⟨T*(W)_d, h_d⟩``."""
+    W4 = np.asarray(W, float).reshape(n, l, n, m).transpose(0, 2, 1, 3)  # (s, q, l, m)
+    return np.stack([np.trace(W4, offset=-d, axis1=0, axis2=1) for d in range(n)])
+
+
+def block_conv_cols(U: np.ndarray, H: np.ndarray, m: int) -> np.ndarray:
+    """Columns ``T(h_k) u_k``: U (i·m, j) stacked input columns, H (i, l, m, j) → (i·l, j), by FFT for i > 64."""
+    i, l, _, j = H.shape
+    U4 = np.asarray(U, float).reshape(i, m, -1)
+    if i <= 64:
+        out = np.empty((i, l, max(j, U4.shape[2])))
+        for s in range(i):
+            out[s] = np.einsum("tabk,tbk->ak", H[: s + 1], U4[s::-1])
+        return out.reshape(i * l, -1)
+    nf = nfft(i)
+    Y = np.einsum("fabk,fbk->fak", np.fft.rfft(H, nf, axis=0), np.fft.rfft(U4, nf, axis=0))
+    return np.fft.irfft(Y, nf, axis=0)[:i].reshape(i * l, -1)
+
+
+def block_conv_cols_T(U: np.ndarray, V: np.ndarray, m: int) -> np.ndarray:
+    """Adjoint of :func:`block_conv_cols` in H: ``g_{k,t} = Σ_{s≥t} v_{k,s} u_{k,s−t}ᵀ`` → (i, l, m, j).
+
+    U (i·m, j), V (i·l, j).  ``Σ_k v_kᵀ T(h_k) u_k = Σ_{k,t} ⟨g_{k,t}, h_{k,t}⟩``.
+    """
+    U = np.asarray(U, float)
+    i = U.shape[0] // m
+    U4 = U.reshape(i, m, -1)
+    V4 = np.asarray(V, float).reshape(i, -1, U4.shape[2])
+    if i <= 64:
+        return np.stack([np.einsum("sak,sbk->abk", V4[t:], U4[: i - t]) for t in range(i)])
+    nf = nfft(i)
+    G = np.einsum("fak,fbk->fabk", np.fft.rfft(V4[::-1], nf, axis=0), np.fft.rfft(U4, nf, axis=0))
+    return np.fft.irfft(G, nf, axis=0)[:i][::-1]
