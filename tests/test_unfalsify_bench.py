@@ -72,7 +72,8 @@ def test_bench_unfalsify_structured_subspace_series_only(tmp_path):
     assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace",
                  "--out", str(tmp_path)]) == 0
     st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
-    assert {s["series"] for s in st["series"]} == {"subspace structured, L fixed", "subspace structured, L optimised"}
+    assert {s["series"] for s in st["series"]} == {"subspace structured, L fixed", "subspace structured, L optimised",
+                                                   "subspace structured 2×2, L optimised"}  # the MIMO row (issue 28)
     assert st["comparison"] is None
     for s in st["series"]:
         assert all(r["status"] == "optimal" and r["verify"] is True for r in s["rows"])

@@ -129,13 +129,13 @@ def _data(n: int, seed: int):
 
 def _mimo_data(n: int, seed: int):
     """Two inputs, two outputs: two servo channels (§5.4) behind the input coupling ``[[1, 0.3], [0.2, 1]]``,
-    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments._servo.servo_data`."""
+    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments.lab._servo.servo_data`."""
     import control as ct
 
-    from ._servo import SIGMA_PROCESS, SIGMA_SENSOR
-    from .plants import servo
-    from .signals import prbs
-    from .simulate import collect_data
+    from ..lab._servo import SIGMA_PROCESS, SIGMA_SENSOR
+    from ..lab.plants import servo
+    from ..lab.signals import prbs
+    from ..lab.simulate import collect_data
 
     s1 = servo()
     plant = ct.append(s1, servo()) * ct.ss([], [], [], np.array([[1.0, 0.3], [0.2, 1.0]]), s1.dt)
