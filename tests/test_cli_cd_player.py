@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from experiments import cd_player
+from experiments.studies import cd_player
 from experiments.cli import main
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from experiments import design_example as de
+from experiments.studies import design_example as de
 from experiments.lab._servo import (
     DESIGNS,
     THESIS_TABLE_5_1,

@@ -67,7 +67,7 @@ def test_live_table_keeps_rows_of_an_interrupted_run(tmp_path):
 
 
 def test_bench_unfalsify_interrupted_after_one_solve_keeps_it(tmp_path, monkeypatch):
-    from experiments import bench_unfalsify
+    from experiments.bench import bench_unfalsify
 
     calls = []
 

@@ -18,7 +18,7 @@ import pytest
 import synthesis
 import unfalsify as uf
 from experiments import cli
-from experiments import sweep as sw
+from experiments.studies import sweep as sw
 from experiments.lab.plants import servo
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import collect_data
