@@ -84,7 +84,18 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
 
 
 def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1) -> int:
-    """Validate the prediction horizon ``i`` (and, given ``n``, that ``j = n - 2i + 1 >= min_columns``)."""
+    """Validate the prediction horizon ``i`` (and, given ``n``, that ``j = n - 2i + 1 >= min_columns``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_horizon(np.int64(10), 100)
+    10
+    >>> check_horizon(10, 15)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: too few samples for horizon i=10: n=15 gives j = n - 2i + 1 = -4 columns, need at least 1; collect at least 20 samples or reduce the horizon
+    """
     if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
         raise DataError(f"horizon must be an integer >= 1, got {horizon!r}")
     i = int(horizon)
@@ -118,6 +129,17 @@ def as_discrete_system(sys, name: str, *, hint: str = ""):
         If ``sys`` is not a python-control LTI system.
     DataError
         If ``sys`` is continuous time, has NaN/inf entries or is a transfer function that is not proper.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = as_discrete_system(control.tf([0.5], [1, -0.8], 0.1), "P")
+    >>> type(P).__name__, P.nstates, P.dt
+    ('StateSpace', 1, 0.1)
+    >>> as_discrete_system(control.tf([1], [1, 1]), "P")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: P is continuous-time (dt = 0); discretise it first (e.g. control.c2d(sys, dt, 'zoh'))
     """
     import control  # local: keeps the numpy-only helpers importable without python-control
 
@@ -170,6 +192,19 @@ def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
     ------
     DataError
         If ``dt`` is 0 / ``False`` / ``None`` (continuous time), negative, NaN, infinite or not a number.
+
+    Examples
+    --------
+    >>> check_sample_time(1), check_sample_time(True)
+    (1.0, True)
+    >>> check_sample_time(True, allow_true=False)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: dt must be a positive finite sample time, got True; 0 or None would mean continuous time
+    >>> check_sample_time(0, "Ts")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: Ts must be a positive finite sample time or True (unspecified), got 0; 0 or None would mean continuous time
     """
     if dt is True and allow_true:
         return True
@@ -225,7 +260,18 @@ def to_state_space(sys, name: str, *, error=DataError):
 
 
 def check_same_dt(a, b, name_a: str, name_b: str) -> None:
-    """Raise :class:`DataError` unless two discrete systems share a sample time (``True`` matches any)."""
+    """Raise :class:`DataError` unless two discrete systems share a sample time (``True`` matches any).
+
+    Examples
+    --------
+    >>> import control
+    >>> P = control.tf([0.5], [1, -0.8], 0.1)
+    >>> check_same_dt(P, control.tf([1, -0.5], [1, -0.9], True), "P", "W1")   # True matches any: no error
+    >>> check_same_dt(P, control.tf([1, -0.5], [1, -0.9], 0.2), "P", "W1")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: P has sample time 0.1 but W1 has 0.2; both must be discretised at the same sample time (e.g. control.c2d(G, 0.2, 'zoh') or synthesis.tustin(W, 0.2))
+    """
     da, db = a.dt, b.dt
     if da is True or db is True or da == db or (da and db and np.isclose(float(da), float(db), rtol=1e-12)):
         return

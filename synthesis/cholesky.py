@@ -69,6 +69,21 @@ def cholupdate(L, x, *, lower: bool = True, overwrite: bool = False) -> np.ndarr
     Notes
     -----
     ``N`` Givens rotations, ``O(N²)`` flops (LINPACK ``dchud``).
+
+    Examples
+    --------
+    The result is the factor :func:`numpy.linalg.cholesky` gives for the updated matrix:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> M = rng.standard_normal((4, 4))
+    >>> G = M @ M.T + np.eye(4)
+    >>> x = rng.standard_normal(4)
+    >>> L1 = cholupdate(np.linalg.cholesky(G), x)
+    >>> np.allclose(L1, np.linalg.cholesky(G + np.outer(x, x)))
+    True
+    >>> np.allclose(L1, np.tril(L1))
+    True
     """
     W, R, x = _prepare(L, x, lower, overwrite)
     N = R.shape[0]
@@ -115,6 +130,25 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
     DowndateError
         If ``L`` is singular or ``L Lᵀ − x xᵀ`` is not numerically positive definite
         (nothing is modified in that case).
+
+    Examples
+    --------
+    A downdate undoes an update (:func:`cholupdate`):
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> M = rng.standard_normal((4, 4))
+    >>> L = np.linalg.cholesky(M @ M.T + np.eye(4))
+    >>> x = rng.standard_normal(4)
+    >>> np.allclose(choldowndate(cholupdate(L, x), x), L)
+    True
+
+    Removing more than the matrix holds is refused (``I − [1 1]ᵀ[1 1]`` is indefinite):
+
+    >>> choldowndate(np.eye(2), [1.0, 1.0])
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DowndateError: downdate would lose positive definiteness (1 - ||L^-1 x||^2 = -1); refactor the Gram matrix instead
     """
     Lin = np.asarray(L, dtype=float)
     N = Lin.shape[0] if Lin.ndim == 2 else 0

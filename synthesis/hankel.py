@@ -39,6 +39,22 @@ def hankel_order(i: int, m: int, l: int) -> np.ndarray:
 
     Returns ``perm`` with ``A = Z[perm]``, where row ``r*(m+l) + ch`` of ``Z`` holds channel
     ``ch`` of ``z_{r+t} = [u_{r+t}; y_{r+t}]``.
+
+    Examples
+    --------
+    ``i = 2``, one input and one output: ``Z`` has rows ``u_0, y_0, u_1, y_1, u_2, y_2, u_3, y_3``.
+
+    >>> import numpy as np
+    >>> from synthesis import block_hankel
+    >>> perm = hankel_order(2, 1, 1)
+    >>> perm
+    array([0, 2, 1, 3, 4, 6, 5, 7])
+    >>> u, y = np.arange(8.0), 10 + np.arange(8.0)
+    >>> Z = block_hankel(np.column_stack([u, y]), 4, 5)
+    >>> A = np.vstack([block_hankel(u, 2, 5), block_hankel(y, 2, 5),
+    ...                block_hankel(u, 2, 5, 2), block_hankel(y, 2, 5, 2)])
+    >>> np.array_equal(Z[perm], A)
+    True
     """
     c = m + l
     perm = np.empty(2 * i * c, dtype=np.intp)
@@ -188,6 +204,22 @@ def hankel_gram(u, y, i: int) -> np.ndarray:
     ndarray, shape (2i(m+l), 2i(m+l))
         The symmetric positive semidefinite Gram matrix, computed by the Hankel recursions
         (2.8)–(2.9) without forming the ``i × j`` block Hankel matrices.
+
+    Examples
+    --------
+    Two inputs, one output, ``i = 3`` (``j = 45``): the same matrix as ``AAᵀ`` of the formed data.
+
+    >>> import numpy as np
+    >>> from synthesis import block_hankel
+    >>> rng = np.random.default_rng(0)
+    >>> u, y = rng.standard_normal((50, 2)), rng.standard_normal(50)
+    >>> G = hankel_gram(u, y, 3)
+    >>> G.shape
+    (18, 18)
+    >>> A = np.vstack([block_hankel(u, 3, 45), block_hankel(y, 3, 45),
+    ...                block_hankel(u, 3, 45, 3), block_hankel(y, 3, 45, 3)])
+    >>> np.allclose(G, A @ A.T)
+    True
     """
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])

@@ -509,6 +509,20 @@ def norm_below(sys, gamma: float, *, n_grid: int = 16) -> NormTest:
     ------
     DataError
         As :func:`hinf_norm`; ``gamma`` not a finite number > 0.
+
+    Examples
+    --------
+    ``‖1/(z − 0.5)‖∞ = 2``, attained at DC:
+
+    >>> import control
+    >>> G = control.tf([1], [1, -0.5], 1)
+    >>> bool(norm_below(G, 2.01)), bool(norm_below(G, 1.99))
+    (True, False)
+    >>> test = norm_below(G, 1.99)
+    >>> round(test.lower, 6), test.frequency
+    (2.0, 0.0)
+    >>> print(norm_below(control.tf([1], [1, -1.5], 1), 10.0).reason)
+    unstable: pole 1.5+0j outside the unit circle (spectral radius 1.5)
     """
     return _norm_below(sys, gamma, n_grid=n_grid, allowance=True)
 

@@ -189,6 +189,16 @@ def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
     -------
     float
         ``γ_min + τ``, i.e. ``γ_min (1 + k eps)`` with ``k = 8 max(r, c) ‖M_d‖_F / γ_min``.
+
+    Examples
+    --------
+    The margin is a few units of rounding above ``γ_min = 2``:
+
+    >>> import numpy as np
+    >>> Md, Mu = np.array([[1.0], [2.0]]), np.array([[1.0], [0.0]])
+    >>> t = feasibility_threshold(Md, Mu, minimax_gamma_min(Md, Mu))
+    >>> 2.0 < t < 2.0 + 1e-12
+    True
     """
     rows, cols = Md.shape[0], Md.shape[1] + Mu.shape[1]
     tau = _THRESHOLD_SAFETY * max(rows, cols) * np.finfo(float).eps * float(np.linalg.norm(Md))
@@ -240,6 +250,22 @@ def minimax_gamma_min(Md, Mu) -> float:
     Computed by the same QR and eigenvalue problem as :func:`solve_minimax`, so passing the value returned
     here back as ``gamma`` always raises :class:`InfeasibleGammaError`.  Returns 0 when there
     are no disturbances.
+
+    Examples
+    --------
+    ``z = [d + u; 2d]``: ``u`` cancels the first row, the second leaves ``γ_min = 2``:
+
+    >>> import numpy as np
+    >>> round(minimax_gamma_min(np.array([[1.0], [2.0]]), np.array([[1.0], [0.0]])), 6)
+    2.0
+
+    The same as the norm of the projected map ``(I − P_u) M_d``:
+
+    >>> rng = np.random.default_rng(0)
+    >>> Md, Mu = rng.standard_normal((6, 2)), rng.standard_normal((6, 3))
+    >>> Pu = Mu @ np.linalg.pinv(Mu)
+    >>> bool(np.isclose(minimax_gamma_min(Md, Mu), np.linalg.norm(Md - Pu @ Md, 2)))
+    True
     """
     Md, Mu, _ = _check_maps(Md, Mu)
     return _saddle(Md, Mu).gamma_min
@@ -351,6 +377,28 @@ def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
     -----
     NearGammaMinWarning
         If ``gamma < 1.03 γ_min`` (§5.4.4).
+
+    Examples
+    --------
+    ``z = [d + u + x; 2d + x]`` at ``γ = 4``: ``u = −(d + x)`` cancels the first row, and the worst
+    ``d`` maximises ``(2d + x)² − 16 d²``, i.e. ``d = x/6`` and ``u = −7x/6``:
+
+    >>> import numpy as np
+    >>> Md, Mu, Mx = np.array([[1.0], [2.0]]), np.array([[1.0], [0.0]]), np.array([[1.0], [1.0]])
+    >>> sol = solve_minimax(Md, Mu, Mx, 4.0)
+    >>> round(float(sol.u_gain[0, 0]), 4), round(float(sol.d_gain[0, 0]), 4), sol.route
+    (-1.1667, 0.1667, 'cholesky')
+
+    ``γ = ∞`` is the LQ limit (no disturbance); a policy receives ``γ_min``; ``γ_min`` itself is refused:
+
+    >>> solve_minimax(Md, Mu, Mx, np.inf).u_gain
+    array([[-1.]])
+    >>> round(solve_minimax(Md, Mu, Mx, lambda gmin: 1.1 * gmin).gamma, 6)
+    2.2
+    >>> solve_minimax(Md, Mu, Mx, minimax_gamma_min(Md, Mu))
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.InfeasibleGammaError: gamma = 2 is not above gamma_min = 2: the level-gamma problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = 2.2 (§5.1 comment 4)
     """
     Md, Mu, Mx = _check_maps(Md, Mu, Mx)
     sd = _saddle(Md, Mu, Mx)

@@ -137,6 +137,25 @@ def block_hankel(x: np.ndarray, rows: int, cols: int, start: int = 0) -> np.ndar
     DataError
         NaN/inf or badly shaped ``x``, ``rows`` or ``cols`` not positive integers, ``start``
         negative, or too few samples.
+
+    Examples
+    --------
+    One signal: each row is the one above it shifted by one sample.
+
+    >>> import numpy as np
+    >>> block_hankel(np.arange(6.0), 3, 4)
+    array([[0., 1., 2., 3.],
+           [1., 2., 3., 4.],
+           [2., 3., 4., 5.]])
+
+    Two channels: a block row holds both channels of one sample; ``start=1`` skips the first sample.
+
+    >>> x = np.column_stack([np.arange(5.0), 10 + np.arange(5.0)])
+    >>> block_hankel(x, 2, 3, start=1)
+    array([[ 1.,  2.,  3.],
+           [11., 12., 13.],
+           [ 2.,  3.,  4.],
+           [12., 13., 14.]])
     """
     x = as_signal(x, "x")
     for name, v, low in (("rows", rows, 1), ("cols", cols, 1), ("start", start, 0)):
@@ -175,6 +194,16 @@ def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
     the thesis's sizes), i.e. a regressor whose condition number exceeds ~10⁶ is treated as
     rank deficient.  Data that are that ill-conditioned (noise-free outputs of a low-order
     plant) have a gap of many decades there, so the decision is robust.
+
+    Examples
+    --------
+    ``i = 10``, one input and one output (``i(2m+l) = 30`` regressors), ``j = 1000`` columns:
+
+    >>> import numpy as np
+    >>> bool(default_rcond("qr", 30, 1000) == 1000 * np.finfo(float).eps)
+    True
+    >>> round(default_rcond("cholesky", 30, 1000), 8)
+    4.71e-06
     """
     base = max(int(n_regressors), int(n_columns)) * _EPS
     if method in _GRAM_METHODS:

@@ -158,6 +158,24 @@ def generalized_plant(P, W1, W2) -> GeneralizedPlant:
     Returns
     -------
     GeneralizedPlant
+
+    Examples
+    --------
+    A first-order plant, a first-order W1 and a static W2: the state is ``[x_p; x_w1]``.
+
+    >>> import control, numpy as np
+    >>> from synthesis import makeweight
+    >>> P = control.ss([[0.8]], [[1.0]], [[0.5]], [[0.0]], 0.1)
+    >>> W1 = makeweight(10.0, (0.5, 1.0), 0.5, 0.1)
+    >>> gp = generalized_plant(P, W1, 0.1)
+    >>> (gp.n_p, gp.n_w1, gp.n_w2), (gp.l, gp.m), gp.A.shape, gp.dt
+    ((1, 1, 0), (1, 1), (2, 2), 0.1)
+
+    Its transfer function from ``[r; u]`` to ``z`` is ``[[W1, −W1 P], [0, W2]]``:
+
+    >>> z = np.exp(0.3j)
+    >>> np.allclose(gp.system(z), [[W1(z), -W1(z) * P(z)], [0.0, 0.1]])
+    True
     """
     P = as_discrete_system(P, "P")
     m, l = P.ninputs, P.noutputs
@@ -239,6 +257,35 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
         (an ``InfeasibleGammaError``) If at some stage ``M_t = BᵀX_tB + DᵀD − R_γ`` is not a saddle, i.e. its ``u`` block is
         not positive definite or the Schur complement in ``r`` is not negative definite
         (γ at or below the finite-horizon γ_min).
+
+    Examples
+    --------
+    The generalized plant of a first-order plant and weights (:func:`generalized_plant`), horizon 5:
+
+    >>> import control, numpy as np
+    >>> from synthesis import makeweight, markov_toeplitz, observability, minimax_gamma_min, solve_minimax
+    >>> P = control.ss([[0.8]], [[1.0]], [[0.5]], [[0.0]], 0.1)
+    >>> gp = generalized_plant(P, makeweight(10.0, (0.5, 1.0), 0.5, 0.1), 0.1)
+    >>> i = 5
+    >>> H, Gam = markov_toeplitz(gp.system, i), observability(gp.system, i)
+    >>> Md, Mu = H[:, 0::2], H[:, 1::2]             # w_t = [r_t; u_t]: references, then controls
+    >>> gmin = minimax_gamma_min(Md, Mu)
+    >>> law = hinf_riccati(gp, gamma=1.5 * gmin, horizon=i)
+    >>> law.horizon, law.gains.shape
+    (5, (5, 2, 2))
+
+    The recursion gives the controls of the batch minimax problem on ``z = Md r + Mu u + Γ x``:
+
+    >>> x0 = np.array([1.0, -0.5])
+    >>> np.allclose(law.controls(x0), solve_minimax(Md, Mu, Gam, 1.5 * gmin).u_gain @ x0)
+    True
+
+    Below the batch γ_min some stage has no saddle point:
+
+    >>> hinf_riccati(gp, gamma=0.9 * gmin, horizon=i)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.StageSaddleError: stage 4: no saddle point ... is at or below the finite-horizon gamma_min, increase it
     """
     if isinstance(A, GeneralizedPlant):
         gp = A
@@ -299,6 +346,29 @@ def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
     DataError
         Inconsistent shapes, NaN/inf in the plant, ``Q``, ``R`` or ``terminal``, a bad horizon, or a
         singular stage matrix ``BᵀP_tB + DᵀQD + R``.
+
+    Examples
+    --------
+    ``x⁺ = 0.9 x + u``, ``y = x``, ``Q = 1``, ``R = 0.1``, horizon 4, from ``x_k = 2``:
+
+    >>> import control, numpy as np
+    >>> from synthesis import markov_toeplitz, observability
+    >>> law = lqr_riccati([[0.9]], [[1.0]], [[1.0]], [[0.0]], 1.0, 0.1, horizon=4)
+    >>> x0 = np.array([2.0])
+    >>> u, x = law.rollout(x0)
+    >>> u.shape, x.shape, round(float(u[0, 0]), 4)
+    ((4, 1), (5, 1), -1.6467)
+
+    The same controls and cost as the batch least-squares law (4.20) on ``y = Γ x_k + H u``:
+
+    >>> G = control.ss([[0.9]], [[1.0]], [[1.0]], [[0.0]], 1)
+    >>> H, Gam = markov_toeplitz(G, 4), observability(G, 4)
+    >>> u_batch = -np.linalg.solve(H.T @ H + 0.1 * np.eye(4), H.T @ Gam @ x0)
+    >>> np.allclose(law.controls(x0), u_batch)
+    True
+    >>> y = Gam @ x0 + H @ u_batch
+    >>> bool(np.isclose(x0 @ law.value @ x0, y @ y + 0.1 * u_batch @ u_batch))
+    True
     """
     A, B, C, D = _matrices(A, B, C, D)
     i = check_horizon(horizon)

@@ -52,6 +52,20 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
     -------
     control.StateSpace
         Discrete weight with sample time ``dt``.
+
+    Examples
+    --------
+    The bilinear transform maps ``s = 0`` to ``z = 1`` and ``s = ∞`` to ``z = −1``, so the DC and
+    high-frequency gains of ``W(s) = 10 (s + 1)/(s + 10)`` are kept:
+
+    >>> import control, numpy as np
+    >>> s = control.tf("s")
+    >>> W = tustin(10 * (s + 1) / (s + 10), 0.1)
+    >>> W.dt, W.nstates
+    (0.1, 1)
+    >>> gain = lambda z: round(abs(complex(np.squeeze(W(z)))), 6)
+    >>> gain(1.0), gain(-1.0)
+    (1.0, 10.0)
     """
     if not isinstance(sys_continuous, (control.TransferFunction, control.StateSpace)):
         raise WeightError(f"tustin needs a python-control TransferFunction or StateSpace, got {type(sys_continuous).__name__}")
@@ -160,7 +174,16 @@ def _ss_parts(W) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 def is_zero_weight(W: control.StateSpace) -> bool:
-    """True when the weight's transfer function is identically zero (D = 0 and all C Aᵏ B = 0)."""
+    """True when the weight's transfer function is identically zero (D = 0 and all C Aᵏ B = 0).
+
+    Examples
+    --------
+    >>> import control
+    >>> is_zero_weight(control.ss([[0.5]], [[1.0]], [[0.0]], [[0.0]], 0.1))   # C = 0, D = 0
+    True
+    >>> is_zero_weight(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1))   # 1/(z − 0.5)
+    False
+    """
     A, B, C, D = _ss_parts(W)
     if np.any(D != 0):
         return False
@@ -204,6 +227,26 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
         Continuous-time dynamics, NaN/inf entries, wrong dimensions, or a feedthrough
         ``D`` without full column rank (relative degree > 0 makes ``Q = HᵀH``
         singular, §3.1).
+
+    Examples
+    --------
+    A scalar is a static weight (no states) and takes the sample time given; a transfer function
+    becomes a ``StateSpace``:
+
+    >>> import control
+    >>> W2 = as_weight(0.5, "W2", dt=0.1)
+    >>> W2.nstates, W2.dt, W2.D.tolist()
+    (0, 0.1, [[0.5]])
+    >>> W1 = as_weight(control.tf([1, -0.5], [1, -0.9], 0.1), "W1", inputs=1)
+    >>> type(W1).__name__, W1.nstates
+    ('StateSpace', 1)
+
+    A strictly proper weight (``D = 0``) is refused:
+
+    >>> as_weight(control.tf([1], [1, -0.9], 0.1), "W1")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.WeightError: W1 must have relative degree 0, i.e. a full-rank feedthrough D (§3.1); its D = [[0.0]] has rank 0 < 1. Add a small direct term (e.g. a far-away zero) to make it biproper
     """
     W = to_state_space(W, name, error=WeightError)
     if isinstance(W, control.StateSpace):
@@ -258,6 +301,20 @@ def common_dt(*weights) -> float | bool:
     ------
     WeightError
         If two dynamic weights have different sample times.
+
+    Examples
+    --------
+    Static weights do not count:
+
+    >>> import control
+    >>> W1 = control.ss([[0.9]], [[1.0]], [[0.1]], [[1.0]], 0.1)
+    >>> W2 = as_weight(0.5, "W2")
+    >>> common_dt(W1, W2), common_dt(W2)
+    (0.1, True)
+    >>> common_dt(W1, control.ss([[0.9]], [[1.0]], [[0.1]], [[1.0]], 0.2))
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.WeightError: weights have different sample times [0.1, 0.2]; discretise all of them at the data's sample time
     """
     dts = []
     for W in weights:
@@ -292,6 +349,24 @@ def markov_toeplitz(sys, i: int) -> np.ndarray:
     DataError
         Continuous-time dynamics (Markov parameters are discrete-time objects), NaN/inf entries,
         a bad horizon.
+
+    Examples
+    --------
+    ``G(z) = 2 + 1/(z − 0.5)``: Markov parameters ``2, 1, 0.5, …``
+
+    >>> import control, numpy as np
+    >>> G = control.ss([[0.5]], [[1.0]], [[1.0]], [[2.0]], 1)
+    >>> H = markov_toeplitz(G, 3)
+    >>> H
+    array([[2. , 0. , 0. ],
+           [1. , 2. , 0. ],
+           [0.5, 1. , 2. ]])
+
+    ``H u`` is the response from rest to the input sequence ``u``:
+
+    >>> u = np.array([1.0, -2.0, 0.5])
+    >>> np.allclose(H @ u, control.forced_response(G, U=u).outputs)
+    True
     """
     i = check_horizon(i)
     A, B, C, D = _ss_parts(_discrete(sys))
@@ -311,6 +386,20 @@ def observability(sys, i: int) -> np.ndarray:
     """Extended observability matrix ``Γ = [C; CA; …; CA^{i-1}]`` (3.12), shape ``(i·p, n)``.
 
     Accepts what :func:`markov_toeplitz` accepts and raises the same errors.
+
+    Examples
+    --------
+    >>> import control, numpy as np
+    >>> G = control.ss([[0.5, 1.0], [0.0, 0.2]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]], 0.1)
+    >>> observability(G, 3)
+    array([[1.  , 0.  ],
+           [0.5 , 1.  ],
+           [0.25, 0.7 ]])
+
+    With ``i = n`` it is the observability matrix of :func:`control.obsv`:
+
+    >>> np.allclose(observability(G, 2), control.obsv(G.A, G.C))
+    True
     """
     i = check_horizon(i)
     A, _, C, _ = _ss_parts(_discrete(sys))
