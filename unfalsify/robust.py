@@ -1154,6 +1154,17 @@ def additive_robustness(plant, controller, *, tol: float = 1e-8, n_grid: int = 6
     AdditiveRobustness
         ``peak`` is the proven upper bound of ``‖M‖∞`` (∞ when the nominal loop is not stable),
         ``bracket`` both sides.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> rob = additive_robustness(P, K)                            # M = −2(z − 1)/(z − 0.8), peak 20/9 at z = −1
+    >>> rob.stable, round(rob.peak, 4), round(rob.spectral_radius, 6)
+    (True, 2.2222, 0.8)
+    >>> bool(rob.bracket.lower <= 20 / 9 <= rob.peak)
+    True
     """
     M = additive_channel(plant, controller)
     br = hinf_norm(M, tol=tol, n_grid=n_grid)
