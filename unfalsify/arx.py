@@ -129,6 +129,14 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     """``(Φ, Y)`` of §7.2.1 with zero initial conditions, so that ``e(θ) = Φθ + Y``.
 
     Row t of Φ is ``[y_{t−1} … y_{t−na}, −u_{t−1} … −u_{t−nb}]`` (samples before t = 0 are zero).
+
+    Examples
+    --------
+    >>> Phi, Y = arx_regressor([1.0, 2.0, 3.0], [0.5, 1.0, 1.5], 1, 2)
+    >>> Phi.tolist()                       # rows [y_{t−1}, −u_{t−1}, −u_{t−2}]
+    [[0.0, 0.0, 0.0], [0.5, -1.0, 0.0], [1.0, -2.0, -1.0]]
+    >>> Y.tolist()
+    [0.5, 1.0, 1.5]
     """
     u = siso_signal(u, "u")
     y = siso_signal(y, "y", n=u.size)
@@ -143,7 +151,20 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
-    """Classical ARX (7.2): ``θ = −Φ⁺Y`` and the rms of the residual ``e(θ)``."""
+    """Classical ARX (7.2): ``θ = −Φ⁺Y`` and the rms of the residual ``e(θ)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(50)
+    >>> y = np.zeros(50)
+    >>> for k in range(1, 50):
+    ...     y[k] = 0.5 * y[k - 1] + u[k - 1]                # (1 − 0.5q⁻¹) y = q⁻¹ u, no noise
+    >>> theta, rms = arx_least_squares(u, y, 1, 1)
+    >>> np.round(theta, 6).tolist(), bool(rms < 1e-12)      # θ = [a₁, b₁]
+    ([-0.5, 1.0], True)
+    """
     Phi, Y = arx_regressor(u, y, na, nb)
     if Phi.shape[1] == 0:
         return np.zeros(0), float(np.linalg.norm(Y) / np.sqrt(Y.size))
@@ -355,6 +376,23 @@ def arx_unfalsify(
         backend, ``bracket``/``time_limit``/``interrupted``, where δ is the certified upper bound).
     IllConditionedWarning
         ``form="thesis"`` with ``cond T(u) > COND_WARN``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(30)
+    >>> y = np.zeros(30)
+    >>> for k in range(1, 30):
+    ...     y[k] = 0.5 * y[k - 1] + u[k - 1]
+    >>> y += 0.05 * rng.standard_normal(30)
+    >>> _, rms = arx_least_squares(u, y, 1, 1)
+    >>> res = arx_unfalsify(u, y, 1, 1, 0.5 * rms)
+    >>> res.status, bool(res.delta > 0), bool(res.certificate.verify())
+    ('optimal', True, True)
+    >>> fast = arx_unfalsify(u, y, 1, 1, 0.5 * rms, backend="structured", progress=False)
+    >>> bool(abs(fast.delta - res.delta) <= 1e-4 * res.delta)
+    True
     """
     form = check_form(form)
     name = resolve("arx", backend, method)

@@ -141,6 +141,19 @@ def loop_parts(plant, controller):
     DataError
         Continuous-time or non-finite systems, different sample times, a controller without
         inputs ``[r; y]`` (``2l``) and the plant's inputs as outputs.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> P_, C, l = loop_parts(P, K)
+    >>> l, C.ninputs, C.noutputs
+    (1, 2, 1)
+    >>> loop_parts(P, control.ss([], [], [], [[2.0]], 1.0))        # a controller of e alone  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: controller must have inputs [r; y] (2) and 1 output(s), ...
     """
     P = as_discrete_system(plant, "plant")
     C = as_discrete_system(controller, "controller")
@@ -171,13 +184,34 @@ def additive_channel(plant, controller) -> control.StateSpace:
     ------
     DataError
         The controller does not have inputs ``[r; y]`` and the plant's inputs as outputs.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> M = additive_channel(P, K)                                 # −2(z − 1)/(z − 0.8)
+    >>> round(abs(complex(M(-1.0))), 6), round(abs(float(control.dcgain(M))), 6)
+    (2.222222, 0.0)
     """
     P, C, l = loop_parts(plant, controller)
     return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
 
 
 def closed_loop_ry(plant, controller) -> control.StateSpace:
-    """Noise-free closed loop ``r → y`` of ``y = P u``, ``u = C_r r + C_y y`` (controller inputs ``[r; y]``)."""
+    """Noise-free closed loop ``r → y`` of ``y = P u``, ``u = C_r r + C_y y`` (controller inputs ``[r; y]``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> T = closed_loop_ry(P, K)                                   # 0.2/(z − 0.8)
+    >>> T.poles().real.round(6).tolist(), round(float(control.dcgain(T)), 6)
+    ([0.8], 1.0)
+    """
     return _closed_loop_ry(*loop_parts(plant, controller))
 
 
@@ -186,7 +220,17 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
 
 
 def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepMetrics:
-    """Unit step on every input of a discrete loop ``r → y``; the worst output channel's metrics."""
+    """Unit step on every input of a discrete loop ``r → y``; the worst output channel's metrics.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> m = step_metrics(closed_loop_ry(P, K))                     # y_k = 1 − 0.8^k
+    >>> m.rise_samples, m.samples, bool(m.final_error < 1e-12), m.overshoot == 0.0
+    (11, 300, True, True)
+    """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
@@ -234,6 +278,18 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     ------
     DataError
         Bad δ / margin / floor, or a controller that does not fit the model.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
+    >>> cert = certify_loop(P, K, 0.2)                            # ‖M̂‖∞ = 20/9: 0.2 · 20/9 < 1/1.1
+    >>> cert.certified, cert.reason, round(cert.small_gain, 4)
+    (True, '', 0.4444)
+    >>> cert = certify_loop(P, K, 1.0)
+    >>> cert.certified, cert.reason.startswith("small gain")
+    (False, True)
     """
     for name, v in (("delta", delta), ("margin", margin), ("tracking_floor", tracking_floor)):
         if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (

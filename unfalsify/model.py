@@ -46,6 +46,21 @@ def predictor_model(pred, dt) -> control.StateSpace:
     ------
     DataError
         A predictor with NaN entries or inconsistent shapes, or a bad sample time.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import control
+    >>> import synthesis as sy
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(60)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:60]                     # y_k = u_{k−1} + 0.5 u_{k−2}
+    >>> P = predictor_model(sy.fit_predictor(u, y, 2), 1.0)
+    >>> P.ninputs, P.noutputs, P.nstates, P.dt                       # order i(m + l) = 4
+    (1, 1, 4, 1.0)
+    >>> g = np.ravel(control.impulse_response(P, T=np.arange(4)).outputs)
+    >>> bool(np.allclose(g, [0.0, 1.0, 0.5, 0.0], atol=1e-6))          # the plant's impulse response
+    True
     """
     try:
         i, m, l = int(pred.horizon), int(pred.m), int(pred.l)

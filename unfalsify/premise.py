@@ -464,6 +464,19 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n − horizon,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import predictor_model
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)    # FIR plant, output noise 0.01
+    >>> model = predictor_model(sy.fit_predictor(u[:200], y[:200], 3), 1.0)   # P̂ from the first 200 samples
+    >>> e = output_error_residual(model, u[200:], y[200:], 3)                # on the held-out 100
+    >>> e.shape, bool(np.sqrt(np.mean(e ** 2)) < 0.02)                       # about the noise level
+    ((97,), True)
     """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
     u, y = siso_pair(u, y)
@@ -666,6 +679,21 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     Returns
     -------
     PremiseTest
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import predictor_model
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)    # FIR plant, output noise 0.01
+    >>> model = predictor_model(sy.fit_predictor(u[:200], y[:200], 3), 1.0)
+    >>> test = check_premise(model, u[:45], y[:45], 3, 0.05, dt=1.0, validation=(u[200:], y[200:]))
+    >>> bool(test.delta >= 0.05), test.decided_by in ("subspace (7.5)", "output error (Theorem 7.1)")
+    (True, True)
+    >>> test.output_error.held_out, test.frf is not None, isinstance(test.ok, bool)
+    (True, True, True)
     """
     opts = options or PremiseOptions()
     u, y = siso_pair(u, y)
@@ -800,6 +828,22 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     Returns
     -------
     ExcitationCheck
+
+    Examples
+    --------
+    >>> import control
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import predictor_model
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)    # FIR plant, output noise 0.01
+    >>> model = predictor_model(sy.fit_predictor(u[:200], y[:200], 3), 1.0)
+    >>> test = check_premise(model, u[:200], y[:200], 3, 0.05, dt=1.0)      # D̂ = P − P̂ and its disks
+    >>> K = control.ss([], [], [], [[0.5, -0.5]], 1.0)                       # u = 0.5(r − y)
+    >>> ex = check_excitation(model, K, test.frf, test.low_band)
+    >>> ex.ok, bool(ex.worst < 1), ex.reason
+    (True, True, '')
     """
     M = additive_channel(model, controller)
     freq, dist, radius = frf.frequency, np.abs(frf.response), frf.radius

@@ -405,6 +405,19 @@ def subspace_unfalsify(
     -----
     SolverWarning, IllConditionedWarning
         As for :func:`unfalsify.arx_unfalsify`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(40)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:40] + 0.05 * rng.standard_normal(40)
+    >>> sub = subspace_unfalsify(u, y, 3, 0.02)                      # i = 3, j = 35 columns
+    >>> sub.status, sub.impulses.shape, bool(sub.certificate.verify())
+    ('optimal', (3, 35), True)
+    >>> fast = subspace_unfalsify(u, y, 3, 0.02, backend="structured", progress=False)
+    >>> bool(abs(fast.delta - sub.delta) <= 1e-4 * sub.delta)
+    True
     """
     form = check_form(form)
     name = resolve("subspace", backend)

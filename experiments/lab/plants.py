@@ -99,6 +99,19 @@ def servo(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
     control.StateSpace
         Two-state modal realisation (integrator and the pole at −1), one input
         ``u`` and one output ``y``; ``dt`` is the sample time (0 when continuous).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> P = servo()
+    >>> P.dt, P.nstates, P.ninputs, P.noutputs
+    (0.1, 2, 1, 1)
+    >>> sorted(np.round(np.abs(P.poles()), 6).tolist())            # ZOH: e^{0·dt} = 1 and e^{−dt}
+    [0.904837, 1.0]
+    >>> bool(np.isclose(min(np.abs(P.poles())), np.exp(-P.dt)))
+    True
+    >>> sorted(servo(continuous=True).poles().real.round(6).tolist())
+    [-1.0, 0.0]
     """
     sys = _modal_ss({"y": np.array([1.0])}, np.array([0.0, -1.0]), name="servo")
     return sys if continuous else _zoh(sys, dt)
@@ -130,6 +143,14 @@ def three_disk(
     control.StateSpace
         Six-state modal realisation (integrator, pole at −α, two lightly damped
         pairs), strictly proper.
+
+    Examples
+    --------
+    >>> P = three_disk()                                           # non-collocated y3, 64 Hz
+    >>> P.dt == THREE_DISK_DT == 1 / 64, P.nstates, P.ninputs, P.noutputs
+    (True, 6, 1, 1)
+    >>> three_disk("all").noutputs                                 # [y1; y2; y3]
+    3
     """
     nums = params.numerators()
     if output == "all":
@@ -146,6 +167,13 @@ def third_order(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace
     """Stable third-order plant ``6/((s+1)(s+2)(s+3))`` (unit DC gain), ZOH-sampled (10 Hz default).
 
     Not from the thesis: a test plant of different character for the §7.4 pipeline.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = third_order()
+    >>> P.dt, P.nstates, round(float(control.dcgain(P)), 6)        # unit DC gain, kept by the ZOH
+    (0.1, 3, 1.0)
     """
     sys = _modal_ss({"y": np.array([6.0])}, np.array([-1.0, -2.0, -3.0]), name="third_order")
     return sys if continuous else _zoh(sys, dt)
@@ -155,6 +183,15 @@ def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, conti
     """Lightly damped resonant plant ``ω²/(s² + 2ζωs + ω²)`` (unit DC gain), ZOH-sampled.
 
     Defaults ζ = 0.05, ω = 2 rad/s: a resonance peak of ``1/(2ζ) = 10`` (20 dB).  Not from the thesis.
+
+    Examples
+    --------
+    >>> import control
+    >>> P = resonant()                                             # ζ = 0.05, ω = 2 rad/s
+    >>> P.dt, P.nstates, round(float(control.dcgain(P)), 6)
+    (0.1, 2, 1.0)
+    >>> round(abs(complex(resonant(continuous=True)(2j))), 6)      # the peak 1/(2ζ) at s = jω
+    10.0
     """
     if not (0 < zeta < 1 and omega > 0):
         raise ValueError(f"need 0 < zeta < 1 and omega > 0, got zeta={zeta!r}, omega={omega!r}")
@@ -167,6 +204,15 @@ def nonminimum_phase(dt: float = SERVO_DT, continuous: bool = False) -> ct.State
 
     Not from the thesis.  The receding-horizon laws with short horizons tend to cancel its
     right-half-plane zero (unstable loops at i = 10 on 10 Hz data).
+
+    Examples
+    --------
+    >>> import control
+    >>> P = nonminimum_phase()
+    >>> P.dt, P.nstates, round(float(control.dcgain(P)), 6)
+    (0.1, 2, 1.0)
+    >>> nonminimum_phase(continuous=True).zeros().real.round(6).tolist()     # the zero at s = +1
+    [1.0]
     """
     sys = _modal_ss({"y": np.array([-2.0, 2.0])}, np.array([-1.0, -2.0]), name="nonminimum_phase")
     return sys if continuous else _zoh(sys, dt)
@@ -183,7 +229,16 @@ PLANT_CATALOGUE = {
 
 
 def plant_catalogue() -> dict[str, ct.StateSpace]:
-    """The plants of :data:`PLANT_CATALOGUE`, built (discrete, default sample times)."""
+    """The plants of :data:`PLANT_CATALOGUE`, built (discrete, default sample times).
+
+    Examples
+    --------
+    >>> plants = plant_catalogue()
+    >>> list(plants) == list(PLANT_CATALOGUE)
+    True
+    >>> {name: P.dt for name, P in plants.items()}
+    {'servo': 0.1, 'third_order': 0.1, 'resonant': 0.1, 'nonminimum_phase': 0.1, 'three_disk_y1': 0.015625}
+    """
     return {name: factory() for name, (factory, _) in PLANT_CATALOGUE.items()}
 
 

@@ -39,6 +39,17 @@ def prbs(n: int, nbits: int | None = None, *, amplitude: float = 1.0, seed=None)
     Returns
     -------
     ndarray, shape (n,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> prbs(7).tolist()                                           # one period of 2³ − 1 samples
+    [1.0, 1.0, 1.0, -1.0, 1.0, -1.0, -1.0]
+    >>> prbs(10, nbits=2).tolist()                                 # period 3, repeated
+    [1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0]
+    >>> u = prbs(1023, amplitude=0.5, seed=0)
+    >>> float(np.mean(u ** 2)), round(float(np.sum(u)), 6)         # power amplitude², one more + than −
+    (0.25, 0.5)
     """
     n = _check_length(n)
     if nbits is None:
@@ -64,6 +75,15 @@ def white_noise(n: int, sigma: float = 1.0, channels: int | None = None, *, seed
     """Zero-mean white Gaussian noise with standard deviation ``sigma``.
 
     Returns shape ``(n,)`` when ``channels`` is None, else ``(n, channels)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> w = white_noise(1000, 0.5, seed=0)
+    >>> w.shape, round(float(np.std(w)), 1)
+    ((1000,), 0.5)
+    >>> white_noise(5, channels=2, seed=0).shape
+    (5, 2)
     """
     n = _check_length(n)
     if not np.isfinite(sigma) or sigma < 0:
@@ -88,6 +108,13 @@ def step_sequence(n: int, levels, hold: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n,) or (n, channels)
+
+    Examples
+    --------
+    >>> step_sequence(8, [0.0, 1.0, -1.0], 2).tolist()             # cycled after the last level
+    [0.0, 0.0, 1.0, 1.0, -1.0, -1.0, 0.0, 0.0]
+    >>> step_sequence(4, [[1.0, 0.0], [0.0, 1.0]], 2).tolist()     # two channels
+    [[1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]]
     """
     n = _check_length(n)
     hold = _check_length(hold, "hold")
@@ -99,7 +126,15 @@ def step_sequence(n: int, levels, hold: int) -> np.ndarray:
 
 
 def step(n: int, at: int = 0, amplitude: float = 1.0) -> np.ndarray:
-    """Unit (or scaled) step of length ``n`` switching on at sample ``at``."""
+    """Unit (or scaled) step of length ``n`` switching on at sample ``at``.
+
+    Examples
+    --------
+    >>> step(5, at=2).tolist()
+    [0.0, 0.0, 1.0, 1.0, 1.0]
+    >>> step(3, amplitude=2.0).tolist()
+    [2.0, 2.0, 2.0]
+    """
     n = _check_length(n)
     if not 0 <= at < n:
         raise ValueError(f"step time at={at} must lie in [0, n)")

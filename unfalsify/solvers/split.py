@@ -245,6 +245,24 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
         ``delta`` (upper end of the final bracket), ``lower`` (its lower end), ``H``, ``V``, ``W``
         (certificate's primal impulses and dual point, in the units of U and B), ``status``
         (``"optimal"`` or ``"max_rounds"``), ``rounds`` and ``time``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> import unfalsify as uf
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.choice([-1.0, 1.0], 40)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:40] + 0.05 * rng.standard_normal(40)
+    >>> pred = sy.fit_predictor(u, y, 2)                             # the fixed predictor (i = 2)
+    >>> A, Uf, Yf = uf.subspace_data(u[:7], y[:7], 2)                # a window of j = 4 columns
+    >>> B = Yf - np.hstack([pred.Lw, pred.Lu]) @ A
+    >>> out = split_solve(Uf, B, 0.02 * np.sqrt(B.size), rtol=1e-3)  # ρ = σ√(ij), σ = 0.02
+    >>> out["status"], bool(out["lower"] <= out["delta"])
+    ('optimal', True)
+    >>> sub = uf.subspace_unfalsify(u[:7], y[:7], 2, 0.02, predictor=pred, backend="structured", progress=False)
+    >>> bool(abs(sub.delta - out["delta"]) <= 1e-2 * sub.delta)     # the same δ as (7.5) with L fixed
+    True
     """
     clock = Deadline()
     U = np.asarray(U, float)
