@@ -29,3 +29,13 @@ def test_relative_links_point_to_files(doc):
     path = ROOT / doc
     for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", path.read_text()):
         assert (path.parent / target).exists(), f"{doc} links to missing {target}"
+
+
+@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments], ids=lambda p: p.__name__)
+def test_every_public_function_has_a_runnable_examples_section(pkg):
+    # the Examples run as doctests (the README's test command collects the packages with --doctest-modules)
+    import inspect
+
+    missing = [name for name in pkg.__all__ if inspect.isfunction(getattr(pkg, name))
+               and not re.search(r"^Examples\n-+\n", inspect.getdoc(getattr(pkg, name)) or "", re.M)]
+    assert not missing, f"public functions without a numpydoc Examples section: {missing}"
