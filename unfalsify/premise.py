@@ -639,6 +639,11 @@ class PremiseTest:
         return float(self.output_error.delta) if self.output_error is not None else float("nan")
 
 
+def _relative_gap(gap: float, delta: float) -> float:
+    """``gap/δ``, the inconsistency of a model with the data's disks (δ = 0: ``inf`` for any positive gap)."""
+    return gap / delta if delta > 0 else (float("inf") if gap > 0 else 0.0)
+
+
 def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[float, str]:
     """``max (|D̂| − r)/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``) and where it exceeds 1."""
     excited = est.excited & np.isfinite(est.radius)
@@ -646,7 +651,7 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
         return float("nan"), "the record excites no frequency"
     gap = np.abs(est.response) - est.radius
     excess = np.where(excited, gap, -np.inf)
-    worst = float(np.max(excess) / delta) if delta > 0 else (float("inf") if np.max(excess) > 0 else 0.0)
+    worst = _relative_gap(float(np.max(excess)), delta)
     bad = excess > delta
     if not np.any(bad):
         return worst, ""
@@ -726,10 +731,9 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     decided = "output error (Theorem 7.1)" if math.isfinite(delta_oe) and delta_oe > delta_subspace else "subspace (7.5)"
     frf, worst = None, float("nan")
     if oe is not None and oe.residual.size:
-        b = oe.burn_in
+        u_e, e = oe.inputs[oe.burn_in:], oe.residual[oe.burn_in:]  # the output error's rows after the burn-in
         try:
-            frf = frequency_response_estimate(oe.inputs[b:], oe.residual[b:], dt, nperseg=opts.nperseg,
-                                              confidence=opts.confidence)
+            frf = frequency_response_estimate(u_e, e, dt, nperseg=opts.nperseg, confidence=opts.confidence)
         except DataError as exc:
             reasons.append(f"no frequency-response estimate of the model error ({exc})")
     plant_frf = None
@@ -743,14 +747,13 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         if why:
             reasons.append(why)
     low = plant_low = None
-    bins = _low_bins(oe.residual.size - oe.burn_in, frf.nperseg) if frf is not None else 0
+    bins = _low_bins(e.size, frf.nperseg) if frf is not None else 0
     if bins:
-        b = oe.burn_in
-        low = low_band_estimate(oe.inputs[b:], oe.residual[b:], dt, bins=bins, confidence=opts.confidence)
-        outputs = siso_pair(*oe_data)[1][-oe.inputs.size:]  # aligned with oe.inputs (both end with the record)
-        plant_low = low_band_estimate(oe.inputs[b:], outputs[b:], dt, bins=bins, confidence=opts.confidence)
+        y_e = siso_pair(*oe_data)[1][-e.size:]  # the outputs of the same rows (e and the record end together)
+        low = low_band_estimate(u_e, e, dt, bins=bins, confidence=opts.confidence)
+        plant_low = low_band_estimate(u_e, y_e, dt, bins=bins, confidence=opts.confidence)
         low_worst, why = _low_band_inconsistency(low, delta)
-        worst = float(np.nanmax([worst, low_worst]))
+        worst = float(np.fmax(worst, low_worst))  # the larger one, NaN only when both are
         if why:
             reasons.append(why)
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
@@ -770,7 +773,7 @@ def _low_band_inconsistency(est: LowBandEstimate, delta: float) -> tuple[float, 
     if not np.any(np.isfinite(gap)):
         return float("nan"), ""
     k = int(np.argmax(gap))
-    worst = float(gap[k] / delta) if delta > 0 else (float("inf") if gap[k] > 0 else 0.0)
+    worst = _relative_gap(float(gap[k]), delta)
     if not gap[k] > delta:
         return worst, ""
     unit = _unit(est.dt)
