@@ -29,6 +29,7 @@ Weights (§3, §5.4)
    tustin                 -- discretise a continuous-time weight by the bilinear transform
    as_weight              -- check a weighting filter and return it as a discrete ``StateSpace``
    common_dt              -- the one sample time shared by the dynamic weights
+   diagonal_weight        -- a diagonal weight for several channels from SISO weights
    is_zero_weight         -- whether a weight's transfer function is identically zero
    markov_toeplitz        -- block Toeplitz matrix of Markov parameters (3.10)/(3.11), from (A, B, C, D)
    observability          -- extended observability matrix (3.12)
@@ -244,6 +245,7 @@ from .weights import (
     WeightError,
     as_weight,
     common_dt,
+    diagonal_weight,
     is_zero_weight,
     makeweight,
     markov_toeplitz,
@@ -336,6 +338,7 @@ __all__ = [
     "NoiseEstimate",
     "estimate_noise",
     "makeweight",
+    "diagonal_weight",
     # controller files
     "ControllerFileError",
     "CONTROLLER_FORMATS",

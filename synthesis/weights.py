@@ -30,6 +30,7 @@ __all__ = [
     "WeightError",
     "as_weight",
     "common_dt",
+    "diagonal_weight",
     "is_zero_weight",
     "makeweight",
     "markov_toeplitz",
@@ -166,6 +167,61 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     return control.ss(control.tf(num, den, float(dt)))
 
 
+def diagonal_weight(*weights, channels: int | None = None) -> control.StateSpace:
+    """A diagonal weight for several channels: one SISO weight per channel, or one weight repeated.
+
+    The mixed-sensitivity weights of a plant with ``l`` outputs and ``m`` inputs are ``l × l`` (W1, on
+    the error) and ``m × m`` (W2, on the input).  ``diagonal_weight(W, channels=2)`` weights both
+    channels alike; ``diagonal_weight(Wa, Wb)`` each its own way.
+
+    Parameters
+    ----------
+    *weights : scalar, python-control system
+        SISO weights (checked by :func:`as_weight`), one per channel, or one with ``channels``.
+    channels : int, optional
+        Repeat the single weight given this many times.
+
+    Returns
+    -------
+    control.StateSpace
+        The block-diagonal weight, discrete, with the weights' common sample time.
+
+    Raises
+    ------
+    WeightError
+        No weight, a weight with more than one channel, weights with different sample times, or
+        ``channels`` with more than one weight.
+
+    Examples
+    --------
+    >>> W = makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
+    >>> W2 = diagonal_weight(W, channels=2)
+    >>> W2.ninputs, W2.noutputs, W2.nstates
+    (2, 2, 2)
+    >>> import numpy as np
+    >>> bool(np.allclose(W2(1.0), np.diag([W(1.0), W(1.0)])))
+    True
+    >>> diagonal_weight(W, 0.1).noutputs          # a dynamic and a static channel
+    2
+    """
+    if not weights:
+        raise WeightError("diagonal_weight needs at least one weight")
+    if channels is not None:
+        if len(weights) != 1:
+            raise WeightError(f"channels={channels!r} repeats one weight; got {len(weights)} weights: pass one weight "
+                              "with channels=, or one weight per channel without it")
+        if isinstance(channels, bool) or not isinstance(channels, numbers.Integral) or channels < 1:
+            raise WeightError(f"channels must be a positive integer, got {channels!r}")
+        weights = weights * int(channels)
+    dt = common_dt(*[w for w in weights if isinstance(w, (control.StateSpace, control.TransferFunction))])
+    parts = [as_weight(w, f"weights[{k}]", dt=dt) for k, w in enumerate(weights)]
+    for k, w in enumerate(parts):
+        if w.ninputs != 1 or w.noutputs != 1:
+            raise WeightError(f"weights[{k}] has {w.ninputs} input(s) and {w.noutputs} output(s); diagonal_weight "
+                              "stacks single-channel weights")
+    return control.append(*parts)
+
+
 def _ss_parts(W) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return (np.atleast_2d(np.asarray(W.A, float)).reshape(W.nstates, W.nstates),
             np.asarray(W.B, float).reshape(W.nstates, W.ninputs),
@@ -276,7 +332,9 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
     if sys is None:
         sys = _static(D, dt if dt is not None else True)
     if inputs is not None and sys.ninputs != inputs:
-        raise WeightError(f"{name} has {sys.ninputs} input(s) but must have {inputs} to match the predictor")
+        hint = (f"; for several channels stack SISO weights: synthesis.diagonal_weight({name}, channels={inputs})"
+                if sys.ninputs == 1 else "")
+        raise WeightError(f"{name} has {sys.ninputs} input(s) but must have {inputs} to match the predictor{hint}")
     if outputs is not None and sys.noutputs != outputs:
         raise WeightError(f"{name} has {sys.noutputs} output(s) but must have {outputs} to match the predictor")
     if allow_zero and is_zero_weight(sys):

@@ -109,6 +109,7 @@ Loop certificate
    loop_parts             -- checked plant and controller parts of a loop
    step_metrics           -- unit-step metrics of a loop r → y
    StepMetrics            -- result of ``step_metrics``
+   tracking_floors        -- the performance floor per output channel
 
 Errors and warnings
 -------------------
@@ -203,7 +204,8 @@ from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .solvers.split import split_solve
 from .model import predictor_model
-from .certify import LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics
+from .certify import (LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics,
+                      tracking_floors)
 from .premise import (
     EXCITATION_FLOOR,
     ExcitationCheck,
@@ -276,6 +278,7 @@ __all__ = [
     "closed_loop_ry",
     "loop_parts",
     "step_metrics",
+    "tracking_floors",
     "EXCITATION_FLOOR",
     "ExcitationCheck",
     "FrequencyResponseEstimate",

@@ -65,6 +65,16 @@ def siso_pair(u, y, prefix: str = "") -> tuple[np.ndarray, np.ndarray]:
     return u, siso_signal(y, f"{prefix}y", n=u.size)
 
 
+def channel_pair(u, y, prefix: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """``(u, y)`` of one length: 1-D arrays when both are single channels (the SISO path, unchanged), else
+    2-D ``(n, m)`` and ``(n, l)`` with time along axis 0 (raises DataError otherwise)."""
+    u = as_signal(u, f"{prefix}u")
+    y = as_signal(y, f"{prefix}y", n=u.shape[0])
+    if u.shape[1] == 1 and y.shape[1] == 1:
+        return u[:, 0].copy(), y[:, 0].copy()
+    return u, y
+
+
 def rms_or_one(x: np.ndarray) -> float:
     """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
     r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))

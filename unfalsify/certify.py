@@ -44,7 +44,7 @@ from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certific
 from synthesis.results import result
 
 __all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "loop_parts",
-           "step_metrics"]
+           "step_metrics", "tracking_floors"]
 
 #: Default performance floor: mean |r − y| over the last quarter of a unit step.
 TRACKING_FLOOR = 0.1
@@ -55,24 +55,38 @@ STEP_SAMPLES = 300
 @result
 @dataclass(frozen=True)
 class StepMetrics:
-    """Unit-step metrics of a loop ``r → y`` (every reference channel stepped at once; worst channel).
+    """Unit-step metrics of a loop ``r → y``: each reference channel stepped alone; the worst channel.
+
+    A step on reference ``c`` must bring output ``c`` to 1 and leave the other outputs at 0 (a loop
+    whose steady state mixes the channels does not track, even if a step on all references at once
+    would look right).  For one channel this is the plain unit step.
 
     Attributes
     ----------
     final_error : float
-        Mean ``|1 − y|`` over the last quarter of the run (``inf`` when the loop is unstable).
+        The largest entry of ``channel_errors`` (``inf`` when the loop is unstable).
     overshoot : float
-        ``max(y) − 1`` as a fraction of the step (0 when there is none).
+        ``max(y_c) − 1`` of the stepped channel, as a fraction of the step (0 when there is none).
     rise_samples : int
-        First sample with ``y ≥ 0.9`` (−1 when never reached).
+        First sample with ``y_c ≥ 0.9`` on the slowest stepped channel (−1 when one never gets there).
     samples : int
         Length of the run.
+    channel_errors : ndarray or None
+        ``(l, l)``: entry ``[r, c]`` is the mean ``|δ_rc − y_r|`` over the last quarter of the run after a
+        unit step on reference ``c`` (None when the loop is unstable).
     """
 
     final_error: float
     overshoot: float
     rise_samples: int
     samples: int
+    channel_errors: np.ndarray | None = None
+
+    def output_errors(self) -> np.ndarray:
+        """Per output channel, the worst steady error over the steps (``inf`` when unstable)."""
+        if self.channel_errors is None:
+            return np.array([float(self.final_error)])
+        return np.max(np.asarray(self.channel_errors), axis=1)
 
 
 @result
@@ -97,7 +111,8 @@ class LoopCertificate:
         ``small_gain ≤ 1/(1 + margin)``.
     step : StepMetrics or None
         Unit step on ``(P̂, K)`` (None when the nominal loop is unstable).
-    tracking_floor : float
+    tracking_floor : float or tuple of float
+        One floor for every output channel, or one per channel (:func:`tracking_floors`).
     bounded_real : BoundedRealCertificate or None
         The second proof of the small gain: ``‖M̂‖∞ < 1/((1 + margin)·δ)`` by a matrix ``P``
         (:meth:`BoundedRealCertificate.verify` re-checks it).  Computed when the pencil test
@@ -112,7 +127,7 @@ class LoopCertificate:
     norm: NormBracket | None
     small_gain: float
     step: StepMetrics | None
-    tracking_floor: float
+    tracking_floor: float | tuple
     bounded_real: BoundedRealCertificate | None = None
 
     @property
@@ -123,7 +138,7 @@ class LoopCertificate:
     @property
     def tracks(self) -> bool:
         """The performance floor is met."""
-        return bool(self.step is not None and self.step.final_error <= self.tracking_floor)
+        return bool(self.step is not None and np.all(self.step.output_errors() <= np.asarray(self.tracking_floor)))
 
     @property
     def radius(self) -> float:
@@ -234,19 +249,63 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
-    r = np.ones(B.shape[1])
-    x = np.zeros(A.shape[0])
-    Br, Dr = B @ r, D @ r
-    y = np.empty((samples, C.shape[0]))
+    p, l = B.shape[1], C.shape[0]
+    # all references at once, one column of the state per stepped channel: y[k] is (l, p)
+    x = np.zeros((A.shape[0], p))
+    y = np.empty((samples, l, p))
     for k in range(samples):
-        y[k] = C @ x + Dr
-        x = A @ x + Br
-    tail = y[-max(samples // 4, 1):]
-    final = float(np.max(np.mean(np.abs(1.0 - tail), axis=0)))
-    over = float(max(np.max(y) - 1.0, 0.0))
-    reached = np.nonzero(np.all(y >= 0.9, axis=1))[0]
-    return StepMetrics(final_error=final, overshoot=over, rise_samples=int(reached[0]) if reached.size else -1,
-                       samples=int(samples))
+        y[k] = C @ x + D
+        x = A @ x + B
+    target = np.eye(l, p)
+    errors = np.mean(np.abs(target - y[-max(samples // 4, 1):]), axis=0)
+    own = y[:, np.arange(min(l, p)), np.arange(min(l, p))]          # y_c after the step on r_c
+    over = float(max(np.max(own) - 1.0, 0.0))
+    rises = [np.nonzero(own[:, c] >= 0.9)[0] for c in range(own.shape[1])]
+    rise = max(int(r[0]) for r in rises) if all(r.size for r in rises) else -1
+    return StepMetrics(final_error=float(np.max(errors)), overshoot=over, rise_samples=rise, samples=int(samples),
+                       channel_errors=errors)
+
+
+def _check_nonnegative(v, name: str) -> None:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
+            math.isfinite(v) and v >= 0):
+        raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
+
+
+def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
+    """The performance floor per output channel: one number for all, or one per channel.
+
+    Parameters
+    ----------
+    tracking_floor : float or sequence of float
+        Mean absolute step error allowed over the last quarter of the run, ≥ 0.
+    channels : int
+        The plant's outputs ``l``.
+
+    Returns
+    -------
+    ndarray, shape (channels,)
+
+    Raises
+    ------
+    DataError
+        A negative or non-finite floor, or a sequence whose length is not ``channels``.
+
+    Examples
+    --------
+    >>> tracking_floors(0.1, 2).tolist(), tracking_floors([0.1, 0.2], 2).tolist()
+    ([0.1, 0.1], [0.1, 0.2])
+    """
+    if np.ndim(tracking_floor) == 0:
+        _check_nonnegative(tracking_floor, "tracking_floor")
+        return np.full(int(channels), float(tracking_floor))
+    floors = list(tracking_floor)
+    if len(floors) != int(channels):
+        raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
+                        "number for all channels or one per output channel")
+    for k, f in enumerate(floors):
+        _check_nonnegative(f, f"tracking_floor[{k}]")
+    return np.asarray(floors, float)
 
 
 def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracking_floor: float = TRACKING_FLOOR,
@@ -263,8 +322,9 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
         Additive uncertainty size (≥ 0).
     margin : float
         Relative margin: certified needs ``δ · ‖M̂‖∞ ≤ 1/(1 + margin)``.
-    tracking_floor : float
-        Performance floor (mean absolute step error over the last quarter of the run).
+    tracking_floor : float or sequence of float
+        Performance floor (mean absolute step error over the last quarter of the run), for every output
+        channel or one per channel; each reference channel is stepped alone (:func:`step_metrics`).
     step_samples : int
         Length of the step run.
     tol : float
@@ -291,17 +351,17 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     >>> cert.certified, cert.reason.startswith("small gain")
     (False, True)
     """
-    for name, v in (("delta", delta), ("margin", margin), ("tracking_floor", tracking_floor)):
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
-                math.isfinite(v) and v >= 0):
-            raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
+    for name, v in (("delta", delta), ("margin", margin)):
+        _check_nonnegative(v, name)
     if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
         raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
     P, C, l = loop_parts(model, controller)
+    floors = tracking_floors(tracking_floor, l)
+    tracking_floor = float(floors[0]) if np.ndim(tracking_floor) == 0 else tuple(float(f) for f in floors)
     M = control.feedback(C[:, l:], P, sign=+1)
     Am = np.asarray(M.A, float)
     rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0
-    common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=float(tracking_floor))
+    common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor)
     if not rho < 1.0:
         return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model P̂ (spectral radius {rho:.6g})",
                                norm=None, small_gain=float("inf"), step=None, **common)
@@ -315,9 +375,11 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     elif small_gain > 1.0 / (1.0 + margin):
         reason = (f"small gain: δ·‖K(I+P̂K)⁻¹‖∞ = {delta:.4g} × {bracket.upper:.4g} = {small_gain:.4g} > "
                   f"1/(1 + margin) = {1.0 / (1.0 + margin):.4g}")
-    elif not step.final_error <= tracking_floor:
-        reason = (f"performance floor: the step on P̂ leaves a mean error {step.final_error:.3g} > {tracking_floor:.3g} "
-                  "over its last quarter (the controller does not track)")
+    elif not np.all(step.output_errors() <= floors):
+        worst = int(np.argmax(step.output_errors() - floors))
+        channel = f" on output {worst}" if l > 1 else ""
+        reason = (f"performance floor: the step on P̂ leaves a mean error {step.output_errors()[worst]:.3g} > "
+                  f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)")
     elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)
         kyp = bounded_real_certificate(M, 1.0 / ((1.0 + margin) * float(delta)), lower=bracket.lower)
         if not kyp:

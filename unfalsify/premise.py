@@ -64,7 +64,7 @@ import scipy.stats
 from synthesis.results import result
 from synthesis.validation import DataError
 
-from ._common import siso_pair
+from ._common import channel_pair, siso_pair
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel
 
@@ -701,13 +701,13 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (True, True, True)
     """
     opts = options or PremiseOptions()
-    u, y = siso_pair(u, y)
+    u, y = channel_pair(u, y)
     if validation is not None:
         try:
             uv, yv = validation
         except (TypeError, ValueError):
             raise DataError("validation must be a pair (u, y) of held-out data of the same plant") from None
-        uv, yv = siso_pair(uv, yv, "validation ")
+        uv, yv = channel_pair(uv, yv, "validation ")
         oe_data, held_out = (uv, yv), True
     else:
         oe_data, held_out = (u, y), False
@@ -747,9 +747,9 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         if why:
             reasons.append(why)
     low = plant_low = None
-    bins = _low_bins(e.size, frf.nperseg) if frf is not None else 0
+    bins = _low_bins(e.shape[0], frf.nperseg) if frf is not None else 0
     if bins:
-        y_e = siso_pair(*oe_data)[1][-e.size:]  # the outputs of the same rows (e and the record end together)
+        y_e = oe_data[1][-e.shape[0]:]  # the outputs of the same rows (e and the record end together)
         low = low_band_estimate(u_e, e, dt, bins=bins, confidence=opts.confidence)
         plant_low = low_band_estimate(u_e, y_e, dt, bins=bins, confidence=opts.confidence)
         low_worst, why = _low_band_inconsistency(low, delta)

@@ -60,9 +60,10 @@ import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis.validation import DataError, check_horizon
 
-from ._common import check_sigma, siso_pair
+from ._common import channel_pair, check_sigma
 from .exceptions import SolverWarning, UnfalsificationError
-from .certify import STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry
+from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
+                      tracking_floors)
 from .model import predictor_model
 from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
@@ -113,14 +114,18 @@ class LongSolveWarning(UserWarning):
 LONG_SOLVE_SECONDS = 60.0
 
 
-def solve_estimate(horizon: int, columns: int, backend: str) -> tuple[float, float]:
-    """Rough wall time (s) and peak memory (bytes) of a SISO (7.5) solve, from our measurements.
+def solve_estimate(horizon: int, columns: int, backend: str, channels: tuple[int, int] = (1, 1)
+                   ) -> tuple[float, float]:
+    """Rough wall time (s) and peak memory (bytes) of a (7.5) solve, from our measurements.
 
-    Structured backend, 2 cores: 1.0, 4.1, 21 and 193 s and 0.13, 0.19, 0.69 and 2.5 GB at
-    (i, j) = (10, 200), (20, 400), (50, 500), (100, 1000) -- fitted as ``1 + 1.9e-6·j·i^2.5`` s and
-    ``0.15 GB + 48 stacks of j·i² doubles``.  cvxpy/Clarabel: 5.9 s at (10, 200), 97 s at (20, 400), killed
-    above 23.6 GB at (64, 200) -- ``5.9·(j/200)·(i/10)^4`` s and ``2·j·(i(2i+1))²`` bytes (the dense PSD
-    cones).  Estimates, not promises: they decide a warning or a refusal before the solve.
+    One input and one output, structured backend, 2 cores: 1.0, 4.1, 21 and 193 s and 0.13, 0.19, 0.69
+    and 2.5 GB at (i, j) = (10, 200), (20, 400), (50, 500), (100, 1000) -- fitted as ``1 + 1.9e-6·j·i^2.5`` s
+    and ``0.15 GB + 48 stacks of j·i² doubles``.  cvxpy/Clarabel: 5.9 s at (10, 200), 97 s at (20, 400),
+    killed above 23.6 GB at (64, 200) -- ``5.9·(j/200)·(i/10)^4`` s and ``2·j·(i(2i+1))²`` bytes (the dense PSD
+    cones).  Several channels (``channels = (m, l)``), measured on 2 × 2 data: structured 11 s at (10, 200)
+    and 341 s, 1.1 GB at (20, 400) -- ``11·(j/200)·(i/10)^4·(ml/4)²`` s and ``0.15 GB + 185 stacks of
+    j·i²·ml doubles``; cvxpy 73 s at (10, 200) -- the SISO estimate times ``(ml)^1.8`` s and ``(ml)²`` bytes.
+    Estimates, not promises: they decide a warning or a refusal before the solve.
 
     Examples
     --------
@@ -130,8 +135,17 @@ def solve_estimate(horizon: int, columns: int, backend: str) -> tuple[float, flo
     >>> t, mem = solve_estimate(10, 200, "cvxpy")
     >>> round(t, 2), round(mem / 1e9, 3)
     (5.9, 0.018)
+    >>> t, mem = solve_estimate(20, 400, "structured", channels=(2, 2))    # the 2 × 2 measurement
+    >>> round(t), round(mem / 1e9, 1)
+    (352, 1.1)
     """
     i, j = int(horizon), int(columns)
+    ml = int(channels[0]) * int(channels[1])
+    if ml > 1:
+        if backend == "structured":
+            return 11.0 * (j / 200.0) * (i / 10.0) ** 4 * (ml / 4.0) ** 2, 1.5e8 + 185 * 8.0 * j * i * i * ml
+        t, mem = solve_estimate(i, j, backend)
+        return t * ml ** 1.8, mem * ml ** 2
     if backend == "structured":
         return 1.0 + 1.9e-6 * j * i ** 2.5, 1.5e8 + 48 * 8.0 * j * i * i
     return 5.9 * (j / 200.0) * (i / 10.0) ** 4, 2.0 * j * (i * (2 * i + 1)) ** 2
@@ -149,11 +163,11 @@ def _memory_available() -> float:
     return 24.0 * 2 ** 30
 
 
-def _guard_size(i: int, j: int, backend: str) -> None:
+def _guard_size(i: int, j: int, backend: str, channels: tuple[int, int] = (1, 1)) -> None:
     """Refuse a (7.5) solve that cannot fit in memory; warn about one that will take long."""
-    seconds, memory = solve_estimate(i, j, backend)
+    seconds, memory = solve_estimate(i, j, backend, channels)
     other = "cvxpy" if backend == "structured" else "structured"
-    alt_s, alt_m = solve_estimate(i, j, other)
+    alt_s, alt_m = solve_estimate(i, j, other, channels)
     if memory > 0.5 * _memory_available():
         raise DataError(
             f"the (7.5) solve at (i, j) = ({i}, {j}) with backend={backend!r} needs about {memory / 2 ** 30:.1f} GB, "
@@ -375,47 +389,95 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
     :attr:`unfalsify.PremiseTest.plant_low_band`): measured, a model with DC gain
     −1694 where the record shows 1.3–1.7 passed every other test with a controller too weak to track the
     real plant.
+
+    Several channels: the error of a static loop is ``max |I − T(1)|`` entrywise (each reference channel
+    stepped alone must reach its own output and leave the others), and the ball's static offsets tried are
+    ``±radius`` times the rank-one direction the loop is most sensitive to (the top singular pair of
+    ``M̂(1)``) and times the identity's first ``min(l, m)`` columns -- a test at those offsets, not a proof
+    over the whole matrix ball (for one channel the two ends are the whole ball).
     """
     if not radius > 0:
         return ""
-    worst, where = 0.0, 0.0
-    for d in (-radius, radius):
+    l = model.noutputs
+    floors = tracking_floors(floor, l)
+    worst, where, errs = -np.inf, None, None
+    for E in _static_offsets(model, controller, radius):
         try:
-            loop = closed_loop_ry(model + control.ss([], [], [], [[d]], model.dt), controller)
+            loop = closed_loop_ry(model + control.ss([], [], [], E, model.dt), controller)
             A = np.asarray(loop.A, float)
             if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
-                return (f"the loop is unstable with the static perturbation {d:+.4g} of P̂, inside the certified "
-                        f"ball of radius {radius:.4g}")
-            err = float(abs(1.0 - np.squeeze(control.dcgain(loop))))
+                return (f"the loop is unstable with the static perturbation {_offset_text(E)} of P̂, inside the "
+                        f"certified ball of radius {radius:.4g}")
+            e = np.max(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), axis=1)
         except (np.linalg.LinAlgError, ValueError):
-            err = float("inf")
-        if not err <= worst:
-            worst, where = err, d
-    if not worst <= floor:
-        return (f"steady-state tracking error {worst:.3g} > {floor:g} for the plant P̂ {where:+.4g} (a static offset "
-                f"inside the certified ball of radius {radius:.4g}): the loop tracks on P̂ but not across the "
-                "uncertainty it claims; use a weight W1 with more gain at low frequency (integral action) or "
-                "reduce δ (a longer or richer record)")
-    if data_gain is None or not np.isfinite(data_gain):
+            e = np.full(l, np.inf)
+        excess = np.nan_to_num(e - floors, nan=np.inf)
+        if not np.max(excess) <= worst:
+            worst, where, errs = float(np.max(excess)), E, e
+    if worst > 0:
+        k = int(np.argmax(errs - floors))
+        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the plant P̂ "
+                f"{_offset_text(where)} (a static offset inside the certified ball of radius {radius:.4g}): the loop "
+                "tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
+                "frequency (integral action) or reduce δ (a longer or richer record)")
+    if data_gain is None or not np.all(np.isfinite(data_gain)):
         return ""
-    err = _dc_error_at_gain(controller, complex(data_gain))
-    if err <= floor:
+    G = np.asarray(data_gain, complex).reshape(l, model.ninputs)
+    e = _dc_errors_at_gain(controller, G)
+    if np.all(e <= floors):
         return ""
-    return (f"steady-state tracking error {err:.3g} > {floor:g} at the low-frequency gain the data show "
-            f"({abs(data_gain):.4g}, the plant's response at the record's lowest DFT frequency) while P̂'s DC gain is "
-            f"{float(np.real(np.squeeze(control.dcgain(model)))):.4g}: P̂ is wrong where tracking is decided; "
+    k = int(np.argmax(e - floors))
+    dc = np.atleast_2d(control.dcgain(model)).real
+    return (f"steady-state tracking error {e[k]:.3g} > {floors[k]:g}{_output_text(k, l)} at the low-frequency gain the "
+            f"data show ({_gain_text(np.abs(G))}, the plant's response at the record's lowest DFT frequency) while "
+            f"P̂'s DC gain is {_gain_text(dc)}: P̂ is wrong where tracking is decided; "
             "refit it (a longer horizon, a longer or richer record)")
 
 
-def _dc_error_at_gain(controller, p: complex) -> float:
-    """``|1 − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (SISO)."""
+def _output_text(k: int, l: int) -> str:
+    return f" on output {k}" if l > 1 else ""
+
+
+def _static_offsets(model, controller, radius: float) -> list:
+    """The static perturbations of norm ``radius`` the steady-state check tries (see :func:`_steady_state_reason`)."""
+    l, m = model.noutputs, model.ninputs
+    if l == m == 1:
+        return [np.array([[-radius]]), np.array([[radius]])]
+    directions = [np.eye(l, m)]
+    try:
+        Md = np.atleast_2d(control.dcgain(additive_channel(model, controller)))  # m × l
+        if np.all(np.isfinite(Md)):
+            U, _, Vh = np.linalg.svd(Md)
+            directions.append(np.outer(Vh[0].conj(), U[:, 0].conj()).real)  # E = v₁u₁ᵀ: E·M̂(1) has gain σ₁
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    return [sign * radius * D / max(np.linalg.norm(D, 2), 1e-300) for D in directions for sign in (-1.0, 1.0)]
+
+
+def _offset_text(E) -> str:
+    E = np.atleast_2d(E)
+    return f"{float(E[0, 0]):+.4g}" if E.size == 1 else f"+ {np.array2string(E, precision=3)}"
+
+
+def _gain_text(G) -> str:
+    G = np.atleast_2d(G)
+    return f"{float(G[0, 0]):.4g}" if G.size == 1 else np.array2string(G, precision=3)
+
+
+def _dc_errors_at_gain(controller, p) -> np.ndarray:
+    """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m)."""
+    G = np.atleast_2d(np.asarray(p, complex))
+    l = G.shape[0]
     with np.errstate(divide="ignore", invalid="ignore"):
-        C = np.asarray(control.dcgain(controller), complex).reshape(-1)
-        cr, cy = C[0], C[1]
-        den = 1.0 - p * cy
-        if not np.isfinite(cy):  # integral action: T(1) = 1
-            return 0.0
-        return float(abs(1.0 - p * cr / den)) if den != 0 else float("inf")
+        C = np.atleast_2d(np.asarray(control.dcgain(controller), complex))
+        cr, cy = C[:, :l], C[:, l:]
+        if not np.all(np.isfinite(cy)):  # integral action: T(1) = I
+            return np.zeros(l)
+        try:
+            T = np.linalg.solve(np.eye(l) - G @ cy, G @ cr)
+        except np.linalg.LinAlgError:
+            return np.full(l, np.inf)
+        return np.max(np.abs(np.eye(l) - T), axis=1)
 
 
 def _persistence_reason(pred, u, i: int, what: str) -> str:
@@ -432,12 +494,15 @@ def _persistence_reason(pred, u, i: int, what: str) -> str:
             return (f"the {what}'s regressor is rank deficient (rank {pred.rank} of {pred.n_regressors}; a "
                     "PersistenceWarning): use a longer or richer record")
         return ""
-    U = np.lib.stride_tricks.sliding_window_view(np.asarray(u, float).reshape(-1), 2 * i)
+    u2 = np.asarray(u, float).reshape(np.shape(u)[0], -1)
+    m = u2.shape[1]
+    # block Hankel [U_p; U_f] of depth 2i, one row per column of the window: rank 2i·m needed
+    U = np.lib.stride_tricks.sliding_window_view(u2, 2 * i, axis=0).reshape(-1, 2 * i * m)
     s = np.linalg.svd(U, compute_uv=False)
-    rank = int(np.sum(s > max(U.shape) * np.finfo(float).eps * 1e3 * s[0]))
-    if rank < 2 * i:
-        return (f"the window's input is not persistently exciting of order 2i = {2 * i} (rank {rank}): excite more "
-                "frequencies (white PRBS) or lower the horizon")
+    rank = int(np.sum(s > max(U.shape) * np.finfo(float).eps * 1e3 * s[0])) if s.size and s[0] > 0 else 0
+    if rank < 2 * i * m:
+        return (f"the window's input is not persistently exciting of order 2i = {2 * i} (rank {rank} of {2 * i * m}): "
+                "excite more frequencies (white PRBS, independent per input channel) or lower the horizon")
     return ""
 
 
@@ -811,9 +876,15 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
     sigma = check_sigma(sigma)
     backend = opts.backend or ("structured" if opts.form == "conditioned" else "cvxpy")
     _check_window(u, y, i, sigma, predictor)
-    _guard_size(i, np.asarray(u).shape[0] - 2 * i + 1, backend)
+    _guard_size(i, np.asarray(u).shape[0] - 2 * i + 1, backend, _channels(u, y))
     return subspace_unfalsify(u, y, i, sigma, form=opts.form, predictor=predictor, solver=opts.solver,
                               solver_options=opts.solver_options, backend=backend)
+
+
+def _channels(u, y) -> tuple[int, int]:
+    """``(m, l)`` of signals with time along axis 0."""
+    return (int(np.prod(np.shape(u)[1:], dtype=int)) if np.ndim(u) > 1 else 1,
+            int(np.prod(np.shape(y)[1:], dtype=int)) if np.ndim(y) > 1 else 1)
 
 
 def _model_predictor(unf: SubspaceResult, predictor):
@@ -886,7 +957,7 @@ class _LoopJudge:
         self.model, self.ref_model, self.prem = model, ref_model, prem
         self.premise_reason, self.delta = premise_reason, delta
         self.margin = _positive_real(options.margin, "certificate_margin", allow_equal=True)
-        self.floor = float(options.tracking_floor)
+        self.floor = options.tracking_floor  # one number, or one per output channel (certify.tracking_floors)
         self.cert_opts = dict(margin=self.margin, tracking_floor=options.tracking_floor,
                               step_samples=options.step_samples)
         self.missing = None
@@ -1046,12 +1117,13 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
 
     Returns ``(u_window, y_window, validation, predictor, predictor_for)``.
     """
-    u_all, y_all = siso_pair(u, y)
-    n = u_all.size
+    u_all, y_all = channel_pair(u, y)
+    n = u_all.shape[0]
+    m, l = (u_all.shape[1], y_all.shape[1]) if u_all.ndim == 2 else (1, 1)
     i = check_horizon(horizon, n)
     fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
     if window == "auto":
-        j = min(3 * 3 * i, fit_end - 2 * i + 1)  # three columns per regressor i(2m + l) = 3i (SISO)
+        j = min(3 * i * (2 * m + l), fit_end - 2 * i + 1)  # three columns per regressor of the predictor
         start, stop = 0, 2 * i + j - 1
     elif isinstance(window, slice):
         start, stop, step = window.indices(n)
