@@ -51,6 +51,9 @@ COMMANDS: dict[str, tuple] = {
                            ((("--only",), dict(dest="only", default=None, metavar="TEXT",
                                                help="run only the cases whose name contains TEXT "
                                                     "(comma-separated: any of them)")),)),
+    "mimo-pipeline": ("experiments.studies.mimo_pipeline", "run",
+                      "§7.4 certificate for plants with several inputs and outputs (2 × 2, 2 × 1, 1 × 2) under white, "
+                      "low-pass, silent-channel and collinear excitation, judged on the true plant"),
     "bench-predictor": ("experiments.bench.bench_predictor", "run", "benchmark: QR vs Cholesky predictor, recursive updates"),
     "bench-adaptive": ("experiments.bench.bench_adaptive", "run", "benchmark: adaptive redesign time per update at i = 64 (§6.3)"),
     "bench-unfalsify": ("experiments.bench.bench_unfalsify", "run", "benchmark: LMI solve time vs problem size",

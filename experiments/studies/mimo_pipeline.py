@@ -1,0 +1,251 @@
+"""``python -m experiments mimo-pipeline``: the §7.4 certificate for several inputs and outputs, judged on the true plant.
+
+Plants with two channels on at least one side (2 × 2 coupled lags, a 2 × 2 two-mass structure with
+lightly damped modes, a 2 × 1 and a 1 × 2 plant), each under four excitations: independent white PRBS
+on every input (the case the pipeline should certify), low-pass Gaussian noise on every input (little
+power where the loop may be sensitive), one input silent (not persistently exciting: must refuse), and
+two nearly collinear inputs (``u₂ = 0.95 u₁ + 0.05 e``: the data barely separate the channels).
+
+Each run: a record of ``RECORD`` samples and a second, held-out experiment of ``HELD_OUT`` samples;
+:func:`unfalsify.robust_design_from_data` in record mode (``window="auto"``, ``sigma="auto"``,
+``validation=`` the second experiment) with diagonal weights (:func:`synthesis.diagonal_weight` of
+``makeweight(100, (π/30, 1), 0.2, 1)`` and ``makeweight(0.05, (π/10, 0.3), 1, 1)`` in rad/sample).
+Independently of the pipeline, the loop it returns is judged on the true plant: stability, the
+proven ``δ·‖K(I + PK)⁻¹‖∞`` (largest singular value), a step on each reference channel alone, and the
+premise the certificate rests on, ``‖P − P̂‖∞/δ``.  A *false certificate* is a certified loop the
+judge fails; a *silent failure* a loop neither certified nor warned about.
+
+``--quick``: the 2 × 2 coupled lags only, one seed.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import control
+import numpy as np
+import scipy.signal
+
+import synthesis
+import unfalsify as uf
+
+from ..lab.report import Report, finish_report, write_csv
+
+__all__ = ["run", "summary_lines", "PLANTS", "EXCITATIONS", "judge", "make_record", "Case"]
+
+#: samples of the design record and of the held-out second experiment
+RECORD, HELD_OUT = 1500, 600
+#: output noise (rms) on every channel
+NOISE = 0.02
+HORIZON = 6
+
+
+def coupled_lags(dt: float = 1.0) -> control.StateSpace:
+    """2 × 2: first-order lags (poles 0.9, 0.7) mixed by a full matrix (DC gain [[1, 0.4], [0.3, 0.8]])."""
+    a = np.array([0.9, 0.7])
+    G = np.array([[1.0, 0.4], [0.3, 0.8]])
+    return control.ss(np.diag(a), np.diag(1 - a), G, np.zeros((2, 2)), dt)
+
+
+def two_mass(dt: float = 0.1) -> control.StateSpace:
+    """2 × 2: two masses, springs to ground and between them, force on each, position of each (ZOH)."""
+    k1, k2, kc, c = 1.0, 1.5, 0.8, 0.15
+    K = np.array([[k1 + kc, -kc], [-kc, k2 + kc]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-K, -c * np.eye(2)]])
+    B = np.vstack([np.zeros((2, 2)), np.eye(2)])
+    C = np.hstack([np.eye(2), np.zeros((2, 2))])
+    return control.c2d(control.ss(A, B, C, np.zeros((2, 2))), dt, "zoh")
+
+
+def tall(dt: float = 1.0) -> control.StateSpace:
+    """2 × 1: one input seen by two lags (poles 0.8, 0.6), DC gains 1 and 0.5."""
+    a = np.array([0.8, 0.6])
+    return control.ss(np.diag(a), (1 - a).reshape(2, 1), np.diag([1.0, 0.5]), np.zeros((2, 1)), dt)
+
+
+def wide(dt: float = 1.0) -> control.StateSpace:
+    """1 × 2: two lags (poles 0.85, 0.5) summed into one output, DC gains 1 and 0.6."""
+    a = np.array([0.85, 0.5])
+    return control.ss(np.diag(a), np.diag(1 - a), np.array([[1.0, 0.6]]), np.zeros((1, 2)), dt)
+
+
+PLANTS = {"coupled_lags": coupled_lags, "two_mass": two_mass, "tall_2x1": tall, "wide_1x2": wide}
+
+
+def _prbs(n: int, m: int, rng) -> np.ndarray:
+    return np.sign(rng.standard_normal((n, m)))
+
+
+def _lowpass(n: int, m: int, rng) -> np.ndarray:
+    b, a = scipy.signal.butter(4, 0.1)                      # cut-off a tenth of Nyquist
+    x = scipy.signal.lfilter(b, a, rng.standard_normal((n + 200, m)), axis=0)[200:]
+    return x / np.std(x, axis=0)
+
+
+def _silent(n: int, m: int, rng) -> np.ndarray:
+    u = _prbs(n, m, rng)
+    u[:, -1] = 0.0
+    return u
+
+
+def _collinear(n: int, m: int, rng) -> np.ndarray:
+    u = _prbs(n, m, rng)
+    if m > 1:
+        u[:, 1] = 0.95 * u[:, 0] + 0.05 * rng.standard_normal(n)
+    return u
+
+
+EXCITATIONS = {"prbs": _prbs, "lowpass": _lowpass, "silent_channel": _silent, "collinear": _collinear}
+
+
+@dataclass(frozen=True)
+class Case:
+    plant: str
+    excitation: str
+    seed: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.plant}/{self.excitation}/s{self.seed}"
+
+
+def make_record(case: Case):
+    """``(P, (u, y), (u_v, y_v))``: the true plant, the design record and the held-out experiment."""
+    P = PLANTS[case.plant]()
+    rng = np.random.default_rng(1000 * case.seed + 7)
+    signal = EXCITATIONS[case.excitation]
+
+    def experiment(n):
+        u = signal(n, P.ninputs, rng)
+        y = control.forced_response(P, T=np.arange(n) * P.dt, U=u.T).outputs.reshape(P.noutputs, n).T
+        return u, y + NOISE * rng.standard_normal(y.shape)
+
+    return P, experiment(RECORD), experiment(HELD_OUT)
+
+
+def _weights(P):
+    W1 = synthesis.makeweight(100.0, (math.pi / 30, 1.0), 0.2, 1.0)
+    W2 = synthesis.makeweight(0.05, (math.pi / 10, 0.3), 1.0, 1.0)
+    dt = float(P.dt)
+    if dt != 1.0:  # the same shapes in rad/sample at the plant's sample time
+        W1 = synthesis.makeweight(100.0, (math.pi / 30 / dt, 1.0), 0.2, dt)
+        W2 = synthesis.makeweight(0.05, (math.pi / 10 / dt, 0.3), 1.0, dt)
+    return (synthesis.diagonal_weight(W1, channels=P.noutputs), synthesis.diagonal_weight(W2, channels=P.ninputs))
+
+
+def judge(P, controller, delta: float, tracking_floor: float = uf.certify.TRACKING_FLOOR) -> dict:
+    """The loop on the true plant, independent of the pipeline's models; ``fails`` lists what failed."""
+    rob = uf.additive_robustness(P, controller)
+    out = {"stable": bool(rob.stable), "small_gain": float(delta * rob.peak) if rob.stable else float("inf")}
+    step = uf.step_metrics(uf.closed_loop_ry(P, controller))
+    out["step_error"] = float(step.final_error)
+    fails = []
+    if not rob.stable:
+        fails.append("true loop unstable")
+    else:
+        if not out["small_gain"] < 1.0:
+            fails.append(f"true δ‖M‖ = {out['small_gain']:.3g} ≥ 1")
+        if not step.final_error <= tracking_floor:
+            fails.append(f"no tracking (step error {step.final_error:.3g})")
+    out["fails"], out["ok"] = fails, not fails
+    return out
+
+
+def premise_ratio(P, model, delta: float) -> float:
+    """``‖P − P̂‖∞/δ`` (proven upper side; inf when either is not stable or δ = 0)."""
+    for sys in (P, model):
+        if sys.nstates and np.max(np.abs(np.linalg.eigvals(sys.A))) >= 1.0 - 1e-9:
+            return float("inf")
+    b = synthesis.hinf_norm(control.ss(P) - control.ss(model))
+    return float(b.upper / delta) if delta > 0 and math.isfinite(b.upper) else float("inf")
+
+
+def run_case(case: Case) -> dict:
+    """One pipeline run and its true-plant verdict."""
+    P, (u, y), validation = make_record(case)
+    W1, W2 = _weights(P)
+    t0 = time.perf_counter()
+    row = {"case": case.name, "plant": case.plant, "excitation": case.excitation, "seed": case.seed,
+           "shape": f"{P.noutputs}×{P.ninputs}"}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            rd = uf.robust_design_from_data(u, y, HORIZON, W1, W2, "auto", window="auto", validation=validation,
+                                            dt=float(P.dt))
+        except (synthesis.DataError, uf.UnfalsificationError) as exc:
+            row.update(verdict="refused_by_error", certified=False, reason=str(exc), seconds=time.perf_counter() - t0)
+            return row
+    warned = any(issubclass(w.category, uf.NotCertifiedWarning) for w in caught)
+    true = judge(P, rd.controller, rd.delta)
+    if rd.certified:
+        verdict = "certified" if true["ok"] else "false_certificate"
+    else:
+        verdict = "not_certified" if warned else "silent_failure"
+    row.update(verdict=verdict, certified=bool(rd.certified), delta=float(rd.delta),
+               decided_by=rd.premise.decided_by, premise_ratio=premise_ratio(P, rd.model, rd.delta),
+               true_small_gain=true["small_gain"], true_stable=true["stable"], true_step_error=true["step_error"],
+               true_fails="; ".join(true["fails"]), reason=rd.reason, seconds=time.perf_counter() - t0)
+    return row
+
+
+_HEADERS = ["case", "shape", "verdict", "δ", "decided by", "‖P−P̂‖∞/δ", "true δ‖M‖", "true step error", "reason",
+            "time [s]"]
+
+
+def _row(r: dict) -> list:
+    reason = r.get("reason", "") or "—"
+    return [r["case"], r["shape"], r["verdict"], r.get("delta", float("nan")), r.get("decided_by", ""),
+            r.get("premise_ratio", float("nan")), r.get("true_small_gain", float("nan")),
+            r.get("true_step_error", float("nan")), reason if len(reason) < 200 else reason[:197] + "…",
+            r["seconds"]]
+
+
+def cases(quick: bool, seed: int = 0) -> list[Case]:
+    plants = ("coupled_lags",) if quick else tuple(PLANTS)
+    seeds = (seed,) if quick else (seed, seed + 1)
+    return [Case(p, e, s) for p in plants for e in EXCITATIONS for s in seeds]
+
+
+def summarise(rows: list[dict]) -> dict:
+    verdicts = {v: sum(r["verdict"] == v for r in rows) for v in
+                ("certified", "false_certificate", "not_certified", "refused_by_error", "silent_failure")}
+    ratios = [r["premise_ratio"] for r in rows if r["verdict"] == "certified"]
+    return {"runs": len(rows), "certified": verdicts["certified"], "false_certificates": verdicts["false_certificate"],
+            "silent_failures": verdicts["silent_failure"], "verdicts": verdicts,
+            "false_certificate_cases": [r["case"] for r in rows if r["verdict"] == "false_certificate"],
+            "premise_ratio_certified": [min(ratios), max(ratios)] if ratios else []}
+
+
+def summary_lines(summary: dict) -> list[str]:
+    """Key numbers of a run, for the CLI and the report."""
+    lines = [f"{summary['certified']} of {summary['runs']} runs certified",
+             f"false certificates: {summary['false_certificates']} (must be 0)"
+             + (f": {', '.join(summary['false_certificate_cases'])}" if summary["false_certificate_cases"] else ""),
+             f"silent failures: {summary['silent_failures']} (must be 0)",
+             "verdicts: " + ", ".join(f"{k} {v}" for k, v in summary["verdicts"].items() if v)]
+    if summary["premise_ratio_certified"]:
+        lo, hi = summary["premise_ratio_certified"]
+        lines.append(f"premise ratio ‖P − P̂‖∞/δ of the certified loops: {lo:.3g}–{hi:.3g}")
+    return lines
+
+
+TITLE = "§7.4 certificate with several inputs and outputs, judged on the true plant"
+
+
+def run(opts) -> dict:
+    """Run the cases (``--quick``: one plant, one seed); write ``mimo_pipeline.md``/``.json``/``.csv``."""
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    rows = [run_case(c) for c in cases(bool(opts.quick), int(getattr(opts, "seed", 0) or 0))]
+    summary = {"quick": bool(opts.quick), **summarise(rows), "cases": rows}
+    rep = Report(TITLE)
+    rep.text(__doc__.split("\n\n", 1)[1].rsplit("``--quick``", 1)[0].strip())
+    table = [_row(r) for r in rows]
+    rep.table(_HEADERS, table)
+    rep.section("Summary", "\n".join(f"- {line}" for line in summary_lines(summary)))
+    write_csv(out / "mimo_pipeline.csv", _HEADERS, table)
+    return finish_report(rep, summary, out, "mimo_pipeline", t_start=t_start)
