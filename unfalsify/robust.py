@@ -488,8 +488,9 @@ def _persistence_reason(pred, u, i: int, what: str) -> str:
     """
     if getattr(pred, "input_rank", None) is not None:
         if pred.persistently_exciting is False:
+            full = 2 * i * int(getattr(pred, "m", 1))
             return (f"the {what} was fitted on an input that is not persistently exciting of order 2i = {2 * i} "
-                    f"(rank {pred.input_rank}): excite more frequencies (white PRBS) or lower the horizon")
+                    f"(rank {pred.input_rank} of {full}): excite more frequencies (white PRBS) or lower the horizon")
         if not pred.full_rank:
             return (f"the {what}'s regressor is rank deficient (rank {pred.rank} of {pred.n_regressors}; a "
                     "PersistenceWarning): use a longer or richer record")

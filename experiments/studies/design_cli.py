@@ -54,13 +54,16 @@ W1_DEFAULT = (100.0, 1.0 / 30.0, 1.0, 0.2)
 W2_DEFAULT = (0.05, 1.0 / 10.0, 0.3, 1.0)
 
 
-def default_weights(dt: float) -> tuple:
+def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     """The default W1, W2 at sample time ``dt`` (module docstring) and a sentence stating them.
 
     Parameters
     ----------
     dt : float
         Sample time of the record.
+    inputs, outputs : int
+        The record's channels: W1 is ``outputs × outputs`` and W2 ``inputs × inputs``, the same
+        weight on every channel (:func:`synthesis.diagonal_weight`).
 
     Returns
     -------
@@ -68,6 +71,15 @@ def default_weights(dt: float) -> tuple:
         First-order discrete weights (:func:`synthesis.makeweight`).
     text : str
         What they are, for the report.
+
+    Examples
+    --------
+    >>> W1, W2, text = default_weights(0.1)
+    >>> W1.ninputs, W2.ninputs, text.startswith("W1 = makeweight(100")
+    (1, 1, True)
+    >>> W1, W2, _ = default_weights(1.0, inputs=2, outputs=3)
+    >>> W1.ninputs, W2.ninputs
+    (3, 2)
     """
     from synthesis import makeweight
 
@@ -76,7 +88,15 @@ def default_weights(dt: float) -> tuple:
     for name, (dc, frac, mag, hf) in (("W1", W1_DEFAULT), ("W2", W2_DEFAULT)):
         parts.append(makeweight(dc, (frac * wn, mag), hf, dt))
         text.append(f"{name} = makeweight({dc:g}, ({frac * wn:.4g} rad/s = ω_N/{1 / frac:g}, {mag:g}), {hf:g}, dt)")
-    return parts[0], parts[1], "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s)"
+    W1, W2 = _diagonal(parts[0], outputs), _diagonal(parts[1], inputs)
+    note = "" if inputs == outputs == 1 else ", the same on every channel (diagonal)"
+    return W1, W2, "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s){note}"
+
+
+def _diagonal(W, channels: int):
+    from synthesis import diagonal_weight
+
+    return W if channels == 1 else diagonal_weight(W, channels=channels)
 
 
 def _weight_from_spec(spec: str, dt: float, what: str):
@@ -90,7 +110,7 @@ def _weight_from_spec(spec: str, dt: float, what: str):
     return makeweight(dc, (freq, mag), hf, dt)
 
 
-def _weights(extra: dict, dt: float) -> tuple:
+def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults."""
     files, w1, w2 = extra.get("weights"), extra.get("w1"), extra.get("w2")
     if files and (w1 or w2):
@@ -107,9 +127,10 @@ def _weights(extra: dict, dt: float) -> tuple:
     if bool(w1) != bool(w2):
         raise DataError("pass both --w1 and --w2 (or neither, for the defaults)")
     if w1:
-        return (_weight_from_spec(w1, dt, "w1"), _weight_from_spec(w2, dt, "w2"),
-                f"W1 = makeweight({w1}) and W2 = makeweight({w2}) (DC, FREQ rad/s, MAG, HF; given)")
-    return default_weights(dt)
+        return (_diagonal(_weight_from_spec(w1, dt, "w1"), outputs), _diagonal(_weight_from_spec(w2, dt, "w2"), inputs),
+                f"W1 = makeweight({w1}) and W2 = makeweight({w2}) (DC, FREQ rad/s, MAG, HF; given"
+                + ("" if inputs == outputs == 1 else "; the same on every channel") + ")")
+    return default_weights(dt, inputs, outputs)
 
 
 def parse_window(text: str | None):
@@ -167,8 +188,8 @@ def _file_columns(path: Path, variable: str | None):
 def _select(path: Path, extra: dict):
     """The record's u, y, t selection: the user's, or the defaults (column after the time column, the next).
 
-    A record with more than one input or output channel is refused with the options to pick one: the
-    design is SISO (MIMO records are Chapter 7's other case).
+    Several channels: ``--u`` and ``--y`` take comma lists (names or indices).  A file with more than
+    two signal columns and neither given is refused: which columns are inputs only the user knows.
     """
     variable = extra.get("variable")
     u, y, t = _column(extra.get("u")), _column(extra.get("y")), _column(extra.get("t"))
@@ -177,10 +198,6 @@ def _select(path: Path, extra: dict):
         # a CSV with a column called t/time: its step is the sample time (no --dt needed)
         hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
         t = names[hits[0]] if hits else None
-    for what, sel in (("--u", u), ("--y", y)):
-        if isinstance(sel, list):
-            raise RecordError(f"{what} {extra.get(what[2:])} selects {len(sel)} channels, but the design is SISO "
-                              f"(MIMO is not supported yet): pick one channel with {what}")
     if u is None or y is None:
         if width is None:
             u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
@@ -189,10 +206,11 @@ def _select(path: Path, extra: dict):
             rest = [k for k in range(width) if k != t_index]
             if len(rest) > 2 and (u is None and y is None):
                 cols = ", ".join(names[k] for k in rest) if names else f"{len(rest)} columns"
-                raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}): a MIMO record, but the "
-                                  "design is SISO: pick one input with --u and one output with --y (names or "
-                                  "0-based indices)")
-            free = [k for k in rest if k not in (u, y) and not (names and names[k] in (u, y))]
+                raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}): say which are inputs "
+                                  "with --u and which are outputs with --y (names or 0-based indices, comma-separated "
+                                  "for several channels, e.g. --u 0,1 --y 2,3)")
+            taken = [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
+            free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
             pick = (lambda k: names[k]) if names else (lambda k: k)
             if u is None:
                 u, free = pick(free[0]), free[1:]
@@ -214,9 +232,15 @@ def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = uf.robust_design_from_data(np.asarray(u, float).reshape(-1), np.asarray(y, float).reshape(-1),
-                                         horizon, W1, W2, sigma, dt=dt, window=window)
+        res = uf.robust_design_from_data(_channels(u), _channels(y), horizon, W1, W2, sigma, dt=dt, window=window)
     return res, [f"{w.category.__name__}: {w.message}" for w in caught]
+
+
+def _channels(x) -> np.ndarray:
+    """A signal as ``(n,)`` for one channel (the SISO path) or ``(n, k)`` for several."""
+    x = np.asarray(x, float)
+    x = x.reshape(x.shape[0], -1)
+    return x[:, 0] if x.shape[1] == 1 else x
 
 
 def _fmt(x) -> str:
@@ -224,15 +248,20 @@ def _fmt(x) -> str:
 
 
 def _simulate(sys, u):
-    """Output of ``sys`` driven by ``u`` from rest (NaN from where it blows up: an unstable P̂ does)."""
+    """Output of ``sys`` driven by ``u`` (n, m) from rest, (n, l) (NaN from where it blows up: an unstable P̂ does)."""
     from ..lab.simulate import _lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (sys.A, sys.B, sys.C, sys.D))
+    u = np.asarray(u, float).reshape(np.shape(u)[0], -1)
     with np.errstate(all="ignore"):
-        y = _lsim(A, B, C, D, np.asarray(u, float).reshape(-1, 1), np.zeros(A.shape[0]))[0]
-    y = np.asarray(y, float).reshape(-1)
+        y = _lsim(A, B, C, D, u, np.zeros(A.shape[0]))[0]
+    y = np.asarray(y, float).reshape(u.shape[0], -1)
     y[~np.isfinite(y)] = np.nan
     return y
+
+
+def _channel_labels(names, what: str) -> list[str]:
+    return [f"{what} ({c})" for c in names] if len(names) > 1 else [f"{what} ({names[0]})"]
 
 
 def _figures(out: Path, rec, res, fit_end: int, window: tuple[int, int]) -> tuple[list, dict]:
@@ -245,20 +274,23 @@ def _figures(out: Path, rec, res, fit_end: int, window: tuple[int, int]) -> tupl
     from ..lab.report import save_figure
     from ..lab.simulate import closed_loop_system
 
-    u, y, dt = rec.u[:, 0], rec.y[:, 0], rec.dt
+    u, y, dt = rec.u, rec.y, rec.dt
     t = np.arange(rec.n) * dt
+    xlabel = "time (s)" if dt != 1 else "sample"
     figs, numbers = [], {}
 
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
-    ax1.plot(t, u, lw=0.7, label=f"u ({rec.u_columns[0]})")
-    ax2.plot(t, y, lw=0.7, color="C1", label=f"y ({rec.y_columns[0]})")
+    for k, lab in enumerate(_channel_labels(rec.u_columns, "u")):
+        ax1.plot(t, u[:, k], lw=0.7, label=lab)
+    for k, lab in enumerate(_channel_labels(rec.y_columns, "y")):
+        ax2.plot(t, y[:, k], lw=0.7, color=f"C{k + 1}", label=lab)
     for ax in (ax1, ax2):
         ax.axvspan(window[0] * dt, window[1] * dt, color="C2", alpha=0.15, label="(7.5) window")
         ax.axvline(fit_end * dt, color="k", ls="--", lw=0.8, label="held out from here")
         ax.legend(loc="upper right", fontsize=7)
     ax1.set_ylabel("input u")
     ax2.set_ylabel("output y")
-    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
+    ax2.set_xlabel(xlabel)
     ax1.set_title("Record")
     figs.append(save_figure(fig, out / "data.png"))
 
@@ -268,49 +300,65 @@ def _figures(out: Path, rec, res, fit_end: int, window: tuple[int, int]) -> tupl
     numbers["oe_rms_held_out"] = float(np.sqrt(np.nanmean(err[fit_end:] ** 2)))
     numbers["y_rms"] = float(np.sqrt(np.mean(y ** 2)))
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
-    ax1.plot(t, y, lw=0.7, label="measured y")
-    ax1.plot(t, yhat, lw=0.7, ls="--", label="P̂ u (simulated from rest)")
+    for k, name in enumerate(rec.y_columns):
+        suffix = f" {name}" if rec.l > 1 else ""
+        ax1.plot(t, y[:, k], lw=0.7, color=f"C{2 * k}", label=f"measured y{suffix}")
+        ax1.plot(t, yhat[:, k], lw=0.7, ls="--", color=f"C{2 * k + 1}", label=f"P̂ u{suffix} (simulated from rest)")
+        ax2.plot(t, err[:, k], lw=0.7, label=f"output error y − P̂u{suffix}")
     ax1.axvline(fit_end * dt, color="k", ls=":", lw=0.8, label="held out from here")
     ax1.set_ylabel("output")
     ax1.legend(loc="upper right", fontsize=7)
-    ax2.plot(t, err, lw=0.7, color="C3", label="output error y − P̂u")
     ax2.set_ylabel("y − P̂u")
-    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
+    ax2.legend(loc="upper right", fontsize=7)
+    ax2.set_xlabel(xlabel)
     ax1.set_title("Model P̂ against the record")
     figs.append(save_figure(fig, out / "output_error.png"))
 
     loop = closed_loop_system(res.model, res.controller)  # r → [y; u]
+    l = rec.l
     n_step = 200
-    _, resp = _step(loop, n_step)
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 4.5))
     ts = np.arange(n_step) * dt
-    ax1.plot(ts, resp[:, 0], label="y")
+    finals = []
+    for c in range(l):  # a step on each reference channel alone
+        resp = _step(loop, n_step, c)
+        suffix = f" (step on r{c})" if l > 1 else ""
+        ax1.plot(ts, resp[:, c], color=f"C{c}", label=f"y{c if l > 1 else ''}{suffix}")
+        ax2.plot(ts, resp[:, l:], color=f"C{c}", lw=0.8)
+        finals.append(float(resp[-1, c]) if np.isfinite(resp[-1, c]) else float("nan"))
     ax1.plot(ts, np.ones(n_step), "k:", lw=0.8, label="reference")
     ax1.set_ylabel("output")
     ax1.legend(fontsize=7)
-    ax2.plot(ts, resp[:, 1], color="C1")
     ax2.set_ylabel("control u")
-    ax2.set_xlabel("time (s)" if dt != 1 else "sample")
-    ax1.set_title("Unit step of the loop on P̂")
+    ax2.set_xlabel(xlabel)
+    ax1.set_title("Unit step of the loop on P̂" + (" (each reference channel alone)" if l > 1 else ""))
     figs.append(save_figure(fig, out / "step.png"))
-    numbers["step_final"] = float(resp[-1, 0]) if np.isfinite(resp[-1, 0]) else float("nan")
+    numbers["step_final"] = finals[0] if l == 1 else finals
 
     w = np.logspace(np.log10(math.pi / dt) - 3, np.log10(math.pi / dt), 400)
     z = np.exp(1j * w * dt)
-    T = np.array([_freq(loop, zk)[0, 0] for zk in z])
+    F = [_freq(loop, zk) for zk in z]
+    T = np.array([_gain(f[:l]) for f in F])
+    S = np.array([_gain(np.eye(l) - f[:l]) for f in F])
+    Ur = np.array([_gain(f[l:]) for f in F])
     # the model's peak gain on the grid: the scale δ (an additive bound) is to be read against
-    numbers["model_peak_gain"] = float(max(abs(_freq(res.model, zk)[0, 0]) for zk in z))
-    Ur = np.array([_freq(loop, zk)[1, 0] for zk in z])
+    numbers["model_peak_gain"] = float(max(_gain(_freq(res.model, zk)) for zk in z))
     fig, ax = plt.subplots(figsize=(8, 4))
-    ax.loglog(w, np.abs(T), label="|T| (r → y)")
-    ax.loglog(w, np.abs(1 - T), ls="--", label="|S| = |1 − T|")
-    ax.loglog(w, np.abs(Ur), ls=":", label="|r → u|")
+    norm = "σ̄" if l > 1 or rec.m > 1 else "|·|"
+    ax.loglog(w, T, label=f"{norm} T (r → y)")
+    ax.loglog(w, S, ls="--", label=f"{norm} S = I − T")
+    ax.loglog(w, Ur, ls=":", label=f"{norm} (r → u)")
     ax.set_xlabel("frequency (rad/s)")
-    ax.set_ylabel("magnitude")
+    ax.set_ylabel("magnitude" + (" (largest singular value)" if norm == "σ̄" else ""))
     ax.set_title("Loop on P̂")
     ax.legend(fontsize=7)
     figs.append(save_figure(fig, out / "bode.png"))
     return figs, numbers
+
+
+def _gain(M) -> float:
+    """Largest singular value (the modulus for one channel)."""
+    return float(np.linalg.norm(np.atleast_2d(M), 2))
 
 
 def _freq(sys, z):
@@ -319,13 +367,22 @@ def _freq(sys, z):
     return C @ np.linalg.solve(z * np.eye(n) - A, B) + D if n else D.astype(complex)
 
 
-def _step(loop, n: int):
+def _step(loop, n: int, channel: int = 0):
+    """Response ``(n, outputs)`` of ``loop`` to a unit step on input ``channel`` from rest."""
     from ..lab.simulate import _lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (loop.A, loop.B, loop.C, loop.D))
+    r = np.zeros((n, B.shape[1]))
+    r[:, channel] = 1.0
     with np.errstate(all="ignore"):
-        out = np.asarray(_lsim(A, B, C, D, np.ones((n, 1)), np.zeros(A.shape[0]))[0], float)
-    return np.arange(n), out.reshape(n, -1)
+        out = np.asarray(_lsim(A, B, C, D, r, np.zeros(A.shape[0]))[0], float)
+    return out.reshape(n, -1)
+
+
+def _finals(value) -> str:
+    if isinstance(value, list):
+        return ", ".join(f"y{c} {_fmt(v)} (step on r{c})" for c, v in enumerate(value))
+    return _fmt(value)
 
 
 def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg, weights_text, t_start,
@@ -353,8 +410,9 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     if intro:
         rep.text(intro)
     rep.section("Record",
-                f"`{rec.source}`: {n} samples, dt = {rec.dt:g}, input {rec.u_columns[0]}, output "
-                f"{rec.y_columns[0]}.  The (7.5) window is samples [{win[0]}, {win[1]}) (`--window "
+                f"`{rec.source}`: {n} samples, dt = {rec.dt:g}, input{'s' if rec.m > 1 else ''} "
+                f"{', '.join(map(str, rec.u_columns))}, output{'s' if rec.l > 1 else ''} "
+                f"{', '.join(map(str, rec.y_columns))}.  The (7.5) window is samples [{win[0]}, {win[1]}) (`--window "
                 f"{'auto' if window_arg == 'auto' else f'{window_arg[0]}:{window_arg[1]}'}`); the predictors "
                 f"are fitted on [0, {fit_end}) and the last {n - fit_end} samples are held out for the test of "
                 f"the certificate's premise.  Horizon i = {horizon}.")
@@ -390,11 +448,13 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     rep.section("The loop on P̂",
                 f"Controller (inputs [r; y], output u, {res.controller.nstates} states): `{npz.name}`, "
                 f"`{mat.name}` (synthesis.load_controller reads either).  Final value of the unit step on "
-                f"P̂ after 200 samples: {_fmt(numbers['step_final'])}.")
+                f"P̂ after 200 samples: {_finals(numbers['step_final'])}.")
     rep.figure(figs[2], "Unit step of the loop on P̂")
     rep.figure(figs[3], "Closed-loop magnitudes on P̂")
     summary = {
-        "source": rec.source, "samples": n, "dt": rec.dt, "u": rec.u_columns[0], "y": rec.y_columns[0],
+        "source": rec.source, "samples": n, "dt": rec.dt,
+        "u": rec.u_columns[0] if rec.m == 1 else list(rec.u_columns),
+        "y": rec.y_columns[0] if rec.l == 1 else list(rec.y_columns),
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
@@ -417,10 +477,7 @@ def run(opts) -> dict:
     path = Path(ex["data"])
     u, y, t, variable = _select(path, ex)
     rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
-    if rec.m != 1 or rec.l != 1:
-        raise RecordError(f"the record has {rec.m} input(s) and {rec.l} output(s), but the design is SISO: "
-                          "pick one channel with --u and one with --y")
-    W1, W2, weights_text = _weights(ex, rec.dt)
+    W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l)
     window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
     horizon = ex["horizon"]
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma)
