@@ -14,6 +14,10 @@ makeweight(0.05, (π/10, 0.3), 1, 1)); the predictors are fitted on samples [0, 
 samples are held out for the premise test.  One full ``design`` report per horizon under
 ``<out>/cd_player/i<i>/`` (controller files included), and ``cd_player.md``/``.json`` with one row per
 horizon.  The summary's ``certified``, ``delta`` and ``reason`` are those of the first horizon.
+
+Then the whole 2 × 2 record (u1, u2 → y1, y2) at each horizon of ``MIMO_HORIZONS`` (not with
+``--quick``), the same way with diagonal default weights: one report per horizon under
+``<out>/cd_player/mimo_i<i>/``, rows in the same table.
 """
 from __future__ import annotations
 
@@ -33,23 +37,29 @@ VARIABLE = "CD_player_arm_dat"
 U_COLUMN, Y_COLUMN = 0, 2
 #: horizons tried (``--quick``: the first); ~5, 10 and 15 s each on one core
 HORIZONS = (10, 15, 20)
+#: 0-based columns of the 2 × 2 run and its horizons (skipped by ``--quick``)
+MIMO_U_COLUMNS, MIMO_Y_COLUMNS = (0, 1), (2, 3)
+MIMO_HORIZONS = (10,)
 
 
 def run(opts) -> dict:
     """Design for the u1 → y1 channel at each horizon; returns the JSON summary (module docstring)."""
     t_start = time.perf_counter()
     rec = load_record(DATA_FILE, variable=VARIABLE, u=U_COLUMN, y=Y_COLUMN, dt=1)
-    W1, W2, weights_text = default_weights(rec.dt)
-    horizons = HORIZONS[:1] if opts.quick else HORIZONS
+    plans = [(rec, "u1 → y1", i, f"i{i}") for i in (HORIZONS[:1] if opts.quick else HORIZONS)]
+    if not opts.quick:
+        mimo = load_record(DATA_FILE, variable=VARIABLE, u=list(MIMO_U_COLUMNS), y=list(MIMO_Y_COLUMNS), dt=1)
+        plans += [(mimo, "u1, u2 → y1, y2", i, f"mimo_i{i}") for i in MIMO_HORIZONS]
     runs = []
-    for i in horizons:
+    for r, channel, i, folder in plans:
+        W1, W2, weights_text = default_weights(r.dt, r.m, r.l)
         t0 = time.perf_counter()
-        res, warned = design_record(rec.u, rec.y, rec.dt, i, W1, W2, window="auto", sigma="auto")
-        one = report_design(Path(opts.out) / f"i{i}", rec, res, warned, horizon=i, window_arg="auto",
+        res, warned = design_record(r.u, r.y, r.dt, i, W1, W2, window="auto", sigma="auto")
+        one = report_design(Path(opts.out) / folder, r, res, warned, horizon=i, window_arg="auto",
                             sigma_arg="auto", weights_text=weights_text, t_start=t0,
-                            title=f"CD-player arm (DaISy), u1 → y1, i = {i}", name="design",
+                            title=f"CD-player arm (DaISy), {channel}, i = {i}", name="design",
                             intro="Real data: no true plant to check against; the verdict is the pipeline's.")
-        one.update(_welch_check(rec, res.model, one["delta"]))
+        one.update(_welch_check(r, res.model, one["delta"]), channel=channel, folder=folder)
         runs.append(one)
 
     rep = Report("CD-player arm (DaISy): the §7.4 workflow on real data")
@@ -60,20 +70,21 @@ def run(opts) -> dict:
              f"Window auto (the first 2i + j − 1 samples, j = 9i), σ auto (half the window's residual rms); the "
              f"last third of the record is held out for the premise test.  Weights: {weights_text}.")
     rep.section("One design per horizon")
-    rep.table(["i", "window", "σ", "δ (7.5)", "δ output error", "δ", "decided by", "designs tried", "certified",
-               "reason", "time [s]"],
-              [[r["horizon"], f"[{r['window'][0]}, {r['window'][1]})", r["sigma"], r["delta_subspace"],
+    rep.table(["channels", "i", "window", "σ", "δ (7.5)", "δ output error", "δ", "decided by", "designs tried",
+               "certified", "reason", "time [s]"],
+              [[r["channel"], r["horizon"], f"[{r['window'][0]}, {r['window'][1]})", r["sigma"], r["delta_subspace"],
                 r["delta_output_error"], r["delta"], r["decided_by"], len(r["search"]),
                 "yes" if r["certified"] else "no", r["reason"] or "—", r["seconds"]] for r in runs])
-    rep.text("\n" + "\n".join(f"- i = {r['horizon']}: [report](i{r['horizon']}/design.md)" for r in runs))
+    rep.text("\n" + "\n".join(f"- {r['channel']}, i = {r['horizon']}: [report]({r['folder']}/design.md)" for r in runs))
     rep.section("A check outside the pipeline: P̂ against a plain Welch estimate",
                 f"Ĝ = S_yu/S_uu (Welch, {WELCH_NPERSEG}-sample segments, the whole record), compared with P̂ at "
                 "the Welch frequencies above DC.  The pipeline certifies every plant within (1 + margin)·δ of P̂; "
                 "where |P̂ − Ĝ| exceeds δ the true plant is plausibly outside that set (Ĝ is itself noisy: no "
                 "confidence disk here; the pipeline's own frequency-response test uses them and the band the "
                 "input excites).")
-    rep.table(["i", "δ", "peak gain of P̂", "peak |Ĝ|", "max |P̂ − Ĝ|", "at ω [rad/sample]", "max |P̂ − Ĝ| / δ"],
-              [[r["horizon"], r["delta"], r["model_peak_gain"], r["welch_peak_gain"], r["welch_max_error"],
+    rep.table(["channels", "i", "δ", "peak gain of P̂", "peak ‖Ĝ‖", "max ‖P̂ − Ĝ‖", "at ω [rad/sample]",
+               "max ‖P̂ − Ĝ‖ / δ"],
+              [[r["channel"], r["horizon"], r["delta"], r["model_peak_gain"], r["welch_peak_gain"], r["welch_max_error"],
                 r["welch_max_error_at"], r["welch_max_error"] / r["delta"]] for r in runs])
     first = runs[0]
     summary = {
@@ -81,7 +92,7 @@ def run(opts) -> dict:
         "horizon": first["horizon"], "certified": first["certified"], "delta": first["delta"],
         "reason": first["reason"], "decided_by": first["decided_by"],
         "controller_npz": first["controller_npz"], "controller_mat": first["controller_mat"],
-        "runs": [{k: r[k] for k in ("horizon", "window", "sigma", "delta", "delta_subspace", "delta_output_error",
+        "runs": [{k: r[k] for k in ("channel", "horizon", "window", "sigma", "delta", "delta_subspace", "delta_output_error",
                                     "delta_lower_bound", "delta_upper_bound", "decided_by", "certified", "reason",
                                     "model_peak_gain", "welch_peak_gain", "welch_max_error", "welch_max_error_at",
                                     "seconds", "report", "controller_npz")} for r in runs],
@@ -94,28 +105,38 @@ WELCH_NPERSEG = 256
 
 
 def _welch_check(rec, model, delta: float) -> dict:
-    """P̂ against a plain Welch estimate of u1 → y1 on the whole record (a check the pipeline does not make).
+    """P̂ against a plain Welch estimate on the whole record (a check the pipeline does not make).
 
-    Returns the peak gains and ``max |P̂ − Ĝ|`` over the Welch frequencies above DC (DC is dropped:
-    Welch removes the segment means), with where it is.
+    ``Ĝ = S_yu S_uu⁻¹`` (the H1 estimate; ``S_yu/S_uu`` for one channel).  Returns the peak gains and
+    ``max ‖P̂ − Ĝ‖₂`` over the Welch frequencies above DC (DC is dropped: Welch removes the segment
+    means), with where it is.
     """
     import numpy as np
     import scipy.signal
 
     from .design_cli import _freq
 
-    f, puu = scipy.signal.welch(rec.u[:, 0], nperseg=WELCH_NPERSEG)
-    _, puy = scipy.signal.csd(rec.u[:, 0], rec.y[:, 0], nperseg=WELCH_NPERSEG)
+    u, y = rec.u, rec.y
+    f, _ = scipy.signal.welch(u[:, 0], nperseg=WELCH_NPERSEG)
+    Suu = np.empty((f.size, rec.m, rec.m), complex)
+    Syu = np.empty((f.size, rec.l, rec.m), complex)
+    for a in range(rec.m):
+        for b in range(rec.m):
+            Suu[:, a, b] = scipy.signal.csd(u[:, a], u[:, b], nperseg=WELCH_NPERSEG)[1]
+        for c in range(rec.l):
+            Syu[:, c, a] = scipy.signal.csd(u[:, a], y[:, c], nperseg=WELCH_NPERSEG)[1]
     w = 2 * np.pi * f[1:] / rec.dt
-    G = puy[1:] / puu[1:]
-    P = np.array([_freq(model, np.exp(1j * wk * rec.dt))[0, 0] for wk in w])
-    err = np.abs(P - G)
+    # csd(x, y) = E[conj(X) Y]: Syu[c, a] = E[conj(U_a) Y_c], Suu[a, b] = E[conj(U_a) U_b], so Y = G U gives
+    # Syu = G Suuᵀ, i.e. Ĝ = Syu (Suuᵀ)⁻¹
+    G = np.array([np.linalg.solve(Suu[k], Syu[k].T).T for k in range(1, f.size)])
+    P = np.array([_freq(model, np.exp(1j * wk * rec.dt)) for wk in w])
+    err = np.array([np.linalg.norm(P[k] - G[k], 2) for k in range(w.size)])
     k = int(np.argmax(err))
-    return {"welch_peak_gain": float(np.max(np.abs(G))), "welch_max_error": float(err[k]),
+    return {"welch_peak_gain": float(max(np.linalg.norm(g, 2) for g in G)), "welch_max_error": float(err[k]),
             "welch_max_error_at": float(w[k])}
 
 
 def summary_lines(summary: dict) -> list[str]:
     """One line per horizon: δ and the verdict."""
-    return [f"i = {r['horizon']}: δ = {r['delta']:.4g} ({r['decided_by']}); "
+    return [f"{r['channel']}, i = {r['horizon']}: δ = {r['delta']:.4g} ({r['decided_by']}); "
             + ("certified" if r["certified"] else f"NOT certified: {r['reason']}") for r in summary["runs"]]
