@@ -672,9 +672,13 @@ def robust_design_from_data(
 
     Parameters
     ----------
-    u, y : array_like
-        SISO experiment data (step 1): the (7.5) window, ``n = 2i + j − 1`` samples -- or, with
-        ``window=``, the whole record.
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        Experiment data (step 1), time along axis 0, any numbers of inputs m and outputs l: the (7.5)
+        window, ``n = 2i + j − 1`` samples -- or, with ``window=``, the whole record.  With several
+        channels every norm is the largest singular value: δ bounds ``‖Δ‖∞`` of an l × m additive Δ,
+        the small gain is ``δ·σ̄``-based (``‖K(I+P̂K)⁻¹‖∞``), the weights are l × l (W1) and m × m (W2)
+        (:func:`synthesis.diagonal_weight`), each reference channel is stepped alone and the tracking
+        floor may be given per output channel (``CertificateOptions.tracking_floor``).
     horizon : int
         i, for both (7.5) and the design.  Choose i above the plant's order and long enough to see its
         slowest relevant dynamics and any right-half-plane zero: the law is a finite-horizon game over i
@@ -841,8 +845,8 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
 
     Parameters
     ----------
-    u, y : array_like
-        SISO window, ``2i + j − 1`` samples.
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        The window, ``2i + j − 1`` samples, time along axis 0.
     horizon : int
     sigma : float or "auto"
         Admissible rms noise of (7.5) (``"auto"``: half the residual rms of the model on the window).
@@ -1042,7 +1046,7 @@ class CertificateOptions:
         The certificate needs ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + margin)`` on P̂ and P̂_ref (default 0.25:
         measured on four plants, the true loop's ``‖K(I+PK)⁻¹‖∞`` was within 10 % of the models').
     tracking_floor, step_samples
-        Performance floor of :func:`unfalsify.certify_loop`.
+        Performance floor of :func:`unfalsify.certify_loop` (one number, or one per output channel).
     reference_horizon : int or None
         Horizon of the reference model ``P̂_ref`` on which every design must certify too (default
         ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on the window when
@@ -1054,7 +1058,7 @@ class CertificateOptions:
     """
 
     margin: float = CERTIFICATE_MARGIN
-    tracking_floor: float = TRACKING_FLOOR
+    tracking_floor: float | tuple = TRACKING_FLOOR
     step_samples: int = STEP_SAMPLES
     reference_horizon: int | None = None
     require_reference: bool = True
