@@ -149,3 +149,18 @@ def test_mimo_pipeline_runs_to_a_verdict():
     assert rd.delta >= rd.unfalsification.delta * (1 - 1e-9)
     assert rd.unfalsification.certificate.verify()
     assert rd.certified or rd.reason
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (2, 1), (1, 2)])
+def test_predictor_model_reproduces_a_mimo_plant_from_noise_free_data(shape):
+    l, m = shape
+    P = control.ss(np.diag([0.8, 0.5]), np.arange(1.0, 1.0 + 2 * m).reshape(2, m) / 3,
+                   np.arange(1.0, 1.0 + 2 * l).reshape(l, 2)[:, ::-1] / 4, np.zeros((l, m)), 1.0)
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal((400, m))
+    y = control.forced_response(P, T=np.arange(400), U=u.T).outputs.reshape(l, 400).T
+    Ph = uf.predictor_model(sy.fit_predictor(u, y, 3), 1.0)
+    assert (Ph.noutputs, Ph.ninputs, Ph.nstates) == (l, m, 3 * (m + l))
+    for w in (0.05, 0.7, 2.5):
+        z = np.exp(1j * w)
+        np.testing.assert_allclose(np.atleast_2d(Ph(z)), np.atleast_2d(P(z)).reshape(l, m), atol=1e-7)
