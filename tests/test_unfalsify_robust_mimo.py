@@ -151,6 +151,7 @@ def test_mimo_pipeline_runs_to_a_verdict():
     assert rd.certified or rd.reason
 
 
+@pytest.mark.filterwarnings("ignore:regressor")  # noise-free data: the rank warning is expected
 @pytest.mark.parametrize("shape", [(2, 2), (2, 1), (1, 2)])
 def test_predictor_model_reproduces_a_mimo_plant_from_noise_free_data(shape):
     l, m = shape
