@@ -213,6 +213,8 @@ def _spectral_norm(response: np.ndarray) -> np.ndarray:
     """``|Ĝ|`` of a (F,) response, the largest singular value per frequency of a (F, l, m) one (NaN stays NaN)."""
     if response.ndim == 1:
         return np.abs(response)
+    if response.shape[1:] == (1, 1):  # |·| exactly, as SISO (the SVD differs in the last bit)
+        return np.abs(response[:, 0, 0])
     finite = np.all(np.isfinite(response), axis=(1, 2))
     out = np.full(response.shape[0], np.nan)
     if np.any(finite):
