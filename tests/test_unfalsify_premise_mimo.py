@@ -135,6 +135,13 @@ def test_collinear_inputs_are_not_excited_although_every_channel_has_power():
     u = np.column_stack([w, 2.0 * w])  # both channels loud, one direction only
     est = uf.frequency_response_estimate(u, 0.05 * rng.standard_normal((4096, 1)))
     assert not np.any(est.excited) and np.all(np.isinf(est.radius))
+    u[:, 1] += 1e-4 * rng.standard_normal(4096)  # nearly collinear: finite but useless radius, named as such
+    est = uf.frequency_response_estimate(u, 0.05 * rng.standard_normal((4096, 1)))
+    assert not np.any(est.excited) and np.min(est.radius) > 100
+    P = control.ss([], [], [], np.ones((1, 2)), 1.0)
+    K = control.ss([], [], [], [[0.3, -0.3], [0.3, -0.3]], 1.0)
+    ex = uf.check_excitation(P, K, est)
+    assert not ex.ok and "move together" in ex.reason and "in every input direction" in ex.reason
 
 
 def test_bad_shapes_name_the_fix():

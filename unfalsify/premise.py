@@ -41,6 +41,16 @@ power).  So the premise is tested three ways, each from the record itself:
    detrended, so it estimates the band around zero, not the mean): it is tested like the others --
    measured, leaving it out let a model whose error sat below 0.05 rad/sample through.
 
+Several inputs and outputs (u: (n, m), y: (n, l)).  Items 2 and 3 are stated in the spectral norm: the
+Welch estimate is the H1 estimator ``D̂ = S_eu S_uu⁻¹`` (l × m per frequency) and its region a radius
+``‖D − D̂‖₂ ≤ r`` -- per output row an F-based ellipsoid (Goodman; Bendat & Piersol), Bonferroni over the
+rows and frequencies, turned into ``r = sqrt(Σ_r ρ_r²/λ_min(S_uu))``
+(:func:`frequency_response_estimate`); the low band does the same with the local polynomial method;
+inconsistency is ``‖D̂‖₂ − r > δ``; a frequency is excited when ``λ_min(S_uu)`` reaches the floor; and the
+loop tests look at the perturbation's loop gain in the loop's own directions,
+``σ̄(D̂M̂) ± r·σ̄(M̂)`` (:func:`check_excitation`).  With one input and one output every number is the SISO
+one above.
+
 A ``PersistenceWarning`` of the predictors the pipeline uses (input not persistently exciting,
 regressor rank deficient) also means *not certified* (checked in :mod:`unfalsify.robust`).
 
@@ -1182,12 +1192,13 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     band = _bands(freq, bad, unit)
     lo, hi = float(freq[bad].min()), float(freq[bad].max())
     norm = "‖K(I+P̂K)⁻¹‖₂" if mimo else "|K(I+P̂K)⁻¹|"
+    signal = ("independent white PRBS or multisines covering that band on the inputs" if mimo
+              else "white PRBS or a multisine covering that band")
     if np.all(~np.isfinite(radius[bad]) | (radius[bad] >= dist[bad])):
         why = (f"the data do not determine the plant at {band}, where the loop is sensitive ({norm} up to "
                f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and the confidence radius reaches "
                f"{float(np.max(np.where(bad, radius, 0))):.3g}; excite {lo:.3g}–{hi:.3g} {unit}"
-               f"{_input_fix(frf, bad[welch])} (white PRBS or a multisine covering that band"
-               f"{', independent on each input' if mimo else ''}) or record longer")
+               f"{_input_fix(frf, bad[welch])} ({signal}) or record longer")
     else:
         test = "σ̄(D̂M̂) + r·σ̄(M̂)" if mimo else "(|P − P̂| estimate + r)·|K(I+P̂K)⁻¹|"
         why = (f"at {band} the data's frequency response differs from P̂ by more than the loop tolerates "
@@ -1228,7 +1239,10 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
     j, level = _weakest_input(frf, bad)
     lam = np.linalg.eigvalsh(frf.input_psd)
     direction = 10.0 * np.log10(max(float(np.min(lam[bad, 0])), 1e-300) / max(float(np.max(lam[:, -1])), 1e-300))
-    text = f": input u[:, {j}] has the least power there, down to {level:.0f} dB below the inputs' peak"
+    if level < -200.0:  # exactly or numerically zero: a dB figure would be the rounding's
+        text = f": input u[:, {j}] has no power there"
+    else:
+        text = f": input u[:, {j}] has the least power there, down to {level:.0f} dB below the inputs' peak"
     if direction < level - 20.0:  # every channel has power, but not independently
         text += (f", and the inputs' weakest direction is down to {direction:.0f} dB (the channels move together "
                  "there)")
@@ -1236,9 +1250,9 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
 
 
 def _input_fix(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
-    """MIMO: ``' on input u[:, j]'`` when one channel lacks power over the flagged band, else ``' on every input,
-    independently'``; SISO: ``''``."""
+    """MIMO: ``' on input u[:, j]'`` when one channel lacks power over the flagged band, else ``' in every input
+    direction'`` (the channels have power but move together); SISO: ``''``."""
     if frf.input_psd.ndim == 1 or not np.any(bad):
         return ""
     j, level = _weakest_input(frf, bad)
-    return f" on input u[:, {j}]" if level < 10.0 * np.log10(EXCITATION_FLOOR) else " on every input, independently"
+    return f" on input u[:, {j}]" if level < 10.0 * np.log10(EXCITATION_FLOOR) else " in every input direction"
