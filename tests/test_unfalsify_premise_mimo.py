@@ -158,6 +158,9 @@ def test_bad_shapes_name_the_fix():
     with pytest.raises(DataError, match="longer record"):
         uf.low_band_estimate(u[:39], y[:39], bins=2)  # two inputs: window 18, needs 2·(2 + 18) = 40 samples
     assert uf.low_band_estimate(u[:40], y[:40], bins=2).window == 18
+    from unfalsify.premise import _low_bins  # the pipeline's bin count knows the wider window of two inputs
+
+    assert (_low_bins(40, 16, 2), _low_bins(39, 16, 2), _low_bins(36, 16), _low_bins(35, 16)) == (2, 0, 2, 0)
 
 
 # ---- the local polynomial method -----------------------------------------------------------------------
