@@ -41,6 +41,16 @@ power).  So the premise is tested three ways, each from the record itself:
    detrended, so it estimates the band around zero, not the mean): it is tested like the others --
    measured, leaving it out let a model whose error sat below 0.05 rad/sample through.
 
+Several inputs and outputs (u: (n, m), y: (n, l)).  Items 2 and 3 are stated in the spectral norm: the
+Welch estimate is the H1 estimator ``D̂ = S_eu S_uu⁻¹`` (l × m per frequency) and its region a radius
+``‖D − D̂‖₂ ≤ r`` -- per output row an F-based ellipsoid (Goodman; Bendat & Piersol), Bonferroni over the
+rows and frequencies, turned into ``r = sqrt(Σ_r ρ_r²/λ_min(S_uu))``
+(:func:`frequency_response_estimate`); the low band does the same with the local polynomial method;
+inconsistency is ``‖D̂‖₂ − r > δ``; a frequency is excited when ``λ_min(S_uu)`` reaches the floor; and the
+loop tests look at the perturbation's loop gain in the loop's own directions,
+``σ̄(D̂M̂) ± r·σ̄(M̂)`` (:func:`check_excitation`).  With one input and one output every number is the SISO
+one above.
+
 A ``PersistenceWarning`` of the predictors the pipeline uses (input not persistently exciting,
 regressor rank deficient) also means *not certified* (checked in :mod:`unfalsify.robust`).
 
@@ -62,7 +72,7 @@ import scipy.signal
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError
+from synthesis.validation import DataError, as_signal
 
 from ._common import channel_pair, siso_pair
 from .arx import ArxResult, arx_unfalsify
@@ -130,24 +140,33 @@ class PremiseOptions:
 @result
 @dataclass(frozen=True, eq=False)
 class FrequencyResponseEstimate:
-    """Welch estimate ``Ĝ = S_yu/S_uu`` of a SISO frequency response, with simultaneous confidence disks.
+    """Welch estimate ``Ĝ = S_yu S_uu⁻¹`` of a frequency response, with a simultaneous confidence radius.
+
+    SISO (one input and one output) fields are 1-D per frequency, as they always were; with several
+    inputs ``m`` or outputs ``l`` (MIMO) the spectra are matrices per frequency (shapes below).  The
+    confidence region is always a radius on the spectral norm, ``‖G − Ĝ‖₂ ≤ r`` (for SISO the disk
+    ``|G − Ĝ| ≤ r``), so the tests that use it read the same for both.
 
     Attributes
     ----------
-    frequency : ndarray
+    frequency : ndarray, shape (F,)
         Frequencies in rad/s (``dt`` given) from 0 to Nyquist.
-    response : ndarray, complex
-        ``Ĝ(e^{jω dt})``.
-    radius : ndarray
-        Radius of the confidence disk around ``Ĝ`` (``inf`` where the input has no power).
-    coherence : ndarray
-        Magnitude-squared coherence.
-    input_psd, noise_psd : ndarray
-        ``S_uu`` and the incoherent output spectrum ``S_vv = S_yy − |S_yu|²/S_uu``.
+    response : ndarray, complex, shape (F,) or (F, l, m)
+        ``Ĝ(e^{jω dt})``; NaN where the input spectrum is singular.
+    radius : ndarray, shape (F,)
+        Radius of the confidence region around ``Ĝ`` in the spectral norm (``inf`` where the input has no
+        power in some direction).
+    coherence : ndarray, shape (F,) or (F, l)
+        Magnitude-squared coherence (MIMO: the multiple coherence of each output with all inputs).
+    input_psd : ndarray, shape (F,) or (F, m, m)
+        ``S_uu`` (MIMO: the Hermitian cross-spectral matrix ``E[U Uᴴ]``; its diagonal holds each input's
+        auto-spectrum).
+    noise_psd : ndarray, shape (F,) or (F, l, l)
+        The incoherent output spectrum ``S_vv = S_yy − S_yu S_uu⁻¹ S_uy`` (SISO ``S_yy − |S_yu|²/S_uu``).
     averages : float
         Equivalent number of independent averages ν.
     confidence : float
-        Simultaneous confidence of the disks over all frequencies.
+        Simultaneous confidence of the regions over all frequencies (and outputs).
     nperseg : int
         Segment length (resolution ``2π/(nperseg·dt)``).
     dt : float
@@ -166,14 +185,62 @@ class FrequencyResponseEstimate:
     dt: float
 
     @property
+    def inputs(self) -> int:
+        """``m``, the number of input channels."""
+        return 1 if self.response.ndim == 1 else int(self.response.shape[2])
+
+    @property
+    def outputs(self) -> int:
+        """``l``, the number of output channels."""
+        return 1 if self.response.ndim == 1 else int(self.response.shape[1])
+
+    @property
+    def gain(self) -> np.ndarray:
+        """``‖Ĝ‖₂`` per frequency, shape (F,): ``|Ĝ|`` for SISO, the largest singular value for MIMO."""
+        return _spectral_norm(self.response)
+
+    @property
     def excited(self) -> np.ndarray:
-        """Frequencies whose input power is at least :data:`EXCITATION_FLOOR` times the peak."""
-        return self.input_psd >= EXCITATION_FLOOR * float(np.max(self.input_psd))
+        """Frequencies whose input power is at least :data:`EXCITATION_FLOOR` times the peak.
+
+        MIMO: the *smallest* eigenvalue of ``S_uu`` against the peak of its largest one over all
+        frequencies.  The radius grows like ``λ_min(S_uu)^(−1/2)``: an input direction without power (a silent
+        channel, or two channels that move together) leaves ``Ĝ`` undetermined there however large the
+        trace is, so the trace would call such a frequency excited.
+        """
+        if self.input_psd.ndim == 1:
+            return self.input_psd >= EXCITATION_FLOOR * float(np.max(self.input_psd))
+        lam = np.linalg.eigvalsh(self.input_psd)
+        return lam[:, 0] >= EXCITATION_FLOOR * float(np.max(lam[:, -1]))
 
     @property
     def resolution(self) -> float:
         """Spacing of the frequencies, rad/s."""
         return float(2.0 * np.pi / (self.nperseg * self.dt))
+
+
+def _spectral_norm(response: np.ndarray) -> np.ndarray:
+    """``|Ĝ|`` of a (F,) response, the largest singular value per frequency of a (F, l, m) one (NaN stays NaN)."""
+    if response.ndim == 1:
+        return np.abs(response)
+    if response.shape[1:] == (1, 1):  # |·| exactly, as SISO (the SVD differs in the last bit)
+        return np.abs(response[:, 0, 0])
+    finite = np.all(np.isfinite(response), axis=(1, 2))
+    out = np.full(response.shape[0], np.nan)
+    if np.any(finite):
+        out[finite] = np.linalg.norm(response[finite], ord=2, axis=(1, 2))
+    return out
+
+
+def _record_pair(u, y, prefix: str = "", m: int | None = None, l: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(u, y)`` as (n, m) and (n, l) float arrays of one length (time along axis 0; DataError otherwise)."""
+    try:
+        u = as_signal(u, f"{prefix}u", width=m)
+        y = as_signal(y, f"{prefix}y", n=u.shape[0], width=l)
+    except DataError as exc:
+        raise DataError(f"{exc} (u: (n, m) inputs, y: (n, l) outputs or output errors, time along axis 0"
+                        + (", every segment with the channels of the first record)" if prefix else ")")) from None
+    return u, y
 
 
 def _segment_length(n: int) -> int:
@@ -183,32 +250,56 @@ def _segment_length(n: int) -> int:
 
 def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = None, confidence: float = 0.99,
                                 segments=()) -> FrequencyResponseEstimate:
-    """Nonparametric frequency response of SISO data by Welch cross-spectra, with confidence disks.
+    """Nonparametric frequency response by Welch cross-spectra (the H1 estimator), with a confidence radius.
+
+    SISO: ``Ĝ = S_yu/S_uu`` with the disk of Bendat & Piersol (module docstring, item 2),
+    ``r² = 2/(ν − 2) · F_{2, 2(ν−2)}(1 − α) · S_vv/S_uu``, α = (1 − confidence)/F.
+
+    MIMO (u: (n, m), y: (n, l)): ``Ĝ = S_yu S_uu⁻¹`` (l × m per frequency) from the cross-spectral
+    matrices ``S_uu = E[U Uᴴ]``, ``S_yu = E[Y Uᴴ]`` (same segments, window and weighting as SISO).
+    Derivation of the radius.  At one frequency the ν segment DFTs satisfy, per output row ``r``,
+    ``Y_{r,k} = g_r U_k + V_{r,k}``: a complex least-squares problem with ``m`` regressors.  With
+    independent circular Gaussian ``V`` of variance σ_r², ``(ĝ_r − g_r) ν S_uu (ĝ_r − g_r)ᴴ/σ_r²`` is
+    ``χ²_{2m}/2`` and the residual ``ν Ŝ_vv,r/σ_r²`` is ``χ²_{2(ν−m)}/2``, independent of it, so
+    (Goodman 1965; Bendat & Piersol, multiple-input systems)
+    ``(ĝ_r − g_r) Ŝ_uu (ĝ_r − g_r)ᴴ ≤ m/(ν − m) · F_{2m, 2(ν−m)}(1 − α) · Ŝ_vv,r``.  For m = 1 this
+    is ``1/(ν − 1)·F_{2, 2(ν−1)}`` where the SISO disk above uses ``2/(ν − 2)·F_{2, 2(ν−2)}``: about twice
+    as wide in ``r²``, a margin for the overlapping Hann segments, whose ν is only an equivalent count.
+    To keep SISO results unchanged and state one rule, the region used for every ``m`` is
+    ``ρ_r² = 2m/(ν − 2m) · F_{2m, 2(ν−2m)}(1 − α) · Ŝ_vv,r``, which contains Goodman's (larger factor,
+    fewer degrees of freedom), with α = (1 − confidence)/(F·l) (Bonferroni over the frequencies and the
+    outputs, so all ``l`` ellipsoids at all ``F`` frequencies hold together).  Each ellipsoid gives
+    ``‖ĝ_r − g_r‖² ≤ ρ_r²/λ_min(Ŝ_uu)``, and ``‖G − Ĝ‖₂ ≤ ‖G − Ĝ‖_F``, so
+    ``r = sqrt(Σ_r ρ_r² / λ_min(Ŝ_uu))`` -- the SISO disk for m = l = 1.  ``r = inf`` where ν ≤ 2m + ½
+    or ``S_uu`` is singular (``λ_min ≤ 10⁻¹²·λ_max``; there ``Ĝ`` is NaN).
 
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        Input and output records (open loop; in closed loop the estimate is biased towards the
-        inverse controller wherever the noise dominates).
+    u : array_like, shape (n,) or (n, m)
+        Input record (open loop; in closed loop the estimate is biased towards the inverse controller
+        wherever the noise dominates).
+    y : array_like, shape (n,) or (n, l)
+        Output record (for the premise test, the output error ``y − P̂u``).
     dt : float
         Sample time (frequencies in rad/s).
     nperseg : int, optional
         Segment length (Hann window, 50 % overlap); default a power of two giving at least eight
         segments, 16–256.
     confidence : float
-        Simultaneous confidence of the disks over all frequencies (Bonferroni).
+        Simultaneous confidence of the regions over all frequencies and outputs (Bonferroni).
     segments : sequence of (u, y), optional
-        Further records of the same plant (e.g. a held-out segment); their spectra are averaged
-        with the first one's, weighted by their number of Welch segments.
+        Further records of the same plant (e.g. a held-out segment), with the channels of the first;
+        their spectra are averaged with the first one's, weighted by their number of Welch segments.
 
     Returns
     -------
     FrequencyResponseEstimate
+        ``response`` (F,) for m = l = 1, (F, l, m) otherwise; ``radius`` (F,) always.
 
     Raises
     ------
     DataError
-        NaN, mismatched lengths, fewer samples than two segments, a confidence outside (0, 1).
+        NaN, mismatched lengths or channels, fewer samples than two segments, a confidence outside (0, 1).
 
     Examples
     --------
@@ -220,15 +311,36 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     >>> G = np.exp(-1j * est.frequency) + 0.5 * np.exp(-2j * est.frequency)
     >>> bool(np.all(np.abs(est.response - G) <= est.radius))
     True
+
+    Two inputs, two outputs: ``y₁ = u₁(k−1)``, ``y₂ = 0.5 u₁ + u₂(k−1)``.
+
+    >>> U = rng.standard_normal((4096, 2))
+    >>> Y = np.column_stack([np.r_[0.0, U[:-1, 0]], 0.5 * U[:, 0] + np.r_[0.0, U[:-1, 1]]])
+    >>> est = frequency_response_estimate(U, Y + 0.1 * rng.standard_normal((4096, 2)))
+    >>> est.response.shape == (est.frequency.size, 2, 2), est.radius.shape == est.frequency.shape
+    (True, True)
+    >>> z = np.exp(-1j * est.frequency)
+    >>> G = np.stack([np.stack([z, 0 * z], -1), np.stack([0.5 + 0 * z, z], -1)], -2)
+    >>> bool(np.all(np.linalg.norm(est.response - G, ord=2, axis=(1, 2)) <= est.radius))
+    True
     """
     if not (0.0 < confidence < 1.0):
         raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
-    pairs = [siso_pair(u, y)] + [siso_pair(us, ys, f"segments[{k}] ") for k, (us, ys) in enumerate(segments)]
-    L = int(nperseg) if nperseg is not None else _segment_length(max(p[0].size for p in pairs))
-    usable = [p for p in pairs if p[0].size >= 2 * L]
+    first = _record_pair(u, y)
+    m, l = first[0].shape[1], first[1].shape[1]
+    pairs = [first] + [_record_pair(us, ys, f"segments[{k}] ", m, l) for k, (us, ys) in enumerate(segments)]
+    L = int(nperseg) if nperseg is not None else _segment_length(max(p[0].shape[0] for p in pairs))
+    usable = [p for p in pairs if p[0].shape[0] >= 2 * L]
     if not usable:
-        raise DataError(f"the record has {pairs[0][0].size} samples, fewer than two Welch segments of {L}: "
+        raise DataError(f"the record has {pairs[0][0].shape[0]} samples, fewer than two Welch segments of {L}: "
                         "collect a longer record or pass a smaller nperseg")
+    if m == l == 1:  # the SISO estimator as it always was (its numbers are relied on)
+        return _siso_welch([(us[:, 0], ys[:, 0]) for us, ys in usable], L, dt, confidence)
+    return _mimo_welch(usable, L, dt, confidence)
+
+
+def _siso_welch(usable, L: int, dt: float, confidence: float) -> FrequencyResponseEstimate:
+    """The SISO Welch estimate and its Bendat–Piersol disks (1-D records, each at least two segments)."""
     Suu = Syy = Syu = 0.0
     count = 0
     for us, ys in usable:
@@ -255,6 +367,56 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
                                      nperseg=L, dt=float(dt))
 
 
+#: λ_min/λ_max of S_uu below which the input spectrum is taken as singular (Ĝ NaN, radius inf).
+_SINGULAR_INPUT = 1e-12
+
+
+def _cross_spectra(a: np.ndarray, b: np.ndarray, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(f, S)`` with ``S[:, i, j] = E[B_i A_jᴴ]`` (scipy's ``csd(a_j, b_i)``) for records a (n, p), b (n, q)."""
+    f, s = scipy.signal.csd(a.T[None, :, :], b.T[:, None, :], nperseg=L, axis=-1)
+    return f, np.moveaxis(s, -1, 0)
+
+
+def _mimo_welch(usable, L: int, dt: float, confidence: float) -> FrequencyResponseEstimate:
+    """The H1 estimate ``S_yu S_uu⁻¹`` and the spectral-norm radius of :func:`frequency_response_estimate`."""
+    m, l = usable[0][0].shape[1], usable[0][1].shape[1]
+    Suu = Syy = Syu = 0.0
+    count = 0
+    for us, ys in usable:
+        k = 1 + (us.shape[0] - L) // (L // 2)  # segments at 50 % overlap
+        f, puu = _cross_spectra(us, us, L)
+        _, pyy = _cross_spectra(ys, ys, L)
+        _, pyu = _cross_spectra(us, ys, L)
+        Suu, Syy, Syu, count = Suu + k * puu, Syy + k * pyy, Syu + k * pyu, count + k
+    Suu, Syy, Syu = Suu / count, Syy / count, Syu / count
+    Suu = 0.5 * (Suu + np.conj(np.swapaxes(Suu, 1, 2)))  # Hermitian to rounding; eigvalsh reads one triangle
+    nu = count / (1.0 + 2.0 * _HANN_OVERLAP_CORRELATION ** 2)
+    lam = np.linalg.eigvalsh(Suu)
+    regular = (lam[:, -1] > 0) & (lam[:, 0] > _SINGULAR_INPUT * lam[:, -1])
+    Suy = np.conj(np.swapaxes(Syu, 1, 2))
+    # Ĝᴴ = S_uu⁻¹ S_uy (S_uu Hermitian); singular frequencies get the identity so the batch solve runs
+    X = np.linalg.solve(np.where(regular[:, None, None], Suu, np.eye(m)), Suy)
+    G = np.where(regular[:, None, None], np.conj(np.swapaxes(X, 1, 2)), np.nan + 0j)
+    explained = Syu @ X  # S_yu S_uu⁻¹ S_uy, the coherent part of S_yy
+    Svv = Syy - explained
+    Svv = 0.5 * (Svv + np.conj(np.swapaxes(Svv, 1, 2)))
+    syy = np.real(np.diagonal(Syy, axis1=1, axis2=2))
+    svv = np.maximum(np.real(np.diagonal(Svv, axis1=1, axis2=2)), 0.0)  # Ŝ_vv,r, each output's residual
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coh = np.clip(np.real(np.diagonal(explained, axis1=1, axis2=2)) / syy, 0.0, 1.0)
+        coh = np.where(regular[:, None] & (syy > 0), coh, 0.0)
+        alpha = (1.0 - confidence) / (f.size * l)
+        if nu - 2.0 * m > 0.5:
+            fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2.0 * (nu - 2.0 * m))
+            radius = np.sqrt(2.0 * m / (nu - 2.0 * m) * fq * np.sum(svv, axis=1) / lam[:, 0])
+        else:
+            radius = np.full(f.size, np.inf)
+    radius = np.where(np.isfinite(radius) & regular, radius, np.inf)
+    return FrequencyResponseEstimate(frequency=2.0 * np.pi * f / dt, response=G, radius=radius, coherence=coh,
+                                     input_psd=Suu, noise_psd=Svv, averages=float(nu), confidence=float(confidence),
+                                     nperseg=L, dt=float(dt))
+
+
 @result
 @dataclass(frozen=True, eq=False)
 class LowBandEstimate:
@@ -262,14 +424,15 @@ class LowBandEstimate:
 
     Attributes
     ----------
-    frequency : ndarray
+    frequency : ndarray, shape (K,)
         The DFT frequencies ``2πk/(N·dt)``, ``k = 1 … K`` (rad/s; rad/sample when ``dt = 1``).
-    response : ndarray, complex
-        ``Ĝ`` at those frequencies.
-    radius : ndarray
-        Radius of the confidence disk around each ``Ĝ`` (``inf`` where the input has no power).
+    response : ndarray, complex, shape (K,) or (K, l, m)
+        ``Ĝ`` at those frequencies ((K,) for one input and one output, as :class:`FrequencyResponseEstimate`).
+    radius : ndarray, shape (K,)
+        Radius of the confidence region around each ``Ĝ`` in the spectral norm (SISO: the disk; ``inf``
+        where an input has no power in the window).
     confidence : float
-        Simultaneous confidence over the ``K`` frequencies (Bonferroni).
+        Simultaneous confidence over the ``K`` frequencies (and the ``l`` outputs; Bonferroni).
     window : int
         DFT bins in each local fit.
     degree : int
@@ -288,6 +451,11 @@ class LowBandEstimate:
     samples: int
     dt: float
 
+    @property
+    def gain(self) -> np.ndarray:
+        """``‖Ĝ‖₂`` per frequency, shape (K,): ``|Ĝ|`` for SISO, the largest singular value for MIMO."""
+        return _spectral_norm(self.response)
+
 
 #: bins of each local fit and degree of its polynomials (6 complex parameters, 10 complex residual dof).  Measured
 #: on a *plant* pole 2.2 bins from 0 (99 % disks): 16 bins missed its response at the lowest bin in most records, 9
@@ -296,8 +464,14 @@ class LowBandEstimate:
 _LPM_WINDOW, _LPM_DEGREE = 16, 2
 
 
-def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0.99) -> LowBandEstimate:
-    """Frequency response of SISO data at the record's lowest DFT frequencies, with confidence disks.
+def _lpm_window(inputs: int) -> int:
+    """Bins of a local fit with ``inputs`` input channels: 16, or twice its (m + 1)(degree + 1) parameters if more."""
+    return max(_LPM_WINDOW, 2 * (inputs + 1) * (_LPM_DEGREE + 1))
+
+
+def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0.99,
+                      window: int | None = None) -> LowBandEstimate:
+    """Frequency response at the record's lowest DFT frequencies, with a confidence radius.
 
     Welch segments are short and each is detrended, so a response that changes below the first
     Welch frequency is invisible to :func:`frequency_response_estimate`.  Here the whole record's DFT
@@ -311,26 +485,41 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     the estimate at the lowest bins is biased by up to about 10 % of the response (measured: 8 % for a
     first-order response 8 bins wide), which the disk does not include.
 
+    MIMO (u: (n, m), y: (n, l)): the local fit has the ``m`` input columns, each times the polynomial,
+    and the transient polynomial, ``p = (m + 1)(degree + 1)`` complex parameters per output, the same for
+    every output row.  With ``C`` the m × m block of ``(XᴴX)⁻¹`` belonging to the response at the bin
+    and ``s_r²`` the residual variance of output ``r`` (``d = window − p`` dof), the row ``ĝ_r`` obeys
+    ``(ĝ_r − g_r) C⁻¹ (ĝ_r − g_r)ᴴ ≤ m·F_{2m, 2d}(1 − α)·s_r²`` (the χ²_{2m}/χ²_{2d} ratio of complex
+    least squares; m = 1 is the SISO disk), so ``‖ĝ_r − g_r‖² ≤ λ_max(C)·m·F·s_r²`` and
+    ``r = sqrt(λ_max(C)·m·F_{2m, 2d}(1 − α)·Σ_r s_r²)`` bounds ``‖G − Ĝ‖_F ≥ ‖G − Ĝ‖₂``, with
+    α = (1 − confidence)/(K·l).  The window must leave as many residual dof as parameters,
+    ``2p ≤ window``: 16 bins for one input, ``2(m + 1)·3`` for more (18 for two inputs).
+
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        Input and output (for the premise test: the input and the output error ``y − P̂u``).
+    u : array_like, shape (n,) or (n, m)
+        Input.
+    y : array_like, shape (n,) or (n, l)
+        Output (for the premise test: the output error ``y − P̂u``).
     dt : float
         Sample time.
     bins : int
         ``K``: the response is estimated at bins ``1 … K``.
     confidence : float
-        Simultaneous confidence over the ``K`` bins.
+        Simultaneous confidence over the ``K`` bins (and the outputs).
+    window : int, optional
+        Bins of each local fit; default 16 for one input, ``max(16, 2(m + 1)(degree + 1))`` for ``m``.
 
     Returns
     -------
     LowBandEstimate
+        ``response`` (K,) for m = l = 1, (K, l, m) otherwise; ``radius`` (K,) always.
 
     Raises
     ------
     DataError
-        NaN, mismatched lengths, ``bins < 1``, a record with fewer than ``2(K + 16)`` samples, a
-        confidence outside (0, 1).
+        NaN, mismatched lengths, ``bins < 1``, a window with fewer than ``2(m + 1)(degree + 1)`` bins, a
+        record with fewer than ``2(K + window)`` samples, a confidence outside (0, 1).
 
     Examples
     --------
@@ -342,20 +531,44 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     >>> G = 2.0 + 0.5 * np.exp(-1j * est.frequency)
     >>> bool(np.all(np.abs(est.response - G) <= est.radius))
     True
+
+    Two inputs and one output, ``y = 2u₁ − u₂``:
+
+    >>> U = rng.choice([-1.0, 1.0], (2000, 2))
+    >>> est = low_band_estimate(U, U @ [2.0, -1.0] + 0.1 * rng.standard_normal(2000), bins=8)
+    >>> est.response.shape, est.window
+    ((8, 1, 2), 18)
+    >>> bool(np.all(np.linalg.norm(est.response - [[2.0, -1.0]], ord=2, axis=(1, 2)) <= est.radius))
+    True
     """
     if not (0.0 < confidence < 1.0):
         raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
-    u, y = siso_pair(u, y)
-    n, K, W = u.size, int(bins), _LPM_WINDOW
+    u, y = _record_pair(u, y)
+    n, m, l = u.shape[0], u.shape[1], y.shape[1]
+    K = int(bins)
+    need = 2 * (m + 1) * (_LPM_DEGREE + 1)
+    W = _lpm_window(m) if window is None else int(window)
+    if W < need:
+        raise DataError(f"window={window!r} is too small for {m} input(s): a local fit has (m + 1)·(degree + 1) = "
+                        f"{need // 2} complex parameters and needs as many residual degrees of freedom; pass "
+                        f"window ≥ {need} or leave it to the default")
     if K < 1 or n < 2 * (K + W):
         raise DataError(f"low_band_estimate needs bins ≥ 1 and at least 2·(bins + {W}) samples; got bins={bins!r} "
                         f"and {n} samples: pass fewer bins or a longer record")
-    U, Y = np.fft.rfft(u), np.fft.rfft(y)
-    alpha = (1.0 - confidence) / K
-    response, radius = np.empty(K, complex), np.empty(K)
-    for k in range(1, K + 1):
-        start = max(1, k - W // 2)
-        response[k - 1], radius[k - 1] = _local_fit(U[start:start + W], Y[start:start + W], k - start, alpha)
+    U, Y = np.fft.rfft(u, axis=0), np.fft.rfft(y, axis=0)
+    if m == l == 1:  # the SISO fit as it always was
+        U, Y = U[:, 0], Y[:, 0]
+        alpha = (1.0 - confidence) / K
+        response, radius = np.empty(K, complex), np.empty(K)
+        for k in range(1, K + 1):
+            start = max(1, k - W // 2)
+            response[k - 1], radius[k - 1] = _local_fit(U[start:start + W], Y[start:start + W], k - start, alpha)
+    else:
+        alpha = (1.0 - confidence) / (K * l)
+        response, radius = np.empty((K, l, m), complex), np.empty(K)
+        for k in range(1, K + 1):
+            start = max(1, k - W // 2)
+            response[k - 1], radius[k - 1] = _local_fit_mimo(U[start:start + W], Y[start:start + W], k - start, alpha)
     return LowBandEstimate(frequency=2.0 * np.pi * np.arange(1, K + 1) / (n * dt), response=response, radius=radius,
                            confidence=float(confidence), window=W, degree=_LPM_DEGREE, samples=int(n), dt=float(dt))
 
@@ -375,6 +588,27 @@ def _local_fit(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[com
     return complex(theta[0]), math.sqrt(scipy.stats.f.ppf(1.0 - alpha, 2, 2 * dof) * s2 * var)
 
 
+def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[np.ndarray, float]:
+    """``(Ĝ (l × m), radius)`` at offset ``at`` of one local fit ``Y_r = G(r) U_r + T(r)``, U (W, m), Y (W, l)."""
+    W, m = U.shape
+    l = Y.shape[1]
+    d = _LPM_DEGREE + 1
+    r = np.arange(W) - at
+    powers = r[:, None] ** np.arange(d)[None, :]
+    # columns: input j times 1, r, r², … (block j), then the transient's 1, r, r², …
+    X = np.hstack([powers * U[:, j:j + 1] for j in range(m)] + [powers]).astype(complex)
+    theta, _, rank, _ = np.linalg.lstsq(X, Y, rcond=None)
+    if rank < X.shape[1]:  # an input silent in the window (or collinear with another): nothing known
+        return np.full((l, m), np.nan + 0j), float("inf")
+    dof = W - X.shape[1]
+    s2 = np.sum(np.abs(Y - X @ theta) ** 2, axis=0) / dof  # per output
+    at0 = np.arange(m) * d  # the response at the bin: each input's constant term
+    C = np.linalg.inv(X.conj().T @ X)[np.ix_(at0, at0)]
+    lam = float(np.linalg.eigvalsh(0.5 * (C + C.conj().T))[-1])
+    fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2 * dof)
+    return theta[at0, :].T.copy(), math.sqrt(lam * m * fq * float(np.sum(s2)))
+
+
 def _siso_response(sys, omega: np.ndarray, dt: float) -> np.ndarray:
     """``sys(e^{jω dt})`` of a SISO discrete system."""
     return np.asarray(sys(np.exp(1j * omega * dt)), complex).reshape(-1)
@@ -386,6 +620,35 @@ def _bin_peak(sys, frequency: np.ndarray, spacing: float, dt: float, points: int
     offsets = np.linspace(-0.5, 0.5, points) * spacing
     omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
     return np.abs(_siso_response(sys, omega.reshape(-1), dt)).reshape(omega.shape).max(axis=1)
+
+
+def _bin_loop_gain(sys, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
+                   sign: float, points: int = 9) -> tuple[np.ndarray, np.ndarray]:
+    """MIMO ``max_bin (σ̄(D̂ M̂) + sign·r·σ̄(M̂))`` and ``max_bin σ̄(M̂)`` over each frequency ± half the ``spacing``.
+
+    ``sys`` is ``M̂`` (m × l), ``response`` ``D̂`` (F, l, m), ``radius`` (F,).  By the triangle inequality every
+    ``D`` with ``‖D − D̂‖₂ ≤ r`` has ``σ̄(D̂M̂) − r·σ̄(M̂) ≤ σ̄(D M̂) ≤ σ̄(D̂M̂) + r·σ̄(M̂)``: sign +1 bounds the
+    loop gain of the perturbation from above, −1 from below.  NaN where ``D̂`` is NaN.
+    """
+    offsets = np.linspace(-0.5, 0.5, points) * spacing
+    omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
+    Mz = np.asarray(sys(np.exp(1j * omega.reshape(-1) * dt), squeeze=False), complex)  # (m, l, F·points)
+    Mz = np.moveaxis(Mz, -1, 0).reshape(omega.shape + Mz.shape[:2])  # (F, points, m, l)
+    gain_M = np.linalg.norm(Mz, ord=2, axis=(2, 3))
+    known = np.all(np.isfinite(response), axis=(1, 2))
+    D = np.where(known[:, None, None], response, 0.0)  # NaN would stop the SVD; those rows are set NaN below
+    gain_DM = np.linalg.norm(D[:, None] @ Mz, ord=2, axis=(2, 3))
+    with np.errstate(invalid="ignore"):
+        bound = np.max(gain_DM + sign * radius[:, None] * gain_M, axis=1)
+    return np.where(known, bound, np.nan), gain_M.max(axis=1)
+
+
+def _channels(response: np.ndarray, k: int) -> str:
+    """MIMO: ``' (largest in u[:, j] → y[:, i])'``, the entry of ``D̂`` at frequency index ``k`` of largest modulus."""
+    if response.ndim == 1 or not np.all(np.isfinite(response[k])):
+        return ""
+    i, j = np.unravel_index(int(np.argmax(np.abs(response[k]))), response[k].shape)
+    return f" (largest from input u[:, {j}] to output y[:, {i}])"
 
 
 def _bands(frequency: np.ndarray, mask: np.ndarray, unit: str) -> str:
@@ -645,11 +908,15 @@ def _relative_gap(gap: float, delta: float) -> float:
 
 
 def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[float, str]:
-    """``max (|D̂| − r)/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``) and where it exceeds 1."""
+    """``max (‖D̂‖₂ − r)/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``) and where it exceeds 1.
+
+    ``‖D̂‖₂ − r > δ`` means every ``D`` in the region has ``‖D‖₂ ≥ ‖D̂‖₂ − r > δ`` (SISO ``|D̂| − r``): the
+    plant is outside the δ-ball around P̂ at that frequency (with the region's confidence).
+    """
     excited = est.excited & np.isfinite(est.radius)
     if not np.any(excited):
         return float("nan"), "the record excites no frequency"
-    gap = np.abs(est.response) - est.radius
+    gap = est.gain - est.radius
     excess = np.where(excited, gap, -np.inf)
     worst = _relative_gap(float(np.max(excess)), delta)
     bad = excess > delta
@@ -658,8 +925,8 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
     k = int(np.argmax(excess))
     return worst, (f"the model P̂ lies outside the {est.confidence:.0%} confidence region of the data's frequency "
                    f"response by more than δ = {delta:.4g} at {_bands(est.frequency, bad, _unit(est.dt))} (by "
-                   f"{excess[k]:.3g} at {est.frequency[k]:.3g} {_unit(est.dt)}): P̂ is biased there; fit it on a "
-                   "longer or richer record (white PRBS), or raise the horizon")
+                   f"{excess[k]:.3g} at {est.frequency[k]:.3g} {_unit(est.dt)}{_channels(est.response, k)}): P̂ is "
+                   "biased there; fit it on a longer or richer record (white PRBS), or raise the horizon")
 
 
 def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float, validation=None,
@@ -761,15 +1028,16 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
                        low_band=low, plant_low_band=plant_low)
 
 
-def _low_bins(n: int, nperseg: int) -> int:
-    """Bins below the first Welch frequency (``n/nperseg`` DFT bins), at least 1; 0 when the record is too short."""
+def _low_bins(n: int, nperseg: int, inputs: int = 1) -> int:
+    """Bins below the first Welch frequency (``n/nperseg`` DFT bins), at least 1; 0 when the record is too short
+    for :func:`low_band_estimate`'s default window with ``inputs`` input channels."""
     k = max(1, n // nperseg)
-    return k if n >= 2 * (k + _LPM_WINDOW) else 0
+    return k if n >= 2 * (k + _lpm_window(inputs)) else 0
 
 
 def _low_band_inconsistency(est: LowBandEstimate, delta: float) -> tuple[float, str]:
-    """``max (|D̂| − r)/δ`` over the low frequencies and, where it exceeds 1, why the premise fails."""
-    gap = np.where(np.isfinite(est.radius), np.abs(est.response) - est.radius, -np.inf)
+    """``max (‖D̂‖₂ − r)/δ`` over the low frequencies and, where it exceeds 1, why the premise fails."""
+    gap = np.where(np.isfinite(est.radius), est.gain - est.radius, -np.inf)
     if not np.any(np.isfinite(gap)):
         return float("nan"), ""
     k = int(np.argmax(gap))
@@ -779,8 +1047,9 @@ def _low_band_inconsistency(est: LowBandEstimate, delta: float) -> tuple[float, 
     unit = _unit(est.dt)
     return worst, (f"at low frequency ({_bands(est.frequency, gap > delta, unit)}, below the Welch resolution) the "
                    f"model P̂ lies outside the {est.confidence:.0%} confidence region of the data's response by "
-                   f"{gap[k]:.3g} at {est.frequency[k]:.3g} {unit}, more than δ = {delta:.4g}: P̂ misses slow "
-                   "dynamics (an integrator, a slow pole); raise the horizon, or fit on a longer record")
+                   f"{gap[k]:.3g} at {est.frequency[k]:.3g} {unit}{_channels(est.response, k)}, more than "
+                   f"δ = {delta:.4g}: P̂ misses slow dynamics (an integrator, a slow pole); raise the horizon, or fit "
+                   "on a longer record")
 
 
 @result
@@ -792,11 +1061,13 @@ class ExcitationCheck:
     ----------
     ok : bool
     worst : float
-        ``max (|P̂ − Ĝ| + r) · max_bin |M̂|`` over the Welch frequencies (< 1 needed).
+        ``max (|D̂| + r) · max_bin |M̂|`` over the Welch frequencies (< 1 needed); MIMO
+        ``max max_bin (σ̄(D̂M̂) + r·σ̄(M̂))``.
     frequency : float
         Where the worst value is (rad/s; rad/sample when ``dt = 1``).
     reason : str
-        ``''`` when ok; otherwise the band, the input's power there and the fix.
+        ``''`` when ok; otherwise the band, the input's power there (MIMO: the input channel with the
+        least power) and the fix.
     """
 
     ok: bool
@@ -816,10 +1087,23 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     than the Welch segments is judged where it lives (measured: a model with a quarter of the plant's DC
     gain passed every Welch frequency, and its loop settled too slowly to track on the plant).
 
+    MIMO (``D̂`` l × m, ``M̂`` m × l): for every ``D`` in the region ``‖D − D̂‖₂ ≤ r``,
+    ``σ̄(D̂M̂) − r·σ̄(M̂) ≤ σ̄(DM̂) ≤ σ̄(D̂M̂) + r·σ̄(M̂)`` (triangle inequality, ``σ̄`` the largest singular
+    value).  The Welch test is ``max_bin (σ̄(D̂M̂) + r·σ̄(M̂)) < 1``: then ``σ̄(D M̂) < 1`` for every such
+    ``D``, the frequency-wise small-gain condition (``det(I − DM̂) ≠ 0`` along the homotopy ``τD``) -- no
+    weaker than the ``(‖D̂‖₂ + r)·‖M̂‖₂ < 1`` it implies, and the same numbers for SISO.  The low-band
+    evidence is ``max_bin (σ̄(D̂M̂) − r·σ̄(M̂)) ≥ 1``: every plant consistent with the data there has
+    ``σ̄((P − P̂)M̂) ≥ 1``, so no small-gain argument covers the loop on it -- the SISO statement
+    ``|D||M̂| ≥ 1`` exactly (neither proves instability; both refute the certificate's condition).
+    ``(‖D̂‖₂ − r)·‖M̂‖₂ ≥ 1`` would not do: ``‖D‖₂ ≥ ‖D̂‖₂ − r`` says only that ``D`` is large in *some*
+    direction, which ``M̂`` need not reach (``D M̂`` can be small), so it would refuse loops the data do
+    not fault.  A test on the spectral radius ``ρ(DM̂)`` would be sharper still, but eigenvalues of
+    non-normal matrices have no perturbation bound linear in ``r``.
+
     Parameters
     ----------
     model : control.StateSpace
-        P̂.
+        P̂ (``m`` inputs, ``l`` outputs).
     controller : control.StateSpace
         ``K`` with inputs ``[r; y]``.
     frf : FrequencyResponseEstimate
@@ -831,6 +1115,11 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     Returns
     -------
     ExcitationCheck
+
+    Raises
+    ------
+    DataError
+        The estimates' channels differ from the model's.
 
     Examples
     --------
@@ -847,12 +1136,33 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex = check_excitation(model, K, test.frf, test.low_band)
     >>> ex.ok, bool(ex.worst < 1), ex.reason
     (True, True, '')
+
+    Two inputs and two outputs, the second input silent: the data say nothing about its column of P.
+
+    >>> P = control.ss([], [], [], np.eye(2), 1.0)                          # P̂ = I, a static 2 × 2 model
+    >>> U = np.column_stack([rng.standard_normal(2048), np.zeros(2048)])
+    >>> frf = frequency_response_estimate(U, 0.01 * rng.standard_normal((2048, 2)))   # e = y − P̂u
+    >>> K2 = control.ss([], [], [], np.hstack([0.5 * np.eye(2), -0.5 * np.eye(2)]), 1.0)
+    >>> ex = check_excitation(P, K2, frf)
+    >>> ex.ok, "u[:, 1]" in ex.reason
+    (False, True)
     """
     M = additive_channel(model, controller)
-    freq, dist, radius = frf.frequency, np.abs(frf.response), frf.radius
-    peak = _bin_peak(M, frf.frequency, frf.resolution, frf.dt)
-    with np.errstate(invalid="ignore"):
-        bound = np.where(np.isfinite(radius), (dist + radius) * peak, np.where(peak > 0, np.inf, 0.0))
+    mimo = frf.response.ndim == 3 or (low_band is not None and low_band.response.ndim == 3)
+    if not mimo:
+        freq, dist, radius = frf.frequency, np.abs(frf.response), frf.radius
+        peak = _bin_peak(M, frf.frequency, frf.resolution, frf.dt)
+        with np.errstate(invalid="ignore"):
+            bound = np.where(np.isfinite(radius), (dist + radius) * peak, np.where(peak > 0, np.inf, 0.0))
+    else:
+        for name, est in (("frf", frf), ("low_band", low_band)):
+            if est is not None and _shape(est) != (M.ninputs, M.noutputs):
+                raise DataError(f"{name} estimates a {_shape(est)[0]} × {_shape(est)[1]} model error (outputs × "
+                                f"inputs) but the model P̂ has {M.ninputs} outputs and {M.noutputs} inputs: "
+                                "estimate it from the same (u, y − P̂u) channels the model was fitted on")
+        freq, dist, radius = frf.frequency, frf.gain, frf.radius
+        bound, peak = _bin_loop_gain(M, frf.response, radius, frf.frequency, frf.resolution, frf.dt, +1.0)
+        bound = np.where(np.isfinite(radius), bound, np.where(peak > 0, np.inf, 0.0))
     bound = np.nan_to_num(bound, nan=np.inf)
     welch = np.ones(freq.size, bool)
     if low_band is not None:
@@ -860,10 +1170,15 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         # wide where the response bends fast (an integrator), so "the disk must fit" would refuse loops the
         # data do not fault; excitation itself is judged on the Welch frequencies above.
         spacing = 2.0 * np.pi / (low_band.samples * low_band.dt)
-        low_peak = _bin_peak(M, low_band.frequency, spacing, low_band.dt)
-        low_bound = np.nan_to_num(np.maximum(np.abs(low_band.response) - low_band.radius, 0.0) * low_peak, nan=0.0)
+        if not mimo:
+            low_peak = _bin_peak(M, low_band.frequency, spacing, low_band.dt)
+            low_bound = np.nan_to_num(np.maximum(np.abs(low_band.response) - low_band.radius, 0.0) * low_peak, nan=0.0)
+        else:
+            low_bound, low_peak = _bin_loop_gain(M, low_band.response, low_band.radius, low_band.frequency, spacing,
+                                                 low_band.dt, -1.0)
+            low_bound = np.nan_to_num(np.maximum(low_bound, 0.0), nan=0.0, posinf=0.0)
         freq = np.concatenate([low_band.frequency, freq])
-        dist = np.concatenate([np.abs(low_band.response), dist])
+        dist = np.concatenate([low_band.gain, dist])
         radius = np.concatenate([low_band.radius, radius])
         peak = np.concatenate([low_peak, peak])
         bound = np.concatenate([low_bound, bound])
@@ -876,21 +1191,68 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     unit = _unit(frf.dt)
     band = _bands(freq, bad, unit)
     lo, hi = float(freq[bad].min()), float(freq[bad].max())
+    norm = "‖K(I+P̂K)⁻¹‖₂" if mimo else "|K(I+P̂K)⁻¹|"
+    signal = ("independent white PRBS or multisines covering that band on the inputs" if mimo
+              else "white PRBS or a multisine covering that band")
     if np.all(~np.isfinite(radius[bad]) | (radius[bad] >= dist[bad])):
-        why = (f"the data do not determine the plant at {band}, where the loop is sensitive (|K(I+P̂K)⁻¹| up to "
+        why = (f"the data do not determine the plant at {band}, where the loop is sensitive ({norm} up to "
                f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and the confidence radius reaches "
-               f"{float(np.max(np.where(bad, radius, 0))):.3g}; excite {lo:.3g}–{hi:.3g} {unit} (white PRBS or a "
-               "multisine covering that band) or record longer")
+               f"{float(np.max(np.where(bad, radius, 0))):.3g}; excite {lo:.3g}–{hi:.3g} {unit}"
+               f"{_input_fix(frf, bad[welch])} ({signal}) or record longer")
     else:
+        test = "σ̄(D̂M̂) + r·σ̄(M̂)" if mimo else "(|P − P̂| estimate + r)·|K(I+P̂K)⁻¹|"
         why = (f"at {band} the data's frequency response differs from P̂ by more than the loop tolerates "
-               f"((|P − P̂| estimate + r)·|K(I+P̂K)⁻¹| = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
+               f"({test} = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
                "richer or longer record, or raise the horizon")
     return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why)
 
 
+def _shape(est) -> tuple[int, int]:
+    """``(l, m)`` of an estimate's response (``(1, 1)`` for SISO)."""
+    return (1, 1) if est.response.ndim == 1 else tuple(int(x) for x in est.response.shape[1:])
+
+
+def _input_power(frf: FrequencyResponseEstimate) -> np.ndarray:
+    """Each input's auto-spectrum, shape (F, m)."""
+    if frf.input_psd.ndim == 1:
+        return frf.input_psd[:, None]
+    return np.real(np.diagonal(frf.input_psd, axis1=1, axis2=2))
+
+
+def _weakest_input(frf: FrequencyResponseEstimate, bad: np.ndarray) -> tuple[int, float]:
+    """The input channel with the least power over the flagged Welch frequencies, and that power in dB below
+    the peak of all inputs over all frequencies."""
+    power = _input_power(frf)
+    low = np.min(power[bad], axis=0)
+    j = int(np.argmin(low))
+    return j, 10.0 * np.log10(max(float(low[j]), 1e-300) / max(float(np.max(power)), 1e-300))
+
+
 def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
-    """``': the input's power there is down to … dB below its peak'`` over the flagged Welch frequencies."""
+    """``': the input's power there is down to … dB below its peak'`` over the flagged Welch frequencies (MIMO:
+    the channel with the least power, and the weakest input direction when the channels move together)."""
     if not np.any(bad):
         return ""
-    level = 10.0 * np.log10(max(float(np.min(frf.input_psd[bad])), 1e-300) / float(np.max(frf.input_psd)))
-    return f": the input's power there is down to {level:.0f} dB below its peak"
+    if frf.input_psd.ndim == 1:
+        level = 10.0 * np.log10(max(float(np.min(frf.input_psd[bad])), 1e-300) / float(np.max(frf.input_psd)))
+        return f": the input's power there is down to {level:.0f} dB below its peak"
+    j, level = _weakest_input(frf, bad)
+    lam = np.linalg.eigvalsh(frf.input_psd)
+    direction = 10.0 * np.log10(max(float(np.min(lam[bad, 0])), 1e-300) / max(float(np.max(lam[:, -1])), 1e-300))
+    if level < -200.0:  # exactly or numerically zero: a dB figure would be the rounding's
+        text = f": input u[:, {j}] has no power there"
+    else:
+        text = f": input u[:, {j}] has the least power there, down to {level:.0f} dB below the inputs' peak"
+    if direction < level - 20.0:  # every channel has power, but not independently
+        text += (f", and the inputs' weakest direction is down to {direction:.0f} dB (the channels move together "
+                 "there)")
+    return text
+
+
+def _input_fix(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
+    """MIMO: ``' on input u[:, j]'`` when one channel lacks power over the flagged band, else ``' in every input
+    direction'`` (the channels have power but move together); SISO: ``''``."""
+    if frf.input_psd.ndim == 1 or not np.any(bad):
+        return ""
+    j, level = _weakest_input(frf, bad)
+    return f" on input u[:, {j}]" if level < 10.0 * np.log10(EXCITATION_FLOOR) else " in every input direction"
