@@ -1014,7 +1014,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         if why:
             reasons.append(why)
     low = plant_low = None
-    bins = _low_bins(e.shape[0], frf.nperseg) if frf is not None else 0
+    bins = _low_bins(e.shape[0], frf.nperseg, 1 if u_e.ndim == 1 else u_e.shape[1]) if frf is not None else 0
     if bins:
         y_e = oe_data[1][-e.shape[0]:]  # the outputs of the same rows (e and the record end together)
         low = low_band_estimate(u_e, e, dt, bins=bins, confidence=opts.confidence)
