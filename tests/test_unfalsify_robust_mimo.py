@@ -57,8 +57,9 @@ def test_siso_step_is_unchanged():
 def test_certify_loop_small_gain_is_the_largest_singular_value(shape):
     l, m = shape
     rng = np.random.default_rng(l + 3 * m)
-    P = control.drss(3, l, m, strictly_proper=True)
-    P = control.ss(0.5 * P.A / max(1.0, np.max(np.abs(np.linalg.eigvals(P.A)))), P.B, 0.3 * P.C, P.D, 1.0)
+    A = rng.standard_normal((3, 3))
+    A *= 0.5 / np.max(np.abs(np.linalg.eigvals(A)))                 # spectral radius 0.5
+    P = control.ss(A, rng.standard_normal((3, m)), 0.3 * rng.standard_normal((l, 3)), np.zeros((l, m)), 1.0)
     K = control.ss([], [], [], 0.2 * rng.standard_normal((m, 2 * l)), 1.0)
     cert = uf.certify_loop(P, K, 0.01, tracking_floor=10.0)
     assert cert.stable
