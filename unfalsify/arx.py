@@ -22,6 +22,45 @@ Two cvxpy formulations of the same program:
 The tempting substitution ``h = T(u)⁻¹(e − ξ)`` is not offered: it inverts ``T(u)`` and is
 wrong by orders of magnitude for n ≥ 40 (measured: Clarabel δ = 1.31 instead of 0.0861 at n = 80,
 SCS δ = 6.3 instead of 0.170 at n = 40).
+
+Several channels (u: (n, m), y: (n, l), time along axis 0; issue 28)
+    Δ is a causal LTI operator with l outputs and m inputs and l × m Markov parameters h_0 … h_{n−1}.
+    The data relation is linear in h, ``e_s − ξ_s = Σ_{t≤s} h_t u_{s−t}`` (samples stacked:
+    ``vec(E − Ξ) = T(h)u = M(u)h``), and the least H∞ norm of a causal Δ with those Markov parameters
+    is ``‖T(h)‖₂``, T(h) the nl × nm block lower-triangular Toeplitz matrix (matrix Carathéodory–Fejér:
+    ``‖Δ‖∞ ≥ ‖T(h)‖₂`` because T(h) is a compression of the multiplication operator of Δ, with equality
+    attained by a suitable extension of h).  So (7.4) becomes
+
+        δ = min δ  s.t.  ‖T(h)‖₂ ≤ δ,   ‖vec(ΦΘ + Y) − M(u)h‖₂ ≤ σ√((n − free_rows)·l),
+
+    the conditioned form with ``[δI_nm T(h)ᵀ; T(h) δI_nl] ⪰ 0``.  The noise ball is one Frobenius ball
+    ``‖Ξ‖_F ≤ σ√(N·l)`` (N = n − free_rows non-free rows): σ is the rms of every entry of the noise,
+    pooled over the outputs, as in (7.5)'s ``σ√(ilj)``.  ``form="thesis"`` is written for one channel.
+
+    Multi-output equation-error ARX is included because it extends at no cost: with
+    ``e_t = y_t + Σ_k A_k y_{t−k} − Σ_k B_k u_{t−k}`` (A_k l × l, B_k l × m, fully coupled) the model
+    directions are ``{ΦΘ}``, Θ = [A₁ᵀ; …; B_nbᵀ] (:func:`arx_regressor`), i.e. the same subspace range Φ
+    acting on each output column, and every solver only ever projects onto its complement (``range(Q ⊗ I_l)``
+    in the stacked vectors).  It is useful as the multi-output generalisation of the thesis' ARX test of a
+    fitted model, and na = nb = 0 with free rows is the output-error premise test of the §7.4 pipeline
+    (:func:`unfalsify.output_error_unfalsify`).  Not offered: structured A(q) (diagonal, or common
+    denominators), which would make 𝓛 depend on the output and lose the Kronecker form.
+
+    The lower bound (weak duality), as for one channel (:class:`~unfalsify.solvers.columns.BlockColumnForm`
+    with i = n, j = 1).  Write ``T*`` for the adjoint of h ↦ T(h) (``T*(W)_d`` the sum of the d-th block
+    subdiagonal of W) and ``M*`` for that of h ↦ M(u)h (``(M*v)_t = Σ_{s≥t} v_s u_{s−t}ᵀ``).  For ANY v (nl)
+    and ANY W (nl × nm): (1) project v off ``range(Q ⊗ I_l)`` (Q an orthonormal basis of range Φ, the
+    free rows included), so ``⟨v, vec(ΦΘ)⟩ = 0``; (2) add ``T(c)``, ``c_d = ((M*v)_d − T*(W)_d)/(n − d)``,
+    to W, so that ``T*(W) = M*v`` exactly; (3) for every feasible (δ, h, Θ, ξ),
+    ``⟨v, M(u)h⟩ = ⟨M*v, h⟩ = ⟨T*(W), h⟩ = ⟨W, T(h)⟩ ≤ ‖W‖_* ‖T(h)‖₂ ≤ δ‖W‖_*`` and
+    ``⟨v, M(u)h⟩ = ⟨v, vec(ΦΘ + Y) − ξ⟩ ≥ ⟨v, vec Y⟩ − σ√(N·l)‖v‖₂``; hence
+
+        δ ≥ (⟨v, vec Y⟩ − σ√(N·l)‖v‖₂) / ‖W‖_*     (and δ ≥ 0),
+
+    for any (v, W), exact or not.  The solvers' (v, W) are the noise cone's multiplier along ξ and
+    ``W = −2 Z21`` of the LMI multiplier Z (cvxpy), or the Newton-linearised central-path point
+    (:mod:`unfalsify.solvers.arx_barrier`); the certificate recomputes the bound from them and the data.
+    With one channel each the SISO code runs unchanged.
 """
 from __future__ import annotations
 
@@ -404,12 +443,16 @@ def arx_unfalsify(
 
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO data, system at rest before t = 0; ``u[0]`` must be non-zero.
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        Data, time along axis 0, system at rest before t = 0; ``u[0]`` must be non-zero (a non-zero vector
+        for several inputs).  Several channels: see the module docstring (conditioned form, both backends,
+        ``method="barrier"``).
     na, nb : int
-        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …``.
+        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …`` (several channels: l × l and l × m
+        matrix coefficients).
     sigma : float
-        Admissible rms noise level σ > 0 (same units as y).
+        Admissible rms noise level σ > 0 (same units as y); several outputs: the rms over all entries,
+        the noise ball ``‖Ξ‖_F ≤ σ√((n − free_rows)·l)``.
     form : {"conditioned", "thesis"}
         See the module docstring.  ``"conditioned"`` is exact and well conditioned;
         ``"thesis"`` is the literal §7.2.2 LMI (small n only, cvxpy backend only).
@@ -449,12 +492,13 @@ def arx_unfalsify(
     Raises
     ------
     DataError
-        Bad data (NaN, lengths, MIMO, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
+        Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
     UnknownSolverError
-        Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names).
+        Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names), or
+        ``method="bracket"`` with several channels (the message names ``method="barrier"``).
     ValueError
-        Unknown ``form``, ``form="thesis"`` with the structured backend, or ``method="bracket"`` with
-        the cvxpy backend.
+        Unknown ``form``, ``form="thesis"`` with the structured backend or several channels, or
+        ``method="bracket"`` with the cvxpy backend.
     UnfalsificationError
         cvxpy: solver failure or an infeasible/unbounded status (impossible in exact arithmetic).
 
@@ -482,6 +526,14 @@ def arx_unfalsify(
     >>> fast = arx_unfalsify(u, y, 1, 1, 0.5 * rms, backend="structured", progress=False)
     >>> bool(abs(fast.delta - res.delta) <= 1e-4 * res.delta)
     True
+
+    Two inputs, two outputs (l × m Markov parameters; output error with the first 2 rows free):
+
+    >>> U = rng.standard_normal((20, 2))
+    >>> E = 0.3 * np.roll(U, 1, axis=0) @ np.array([[1.0, 0.5], [0.0, 1.0]]).T + 0.01 * rng.standard_normal((20, 2))
+    >>> mimo = arx_unfalsify(U, E, 0, 0, 0.01, backend="structured", free_rows=2, progress=False)
+    >>> mimo.impulse.shape, mimo.noise.shape, bool(mimo.certificate.verify())
+    ((20, 2, 2), (20, 2), True)
     """
     form = check_form(form)
     name = resolve("arx", backend, method)
