@@ -22,6 +22,45 @@ Two cvxpy formulations of the same program:
 The tempting substitution ``h = T(u)⁻¹(e − ξ)`` is not offered: it inverts ``T(u)`` and is
 wrong by orders of magnitude for n ≥ 40 (measured: Clarabel δ = 1.31 instead of 0.0861 at n = 80,
 SCS δ = 6.3 instead of 0.170 at n = 40).
+
+Several channels (u: (n, m), y: (n, l), time along axis 0; issue 28)
+    Δ is a causal LTI operator with l outputs and m inputs and l × m Markov parameters h_0 … h_{n−1}.
+    The data relation is linear in h, ``e_s − ξ_s = Σ_{t≤s} h_t u_{s−t}`` (samples stacked:
+    ``vec(E − Ξ) = T(h)u = M(u)h``), and the least H∞ norm of a causal Δ with those Markov parameters
+    is ``‖T(h)‖₂``, T(h) the nl × nm block lower-triangular Toeplitz matrix (matrix Carathéodory–Fejér:
+    ``‖Δ‖∞ ≥ ‖T(h)‖₂`` because T(h) is a compression of the multiplication operator of Δ, with equality
+    attained by a suitable extension of h).  So (7.4) becomes
+
+        δ = min δ  s.t.  ‖T(h)‖₂ ≤ δ,   ‖vec(ΦΘ + Y) − M(u)h‖₂ ≤ σ√((n − free_rows)·l),
+
+    the conditioned form with ``[δI_nm T(h)ᵀ; T(h) δI_nl] ⪰ 0``.  The noise ball is one Frobenius ball
+    ``‖Ξ‖_F ≤ σ√(N·l)`` (N = n − free_rows non-free rows): σ is the rms of every entry of the noise,
+    pooled over the outputs, as in (7.5)'s ``σ√(ilj)``.  ``form="thesis"`` is written for one channel.
+
+    Multi-output equation-error ARX is included because it extends at no cost: with
+    ``e_t = y_t + Σ_k A_k y_{t−k} − Σ_k B_k u_{t−k}`` (A_k l × l, B_k l × m, fully coupled) the model
+    directions are ``{ΦΘ}``, Θ = [A₁ᵀ; …; B_nbᵀ] (:func:`arx_regressor`), i.e. the same subspace range Φ
+    acting on each output column, and every solver only ever projects onto its complement (``range(Q ⊗ I_l)``
+    in the stacked vectors).  It is useful as the multi-output generalisation of the thesis' ARX test of a
+    fitted model, and na = nb = 0 with free rows is the output-error premise test of the §7.4 pipeline
+    (:func:`unfalsify.output_error_unfalsify`).  Not offered: structured A(q) (diagonal, or common
+    denominators), which would make 𝓛 depend on the output and lose the Kronecker form.
+
+    The lower bound (weak duality), as for one channel (:class:`~unfalsify.solvers.columns.BlockColumnForm`
+    with i = n, j = 1).  Write ``T*`` for the adjoint of h ↦ T(h) (``T*(W)_d`` the sum of the d-th block
+    subdiagonal of W) and ``M*`` for that of h ↦ M(u)h (``(M*v)_t = Σ_{s≥t} v_s u_{s−t}ᵀ``).  For ANY v (nl)
+    and ANY W (nl × nm): (1) project v off ``range(Q ⊗ I_l)`` (Q an orthonormal basis of range Φ, the
+    free rows included), so ``⟨v, vec(ΦΘ)⟩ = 0``; (2) add ``T(c)``, ``c_d = ((M*v)_d − T*(W)_d)/(n − d)``,
+    to W, so that ``T*(W) = M*v`` exactly; (3) for every feasible (δ, h, Θ, ξ),
+    ``⟨v, M(u)h⟩ = ⟨M*v, h⟩ = ⟨T*(W), h⟩ = ⟨W, T(h)⟩ ≤ ‖W‖_* ‖T(h)‖₂ ≤ δ‖W‖_*`` and
+    ``⟨v, M(u)h⟩ = ⟨v, vec(ΦΘ + Y) − ξ⟩ ≥ ⟨v, vec Y⟩ − σ√(N·l)‖v‖₂``; hence
+
+        δ ≥ (⟨v, vec Y⟩ − σ√(N·l)‖v‖₂) / ‖W‖_*     (and δ ≥ 0),
+
+    for any (v, W), exact or not.  The solvers' (v, W) are the noise cone's multiplier along ξ and
+    ``W = −2 Z21`` of the LMI multiplier Z (cvxpy), or the Newton-linearised central-path point
+    (:mod:`unfalsify.solvers.arx_barrier`); the certificate recomputes the bound from them and the data.
+    With one channel each the SISO code runs unchanged.
 """
 from __future__ import annotations
 
@@ -35,11 +74,15 @@ import numpy as np
 from synthesis import DataError
 from synthesis.results import result
 
-from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one, siso_signal
-from .exceptions import IllConditionedWarning, NotAtRestWarning
+from synthesis.validation import as_signal
+
+from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one
+from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import resolve, run
+from .solvers.arx_barrier import ArxBlockForm
 from .solvers.columns import ColumnForm
-from .solvers.toeplitz import certified_norm, conv_cols, toeplitz_cond
+from .solvers.toeplitz import (block_certified_norm, block_conv_cols, certified_norm, conv_cols, signal_toeplitz,
+                               toeplitz_cond)
 
 __all__ = ["ArxProblem", "ArxResult", "arx_unfalsify", "arx_regressor", "arx_least_squares"]
 
@@ -55,12 +98,14 @@ class ArxResult:
         δ_unf, the smallest ``‖Δ‖∞`` (NaN if the solve failed).
     theta : ndarray, shape (na + nb + free_rows,)
         ``[a₁ … a_na, b₁ … b_nb]`` (§7.2.1), followed by the free equation errors of the first
-        ``free_rows`` rows when there are any.
+        ``free_rows`` rows when there are any.  Several channels: Θ of shape
+        (na·l + nb·m + free_rows, l), ``[A₁ᵀ; …; A_naᵀ; B₁ᵀ; …; B_nbᵀ; free rows]`` (:func:`arx_regressor`).
     noise : ndarray, shape (n,)
-        ξ.  For the conditioned form ``ξ = Φθ + Y − T(u) h`` exactly.
+        ξ.  For the conditioned form ``ξ = Φθ + Y − T(u) h`` exactly.  Several channels: (n, l).
     impulse : ndarray, shape (n,)
         h, the first n Markov parameters of Δ: ``e − ξ = T(u) h`` (for the thesis form
-        recomputed from ξ in exact rational arithmetic).
+        recomputed from ξ in exact rational arithmetic).  Several channels: (n, l, m), ``impulse[t]``
+        the l × m Markov parameter h_t.
     status : str
         cvxpy status (``"optimal"``, ``"optimal_inaccurate"``, ...), or for the structured backend
         ``"optimal"``, ``"time_limit"``, ``"interrupted"``, ``"max_iter"``, ``"failed"``.
@@ -85,6 +130,9 @@ class ArxResult:
     scale : tuple of float
         ``(s_u, s_y)``: the problem was posed on ``u/s_u`` and ``y/s_y`` (``s_u`` = rms of u,
         ``s_y`` = rms of the least-squares equation error).
+    backend : str
+    n_inputs, n_outputs : int
+        m and l (1 and 1 for SISO data).
     """
 
     delta: float
@@ -102,15 +150,23 @@ class ArxResult:
     certificate: Certificate
     scale: tuple
     backend: str = "cvxpy"
+    n_inputs: int = 1
+    n_outputs: int = 1
 
     @property
     def a(self) -> np.ndarray:
-        """``[a₁ … a_na]``."""
+        """``[a₁ … a_na]``; several channels: the stack (na, l, l) of A₁ … A_na."""
+        if self.theta.ndim == 2:
+            l = self.n_outputs
+            return self.theta[: self.na * l].reshape(self.na, l, l).transpose(0, 2, 1)
         return self.theta[: self.na]
 
     @property
     def b(self) -> np.ndarray:
-        """``[b₁ … b_nb]``."""
+        """``[b₁ … b_nb]``; several channels: the stack (nb, l, m) of B₁ … B_nb."""
+        if self.theta.ndim == 2:
+            l, m, k = self.n_outputs, self.n_inputs, self.na * self.n_outputs
+            return self.theta[k : k + self.nb * m].reshape(self.nb, m, l).transpose(0, 2, 1)
         return self.theta[self.na : self.na + self.nb]
 
     @property
@@ -125,10 +181,22 @@ def _order(v, name: str) -> int:
     return int(v)
 
 
+def _pair(u, y) -> tuple[np.ndarray, np.ndarray]:
+    """``(u, y)``: 1-D for one channel each (the SISO code paths, unchanged), else (n, m) and (n, l)."""
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])
+    if u.shape[1] == 1 and y.shape[1] == 1:
+        return u[:, 0].copy(), y[:, 0].copy()
+    return u, y
+
+
 def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     """``(Φ, Y)`` of §7.2.1 with zero initial conditions, so that ``e(θ) = Φθ + Y``.
 
     Row t of Φ is ``[y_{t−1} … y_{t−na}, −u_{t−1} … −u_{t−nb}]`` (samples before t = 0 are zero).
+    Several channels (u (n, m), y (n, l)): row t is ``[y_{t−1}ᵀ … y_{t−na}ᵀ, −u_{t−1}ᵀ … −u_{t−nb}ᵀ]``
+    (na·l + nb·m columns) and Y is (n, l), so ``e(Θ) = ΦΘ + Y`` with ``Θ = [A₁ᵀ; …; A_naᵀ; B₁ᵀ; …; B_nbᵀ]``
+    (the multi-output equation error ``e_t = y_t + Σ A_k y_{t−k} − Σ B_k u_{t−k}``).
 
     Examples
     --------
@@ -137,11 +205,22 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     [[0.0, 0.0, 0.0], [0.5, -1.0, 0.0], [1.0, -2.0, -1.0]]
     >>> Y.tolist()
     [0.5, 1.0, 1.5]
+    >>> import numpy as np
+    >>> Phi, Y = arx_regressor(np.ones((3, 2)), np.ones((3, 3)), 1, 1)      # m = 2 inputs, l = 3 outputs
+    >>> Phi.shape, Y.shape                                                  # na·l + nb·m = 5 columns
+    ((3, 5), (3, 3))
     """
-    u = siso_signal(u, "u")
-    y = siso_signal(y, "y", n=u.size)
+    u, y = _pair(u, y)
     na, nb = _order(na, "na"), _order(nb, "nb")
-    n = u.size
+    n = u.shape[0]
+    if u.ndim == 2:
+        m, l = u.shape[1], y.shape[1]
+        Phi = np.zeros((n, na * l + nb * m))
+        for k in range(1, na + 1):
+            Phi[k:, (k - 1) * l : k * l] = y[: n - k]
+        for k in range(1, nb + 1):
+            Phi[k:, na * l + (k - 1) * m : na * l + k * m] = -u[: n - k]
+        return Phi, y.copy()
     Phi = np.zeros((n, na + nb))
     for k in range(1, na + 1):
         Phi[k:, k - 1] = y[: n - k]
@@ -152,6 +231,9 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
 
 def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     """Classical ARX (7.2): ``θ = −Φ⁺Y`` and the rms of the residual ``e(θ)``.
+
+    Several channels: ``Θ = −Φ⁺Y`` (na·l + nb·m, l), one least-squares fit per output, and the rms over
+    all n·l entries of the residual.
 
     Examples
     --------
@@ -167,7 +249,7 @@ def arx_least_squares(u, y, na: int, nb: int) -> tuple[np.ndarray, float]:
     """
     Phi, Y = arx_regressor(u, y, na, nb)
     if Phi.shape[1] == 0:
-        return np.zeros(0), float(np.linalg.norm(Y) / np.sqrt(Y.size))
+        return np.zeros((0,) + Y.shape[1:]), float(np.linalg.norm(Y) / np.sqrt(Y.size))
     theta = -np.linalg.lstsq(Phi, Y, rcond=None)[0]
     e = Phi @ theta + Y
     return theta, float(np.linalg.norm(e) / np.sqrt(Y.size))
@@ -178,7 +260,7 @@ def _warn_if_not_at_rest(u, y, na: int, nb: int, sigma: float) -> None:
     ``max(na, nb)`` equation errors of the least-squares model -- the rows that use those zeros --
     are an order of magnitude above both σ and the other rows' errors: the record starts mid-motion."""
     k0 = max(na, nb)
-    if k0 == 0 or u.size <= 2 * k0:
+    if k0 == 0 or u.shape[0] <= 2 * k0:
         return
     Phi, Y = arx_regressor(u, y, na, nb)
     theta = -np.linalg.lstsq(Phi[k0:], Y[k0:], rcond=None)[0]
@@ -206,6 +288,10 @@ class ArxProblem:
     to θ as unit columns of Φ), and the noise budget counts the other rows only, ``σ√(n − free_rows)``.
     That is the program for a record that does not start at rest: whatever the samples before the
     record did to the first rows (Δ's own initial state) is not charged to Δ or to the noise.
+
+    Several channels (u (n, m), y (n, l), ``siso`` False): Θ is (na·l + nb·m + free_rows, l), h is
+    (n, l, m), the noise (n, l) and its budget ``σ√((n − free_rows)·l)`` (σ an rms over all entries);
+    ``column_form`` is an :class:`~unfalsify.solvers.arx_barrier.ArxBlockForm` (see :func:`arx_unfalsify`).
     """
 
     u: np.ndarray
@@ -216,22 +302,26 @@ class ArxProblem:
     scale: tuple
     cond_Tu: float
     free_rows: int = 0
+    n_inputs: int = 1
+    n_outputs: int = 1
     #: which program the solvers see (:data:`unfalsify.solvers.PROGRAMS`)
     program: ClassVar[str] = "arx"
 
     @classmethod
     def from_data(cls, u, y, na, nb, sigma, free_rows: int = 0) -> "ArxProblem":
-        """Validate (raises :class:`DataError`) and scale."""
-        u = siso_signal(u, "u")
-        y = siso_signal(y, "y", n=u.size)
+        """Validate (raises :class:`DataError`) and scale; u (n,) or (n, m), y (n,) or (n, l)."""
+        u, y = _pair(u, y)
         na, nb = _order(na, "na"), _order(nb, "nb")
         free_rows = _order(free_rows, "free_rows")
         sigma = check_sigma(sigma)
-        n = u.size
-        if n <= na + nb + free_rows:
-            raise DataError(f"need more samples than parameters: n = {n} <= na + nb + free_rows = "
-                            f"{na + nb + free_rows}")
-        if u[0] == 0.0 and free_rows == 0:
+        n = u.shape[0]
+        m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])
+        params = (na * l + nb * m + free_rows) if u.ndim == 2 else (na + nb + free_rows)
+        if n <= params:
+            what = "na·l + nb·m + free_rows" if u.ndim == 2 else "na + nb + free_rows"
+            raise DataError(f"need more samples than parameters: n = {n} <= {what} = {params}; pass a longer "
+                            "record or lower the orders")
+        if not np.any(u[0] != 0.0) and free_rows == 0:
             raise DataError(
                 "u[0] == 0: T(u) is singular, so no causal Δ(q)u can explain a non-zero error at t = 0 and the "
                 "substitution e − ξ = T(u)h is not available; start the record at the first non-zero input sample"
@@ -244,17 +334,28 @@ class ArxProblem:
             _warn_if_not_at_rest(u, y, na, nb, sigma)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
-        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=toeplitz_cond(u), free_rows=free_rows)
+        if u.ndim == 1 or m == 1:
+            cond = toeplitz_cond(u if u.ndim == 1 else u[:, 0])
+        else:  # T(u) is nm × n: its singular values (as in unfalsified_gain)
+            sv = np.linalg.svd(signal_toeplitz(u), compute_uv=False)
+            cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=cond, free_rows=free_rows,
+                   n_inputs=m, n_outputs=l)
 
     @property
     def n(self) -> int:
         """Number of samples."""
-        return int(self.u.size)
+        return int(self.u.shape[0])
+
+    @property
+    def siso(self) -> bool:
+        """One input and one output (the SISO code paths)."""
+        return self.u.ndim == 1
 
     @property
     def n_noise(self) -> int:
-        """Number of rows the noise budget ``σ√n_noise`` covers (the rows that are not free)."""
-        return self.n - int(self.free_rows)
+        """Number of noise entries the budget ``σ√n_noise`` covers: ``(n − free_rows)·l``."""
+        return (self.n - int(self.free_rows)) * int(self.n_outputs)
 
     def regressor(self, scaled: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """``(Φ, Y)`` with ``e(θ) = Φθ + Y``: :func:`arx_regressor` plus one unit column per free row."""
@@ -265,31 +366,58 @@ class ArxProblem:
         return Phi, Y
 
     def column_form(self, scaled: bool = True) -> ColumnForm:
-        """(7.4) as the column form (C) of :mod:`unfalsify.solvers.columns` (j = 1, 𝓛 = range Φ)."""
+        """(7.4) as the column form (C) of :mod:`unfalsify.solvers.columns` (j = 1, 𝓛 = range Φ).
+
+        Several channels: :class:`~unfalsify.solvers.arx_barrier.ArxBlockForm` (i = n, j = 1, the samples
+        stacked, 𝓛 = range(Q ⊗ I_l) with Q an orthonormal basis of range Φ)."""
         su, sy = self.scale if scaled else (1.0, 1.0)
         Phi, Y = self.regressor(scaled)
         Q = np.linalg.qr(Phi)[0] if Phi.shape[1] else None
-        return ColumnForm((self.u / su)[:, None], Y[:, None], self.sigma / sy * np.sqrt(self.n_noise), basis_left=Q)
+        rho = self.sigma / sy * np.sqrt(self.n_noise)
+        if not self.siso:
+            m, l = self.n_inputs, self.n_outputs
+            return ArxBlockForm((self.u / su).reshape(-1, 1), Y.reshape(-1, 1), rho, n_inputs=m, n_outputs=l,
+                                basis=Q)
+        return ColumnForm((self.u / su)[:, None], Y[:, None], rho, basis_left=Q)
+
+    def _conv(self, h) -> np.ndarray:
+        """``T(u)h`` (the ``Δu`` of the data relation): (n,), or (n, l) for several channels."""
+        if self.siso:
+            return conv_cols(self.u[:, None], h[:, None])[:, 0]
+        m, l = self.n_inputs, self.n_outputs
+        return block_conv_cols(self.u.reshape(-1, 1), h.reshape(self.n, l, m, 1), m).reshape(self.n, l)
+
+    def noise(self, h, theta) -> np.ndarray:
+        """``ξ = Φθ + Y − T(u)h`` (data units): (n,), or (n, l) for several channels."""
+        Phi, Y = self.regressor()
+        return (Phi @ theta if Phi.shape[1] else 0.0) + Y - self._conv(h)
 
     def evaluate_primal(self, h, theta) -> tuple[float, float]:
         """``(‖T(h)‖₂, ‖Φθ + Y − T(u)h‖₂)`` recomputed from the data (inf/NaN for non-finite input)."""
-        h = np.asarray(h, float).reshape(-1)
-        theta = np.asarray(theta, float).reshape(-1)
+        if self.siso:
+            h = np.asarray(h, float).reshape(-1)
+            theta = np.asarray(theta, float).reshape(-1)
+        else:
+            h = np.asarray(h, float).reshape(self.n, self.n_outputs, self.n_inputs)
+            theta = np.asarray(theta, float).reshape(-1, self.n_outputs)
         if not (np.all(np.isfinite(h)) and np.all(np.isfinite(theta))):
             return float("inf"), float("nan")
-        Phi, Y = self.regressor()
-        xi = (Phi @ theta if theta.size else 0.0) + Y - conv_cols(self.u[:, None], h[:, None])[:, 0]
-        return certified_norm(h), float(np.linalg.norm(xi))
+        xi = self.noise(h, theta)
+        norm = certified_norm(h) if self.siso else block_certified_norm(h)
+        return norm, float(np.linalg.norm(xi))
 
     def params_for(self, h) -> np.ndarray:
         """θ of the least-squares fit of ``e(θ) = T(u)h`` (data units): the model the impulses h leave."""
         Phi, Y = self.regressor()
         if not Phi.shape[1]:
-            return np.zeros(0)
-        return -np.linalg.lstsq(Phi, Y - conv_cols(self.u[:, None], h[:, None])[:, 0], rcond=None)[0]
+            return np.zeros((0,) + Y.shape[1:])
+        if not self.siso:
+            h = np.asarray(h, float).reshape(self.n, self.n_outputs, self.n_inputs)
+        return -np.linalg.lstsq(Phi, Y - self._conv(h), rcond=None)[0]
 
     def evaluate_dual(self, v, W, sigma=None) -> float:
-        """The weak-duality lower bound of :class:`Certificate` for any ``v`` (n,) and ``W``."""
+        """The weak-duality lower bound of :class:`Certificate` for any ``v`` (n,) (n·l for several
+        channels, the samples stacked) and ``W`` (n × n; nl × nm)."""
         sigma = self.sigma if sigma is None else float(sigma)
         return self.column_form(scaled=False).lower_bound(v, W, rho=sigma * np.sqrt(self.n_noise))
 
@@ -315,12 +443,16 @@ def arx_unfalsify(
 
     Parameters
     ----------
-    u, y : array_like, shape (n,) or (n, 1)
-        SISO data, system at rest before t = 0; ``u[0]`` must be non-zero.
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        Data, time along axis 0, system at rest before t = 0; ``u[0]`` must be non-zero (a non-zero vector
+        for several inputs).  Several channels: see the module docstring (conditioned form, both backends,
+        ``method="barrier"``).
     na, nb : int
-        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …``.
+        Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …`` (several channels: l × l and l × m
+        matrix coefficients).
     sigma : float
-        Admissible rms noise level σ > 0 (same units as y).
+        Admissible rms noise level σ > 0 (same units as y); several outputs: the rms over all entries,
+        the noise ball ``‖Ξ‖_F ≤ σ√((n − free_rows)·l)``.
     form : {"conditioned", "thesis"}
         See the module docstring.  ``"conditioned"`` is exact and well conditioned;
         ``"thesis"`` is the literal §7.2.2 LMI (small n only, cvxpy backend only).
@@ -360,12 +492,13 @@ def arx_unfalsify(
     Raises
     ------
     DataError
-        Bad data (NaN, lengths, MIMO, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
+        Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
     UnknownSolverError
-        Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names).
+        Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names), or
+        ``method="bracket"`` with several channels (the message names ``method="barrier"``).
     ValueError
-        Unknown ``form``, ``form="thesis"`` with the structured backend, or ``method="bracket"`` with
-        the cvxpy backend.
+        Unknown ``form``, ``form="thesis"`` with the structured backend or several channels, or
+        ``method="bracket"`` with the cvxpy backend.
     UnfalsificationError
         cvxpy: solver failure or an infeasible/unbounded status (impossible in exact arithmetic).
 
@@ -393,6 +526,14 @@ def arx_unfalsify(
     >>> fast = arx_unfalsify(u, y, 1, 1, 0.5 * rms, backend="structured", progress=False)
     >>> bool(abs(fast.delta - res.delta) <= 1e-4 * res.delta)
     True
+
+    Two inputs, two outputs (l × m Markov parameters; output error with the first 2 rows free):
+
+    >>> U = rng.standard_normal((20, 2))
+    >>> E = 0.3 * np.roll(U, 1, axis=0) @ np.array([[1.0, 0.5], [0.0, 1.0]]).T + 0.01 * rng.standard_normal((20, 2))
+    >>> mimo = arx_unfalsify(U, E, 0, 0, 0.01, backend="structured", free_rows=2, progress=False)
+    >>> mimo.impulse.shape, mimo.noise.shape, bool(mimo.certificate.verify())
+    ((20, 2, 2), (20, 2), True)
     """
     form = check_form(form)
     name = resolve("arx", backend, method)
@@ -401,6 +542,13 @@ def arx_unfalsify(
     if free_rows and form != "conditioned":
         raise ValueError("free_rows needs form='conditioned'")
     P = ArxProblem.from_data(u, y, na, nb, sigma, free_rows=free_rows)
+    if not P.siso:
+        shape = f"{P.n_outputs}×{P.n_inputs}"
+        if form != "conditioned":
+            raise ValueError(f"form='thesis' is written for one channel; with {shape} data use form='conditioned'")
+        if name == "bracket":
+            raise UnknownSolverError(f"method='bracket' solves single-channel data only; for {shape} data use "
+                                     "method='barrier' (or backend='cvxpy')")
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with cond T(u) = {P.cond_Tu:.3g}: T(u)ᵀT(u) is numerically singular; the solver's δ "
@@ -415,9 +563,10 @@ def arx_unfalsify(
     else:
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress)
     out = run(name, P, **options)
-    cert, delta = certify(P, out, f"ARX unfalsification (n={P.n})")
-    Phi, Y = P.regressor()
-    xi = (Phi @ out.params if Phi.shape[1] else 0.0) + Y - conv_cols(P.u[:, None], out.impulses[:, None])[:, 0]
+    what = f"ARX unfalsification ({'' if P.siso else f'{P.n_outputs}×{P.n_inputs}, '}n={P.n})"
+    cert, delta = certify(P, out, what)
+    xi = P.noise(out.impulses, out.params)
     return ArxResult(delta=delta, theta=out.params, noise=xi, impulse=out.impulses, status=out.status.value,
                      solve_time=out.solve_time, problem=out.problem, form=form, sigma=P.sigma, na=P.na, nb=P.nb,
-                     cond_Tu=P.cond_Tu, certificate=cert, scale=P.scale, backend=backend)
+                     cond_Tu=P.cond_Tu, certificate=cert, scale=P.scale, backend=backend, n_inputs=P.n_inputs,
+                     n_outputs=P.n_outputs)

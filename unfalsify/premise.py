@@ -685,11 +685,12 @@ class OutputErrorResult:
         (``verify()`` re-checks both bounds from the data).
     residual : ndarray
         ``e = y − P̂u`` on the whole record after its first ``i`` samples (the program uses the first
-        ``burn_in + samples`` of them, the first ``burn_in`` rows free).
+        ``burn_in + samples`` of them, the first ``burn_in`` rows free); (n − i,), or (n − i, l) for l outputs.
     inputs : ndarray
-        ``u`` aligned with ``residual``.
+        ``u`` aligned with ``residual``; (n − i,) or (n − i, m).
     sigma : float
-        Admissible rms noise σ_oe.
+        Admissible rms noise σ_oe (several outputs: one σ pooled over all output channels, the rms of every
+        entry of the noise, whose ball is ``‖Ξ‖_F ≤ σ√(N·l)`` over the N non-free rows).
     sigma_rule : str
         How σ_oe was obtained.
     held_out : bool
@@ -717,16 +718,23 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     Parameters
     ----------
     model : control.StateSpace
-        SISO :func:`unfalsify.predictor_model` (state ``w_p = [u_{k−i} … u_{k−1}; y_{k−i} … y_{k−1}]``).
-    u, y : array_like, shape (n,)
-        The record; its first ``horizon`` samples start the state, the simulation uses only ``u``
-        afterwards (output error, not prediction error).
+        :func:`unfalsify.predictor_model` of horizon i, m inputs and l outputs (state
+        ``w_p = [u_{k−i}; …; u_{k−1}; y_{k−i}; …; y_{k−1}]``, the samples stacked with their channels: order
+        ``i(m + l)``).
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        The record (time along axis 0); its first ``horizon`` samples start the state, the simulation uses
+        only ``u`` afterwards (output error, not prediction error).
     horizon : int
         The model's ``i``.
 
     Returns
     -------
-    ndarray, shape (n − horizon,)
+    ndarray, shape (n − horizon,), or (n − horizon, l) for several channels
+
+    Raises
+    ------
+    DataError
+        A model that is not the predictor model of horizon i for the data's m inputs and l outputs.
 
     Examples
     --------
@@ -740,39 +748,78 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     >>> e = output_error_residual(model, u[200:], y[200:], 3)                # on the held-out 100
     >>> e.shape, bool(np.sqrt(np.mean(e ** 2)) < 0.02)                       # about the noise level
     ((97,), True)
+    >>> u2 = rng.standard_normal((300, 2))                                   # 2 × 2: y = [u₁ + u₂; u₂] delayed
+    >>> y2 = np.column_stack([np.roll(u2[:, 0] + u2[:, 1], 1), np.roll(u2[:, 1], 1)]) + 0.01 * rng.standard_normal((300, 2))
+    >>> model2 = predictor_model(sy.fit_predictor(u2[:200], y2[:200], 2), 1.0)
+    >>> e2 = output_error_residual(model2, u2[200:], y2[200:], 2)            # (n − i, l)
+    >>> e2.shape, bool(np.sqrt(np.mean(e2 ** 2)) < 0.02)
+    ((98, 2), True)
     """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
-    u, y = siso_pair(u, y)
+    u, y = _io_pair(u, y)
     i = int(horizon)
-    if A.shape[0] != 2 * i or B.shape[1] != 1 or C.shape[0] != 1:
-        raise DataError(f"model must be the SISO predictor_model of horizon {i} (order {2 * i}), got order "
-                        f"{A.shape[0]} with {B.shape[1]} input(s) and {C.shape[0]} output(s)")
-    x0 = np.concatenate([u[:i], y[:i]])
+    m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])
+    if A.shape[0] != i * (m + l) or B.shape[1] != m or C.shape[0] != l:
+        raise DataError(f"model must be the predictor_model of horizon {i} for {m} input(s) and {l} output(s) (order "
+                        f"{i * (m + l)}), got order {A.shape[0]} with {B.shape[1]} input(s) and {C.shape[0]} "
+                        "output(s); build it with unfalsify.predictor_model(synthesis.fit_predictor(u, y, i), dt) "
+                        "on data with the same channels")
+    # the delay-line state w_p: the first i input samples (each m-vector), then the first i outputs
+    x0 = np.concatenate([u[:i].reshape(-1), y[:i].reshape(-1)])
     _, yhat, _ = scipy.signal.dlsim((A, B, C, D, 1.0), u[i:], x0=x0)
-    return y[i:] - np.asarray(yhat).reshape(-1)
+    if u.ndim == 1:
+        return y[i:] - np.asarray(yhat).reshape(-1)
+    return y[i:] - np.asarray(yhat).reshape(-1, l)
+
+
+def _io_pair(u, y) -> tuple[np.ndarray, np.ndarray]:
+    """``(u, y)``: 1-D for one channel each (the SISO code, unchanged), else (n, m) and (n, l)."""
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])
+    if u.shape[1] == 1 and y.shape[1] == 1:
+        return u[:, 0].copy(), y[:, 0].copy()
+    return u, y
 
 
 def _fir_rss(u: np.ndarray, e: np.ndarray, taps: int, burn: int) -> tuple[float, int]:
-    """Residual sum of squares of the least-squares FIR fit of ``e`` on ``u`` (rows after ``burn``) and its rows."""
-    n = e.size
-    X = np.zeros((n, taps))
+    """Residual sum of squares of the least-squares FIR fit of ``e`` on ``u`` (rows after ``burn``) and its
+    degrees of freedom.
+
+    One channel: the rows after ``burn`` minus the taps.  Several (u (n, m), e (n, l)): each output is fitted
+    on all inputs' ``taps`` delays (taps·m coefficients per output), the sum of squares is over every entry
+    and the degrees of freedom are ``l·(rows − taps·m)``.
+    """
+    if e.ndim == 1:
+        n = e.size
+        X = np.zeros((n, taps))
+        for t in range(taps):
+            X[t:, t] = u[: n - t]
+        X, target = X[burn:], e[burn:]
+        coef = np.linalg.lstsq(X, target, rcond=None)[0]
+        r = target - X @ coef
+        return float(r @ r), target.size - taps
+    n, m = u.shape
+    X = np.zeros((n, taps, m))
     for t in range(taps):
         X[t:, t] = u[: n - t]
-    X, target = X[burn:], e[burn:]
+    X, target = X[burn:].reshape(n - burn, taps * m), e[burn:]
     coef = np.linalg.lstsq(X, target, rcond=None)[0]
     r = target - X @ coef
-    return float(r @ r), target.size
+    return float(np.sum(r * r)), target.shape[1] * (target.shape[0] - taps * m)
 
 
 def _fir_sigma(u: np.ndarray, e: np.ndarray, taps: int, burn: int) -> float:
     """Residual rms of the least-squares FIR fit of ``e`` on ``u`` (rows after ``burn``), per degree of freedom.
 
+    Several channels: pooled over the outputs (:func:`_fir_rss`), the σ of the noise ball
+    ``‖Ξ‖_F ≤ σ√(N·l)`` the solver uses -- one rms over every entry, as in (7.5)'s ``σ√(ilj)``.
+
     The memory is fixed: growing it while an F-test of nested fits found the longer one significant was
     measured to miss the slow model error it was meant to catch (a fourth-order plant whose error sat
     below the held-out record's noise) while it refused two integrating-plant loops that hold.
     """
-    rss, rows = _fir_rss(u, e, taps, burn)
-    return float(math.sqrt(rss / max(rows - taps, 1)))
+    rss, dof = _fir_rss(u, e, taps, burn)
+    return float(math.sqrt(rss / max(dof, 1)))
 
 
 def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options: PremiseOptions | None = None
@@ -782,9 +829,12 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     Parameters
     ----------
     model : control.StateSpace
-        P̂, the SISO :func:`unfalsify.predictor_model` of horizon ``horizon``.
-    u, y : array_like, shape (n,)
-        A record of the plant, best one not used to fit P̂ (say which with ``held_out``).
+        P̂, the :func:`unfalsify.predictor_model` of horizon ``horizon`` (m inputs, l outputs).
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        A record of the plant, best one not used to fit P̂ (say which with ``held_out``).  Several
+        channels: Δ is l × m (Markov parameters h_t l × m, ``‖Δ‖∞ ≥ ‖T(h)‖₂`` with the nl × nm block
+        Toeplitz T(h)), σ_oe is pooled over the outputs and the noise ball is ``‖Ξ‖_F ≤ σ_oe √(N·l)``,
+        N = samples (the non-free rows); see :func:`unfalsify.arx_unfalsify`.
     horizon : int
         P̂'s ``i``: the first ``i`` samples start its state.
     held_out : bool
@@ -810,16 +860,19 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     """
     opts = options or PremiseOptions()
     i = int(horizon)
-    u, y = siso_pair(u, y)
+    u, y = _io_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)
-    n = min(u.size - i, burn + int(opts.samples))
+    N = u.shape[0]
+    n = min(N - i, burn + int(opts.samples))
     if n < burn + 4 * i or n < 2 * burn:
-        raise DataError(f"the output-error segment has {u.size} samples; it needs at least {i + max(burn + 4 * i, 2 * burn)} "
+        raise DataError(f"the output-error segment has {N} samples; it needs at least {i + max(burn + 4 * i, 2 * burn)} "
                         f"(horizon {i}, burn-in {burn}, 4i rows): pass a longer validation record")
     A = np.asarray(control.ssdata(model)[0], float)
     rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
-    growth = rho ** (u.size - i) if rho > 0 else 0.0
+    with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)
+        growth = float(np.float64(rho) ** (N - i)) if rho > 0 else 0.0
     seg_u = u[i:i + n]
+    m = 1 if u.ndim == 1 else u.shape[1]
     if not growth <= _GROWTH_LIMIT:
         return OutputErrorResult(delta=float("nan"), unfalsification=None, residual=np.zeros(0), inputs=np.zeros(0),
                                  sigma=float("nan"), sigma_rule="", held_out=bool(held_out), burn_in=burn,
@@ -829,10 +882,13 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     if opts.sigma is not None:
         sigma, rule = float(opts.sigma), "given"
     else:
-        taps = opts.taps if opts.taps is not None else min((n - burn) // 4, max(4 * i, 20))
+        # several inputs: taps·m coefficients per output, so the memory shrinks to keep 4 rows per coefficient
+        taps = opts.taps if opts.taps is not None else min((n - burn) // (4 * m), max(4 * i, 20))
         sigma = _fir_sigma(seg_u, e, int(taps), burn)
         rule = (f"residual rms of a {taps}-tap least-squares FIR fit of the output error on the input, "
                 f"per degree of freedom (rows {burn}…{n - 1})")
+        if e.ndim == 2:
+            rule += f", pooled over the {e.shape[1]} outputs (each fitted on all {m} inputs)"
         sigma = max(sigma, 1e-12 * max(float(np.sqrt(np.mean(e ** 2))), 1e-300))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a non-optimal status is read from the result below

@@ -16,8 +16,8 @@ name                what                                                        
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
 
-Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy`` and ``block_barrier`` (:data:`CHANNELS`) take
-them, ``backend="structured"`` resolves to ``block_barrier`` there; the others raise
+Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier`` and ``block_barrier``
+(:data:`CHANNELS`) take them, ``backend="structured"`` of (7.5) resolves to ``block_barrier`` there; the others raise
 :class:`~unfalsify.UnknownSolverError` naming ``backend="cvxpy"``.
 
 Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
@@ -67,7 +67,7 @@ PROGRAMS = {
 }
 
 #: the solvers that take several channels (``problem.siso`` False: u (n, m), y (n, l) with m + l > 2)
-CHANNELS = ("cvxpy", "block_barrier")
+CHANNELS = ("cvxpy", "arx_barrier", "block_barrier")
 
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")

@@ -28,6 +28,17 @@ The dual point read off each centred iterate (the Newton-linearised ``G = (S −
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
 bound ``‖T(h)‖₂`` is recomputed by :func:`unfalsify.solvers.toeplitz.certified_norm`.  The stopping rule uses
 these certified bounds only (:func:`unfalsify.solvers.barrier.run_barrier`).  Memory O(n²).
+
+Several channels (u (n, m), y (n, l); :class:`ArxBlockForm`).  The same method on the p + 1 = nlm + 1
+variables (h, δ), h the l × m Markov parameters in C order (t, α, β), with ``T(h)`` the nl × nm block
+lower-triangular Toeplitz matrix and ``F = [δI_nm T(h)ᵀ; T(h) δI_nl]``.  Every formula above holds for a
+rectangular T(h) with ``K = δ²I_nm − TᵀT`` (nm × nm), except that ``det F = δ^{nl−nm} det K``: the barrier
+gains ``−(nl − nm) log δ``, the δ-gradient ``−(nl − nm)/δ`` and the δ–δ Hessian ``(nl − nm)/δ²`` (zero for
+l = m).  The adjoint is the block adjoint (:func:`~unfalsify.solvers.toeplitz.block_adjoint`), the h–h
+Hessian the block 2-D-FFT correlation :func:`~unfalsify.solvers.toeplitz.block_corr_hessian`
+(O((lm)² n² log n)), the data operator ``M h = T(h)u`` a dense nl × nlm matrix (its projected Gram
+``MᵀPM`` formed once), the upper bound :func:`~unfalsify.solvers.toeplitz.block_certified_norm`, and the
+barrier parameter ν = n(l + m) + 1.  One channel each runs the SISO code above unchanged.
 """
 from __future__ import annotations
 
@@ -36,10 +47,99 @@ import scipy.linalg
 
 from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
-from .columns import ColumnForm
-from .toeplitz import adjoint, certified_norm, corr_hessian, ridge_lambda, toeplitz_gram, toeplitz_matrix
+from .columns import BlockColumnForm, ColumnForm
+from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_hessian, block_toeplitz_matrix,
+                       certified_norm, corr_hessian, ridge_lambda, toeplitz_gram, toeplitz_matrix)
 
-__all__ = ["solve", "solve_arx_barrier", "ridge_start"]
+__all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
+
+
+class _Siso:
+    """The Toeplitz structure of one channel: T(h) n × n, its Gram in O(n²), adjoint, FFT Hessian."""
+
+    excess = 0  # nl − nm: det F = δ^{nl−nm} det K
+
+    def __init__(self, form: ColumnForm):
+        self.form = form
+
+    def residual(self, h):
+        f = self.form
+        return f.project(f.B[:, 0] - f.apply(h[:, None])[:, 0])
+
+    def image(self, h):
+        """``P T(u)h``: the projected data operator (the residual's change along h is its negative)."""
+        f = self.form
+        return f.project(f.apply(h[:, None])[:, 0])
+
+    def apply_T(self, r):
+        return self.form.apply_T(r[:, None])[:, 0]
+
+    def toeplitz(self, h):
+        return toeplitz_matrix(h)
+
+    def gram(self, h, T):
+        return toeplitz_gram(h)
+
+    def adjoint(self, X):
+        return adjoint(X)
+
+    def hessian(self, S11, S21, S22):
+        return corr_hessian(S11[None], S21[None], S22[None], S11.shape[0])[0]
+
+    def norm(self, h):
+        return certified_norm(h)  # the certificate's own route (dense SVD up to n = 4000)
+
+
+class _Channels(_Siso):
+    """The block-Toeplitz structure of l × m Markov parameters (module docstring, several channels)."""
+
+    def __init__(self, form: "ArxBlockForm"):
+        self.form = form
+        self.n, self.l, self.m = form.i, form.n_out, form.n_in
+        self.excess = self.n * (self.l - self.m)
+
+    def residual(self, h):
+        f = self.form
+        return f.project(f.B[:, 0] - f.apply(h.reshape(self.n, self.l, self.m, 1))[:, 0])
+
+    def image(self, h):
+        f = self.form
+        return f.project(f.apply(h.reshape(self.n, self.l, self.m, 1))[:, 0])
+
+    def apply_T(self, r):
+        return self.form.apply_T(r[:, None]).reshape(-1)
+
+    def toeplitz(self, h):
+        return block_toeplitz_matrix(h.reshape(self.n, self.l, self.m))
+
+    def gram(self, h, T):
+        return T.T @ T
+
+    def adjoint(self, X):
+        return block_adjoint(X, self.n, self.l, self.m).reshape(-1)
+
+    def hessian(self, S11, S21, S22):
+        return block_corr_hessian(S11, S21, S22, self.n, self.l, self.m)
+
+    def norm(self, h):
+        return block_certified_norm(h.reshape(self.n, self.l, self.m))
+
+
+class ArxBlockForm(BlockColumnForm):
+    """Program (7.4) for several channels as the column form (C): j = 1, i = n samples stacked.
+
+    ``U`` (nm, 1) and ``B = Y`` (nl, 1) hold the samples stacked (``u_0; u_1; …``), the operator is
+    ``h ↦ T(h)u`` of :class:`BlockColumnForm` (h (n, l, m)), ρ = σ√((n − free_rows)·l) and the model
+    directions are ``𝓛 = {vec(ΦΘ)} = range(Q ⊗ I_l)`` (Q an orthonormal basis of range Φ, the free rows'
+    unit columns included): the ARX parameters act on every output through its own column of Θ.  The
+    lower bound is :meth:`BlockColumnForm.lower_bound` with this 𝓛 (its step 1 projects V off
+    ``range(Q ⊗ I_l)``).
+    """
+
+    def __init__(self, U, B, rho, *, n_inputs: int, n_outputs: int, basis=None):
+        super().__init__(U, B, rho, n_inputs=n_inputs, n_outputs=n_outputs)
+        # 𝓛 as a left basis of the stacked (nl,) vectors: (Q ⊗ I_l) c is vec_C(Q C)
+        self.Ql = None if basis is None else np.kron(basis, np.eye(self.n_out))
 
 
 class _State:
@@ -48,17 +148,18 @@ class _State:
 
     __slots__ = ("h", "d", "T", "L", "logdet", "r", "psi", "ok")
 
-    def __init__(self, h, d, form: ColumnForm):
+    def __init__(self, h, d, form: ColumnForm, ops: _Siso | None = None):
+        ops = _Siso(form) if ops is None else ops
         self.h, self.d = h, float(d)
-        self.r = form.project(form.B[:, 0] - form.apply(h[:, None])[:, 0])
+        self.r = ops.residual(h)
         self.psi = form.rho**2 - float(self.r @ self.r)
-        self.T = toeplitz_matrix(h)
+        self.T = ops.toeplitz(h)
         self.ok = False
         self.L = None
         self.logdet = -np.inf
         if not (self.d > 0.0 and self.psi > 0.0):
             return
-        K = toeplitz_gram(h)
+        K = ops.gram(h, self.T)
         K *= -1.0
         K[np.diag_indices_from(K)] += self.d * self.d
         try:
@@ -69,6 +170,8 @@ class _State:
         if not np.all(diag > 0):
             return
         self.logdet = 2.0 * float(np.sum(np.log(diag)))
+        if ops.excess:  # det F = δ^{nl−nm} det K for a rectangular T(h)
+            self.logdet += ops.excess * np.log(self.d)
         self.ok = True
 
     def phi(self, t: float) -> float:
@@ -85,38 +188,52 @@ class _ArxBarrier:
         if form.j != 1:
             raise ValueError("the Cholesky barrier solver is for the ARX program (j = 1)")
         self.f = form
-        self.n = form.m
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.center_tol, self.max_newton = mu, center_tol, max_newton
-        self.desc = f"structured ARX unfalsification (n={self.n})"
         self.steps = 0
-        Tu = toeplitz_matrix(form.U[:, 0])
-        PM = form.project(Tu)
+        if isinstance(form, BlockColumnForm):
+            self.ops = _Channels(form)
+            n, l, m = form.i, form.n_out, form.n_in
+            self.n, self.nK = n, n * m  # K = δ²I − TᵀT is nm × nm
+            self.desc = f"structured ARX unfalsification ({l}×{m}, n={n})"
+            PM = form.project(_channel_operator(form))
+            self.nbar = n * (l + m) + 1
+        else:
+            self.ops = _Siso(form)
+            self.n = self.nK = form.m
+            self.desc = f"structured ARX unfalsification (n={self.n})"
+            PM = form.project(toeplitz_matrix(form.U[:, 0]))
+            self.nbar = 2 * self.n + 1
         self.MtPM = PM.T @ PM
-        self.nbar = 2 * self.n + 1
+
+    def _state(self, h, d) -> _State:
+        return _State(h, d, self.f, self.ops)
 
     # ---- one Newton step ---------------------------------------------------------------------
     def _inverse_blocks(self, s: _State):
         """``K⁻¹`` and ``A = T K⁻¹`` (so ``S11 = δK⁻¹``, ``S21 = −A``, ``S22 = (I + A Tᵀ)/δ``)."""
-        Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.n), check_finite=False)
+        Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
         A = s.T @ Kinv
         return Kinv, A
 
     def newton(self, t: float, s: _State):
         """Newton direction ``(dh, dδ)``, decrement λ², the central-path tangent and the blocks of F⁻¹."""
-        n, d = self.n, s.d
+        d, ops = s.d, self.ops
         Kinv, A = self._inverse_blocks(s)
         S11 = d * Kinv
         S22 = A @ s.T.T
         S22[np.diag_indices_from(S22)] += 1.0
         S22 /= d
-        g_noise = self.f.apply_T(s.r[:, None])[:, 0]
+        g_noise = ops.apply_T(s.r)
         psi = s.psi
-        grad_h = 2.0 * adjoint(A) - 2.0 * g_noise / psi
+        grad_h = 2.0 * ops.adjoint(A) - 2.0 * g_noise / psi
         grad_d = t - 2.0 * d * float(np.trace(Kinv))
-        c = -4.0 * d * adjoint(A @ Kinv)
+        c = -4.0 * d * ops.adjoint(A @ Kinv)
         dd = 2.0 * (d * d * float(np.sum(Kinv * Kinv)) + float(np.sum(A * A)))
-        HF = corr_hessian(S11[None], -A[None], S22[None], n)[0]
+        if ops.excess:  # the δ^{nl−nm} factor of det F (rectangular T(h))
+            grad_d -= ops.excess / d
+            dd += ops.excess / (d * d)
+        HF = ops.hessian(S11, -A, S22)
         Hm = HF + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(g_noise, g_noise)
         cf = cholesky_retry(Hm)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
@@ -146,7 +263,7 @@ class _ArxBarrier:
             phi0 = s.phi(t)
             a = 1.0  # Armijo backtracking; a trial outside the domain fails its Cholesky factorisation
             for _ls in range(40):
-                sn = _State(s.h + a * dh, s.d + a * dlt, self.f)
+                sn = self._state(s.h + a * dh, s.d + a * dlt)
                 if sn.phi(t) <= phi0 - 0.25 * a * lam2 + 1e-13 * abs(phi0):
                     break
                 a *= 0.5
@@ -156,22 +273,22 @@ class _ArxBarrier:
                 phin = sn.phi(t)
                 for _ex in range(6):
                     a *= 2.0
-                    sx = _State(s.h + a * dh, s.d + a * dlt, self.f)
+                    sx = self._state(s.h + a * dh, s.d + a * dlt)
                     if not sx.phi(t) < phin:
                         break
                     sn, phin = sx, sx.phi(t)
             s = sn
 
     def upper(self, s: _State) -> float:
-        return certified_norm(s.h)  # the certificate's own route (dense SVD up to n = 4000)
+        return self.ops.norm(s.h)
 
     def impulses(self, s: _State) -> np.ndarray:
         return s.h[:, None].copy()
 
     def dual(self, t, s: _State, step):
         dh, dlt, _, blocks = step
-        dr = -self.f.project(self.f.apply(dh[:, None])[:, 0])
-        v, W = linearised_dual(t, blocks, toeplitz_matrix(dh), dlt, s.r, dr, s.psi)
+        dr = -self.ops.image(dh)
+        v, W = linearised_dual(t, blocks, self.ops.toeplitz(dh), dlt, s.r, dr, s.psi)
         return v[:, None], W[None]
 
     def advance(self, t, s: _State, step, bounds, deadline):
@@ -181,7 +298,7 @@ class _ArxBarrier:
         ph, pdl = (t_new - t) * th, (t_new - t) * tdl
         a = 1.0
         for _ in range(8):
-            sn = _State(s.h + a * ph, s.d + a * pdl, self.f)
+            sn = self._state(s.h + a * ph, s.d + a * pdl)
             if np.isfinite(sn.phi(t_new)):
                 return t_new, sn
             a *= 0.5
@@ -189,14 +306,15 @@ class _ArxBarrier:
 
     def run(self, h0):
         deadline = Deadline(self.time_limit)
-        up0 = certified_norm(h0)
+        up0 = self.ops.norm(h0)
         d0 = 1.2 * up0 + 1e-3 * (1.0 + up0)
-        return run_barrier(self, self.f, _State(h0, d0, self.f), self.nbar / d0, deadline, up0)
+        return run_barrier(self, self.f, self._state(h0, d0), self.nbar / d0, deadline, up0)
 
 
 
 def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=None, progress=True, mu=None) -> dict:
-    """Run the Cholesky barrier method on the ARX column form ``form`` (j = 1) from impulses ``h0``.
+    """Run the Cholesky barrier method on the ARX column form ``form`` (j = 1) from impulses ``h0``
+    (an :class:`ArxBlockForm` for several channels: h0 of size nlm, in C order (t, α, β)).
 
     Parameters
     ----------
@@ -236,10 +354,12 @@ def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarr
     unprojected fit would force ``(T(u)h)`` to vanish on them and start from an enormous ‖T(h)‖ (measured:
     ‖T(h0)‖ ≈ 1e13 and a failed solve where the optimum is 0.4).
     """
-    Tu = toeplitz_matrix(form.U[:, 0])
+    channels = isinstance(form, BlockColumnForm)
+    Tu = _channel_operator(form) if channels else toeplitz_matrix(form.U[:, 0])
     if form.Ql is not None:
         Tu = Tu - form.Ql @ (form.Ql.T @ Tu)
-    Us, sv, Vt = np.linalg.svd(Tu)
+    # several channels: M is nl × nlm (wide); the thin factors span every direction the fit can use
+    Us, sv, Vt = np.linalg.svd(Tu, full_matrices=False) if channels else np.linalg.svd(Tu)
     beta = Us.T @ B0[:, 0]
     target = (frac * form.rho) ** 2
     lam = ridge_lambda(sv, beta, target)
@@ -251,11 +371,22 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True)
     relative gap ``tol`` (see the module docstring); the answer in data units."""
     f = problem.column_form(scaled=True)
     deadline = Deadline()
+    shape = (problem.n,) if problem.siso else (problem.n, problem.n_outputs, problem.n_inputs)
     if zero_answer(f):  # the least-squares model already explains the data: δ = 0
-        return unscaled(problem, np.zeros(problem.n), 0.0, "optimal", deadline.elapsed())
+        return unscaled(problem, np.zeros(shape), 0.0, "optimal", deadline.elapsed())
     out = solve_arx_barrier(f, ridge_start(f, f.project(f.B)), tol=float(tol), time_limit=time_limit,
                             progress=progress)
     W = None if out["W"] is None else out["W"][0]
     V = None if out["V"] is None else out["V"][:, 0]
-    return unscaled(problem, out["H"][:, 0], out["upper"], out["status"], deadline.elapsed(), V=V, W=W,
-                    stats=dict(newton=out["newton"], outer=out["outer"]))
+    return unscaled(problem, out["H"][:, 0].reshape(shape), out["upper"], out["status"], deadline.elapsed(), V=V,
+                    W=W, stats=dict(newton=out["newton"], outer=out["outer"]))
+
+
+def _channel_operator(form: BlockColumnForm) -> np.ndarray:
+    """Dense ``M`` (nl × nlm) with ``M h = T(h)u`` (j = 1): row (s, α), column (t, α, β) holds ``u_{s−t, β}``."""
+    n, l, m = form.i, form.n_out, form.n_in
+    Tu = block_toeplitz_matrix(form.U[:, 0].reshape(n, 1, m)).reshape(n, n, m)  # [s, t, β] = u_{s−t, β}
+    M = np.zeros((n, l, n, l, m))
+    for a in range(l):
+        M[:, a, :, a, :] = Tu
+    return M.reshape(n * l, n * l * m)

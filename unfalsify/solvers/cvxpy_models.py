@@ -132,6 +132,8 @@ def _data_units_dual(P, V, W, su: float):
 
 def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
     """The reference cvxpy models (unchanged), in scaled units; returns a dict in data units."""
+    if not P.siso:
+        return _arx_channels_model(P, solver, solver_options)
     n, na, nb = P.n, P.na, P.nb
     su, sy = P.scale
     us, ys = P.u / su, P.y / sy
@@ -369,3 +371,49 @@ def _subspace_channels_model(P, solver, solver_options, eliminate_L=False) -> So
     V, W = _data_units_dual(P, V, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=H, params=L_out, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=V, dual_W=W, problem=prob)
+
+
+def _arx_channels_model(P, solver, solver_options) -> SolverOutput:
+    """(7.4) for u (n, m), y (n, l), conditioned form, in rms-scaled units: variables Θ (na·l + nb·m +
+    free_rows, l), h (n, l, m) and δ; ``[δI_nm T(h)ᵀ; T(h) δI_nl] ⪰ 0`` and the noise cone
+    ``‖vec(ΦΘ + Y) − T(h)u‖₂ ≤ σ√((n − free_rows)·l)`` (the samples stacked).  The answer (h, Θ, the dual
+    point ``v = λ ξ/‖ξ‖``, ``W = −2 Z21``) in data units."""
+    n, l, m, na, nb = P.n, P.n_outputs, P.n_inputs, P.na, P.nb
+    su, sy = P.scale
+    Phi_s, Y_s = P.regressor(scaled=True)
+    p = Phi_s.shape[1]
+    delta = cp.Variable(name="delta")
+    h = cp.Variable(n * l * m, name="h")  # C order (t, α, β)
+    theta = cp.Variable((p, l), name="theta") if p else None
+    e = (Phi_s @ theta + Y_s) if p else cp.Constant(Y_s)
+    xi = cp.vec(e, order="C") - _block_column_operator((P.u / su).reshape(-1, 1), l, m) @ h
+    T = cp.reshape(_block_selector(n, l, m) @ h, (n * l, n * m), order="F")
+    cons = [cp.norm(xi, 2) <= P.sigma / sy * np.sqrt(P.n_noise),
+            cp.bmat([[delta * np.eye(n * m), T.T], [T, delta * np.eye(n * l)]]) >> 0]
+    prob = cp.Problem(cp.Minimize(delta), cons)
+    status, elapsed = _conic_solve(prob, solver, solver_options, f"ARX unfalsification ({l}×{m}, n={n})")
+    d_s = _solved_value(status, delta.value)
+    # data units: A_k unchanged, B_k and h by s_y/s_u, the free rows' errors by s_y
+    if p == 0:
+        th = np.zeros((0, l))
+    elif theta.value is None:
+        th = np.full((p, l), np.nan)
+    else:
+        th = np.asarray(theta.value, float).copy()
+        th[na * l : na * l + nb * m] *= sy / su
+        th[na * l + nb * m :] *= sy
+    H = np.asarray(h.value, float).reshape(n, l, m) * (sy / su) if h.value is not None \
+        else np.full((n, l, m), np.nan)
+    v = W = None
+    lam, Z = cons[0].dual_value, cons[1].dual_value
+    xi_s = np.asarray(xi.value, float) if xi.value is not None else None
+    if lam is not None and Z is not None and xi_s is not None and np.linalg.norm(xi_s) > 0:
+        v = float(lam) * xi_s / np.linalg.norm(xi_s)
+        W = -2.0 * np.asarray(Z, float)[n * m :, : n * m]
+    if v is not None and np.all(np.isfinite(v)) and np.all(np.isfinite(W)):
+        v, W = _best_scaled_dual(P.column_form(scaled=True), v, W)
+        W = W * su  # data units: M(u)ᵀv = s_u M(u/s_u)ᵀv
+    else:
+        v = W = None
+    return SolverOutput(delta=d_s * sy / su, impulses=H, params=th, status=SolverStatus(status),
+                        solve_time=elapsed, dual_v=v, dual_W=W, problem=prob)
