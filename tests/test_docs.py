@@ -31,7 +31,7 @@ def test_relative_links_point_to_files(doc):
         assert (path.parent / target).exists(), f"{doc} links to missing {target}"
 
 
-@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments], ids=lambda p: p.__name__)
+@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments, experiments.lab], ids=lambda p: p.__name__)
 def test_every_public_function_has_a_runnable_examples_section(pkg):
     # the Examples run as doctests (the README's test command collects the packages with --doctest-modules)
     import inspect

@@ -42,7 +42,8 @@ def _setup(quick: bool, seed: int):
     import synthesis
 
     from ..lab import plants, signals, simulate
-    from ..lab._torsional import DT, NONCOLLOCATED
+    from ..lab.plants import THREE_DISK_DT as DT
+    from ..lab.torsional_setup import NONCOLLOCATED
 
     rng = np.random.default_rng(seed)
     if quick:
@@ -135,9 +136,9 @@ def run(opts) -> dict:
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     x0 = np.zeros(A.shape[0])
     y_new = simulate.collect_data(P, u).y
-    y_old, _ = simulate._lsim(A, B, C, D, u, x0, route="loop")
+    y_old, _ = simulate.lsim(A, B, C, D, u, x0, route="loop")
     diff = float(np.max(np.abs(y_new - y_old)) / max(np.max(np.abs(y_old)), 1e-300))
-    t_old = median_time(lambda: simulate._lsim(A, B, C, D, u, x0, route="loop"), repeats=reps_slow)
+    t_old = median_time(lambda: simulate.lsim(A, B, C, D, u, x0, route="loop"), repeats=reps_slow)
     t_new = median_time(lambda: simulate.collect_data(P, u), repeats=reps_fast)
     rows.append(_row("collect_data", f"{n} samples, plant order {A.shape[0]}", t_old, t_new, "Python loop",
                      "SLICOT TF01MD", f"max rel diff {diff:.2e}", TARGETS["collect_data"], diff <= 1e-12))

@@ -42,7 +42,7 @@ from unfalsify import (  # noqa: E402
     subspace_unfalsify,
 )
 
-from ..lab._servo import (  # noqa: E402
+from ..lab.servo_setup import (  # noqa: E402
     collect_warnings,
     design_weights,
     plot_steps,

@@ -45,8 +45,8 @@ import numpy as np
 
 import synthesis
 
-from ..lab._servo import design_weights
-from ..lab._torsional import weights as torsional_weights
+from ..lab.servo_setup import design_weights
+from ..lab.torsional_setup import torsional_weights
 from .noncollocated import step_metrics
 from ..lab.plants import THREE_DISK, nonminimum_phase, resonant, servo, three_disk
 from ..lab.report import Report, finish_report, save_figure, write_csv

@@ -26,7 +26,7 @@ from tqdm import tqdm  # noqa: E402
 
 from synthesis import InfeasibleGammaError, fit_predictor, gamma_min, hinf_design  # noqa: E402
 
-from ..lab._servo import (  # noqa: E402
+from ..lab.servo_setup import (  # noqa: E402
     DESIGNS,
     THESIS_TABLE_5_1,
     StepResult,

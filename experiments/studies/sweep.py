@@ -23,7 +23,7 @@ recorded as failed -- never silently missing.  The summary counts done / failed 
 The plants are :data:`experiments.plants.PLANT_CATALOGUE`: the integrating §5.4 servo, a stable third-
 order plant, a lightly damped resonance (ζ = 0.05), a non-minimum-phase plant (zero at s = +1), all at
 10 Hz with the §5.4 weights, and the three-disk plant (collocated y1, two lightly damped modes and an
-integrator) at 64 Hz with the §6.3 weights of :mod:`experiments.lab._torsional`.
+integrator) at 64 Hz with the §6.3 weights of :mod:`experiments.lab.torsional_setup`.
 """
 from __future__ import annotations
 
