@@ -96,7 +96,7 @@ def _figure(rows, path):
 def run(opts) -> dict:
     """Run the benchmark; write ``bench_norms.md`` / ``.json`` / ``.csv`` under ``opts.out``; return the summary."""
     import synthesis
-    from synthesis.infinite_horizon import _discrete_mixsyn
+    from synthesis.baselines import discrete_mixsyn_grid
     from unfalsify import additive_robustness
 
     from ..lab import simulate
@@ -120,8 +120,8 @@ def run(opts) -> dict:
     # 2. discrete_mixsyn: level checks
     kw = dict(gamma_ratio=1.1 if quick else 1.35)
     res_new = synthesis.discrete_mixsyn(P, W1, W2, **kw)
-    res_old = _discrete_mixsyn(P, W1, W2, route="grid", **kw)
-    t_old = median_time(lambda: _discrete_mixsyn(P, W1, W2, route="grid", **kw), repeats=reps_slow)
+    res_old = discrete_mixsyn_grid(P, W1, W2, **kw)
+    t_old = median_time(lambda: discrete_mixsyn_grid(P, W1, W2, **kw), repeats=reps_slow)
     t_new = median_time(lambda: synthesis.discrete_mixsyn(P, W1, W2, **kw), repeats=reps_fast)
     same = res_old.gamma_opt == res_new.gamma_opt
     rows.append(_row("discrete_mixsyn", f"{'servo' if quick else 'three-disk y3'}, closed-loop order "
