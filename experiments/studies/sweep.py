@@ -9,7 +9,7 @@ The cases run as tasks on a ``concurrent.futures.Executor``:
   (``pip install -e ".[distributed]"``), otherwise a ``ProcessPoolExecutor``;
 * ``--scheduler ADDRESS``: a running Dask scheduler (``dask scheduler`` / ``dask worker ADDRESS``,
   dask-jobqueue on HPC) through ``Client.get_executor()``; unreachable within ``--timeout`` seconds
-  (default 30) it is a :class:`synthesis._validation.DataError` naming the address.
+  (default 30) it is a :class:`synthesis.DataError` naming the address.
 
 Worker processes run with ``OPENBLAS_NUM_THREADS=1`` (and the OMP/MKL equivalents) so that workers do
 not fight over BLAS threads.  A case is seeded by its own seed (``run_case``), never by the worker, so
