@@ -30,8 +30,8 @@ import warnings
 import numpy as np
 
 from ..lab.plants import THREE_DISK_DT as DT
-from ..lab.torsional_setup import COLLOCATED
 from ..lab.report import Report, format_table, median_time, save_figure, write_csv, write_json
+from ..lab.torsional_setup import COLLOCATED
 
 __all__ = ["run", "GOAL_P99_S", "N_UPDATES"]
 

@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ..lab.plants import THREE_DISK_DT as DT
-from ..lab.torsional_setup import COLLOCATED
 from ..lab.report import Report, save_figure, write_csv, write_json
+from ..lab.torsional_setup import COLLOCATED
 
 __all__ = ["run", "THESIS", "STEP_LEVELS", "STEP_HOLD_S"]
 

@@ -67,12 +67,12 @@ import synthesis
 import unfalsify as uf
 from synthesis.validation import DataError
 
-from ..lab.servo_setup import design_weights
 from ..lab.plants import SERVO_DT, damped_pair, modal_ss, nonminimum_phase, resonant, third_order, zoh
 from ..lab.report import LiveTable, Report, finish_report, write_csv
-from .robust_pipeline import _true_loop, premise_ratio
+from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import closed_loop, collect_data
+from .robust_pipeline import _true_loop, premise_ratio
 
 __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excitation_class", "catalogue",
            "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",

@@ -38,8 +38,8 @@ import numpy as np
 
 from ..lab import simulate
 from ..lab.plants import THREE_DISK_DT as DT
-from ..lab.torsional_setup import NONCOLLOCATED
 from ..lab.report import Report, save_figure, write_csv, write_json
+from ..lab.torsional_setup import NONCOLLOCATED
 
 __all__ = ["run", "step_metrics", "closed_loop_system", "THESIS"]
 

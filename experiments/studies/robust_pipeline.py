@@ -40,12 +40,12 @@ import synthesis
 import unfalsify as uf
 from synthesis.validation import DataError
 
-from ..lab.servo_setup import design_weights
-from .chapter7 import worst_phase_allpass
 from ..lab.plants import PLANT_CATALOGUE, nonminimum_phase, resonant, servo, third_order
 from ..lab.report import LiveTable, Report, finish_report, write_csv
+from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import collect_data
+from .chapter7 import worst_phase_allpass
 
 __all__ = ["run", "run_case", "plant_and_weights", "premise_ratio", "PIPELINE_PLANTS", "Config"]
 
