@@ -13,8 +13,9 @@ Layout
 
 ``experiments/lab/``
     the library the runs use: ``plants``, ``signals``, ``simulate``, ``records`` (lab records), ``report``
-    (tables, figures, markdown reports), and the shared set-ups ``_servo`` (§5.4) and ``_torsional`` (Ch. 6).
-    Their public names are re-exported here (below).
+    (tables, figures, markdown reports), and the shared set-ups ``servo_setup`` (§5.4) and ``torsional_setup``
+    (Ch. 6). The public names of the first four are re-exported here (below); ``experiments.lab`` re-exports
+    those and the set-ups' names (``help(experiments.lab)``).
 ``experiments/studies/``
     the thesis experiments and studies, one module per subcommand (``design_example``, ``chapter7``,
     ``robust_pipeline``, ``adversarial``, ``noncollocated``, ``adaptive``, ``compare``, ``sweep``, ``demo``,
@@ -43,6 +44,9 @@ Plants
    nonminimum_phase       -- ``2(1 − s)/((s+1)(s+2))``
    PLANT_CATALOGUE        -- name → (factory, description) of the plants of the sweeps
    plant_catalogue        -- those plants, built
+   modal_ss               -- real modal realisation of ``N(s)/Π(s − p)``, how the plants are built
+   damped_pair            -- the complex pole pair of ``s² + 2ζωs + ω²``
+   zoh                    -- zero-order-hold discretisation as the plants use it
 
 Signals
 -------
@@ -63,6 +67,7 @@ Simulation
    closed_loop_system     -- the LTI closed loop ``r → [y; u]`` as a ``StateSpace``
    ClosedLoopResult       -- result of ``closed_loop`` (``t``, ``r``, ``y``, ``u``, ``e``)
    AlgebraicLoopError     -- plant and controller both have feedthrough
+   lsim                   -- ``(y, x_n)`` of discrete state-space matrices driven by ``u`` (SLICOT TF01MD)
 
 Lab records
 -----------
@@ -70,6 +75,7 @@ Lab records
    load_record            -- read ``u``, ``y`` and ``dt`` from CSV, NPZ or MATLAB ``.mat``
    Record                 -- result of ``load_record``
    RECORD_FORMATS         -- the file suffixes ``load_record`` reads
+   record_columns         -- column names and count of a record file, before choosing ``u`` and ``y``
    RecordError            -- a record that cannot be read as asked (the message names the fix)
 
 Tour
@@ -107,14 +113,17 @@ from .lab.plants import (
     THREE_DISK,
     THREE_DISK_DT,
     ThreeDiskParameters,
+    damped_pair,
+    modal_ss,
     nonminimum_phase,
     plant_catalogue,
     resonant,
     servo,
     third_order,
     three_disk,
+    zoh,
 )
-from .lab.records import RECORD_FORMATS, Record, RecordError, load_record
+from .lab.records import RECORD_FORMATS, Record, RecordError, load_record, record_columns
 from .lab.signals import prbs, step, step_sequence, white_noise
 from .lab.simulate import (
     AlgebraicLoopError,
@@ -124,6 +133,7 @@ from .lab.simulate import (
     closed_loop_adaptive,
     closed_loop_system,
     collect_data,
+    lsim,
 )
 
 __all__: list[str] = [
@@ -138,6 +148,9 @@ __all__: list[str] = [
     "nonminimum_phase",
     "PLANT_CATALOGUE",
     "plant_catalogue",
+    "modal_ss",
+    "damped_pair",
+    "zoh",
     "prbs",
     "step",
     "step_sequence",
@@ -149,10 +162,12 @@ __all__: list[str] = [
     "closed_loop_adaptive",
     "closed_loop_system",
     "collect_data",
+    "lsim",
     "RECORD_FORMATS",
     "Record",
     "RecordError",
     "load_record",
+    "record_columns",
 ]
 
 # the library modules' paths before they moved into lab/: the same module objects under their old names

@@ -137,6 +137,13 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
 
 Also in ``synthesis.results`` and ``synthesis.validation``.
 
+Former routes kept as measured references
+-----------------------------------------
+
+``synthesis.baselines`` (not imported here: ``from synthesis import baselines``) gives the routes the fast
+paths replaced, and the pieces of one adaptive redesign, public names for the benchmarks that time them
+(``experiments/bench/``); ``help(synthesis.baselines)`` lists them.
+
 Tour
 ----
 

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from experiments import cli
-from experiments.lab._torsional import COLLOCATED, DT
+from experiments.lab.plants import THREE_DISK_DT as DT
+from experiments.lab.torsional_setup import COLLOCATED
 
 import synthesis
 

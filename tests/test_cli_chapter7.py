@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from experiments.studies import chapter7 as c7
-from experiments.lab._servo import closed_loop_matrix, design_weights, servo_data
+from experiments.lab.servo_setup import closed_loop_matrix, design_weights, servo_data
 from experiments.cli import main
 from experiments.lab.plants import servo
 from synthesis import fit_predictor, hinf_design

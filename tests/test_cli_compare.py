@@ -67,7 +67,7 @@ def test_compare_quick_reproduces_the_papers_mechanisms(quick):
 
 
 def test_evaluate_matches_a_frequency_grid():
-    from experiments.lab._servo import design_weights
+    from experiments.lab.servo_setup import design_weights
     from experiments.lab.plants import servo
 
     P = servo()

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from experiments.lab._servo import THESIS_TABLE_5_1
+from experiments.lab.servo_setup import THESIS_TABLE_5_1
 from experiments.cli import main
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'

@@ -13,7 +13,7 @@ import pytest
 import scipy.linalg
 
 from experiments.studies import design_example as de
-from experiments.lab._servo import (
+from experiments.lab.servo_setup import (
     DESIGNS,
     THESIS_TABLE_5_1,
     closed_loop_matrix,

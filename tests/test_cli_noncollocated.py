@@ -13,7 +13,8 @@ import pytest
 
 from experiments import cli
 from experiments.studies import noncollocated
-from experiments.lab._torsional import DT, NONCOLLOCATED
+from experiments.lab.plants import THREE_DISK_DT as DT
+from experiments.lab.torsional_setup import NONCOLLOCATED
 
 import synthesis
 
@@ -138,9 +139,9 @@ def test_step_metrics_on_closed_forms():
 
 
 def test_chosen_weights_match_their_documentation():
-    from experiments.lab import _torsional
+    from experiments.lab import torsional_setup
 
-    for spec, crossing in ((NONCOLLOCATED, 23.06), (_torsional.COLLOCATED, 64.59)):
+    for spec, crossing in ((NONCOLLOCATED, 23.06), (torsional_setup.COLLOCATED, 64.59)):
         W1c, W2c = spec.continuous()
         W1d, W2d = spec.discrete(DT)
         assert 20 * np.log10(abs(complex(ct.evalfr(W1c, 0)))) == pytest.approx(26.02, abs=0.01)
@@ -152,7 +153,7 @@ def test_chosen_weights_match_their_documentation():
         assert w[np.argmin(np.abs(mag - 1))] == pytest.approx(crossing, rel=1e-3)
         assert np.linalg.matrix_rank(np.atleast_2d(W1d.D)) == 1 and np.linalg.matrix_rank(np.atleast_2d(W2d.D)) == 1
     with pytest.raises(ValueError, match="unknown weight set"):
-        _torsional.weights("colocated")
+        torsional_setup.torsional_weights("colocated")
 
 
 def test_bad_input_raises():

@@ -10,11 +10,12 @@ import pytest
 import experiments
 import synthesis
 import unfalsify
+from synthesis import baselines
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments], ids=lambda p: p.__name__)
+@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments, baselines], ids=lambda p: p.__name__)
 def test_every_public_name_is_in_the_package_index(pkg):
     indexed = set(re.findall(r"^   (\w+)\s+--", pkg.__doc__, re.M))
     assert not sorted(set(pkg.__all__) - indexed), "public names missing from the docstring index"
@@ -31,7 +32,8 @@ def test_relative_links_point_to_files(doc):
         assert (path.parent / target).exists(), f"{doc} links to missing {target}"
 
 
-@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments], ids=lambda p: p.__name__)
+@pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments, experiments.lab, baselines],
+                         ids=lambda p: p.__name__)
 def test_every_public_function_has_a_runnable_examples_section(pkg):
     # the Examples run as doctests (the README's test command collects the packages with --doctest-modules)
     import inspect

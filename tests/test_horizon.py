@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import synthesis as sy
-from experiments.lab._servo import design_weights
+from experiments.lab.servo_setup import design_weights
 from experiments.lab.plants import nonminimum_phase, servo
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop_system, collect_data

@@ -207,7 +207,7 @@ def test_arx_errors_name_the_fix():
 
 
 def test_models_pickle_and_drive_discrete_mixsyn():
-    from experiments.lab._servo import design_weights
+    from experiments.lab.servo_setup import design_weights
     from experiments.lab.plants import servo
 
     P = servo()

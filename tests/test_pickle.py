@@ -17,7 +17,7 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments.lab._servo import design_weights, servo_data
+from experiments.lab.servo_setup import design_weights, servo_data
 from experiments.lab.plants import servo
 from synthesis._repr import values_equal
 

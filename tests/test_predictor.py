@@ -335,10 +335,10 @@ def test_dense_route_of_the_benchmark_equals_fit_predictor():
 
 
 def test_legacy_route_of_the_benchmark_equals_fit_predictor():
-    from experiments.bench.bench_predictor import _legacy_fit
+    from synthesis.baselines import former_cholesky_fit  # bench-predictor's baseline
 
     u, y = noisy_mimo(seed=16, n=500)
-    Lw, Lu = _legacy_fit(u, y, 4)
+    Lw, Lu = former_cholesky_fit(u, y, 4)
     p = fit_predictor(u, y, 4)
     assert rel(np.hstack([Lw, Lu]), np.hstack([p.Lw, p.Lu])) < 1e-10
 

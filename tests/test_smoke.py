@@ -27,8 +27,14 @@ def test_public_names_are_exported():
             assert hasattr(pkg, name), f"{pkg.__name__}.{name}"
 
 
+#: public modules that are namespaces of their own, not re-exported (scipy.signal.windows' way): the former
+#: routes the benchmarks measure against, which must not crowd the package's API
+NAMESPACES = {"baselines"}
+
+
 def test_every_public_module_name_is_reexported():
-    """What a synthesis module declares public in its __all__ is importable from the package."""
+    """What a synthesis module declares public in its __all__ is importable from the package (or, for a
+    namespace module, from that module and not from the package)."""
     import importlib
     import pkgutil
 
@@ -36,6 +42,10 @@ def test_every_public_module_name_is_reexported():
         if info.name.startswith("_"):
             continue
         mod = importlib.import_module(f"synthesis.{info.name}")
+        if info.name in NAMESPACES:
+            assert mod.__all__ and all(hasattr(mod, n) for n in mod.__all__), info.name
+            assert not set(mod.__all__) & set(synthesis.__all__), info.name
+            continue
         missing = sorted(set(getattr(mod, "__all__", ())) - set(synthesis.__all__))
         assert not missing, f"synthesis.{info.name}: {missing}"
 

@@ -14,7 +14,7 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments.lab._servo import design_weights
+from experiments.lab.servo_setup import design_weights
 from experiments.lab.plants import nonminimum_phase, resonant, servo, third_order
 from experiments.studies.robust_pipeline import run_case
 from experiments.lab.signals import prbs

@@ -9,7 +9,7 @@ import scipy.signal
 
 import synthesis
 import unfalsify as uf
-from experiments.lab._servo import design_weights
+from experiments.lab.servo_setup import design_weights
 from experiments.lab.plants import third_order
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import collect_data

@@ -13,7 +13,7 @@ import pytest
 
 import synthesis
 import unfalsify as uf
-from experiments.lab._servo import design_weights, servo_data, step_response
+from experiments.lab.servo_setup import design_weights, servo_data, step_response
 from experiments.lab.plants import servo
 from synthesis.validation import DataError
 

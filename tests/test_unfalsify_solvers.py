@@ -1,5 +1,7 @@
 """The solver registry of ``unfalsify.solvers``: one contract for every solver, names that resolve, errors that
-list the valid names, and the layout rules of issue 25 (no import circles, no private names across packages)."""
+list the valid names, and the layout rules of issue 25 for synthesis/, unfalsify/ and experiments/: no import
+circles, and no private name (module or attribute) imported, or read through an imported module, from outside the
+module's own subpackage (its directory)."""
 import ast
 import pathlib
 import pickle
@@ -113,7 +115,7 @@ def _imports(path):
                 yield pkg, alias.name.split("."), None
 
 
-@pytest.mark.parametrize("package", ["synthesis", "unfalsify"])
+@pytest.mark.parametrize("package", ["synthesis", "unfalsify", "experiments"])
 def test_no_private_names_across_packages(package):
     bad = []
     for path in sorted((ROOT / package).rglob("*.py")):
@@ -125,10 +127,58 @@ def test_no_private_names_across_packages(package):
                                                                         and not name.startswith("__") else [])
             if private and home != pkg:
                 bad.append((str(path.relative_to(ROOT)), ".".join(module), name))
+        bad += [(str(path.relative_to(ROOT)), ".".join(owner), attr) for owner, attr in _private_attributes(path)]
     assert not bad, f"private names imported from another (sub)package: {bad}"
 
 
-@pytest.mark.parametrize("package", ["synthesis", "unfalsify"])
+def _subpackage(dotted):
+    """The directory of the longest prefix of ``dotted`` that is a module or package of the project."""
+    for k in range(len(dotted), 0, -1):
+        where = ROOT / pathlib.Path(*dotted[:k])
+        if (where / "__init__.py").exists():
+            return dotted[:k]
+        if where.with_suffix(".py").exists():
+            return dotted[: k - 1]
+    return None
+
+
+def _private_attributes(path):
+    """``(owner, name)`` of each ``alias._name`` read through a project module bound by an import (``import
+    synthesis as sy; sy.hinf._x``, ``from ..lab import simulate; simulate._x``) whose owner lies in another
+    subpackage: a private name reached without importing it by name."""
+    pkg = list(path.relative_to(ROOT).with_suffix("").parts[:-1])
+    tree = ast.parse(path.read_text(), str(path))
+    bound = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = pkg[: len(pkg) - node.level + 1] if node.level else []
+            module = base + (node.module.split(".") if node.module else [])
+            for alias in node.names:
+                cand = module + [alias.name]
+                where = ROOT / pathlib.Path(*cand)
+                if (where / "__init__.py").exists() or where.with_suffix(".py").exists():
+                    bound[alias.asname or alias.name] = cand
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                bound[alias.asname] = parts if alias.asname else None
+                if not alias.asname:
+                    bound[parts[0]] = parts[:1]
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")):
+            continue
+        chain, value = [], node.value
+        while isinstance(value, ast.Attribute):
+            chain.insert(0, value.attr)
+            value = value.value
+        if isinstance(value, ast.Name) and bound.get(value.id) and bound[value.id][0] in (
+                "synthesis", "unfalsify", "experiments"):
+            owner = bound[value.id] + chain
+            if _subpackage(owner) != pkg:
+                yield owner, node.attr
+
+
+@pytest.mark.parametrize("package", ["synthesis", "unfalsify", "experiments"])
 def test_no_import_circles(package):
     edges = {}
     for path in sorted((ROOT / package).rglob("*.py")):

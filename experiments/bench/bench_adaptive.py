@@ -29,8 +29,9 @@ import warnings
 
 import numpy as np
 
-from ..lab._torsional import COLLOCATED, DT
+from ..lab.plants import THREE_DISK_DT as DT
 from ..lab.report import Report, format_table, median_time, save_figure, write_csv, write_json
+from ..lab.torsional_setup import COLLOCATED
 
 __all__ = ["run", "GOAL_P99_S", "N_UPDATES"]
 
@@ -53,41 +54,9 @@ def _pct(x) -> dict:
             "mean": float(np.mean(x))}
 
 
-def _legacy_class():
-    """AdaptiveHinf with the redesign route before the fast paths, for a same-run baseline.
-
-    Each update: rank-revealing (spectral) predictor from the Gram, ``hinf_design`` from scratch
-    (weights validated and Toeplitz / observability blocks rebuilt) and the ``StateSpace`` built.
-    (The Gram push is the current one.)
-    """
-    from synthesis import AdaptiveHinf, AdaptiveUpdate, default_rcond, hinf_design
-    from synthesis.predictor import _predictor_from_gram
-
-    class _LegacyAdaptiveHinf(AdaptiveHinf):
-        def _design(self, step, t0, t_push=0.0, c0=None):
-            rp = self.recursive
-            i, m, l, j = rp.horizon, rp.m, rp.l, rp.n_columns
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                t1 = time.perf_counter()
-                # rp's rcond was validated when it was built; None means the default
-                tol = default_rcond("recursive", i * (2 * m + l), j) if rp._rcond is None else rp._rcond
-                pred = _predictor_from_gram(rp.gram, i, m, l, j, tol, "recursive", route="spectral")
-                t2 = time.perf_counter()
-                design = hinf_design(pred, self.W1, self.W2, gamma=self.policy, **self._design_kwargs)
-                design.controller  # built eagerly, as before
-            t3 = time.perf_counter()
-            cpu = time.thread_time() - c0 if c0 is not None else float("nan")
-            rec = AdaptiveUpdate(step=step, gamma_min=float(design.gamma_min), gamma=float(design.gamma),
-                                 seconds=t3 - t0, n_columns=j, cpu_seconds=cpu,
-                                 phases=(("push", t_push), ("predictor", t2 - t1), ("design", t3 - t2)))
-            return design, rec
-
-    return _LegacyAdaptiveHinf
-
-
 def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = False):
     from synthesis import AdaptiveHinf, GammaPolicy
+    from synthesis.baselines import FormerAdaptiveHinf
 
     from ..lab import plants, signals, simulate
 
@@ -99,7 +68,7 @@ def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = 
     init = simulate.collect_data(P, signals.white_noise(n0, 1.0, seed=int(seeds[0])), sensor_noise=SENSOR_NOISE,
                                  seed=int(seeds[1]))
     policy = GammaPolicy("offset", GAMMA_OFFSET)
-    cls = _legacy_class() if legacy else AdaptiveHinf
+    cls = FormerAdaptiveHinf if legacy else AdaptiveHinf
     ad = cls.from_data(init.u, init.y, i, W1, W2, period=period, policy=policy)
     n = n_updates * period
     r = signals.step_sequence(n, (1.0, 0.0, -1.0, 0.0), int(round(3.0 / DT)))
@@ -112,50 +81,48 @@ def _closed_loop(i: int, period: int, n_updates: int, seed: int, legacy: bool = 
 def _components(ad, W1, W2, policy, repeats: int) -> dict:
     """Time the pieces of one update on the final window; the route before the fast paths; agreement."""
     from synthesis import default_rcond, hinf_design, lti_controller, solve_minimax
-    from synthesis.hinf import _design_from_plan
-    from synthesis.minimax import _gains, _saddle
-    from synthesis.predictor import _predictor_from_gram
+    from synthesis.baselines import adaptive_plan, design_from_plan, minimax_gains, minimax_saddle, predictor_from_gram
 
     rp = ad.recursive
-    plan = ad._plan
+    plan = adaptive_plan(ad)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         pred = rp.predictor()
         Lw, Lu = np.asarray(pred.Lw, dtype=float), np.asarray(pred.Lu, dtype=float)
         pm = plan.fill(Lw, Lu)
-        design = _design_from_plan(pred, Lw, Lu, plan, policy)
+        design = design_from_plan(pred, Lw, Lu, plan, policy)
         sd = plan.saddle(Lu)
         i, m, l, j = rp.horizon, rp.m, rp.l, rp.n_columns
         tol = default_rcond("recursive", i * (2 * m + l), j)
         G = rp.gram
 
         def legacy():  # before: rank-revealing predictor, weights and map from scratch, eager StateSpace
-            p = _predictor_from_gram(G, i, m, l, j, tol, "recursive", route="spectral")
+            p = predictor_from_gram(G, i, m, l, j, tol, "recursive", route="spectral")
             d = hinf_design(p, W1, W2, gamma=policy)
             return d.controller
 
         t = {
             "predictor() (triangular route)": median_time(rp.predictor, repeats),
             "predictor, rank-revealing route": median_time(
-                lambda: _predictor_from_gram(G, i, m, l, j, tol, "recursive", route="spectral"), repeats),
+                lambda: predictor_from_gram(G, i, m, l, j, tol, "recursive", route="spectral"), repeats),
             "full map fill (2 products; not used per update)": median_time(lambda: plan.fill(Lw, Lu), repeats),
             "plan saddle: M_u, QR, Q_fullᵀ[M_d M_x'], λ_max(XᵀX) (γ_min)": median_time(lambda: plan.saddle(Lu), repeats),
             "gains from the saddle (Cholesky route, reduced M_x')": median_time(
-                lambda: _gains(sd, design.gamma), repeats),
+                lambda: minimax_gains(sd, design.gamma), repeats),
             "design from plan (saddle + gains + expand)": median_time(
-                lambda: _design_from_plan(pred, Lw, Lu, plan, policy), repeats),
-            "engine on the full map: QR, λ_max (γ_min)": median_time(lambda: _saddle(pm.Md, pm.Mu), repeats),
+                lambda: design_from_plan(pred, Lw, Lu, plan, policy), repeats),
+            "engine on the full map: QR, λ_max (γ_min)": median_time(lambda: minimax_saddle(pm.Md, pm.Mu), repeats),
             "engine on the full map: solve_minimax (γ_min + gains)": median_time(
                 lambda: solve_minimax(pm.Md, pm.Mu, pm.Mx, policy), repeats),
             "engine on the full map, SVD route of the gains": median_time(
-                lambda: _gains(_saddle(pm.Md, pm.Mu, pm.Mx), design.gamma, route="svd"), repeats),
+                lambda: minimax_gains(minimax_saddle(pm.Md, pm.Mu, pm.Mx), design.gamma, route="svd"), repeats),
             "hinf_design from scratch (lazy StateSpace)": median_time(lambda: hinf_design(pred, W1, W2, gamma=policy),
                                                                       repeats),
             "lti_controller StateSpace (not built per update)": median_time(lambda: lti_controller(design), repeats),
             "route before (spectral + hinf_design + StateSpace)": median_time(legacy, repeats),
         }
         batch = hinf_design(pred, W1, W2, gamma=policy)
-        u_svd, _, _ = _gains(_saddle(pm.Md, pm.Mu, pm.Mx), ad.design.gamma, route="svd")
+        u_svd, _, _ = minimax_gains(minimax_saddle(pm.Md, pm.Mu, pm.Mx), ad.design.gamma, route="svd")
         Pu = pm.Mu @ np.linalg.lstsq(pm.Mu, np.eye(pm.Mu.shape[0]), rcond=None)[0]
         gmin_proj = float(np.linalg.svd(pm.Md - Pu @ pm.Md, compute_uv=False)[0])
     live = ad.design

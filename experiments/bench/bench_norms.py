@@ -42,7 +42,8 @@ def _setup(quick: bool, seed: int):
     import synthesis
 
     from ..lab import plants, signals, simulate
-    from ..lab._torsional import DT, NONCOLLOCATED
+    from ..lab.plants import THREE_DISK_DT as DT
+    from ..lab.torsional_setup import NONCOLLOCATED
 
     rng = np.random.default_rng(seed)
     if quick:
@@ -95,7 +96,7 @@ def _figure(rows, path):
 def run(opts) -> dict:
     """Run the benchmark; write ``bench_norms.md`` / ``.json`` / ``.csv`` under ``opts.out``; return the summary."""
     import synthesis
-    from synthesis.infinite_horizon import _discrete_mixsyn
+    from synthesis.baselines import discrete_mixsyn_grid
     from unfalsify import additive_robustness
 
     from ..lab import simulate
@@ -119,8 +120,8 @@ def run(opts) -> dict:
     # 2. discrete_mixsyn: level checks
     kw = dict(gamma_ratio=1.1 if quick else 1.35)
     res_new = synthesis.discrete_mixsyn(P, W1, W2, **kw)
-    res_old = _discrete_mixsyn(P, W1, W2, route="grid", **kw)
-    t_old = median_time(lambda: _discrete_mixsyn(P, W1, W2, route="grid", **kw), repeats=reps_slow)
+    res_old = discrete_mixsyn_grid(P, W1, W2, **kw)
+    t_old = median_time(lambda: discrete_mixsyn_grid(P, W1, W2, **kw), repeats=reps_slow)
     t_new = median_time(lambda: synthesis.discrete_mixsyn(P, W1, W2, **kw), repeats=reps_fast)
     same = res_old.gamma_opt == res_new.gamma_opt
     rows.append(_row("discrete_mixsyn", f"{'servo' if quick else 'three-disk y3'}, closed-loop order "
@@ -135,9 +136,9 @@ def run(opts) -> dict:
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     x0 = np.zeros(A.shape[0])
     y_new = simulate.collect_data(P, u).y
-    y_old, _ = simulate._lsim(A, B, C, D, u, x0, route="loop")
+    y_old, _ = simulate.lsim(A, B, C, D, u, x0, route="loop")
     diff = float(np.max(np.abs(y_new - y_old)) / max(np.max(np.abs(y_old)), 1e-300))
-    t_old = median_time(lambda: simulate._lsim(A, B, C, D, u, x0, route="loop"), repeats=reps_slow)
+    t_old = median_time(lambda: simulate.lsim(A, B, C, D, u, x0, route="loop"), repeats=reps_slow)
     t_new = median_time(lambda: simulate.collect_data(P, u), repeats=reps_fast)
     rows.append(_row("collect_data", f"{n} samples, plant order {A.shape[0]}", t_old, t_new, "Python loop",
                      "SLICOT TF01MD", f"max rel diff {diff:.2e}", TARGETS["collect_data"], diff <= 1e-12))

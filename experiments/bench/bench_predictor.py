@@ -9,8 +9,9 @@
   (20, 100000), (64, 100000) and a MIMO case (m = l = 2, i = 32), with the ratio qr/cholesky, the
   largest relative difference of ``[Lw Lu]`` and the route the Cholesky fit took
   (``Predictor.solver``);
-* the route before the fast paths, timed in the same run (:func:`_legacy_fit`: block-row loop for
-  ``AAᵀ``, ``numpy.linalg.cholesky``, eigendecomposition pseudo-inverse and input rank), and the
+* the route before the fast paths, timed in the same run
+  (:func:`synthesis.baselines.former_cholesky_fit`: block-row loop for ``AAᵀ``,
+  ``numpy.linalg.cholesky``, eigendecomposition pseudo-inverse and input rank), and the
   speed-up over it;
 * the machine's peak (median GFLOP/s of a 2000 × 2000 matrix product, same run) and the achieved
   rate of the Cholesky fit under three counts (:func:`_flops`): the *dense-equivalent* count
@@ -47,6 +48,7 @@ from scipy.signal import lfilter
 from tqdm import tqdm
 
 from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor
+from synthesis.baselines import former_cholesky_fit
 
 from ..lab.report import Report, format_table, median_time, write_csv, write_json
 
@@ -76,31 +78,6 @@ def _mimo_data(n: int, rng) -> tuple[np.ndarray, np.ndarray]:
     return u, y + 0.05 * rng.standard_normal((n, 2))
 
 
-def _legacy_fit(u, y, i):
-    """The Cholesky route before the fast paths (kept for this benchmark; same numbers to rounding).
-
-    ``AAᵀ`` by the block-row loop (``2i`` lag products of ``c × j`` slices, ``2i − 1`` Python
-    iterations), ``numpy.linalg.cholesky``, the eigendecomposition pseudo-inverse of §2.2 and the
-    input rank from ``eigvalsh`` — always the rank-revealing route.
-    """
-    from synthesis.hankel import _interleaved_gram_loop, hankel_order
-    from synthesis import default_rcond
-    from synthesis.predictor import _input_rank_from_factor, _solve_from_r, _split
-
-    u = np.asarray(u, float).reshape(len(u), -1)
-    y = np.asarray(y, float).reshape(len(y), -1)
-    m, l = u.shape[1], y.shape[1]
-    j = u.shape[0] - 2 * i + 1
-    n_reg = i * (2 * m + l)
-    perm = hankel_order(i, m, l)
-    G = _interleaved_gram_loop(np.ascontiguousarray(np.hstack([u, y])), 2 * i, j)[np.ix_(perm, perm)]
-    R = np.linalg.cholesky(G)
-    tol = default_rcond("cholesky", n_reg, j)
-    L, _, q = _solve_from_r(R, n_reg, tol, squared=True)
-    _input_rank_from_factor(R, i, m, l, tol, squared=True)
-    return _split(L, i, m, l)
-
-
 def _dense_fit(u, y, i):
     """The busy-machine route: the explicit Hankel data ``A`` and ``AAᵀ`` by one dense SYRK, then the same triangular
     solve as :func:`synthesis.fit_predictor` (a second route to the Gram for the benchmark's agreement column).
@@ -115,7 +92,7 @@ def _dense_fit(u, y, i):
 
     from synthesis.hankel import hankel_order
     from synthesis import default_rcond
-    from synthesis.predictor import _predictor_from_gram
+    from synthesis.baselines import predictor_from_gram
 
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
@@ -124,10 +101,10 @@ def _dense_fit(u, y, i):
     z = np.ascontiguousarray(np.hstack([u, y]))
     # row t of At: the samples z_t … z_{t+2i-1}, interleaved, gathered into the row order of (2.7)
     At = sliding_window_view(z, (2 * i, m + l))[:j, 0].reshape(j, -1)[:, hankel_order(i, m, l)]
-    G = blas.dsyrk(1.0, At, trans=1, lower=1)  # lower triangle of AAᵀ: all _predictor_from_gram reads
+    G = blas.dsyrk(1.0, At, trans=1, lower=1)  # lower triangle of AAᵀ: all predictor_from_gram reads
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PersistenceWarning)
-        p = _predictor_from_gram(G, i, m, l, j, default_rcond("cholesky", i * (2 * m + l), j), "cholesky")
+        p = predictor_from_gram(G, i, m, l, j, default_rcond("cholesky", i * (2 * m + l), j), "cholesky")
     return p.Lw, p.Lu
 
 
@@ -191,7 +168,7 @@ def _batch(sizes, rng, repeats, peak):
         reps = repeats if j <= 10_000 else max(3, repeats // 2)
         with_qr = 2 * i * (m + l) * j <= QR_MAX_ENTRIES
         t_ch = median_time(lambda: _fit(u, y, i, "cholesky"), repeats=reps)
-        t_old = median_time(lambda: _legacy_fit(u, y, i), repeats=reps)
+        t_old = median_time(lambda: former_cholesky_fit(u, y, i), repeats=reps)
         t_qr = median_time(lambda: _fit(u, y, i, "qr"), repeats=reps) if with_qr else None
         t_dense = median_time(lambda: _dense_fit(u, y, i), repeats=reps) if with_qr else None
         p_ch = _fit(u, y, i, "cholesky")
@@ -200,7 +177,7 @@ def _batch(sizes, rng, repeats, peak):
             p_qr = _fit(u, y, i, "qr")
             Lref = np.hstack([p_qr.Lw, p_qr.Lu])
         else:
-            Lref = np.hstack(_legacy_fit(u, y, i))
+            Lref = np.hstack(former_cholesky_fit(u, y, i))
         fl = _flops(i, j, m, l)
         dense_diff = (float(np.linalg.norm(np.hstack(_dense_fit(u, y, i)) - Lc) / np.linalg.norm(Lc))
                       if with_qr else None)
@@ -242,7 +219,7 @@ def _scaling(i_fixed, js, j_fixed, is_, rng, repeats):
             reps = repeats if j <= 10_000 else max(3, repeats // 2)
             row = {"axis": axis, "i": i, "j": j,
                    "cholesky_s": median_time(lambda: _fit(u, y, i, "cholesky"), repeats=reps),
-                   "before_s": median_time(lambda: _legacy_fit(u, y, i), repeats=reps),
+                   "before_s": median_time(lambda: former_cholesky_fit(u, y, i), repeats=reps),
                    "qr_s": median_time(lambda: _fit(u, y, i, "qr"), repeats=reps)
                    if 4 * i * j <= QR_MAX_ENTRIES else None}
             rows.append(row)

@@ -121,7 +121,7 @@ def _series(quick: bool) -> list[dict]:
 
 
 def _data(n: int, seed: int):
-    from ..lab._servo import servo_data
+    from ..lab.servo_setup import servo_data
 
     d = servo_data(n, seed=seed)
     return d.u, d.y
@@ -129,10 +129,10 @@ def _data(n: int, seed: int):
 
 def _mimo_data(n: int, seed: int):
     """Two inputs, two outputs: two servo channels (§5.4) behind the input coupling ``[[1, 0.3], [0.2, 1]]``,
-    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments.lab._servo.servo_data`."""
+    independent PRBS ±1 inputs, process and sensor noise as :func:`~experiments.lab.servo_setup.servo_data`."""
     import control as ct
 
-    from ..lab._servo import SIGMA_PROCESS, SIGMA_SENSOR
+    from ..lab.servo_setup import SIGMA_PROCESS, SIGMA_SENSOR
     from ..lab.plants import servo
     from ..lab.signals import prbs
     from ..lab.simulate import collect_data

@@ -34,6 +34,9 @@ __all__ = [
     "THREE_DISK",
     "SERVO_DT",
     "THREE_DISK_DT",
+    "modal_ss",
+    "damped_pair",
+    "zoh",
 ]
 
 SERVO_DT = 0.1
@@ -61,7 +64,7 @@ class ThreeDiskParameters:
     def poles(self) -> np.ndarray:
         """Continuous-time poles ``0, −α`` and the two lightly damped pairs."""
         return np.concatenate(
-            [[0.0, -self.alpha], _pair(self.zeta_p1, self.omega_p1), _pair(self.zeta_p2, self.omega_p2)]
+            [[0.0, -self.alpha], damped_pair(self.zeta_p1, self.omega_p1), damped_pair(self.zeta_p2, self.omega_p2)]
         )
 
     def numerators(self) -> dict[str, np.ndarray]:
@@ -113,8 +116,8 @@ def servo(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
     >>> sorted(servo(continuous=True).poles().real.round(6).tolist())
     [-1.0, 0.0]
     """
-    sys = _modal_ss({"y": np.array([1.0])}, np.array([0.0, -1.0]), name="servo")
-    return sys if continuous else _zoh(sys, dt)
+    sys = modal_ss({"y": np.array([1.0])}, np.array([0.0, -1.0]), name="servo")
+    return sys if continuous else zoh(sys, dt)
 
 
 def three_disk(
@@ -159,8 +162,8 @@ def three_disk(
         chosen = {output: nums[output]}
     else:
         raise ValueError(f"output must be one of 'y1', 'y2', 'y3', 'all'; got {output!r}")
-    sys = _modal_ss(chosen, params.poles(), name=f"three_disk_{output}")
-    return sys if continuous else _zoh(sys, dt)
+    sys = modal_ss(chosen, params.poles(), name=f"three_disk_{output}")
+    return sys if continuous else zoh(sys, dt)
 
 
 def third_order(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
@@ -175,8 +178,8 @@ def third_order(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace
     >>> P.dt, P.nstates, round(float(control.dcgain(P)), 6)        # unit DC gain, kept by the ZOH
     (0.1, 3, 1.0)
     """
-    sys = _modal_ss({"y": np.array([6.0])}, np.array([-1.0, -2.0, -3.0]), name="third_order")
-    return sys if continuous else _zoh(sys, dt)
+    sys = modal_ss({"y": np.array([6.0])}, np.array([-1.0, -2.0, -3.0]), name="third_order")
+    return sys if continuous else zoh(sys, dt)
 
 
 def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
@@ -195,8 +198,8 @@ def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, conti
     """
     if not (0 < zeta < 1 and omega > 0):
         raise ValueError(f"need 0 < zeta < 1 and omega > 0, got zeta={zeta!r}, omega={omega!r}")
-    sys = _modal_ss({"y": np.array([omega * omega])}, _pair(zeta, omega), name="resonant")
-    return sys if continuous else _zoh(sys, dt)
+    sys = modal_ss({"y": np.array([omega * omega])}, damped_pair(zeta, omega), name="resonant")
+    return sys if continuous else zoh(sys, dt)
 
 
 def nonminimum_phase(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
@@ -214,8 +217,8 @@ def nonminimum_phase(dt: float = SERVO_DT, continuous: bool = False) -> ct.State
     >>> nonminimum_phase(continuous=True).zeros().real.round(6).tolist()     # the zero at s = +1
     [1.0]
     """
-    sys = _modal_ss({"y": np.array([-2.0, 2.0])}, np.array([-1.0, -2.0]), name="nonminimum_phase")
-    return sys if continuous else _zoh(sys, dt)
+    sys = modal_ss({"y": np.array([-2.0, 2.0])}, np.array([-1.0, -2.0]), name="nonminimum_phase")
+    return sys if continuous else zoh(sys, dt)
 
 
 #: name -> (factory, one-line description): plants of different character for pipeline studies.
@@ -247,24 +250,73 @@ def _quad(zeta: float, omega: float) -> np.ndarray:
     return np.array([1.0, 2.0 * zeta * omega, omega * omega])
 
 
-def _pair(zeta: float, omega: float) -> np.ndarray:
+def damped_pair(zeta: float, omega: float) -> np.ndarray:
+    """The poles ``−ζω ± jω√(1 − ζ²)`` of ``s² + 2ζωs + ω²`` (``0 ≤ ζ < 1``), as a length-2 complex array.
+
+    Examples
+    --------
+    >>> from experiments import damped_pair
+    >>> damped_pair(0.6, 5.0)
+    array([-3.+4.j, -3.-4.j])
+    """
     re = -zeta * omega
     im = omega * np.sqrt(1.0 - zeta * zeta)
     return np.array([re + 1j * im, re - 1j * im])
 
 
-def _zoh(sys: ct.StateSpace, dt: float) -> ct.StateSpace:
+def zoh(sys: ct.StateSpace, dt: float) -> ct.StateSpace:
+    """Zero-order-hold discretisation of a continuous plant at ``dt`` (named ``<name>_zoh``), as the plants here are.
+
+    Raises
+    ------
+    ValueError
+        ``dt`` not a positive finite number.
+
+    Examples
+    --------
+    >>> import control
+    >>> from experiments import zoh
+    >>> P = zoh(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag"), 0.1)
+    >>> P.dt, P.name, round(float(P.A[0, 0]), 6)
+    (0.1, 'lag_zoh', 0.904837)
+    """
     if not np.isscalar(dt) or not np.isfinite(dt) or dt <= 0:
         raise ValueError(f"dt must be a positive sample time in seconds, got {dt!r}")
     return ct.c2d(sys, float(dt), method="zoh", name=sys.name + "_zoh")
 
 
-def _modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) -> ct.StateSpace:
+def modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) -> ct.StateSpace:
     """Real modal realisation of ``N_o(s)/Π(s − p)`` for each output ``o``.
 
     The poles must be distinct; complex poles come in conjugate pairs (the one
     with positive imaginary part is used).  Residues are computed from the
     factored denominator, ``ρ = N(p)/Π_{q≠p}(p − q)``.
+
+    Parameters
+    ----------
+    numerators : dict of str to array_like
+        Output name → numerator polynomial coefficients (highest power first).
+    poles : array_like
+        The distinct poles (complex ones in conjugate pairs, e.g. from :func:`damped_pair`).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.StateSpace
+        Continuous, one input ``u``, one output per numerator.
+
+    Examples
+    --------
+    ``6/((s+1)(s+2)(s+3))``, then discretised as the plants are:
+
+    >>> import numpy as np
+    >>> from experiments import modal_ss, zoh
+    >>> G = modal_ss({"y": np.array([6.0])}, np.array([-1.0, -2.0, -3.0]), name="third_order")
+    >>> G.nstates, round(float(G.dcgain()), 12)
+    (3, 1.0)
+    >>> zoh(G, 0.1).dt
+    0.1
     """
     poles = np.asarray(poles, dtype=complex)
     outputs = list(numerators)

@@ -17,7 +17,7 @@ import numpy as np
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal, check_sample_time
 
-__all__ = ["Record", "RecordError", "load_record", "RECORD_FORMATS"]
+__all__ = ["Record", "RecordError", "load_record", "record_columns", "RECORD_FORMATS"]
 
 #: File endings :func:`load_record` reads.
 RECORD_FORMATS = (".csv", ".txt", ".npz", ".mat")
@@ -341,6 +341,54 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     Y = as_signal(Y, "y", n=U.shape[0])
     return Record(u=U, y=Y, dt=dt_value, source=str(path), u_columns=tuple(u_names), y_columns=tuple(y_names),
                   t=T)
+
+
+def record_columns(path, variable: str | None = None) -> tuple[list[str] | None, int | None]:
+    """The column names and the number of columns of a record file, before choosing ``u`` and ``y``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV/TXT file, or an NPZ/MAT file.
+    variable : str, optional
+        For NPZ/MAT: the name of a 2-D matrix whose columns are the signals.
+
+    Returns
+    -------
+    names : list of str or None
+        The CSV header (None without one, and for NPZ/MAT).
+    width : int or None
+        The number of columns of the CSV or of ``variable``; None for files of named arrays.
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path``.
+    RecordError
+        A CSV without data rows.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from experiments import record_columns
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     f = pathlib.Path(d) / "run.csv"
+    ...     _ = f.write_text("t,u,y\\n0,1,0\\n0.1,1,0.5\\n")
+    ...     record_columns(f)
+    (['t', 'u', 'y'], 3)
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no data file {str(path)!r}")
+    fmt = path.suffix.lower()
+    if fmt in (".csv", ".txt"):
+        header, table = _read_csv(path, None)
+        return header, table.shape[1]
+    if variable is not None and fmt in (".npz", ".mat"):
+        arrays = _read_arrays(path, fmt)
+        if variable in arrays and np.ndim(arrays[variable]) == 2:
+            return None, int(np.shape(arrays[variable])[1])
+    return None, None
 
 
 def _sample_time(T, dt, rtol: float, path: Path, t_name) -> float:

@@ -43,6 +43,7 @@ __all__ = [
     "closed_loop",
     "closed_loop_adaptive",
     "closed_loop_system",
+    "lsim",
 ]
 
 
@@ -227,17 +228,47 @@ def collect_data(plant, u, *, process_noise: float = 0.0, sensor_noise: float = 
     w = _noise(rng, process_noise, n, P.ninputs, "process_noise")
     v = _noise(rng, sensor_noise, n, P.noutputs, "sensor_noise")
     x = _initial_state(x0, A.shape[0], "x0")
-    y, x = _lsim(A, B, C, D, u + w, x)
+    y, x = lsim(A, B, C, D, u + w, x)
     dt = _dt(P)
     return OpenLoopData(t=np.arange(n) * dt, u=u, y=y + v, y_clean=y, dt=dt, x_final=x)
 
 
-def _lsim(A, B, C, D, u, x0, *, route: str = "slicot"):
+def lsim(A, B, C, D, u, x0, *, route: str = "slicot"):
     """``y_k = C x_k + D u_k``, ``x_{k+1} = A x_k + B u_k``: ``(y, x_n)`` with time along axis 0.
 
-    ``route="slicot"``: SLICOT TF01MD (``slycot.tf01md``), one compiled loop; ``route="loop"``:
-    the former Python loop (kept for the ``bench-norms`` comparison).  Both give the same result
-    to rounding.
+    The simulation under :func:`collect_data`, on plain arrays (no checks: the callers pass float arrays of
+    matching shapes).
+
+    Parameters
+    ----------
+    A, B, C, D : ndarray
+        Discrete state-space matrices (``nx × nx``, ``nx × m``, ``p × nx``, ``p × m``).
+    u : ndarray, shape (n, m)
+        Inputs, time along axis 0.
+    x0 : array_like, shape (nx,)
+        Initial state.
+    route : {"slicot", "loop"}, optional
+        ``"slicot"``: SLICOT TF01MD (``slycot.tf01md``), one compiled loop; ``"loop"``: the former Python
+        loop, kept as the measured reference of the ``bench-norms`` comparison. Both give the same result
+        to rounding.
+
+    Returns
+    -------
+    y : ndarray, shape (n, p)
+        Outputs.
+    x_n : ndarray, shape (nx,)
+        The state after the last sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from experiments import lsim
+    >>> A, B, C, D = np.array([[0.5]]), np.array([[1.0]]), np.array([[1.0]]), np.array([[0.0]])
+    >>> y, x = lsim(A, B, C, D, np.ones((4, 1)), np.zeros(1))
+    >>> y.ravel().tolist(), x.tolist()
+    ([0.0, 1.0, 1.5, 1.75], [1.875])
+    >>> np.allclose(lsim(A, B, C, D, np.ones((4, 1)), np.zeros(1), route="loop")[0], y)
+    True
     """
     n, m = u.shape
     nx, p = A.shape[0], C.shape[0]

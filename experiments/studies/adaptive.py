@@ -20,7 +20,7 @@ Pipeline (``python -m experiments adaptive``):
 4. ``γ_min(t)`` (Fig. 6.11; thesis: settles near 2.25, the ∞-horizon model-based value, after
    ``t = 15 s``) and the wall-clock time of each update (median, max).
 
-Weights: :data:`experiments.lab._torsional.COLLOCATED` (Fig. 6.8, chosen so that the ∞-horizon
+Weights: :data:`experiments.lab.torsional_setup.COLLOCATED` (Fig. 6.8, chosen so that the ∞-horizon
 model-based ``γ_opt`` is about 2.25).  ``--quick``: 5 s of closed loop and ``i = 32``.
 """
 from __future__ import annotations
@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..lab._torsional import COLLOCATED, DT
+from ..lab.plants import THREE_DISK_DT as DT
 from ..lab.report import Report, save_figure, write_csv, write_json
+from ..lab.torsional_setup import COLLOCATED
 
 __all__ = ["run", "THESIS", "STEP_LEVELS", "STEP_HOLD_S"]
 

@@ -67,12 +67,12 @@ import synthesis
 import unfalsify as uf
 from synthesis.validation import DataError
 
-from ..lab._servo import design_weights
-from ..lab.plants import SERVO_DT, _modal_ss, _pair, _zoh, nonminimum_phase, resonant, third_order
+from ..lab.plants import SERVO_DT, damped_pair, modal_ss, nonminimum_phase, resonant, third_order, zoh
 from ..lab.report import LiveTable, Report, finish_report, write_csv
-from .robust_pipeline import _true_loop, premise_ratio
+from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import closed_loop, collect_data
+from .robust_pipeline import _true_loop, premise_ratio
 
 __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excitation_class", "catalogue",
            "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",
@@ -85,19 +85,19 @@ VERDICTS = ("certified", "false_certificate", "not_certified", "refused_by_error
 # ---------------------------------------------------------------------------------------------- plants
 def first_order(dt: float = SERVO_DT) -> control.StateSpace:
     """``2/(s + 2)`` (unit DC gain), ZOH-sampled (10 Hz default)."""
-    return _zoh(_modal_ss({"y": np.array([2.0])}, np.array([-2.0]), name="first_order"), dt)
+    return zoh(modal_ss({"y": np.array([2.0])}, np.array([-2.0]), name="first_order"), dt)
 
 
 def fourth_order_50hz(dt: float = 0.02) -> control.StateSpace:
     """``64·3/((s+1)(s+3)(s² + 4.8s + 64))`` (unit DC gain; pair ζ = 0.3, ω = 8 rad/s), ZOH at 50 Hz."""
-    poles = np.concatenate([[-1.0, -3.0], _pair(0.3, 8.0)])
-    return _zoh(_modal_ss({"y": np.array([192.0])}, poles, name="fourth_order"), dt)
+    poles = np.concatenate([[-1.0, -3.0], damped_pair(0.3, 8.0)])
+    return zoh(modal_ss({"y": np.array([192.0])}, poles, name="fourth_order"), dt)
 
 
 def open_loop_unstable(dt: float = SERVO_DT) -> control.StateSpace:
     """``3/((s − a)(s + 3))`` with ``e^{a·dt} = 1.05``: the discrete pole 1.05 and a stable mode at 0.74."""
     a = math.log(1.05) / dt
-    return _zoh(_modal_ss({"y": np.array([3.0])}, np.array([a, -3.0]), name="open_loop_unstable"), dt)
+    return zoh(modal_ss({"y": np.array([3.0])}, np.array([a, -3.0]), name="open_loop_unstable"), dt)
 
 
 def third_order_resonance(dt: float = SERVO_DT) -> control.StateSpace:
@@ -106,8 +106,8 @@ def third_order_resonance(dt: float = SERVO_DT) -> control.StateSpace:
     The mode sits at 3.2 Hz (Nyquist 5 Hz), far above the third-order plant's bandwidth (~1 rad/s)
     and above the low bands of :func:`excitation_class`: band-limited data do not see it.
     """
-    poles = np.concatenate([[-1.0, -2.0, -3.0], _pair(0.02, 20.0)])
-    return _zoh(_modal_ss({"y": np.array([6.0 * 400.0])}, poles, name="third_order_resonance"), dt)
+    poles = np.concatenate([[-1.0, -2.0, -3.0], damped_pair(0.02, 20.0)])
+    return zoh(modal_ss({"y": np.array([6.0 * 400.0])}, poles, name="third_order_resonance"), dt)
 
 
 #: name -> factory of the discrete LTI plant (the true plant, or its linear / time-invariant part).

@@ -42,7 +42,9 @@ from unfalsify import (  # noqa: E402
     subspace_unfalsify,
 )
 
-from ..lab._servo import (  # noqa: E402
+from ..lab.plants import SERVO_DT, servo  # noqa: E402
+from ..lab.report import Report, finish_report, save_figure, write_csv  # noqa: E402
+from ..lab.servo_setup import (  # noqa: E402
     collect_warnings,
     design_weights,
     plot_steps,
@@ -50,8 +52,6 @@ from ..lab._servo import (  # noqa: E402
     step_metrics_rows,
     step_response,
 )
-from ..lab.plants import SERVO_DT, servo  # noqa: E402
-from ..lab.report import Report, finish_report, save_figure, write_csv  # noqa: E402
 
 __all__ = ["run", "Config", "worst_phase_allpass", "additive_channel_response"]
 

@@ -45,13 +45,13 @@ import numpy as np
 
 import synthesis
 
-from ..lab._servo import design_weights
-from ..lab._torsional import weights as torsional_weights
-from .noncollocated import step_metrics
 from ..lab.plants import THREE_DISK, nonminimum_phase, resonant, servo, three_disk
 from ..lab.report import Report, finish_report, save_figure, write_csv
+from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import closed_loop_system, collect_data
+from ..lab.torsional_setup import torsional_weights
+from .noncollocated import step_metrics
 
 __all__ = ["run", "evaluate", "PLANTS", "PHYSICS_ERRORS", "METHODS", "Config", "summary_lines"]
 

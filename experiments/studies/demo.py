@@ -15,12 +15,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from . import chapter7  # noqa: E402
-from ..lab._servo import THESIS_TABLE_5_1, design_weights, plot_steps, servo_data  # noqa: E402
-from .design_example import Config as DesignConfig  # noqa: E402
-from .design_example import NOMINAL_I, NOMINAL_J, table_5_1  # noqa: E402
 from ..lab.plants import servo  # noqa: E402
 from ..lab.report import Report, save_figure, write_csv, write_json  # noqa: E402
+from ..lab.servo_setup import THESIS_TABLE_5_1, design_weights, plot_steps, servo_data  # noqa: E402
+from . import chapter7  # noqa: E402
+from .design_example import Config as DesignConfig  # noqa: E402
+from .design_example import NOMINAL_I, NOMINAL_J, table_5_1  # noqa: E402
 
 __all__ = ["run"]
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from synthesis.validation import DataError
 
-from ..lab.records import RecordError, _read_arrays, _read_csv, load_record
+from ..lab.records import RecordError, load_record, record_columns
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "INPUT_ERRORS"]
 
@@ -170,21 +170,6 @@ def _column(text):
     return items[0] if len(items) == 1 else items
 
 
-def _file_columns(path: Path, variable: str | None):
-    """``(names or None, number of columns)`` of a CSV or of ``variable`` in an NPZ/MAT; None for keyed files."""
-    if not path.exists():
-        raise FileNotFoundError(f"no data file {str(path)!r}")
-    fmt = path.suffix.lower()
-    if fmt in (".csv", ".txt"):
-        header, table = _read_csv(path, None)
-        return header, table.shape[1]
-    if variable is not None and fmt in (".npz", ".mat"):
-        arrays = _read_arrays(path, fmt)
-        if variable in arrays and np.ndim(arrays[variable]) == 2:
-            return None, int(np.shape(arrays[variable])[1])
-    return None, None
-
-
 def _select(path: Path, extra: dict):
     """The record's u, y, t selection: the user's, or the defaults (column after the time column, the next).
 
@@ -193,7 +178,7 @@ def _select(path: Path, extra: dict):
     """
     variable = extra.get("variable")
     u, y, t = _column(extra.get("u")), _column(extra.get("y")), _column(extra.get("t"))
-    names, width = _file_columns(path, variable)
+    names, width = record_columns(path, variable)
     if t is None and names is not None and extra.get("dt") is None:
         # a CSV with a column called t/time: its step is the sample time (no --dt needed)
         hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
@@ -249,12 +234,12 @@ def _fmt(x) -> str:
 
 def _simulate(sys, u):
     """Output of ``sys`` driven by ``u`` (n, m) from rest, (n, l) (NaN from where it blows up: an unstable P̂ does)."""
-    from ..lab.simulate import _lsim
+    from ..lab.simulate import lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (sys.A, sys.B, sys.C, sys.D))
     u = np.asarray(u, float).reshape(np.shape(u)[0], -1)
     with np.errstate(all="ignore"):
-        y = _lsim(A, B, C, D, u, np.zeros(A.shape[0]))[0]
+        y = lsim(A, B, C, D, u, np.zeros(A.shape[0]))[0]
     y = np.asarray(y, float).reshape(u.shape[0], -1)
     y[~np.isfinite(y)] = np.nan
     return y
@@ -369,13 +354,13 @@ def _freq(sys, z):
 
 def _step(loop, n: int, channel: int = 0):
     """Response ``(n, outputs)`` of ``loop`` to a unit step on input ``channel`` from rest."""
-    from ..lab.simulate import _lsim
+    from ..lab.simulate import lsim
 
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (loop.A, loop.B, loop.C, loop.D))
     r = np.zeros((n, B.shape[1]))
     r[:, channel] = 1.0
     with np.errstate(all="ignore"):
-        out = np.asarray(_lsim(A, B, C, D, r, np.zeros(A.shape[0]))[0], float)
+        out = np.asarray(lsim(A, B, C, D, r, np.zeros(A.shape[0]))[0], float)
     return out.reshape(n, -1)
 
 

@@ -26,7 +26,9 @@ from tqdm import tqdm  # noqa: E402
 
 from synthesis import InfeasibleGammaError, fit_predictor, gamma_min, hinf_design  # noqa: E402
 
-from ..lab._servo import (  # noqa: E402
+from ..lab.plants import SERVO_DT, servo  # noqa: E402
+from ..lab.report import Report, finish_report, save_figure, write_csv  # noqa: E402
+from ..lab.servo_setup import (  # noqa: E402
     DESIGNS,
     THESIS_TABLE_5_1,
     StepResult,
@@ -38,8 +40,6 @@ from ..lab._servo import (  # noqa: E402
     step_metrics_rows,
     step_response,
 )
-from ..lab.plants import SERVO_DT, servo  # noqa: E402
-from ..lab.report import Report, finish_report, save_figure, write_csv  # noqa: E402
 
 __all__ = ["run", "Config", "NOMINAL_I", "NOMINAL_J", "NOMINAL_N"]
 

@@ -9,7 +9,7 @@ Pipeline (``python -m experiments noncollocated``):
    the model with modest noise: white Gaussian process noise σ = 0.05 V at the plant input and
    sensor noise σ = 0.01 rad on ``y3`` (the §6.3 sensor-noise level).
 2. Subspace predictor with ``i = 64`` (``j = n − 2i + 1 = 1921``), weights of
-   :data:`experiments.lab._torsional.NONCOLLOCATED` (Fig. 6.3), ``γ_min`` (3.8) and the central
+   :data:`experiments.lab.torsional_setup.NONCOLLOCATED` (Fig. 6.3), ``γ_min`` (3.8) and the central
    controller (5.3)–(5.4) at ``γ = 1.35 γ_min`` (thesis: γ_min = 1.7, γ = 2.3 on real data).
 3. Step response of that controller on the true (noise-free) plant: 10–90 % rise time, ringing
    frequency and steady-state error (thesis, Fig. 6.4: 0.11 s, 3.5 Hz, 18 %).
@@ -37,8 +37,9 @@ import control as ct
 import numpy as np
 
 from ..lab import simulate
-from ..lab._torsional import DT, NONCOLLOCATED
+from ..lab.plants import THREE_DISK_DT as DT
 from ..lab.report import Report, save_figure, write_csv, write_json
+from ..lab.torsional_setup import NONCOLLOCATED
 
 __all__ = ["run", "step_metrics", "closed_loop_system", "THESIS"]
 

@@ -40,12 +40,12 @@ import synthesis
 import unfalsify as uf
 from synthesis.validation import DataError
 
-from ..lab._servo import design_weights
-from .chapter7 import worst_phase_allpass
 from ..lab.plants import PLANT_CATALOGUE, nonminimum_phase, resonant, servo, third_order
 from ..lab.report import LiveTable, Report, finish_report, write_csv
+from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import collect_data
+from .chapter7 import worst_phase_allpass
 
 __all__ = ["run", "run_case", "plant_and_weights", "premise_ratio", "PIPELINE_PLANTS", "Config"]
 
@@ -116,7 +116,7 @@ def plant_and_weights(plant: str):
     """``(P, W1, W2)`` for a key of :data:`PIPELINE_PLANTS` or :data:`experiments.plants.PLANT_CATALOGUE`.
 
     The 10 Hz plants use the §5.4 weights W11/W21; the 64 Hz three-disk plant the Ch. 6 weights of
-    :mod:`experiments.lab._torsional` (collocated ``y1``: §6.3; ``y3``: §6.2).
+    :mod:`experiments.lab.torsional_setup` (collocated ``y1``: §6.3; ``y3``: §6.2).
     """
     if plant in PIPELINE_PLANTS:
         P = PIPELINE_PLANTS[plant]()
@@ -125,9 +125,9 @@ def plant_and_weights(plant: str):
     else:
         raise DataError(f"unknown plant {plant!r}; use one of {sorted(set(PIPELINE_PLANTS) | set(PLANT_CATALOGUE))}")
     if plant.startswith("three_disk"):
-        from ..lab._torsional import weights
+        from ..lab.torsional_setup import torsional_weights
 
-        W1, W2 = weights("noncollocated" if plant.endswith("y3") else "collocated", float(P.dt))
+        W1, W2 = torsional_weights("noncollocated" if plant.endswith("y3") else "collocated", float(P.dt))
     else:
         W = design_weights(float(P.dt))
         W1, W2 = W["W11"], W["W21"]

@@ -9,7 +9,7 @@ The cases run as tasks on a ``concurrent.futures.Executor``:
   (``pip install -e ".[distributed]"``), otherwise a ``ProcessPoolExecutor``;
 * ``--scheduler ADDRESS``: a running Dask scheduler (``dask scheduler`` / ``dask worker ADDRESS``,
   dask-jobqueue on HPC) through ``Client.get_executor()``; unreachable within ``--timeout`` seconds
-  (default 30) it is a :class:`synthesis._validation.DataError` naming the address.
+  (default 30) it is a :class:`synthesis.DataError` naming the address.
 
 Worker processes run with ``OPENBLAS_NUM_THREADS=1`` (and the OMP/MKL equivalents) so that workers do
 not fight over BLAS threads.  A case is seeded by its own seed (``run_case``), never by the worker, so
@@ -23,7 +23,7 @@ recorded as failed -- never silently missing.  The summary counts done / failed 
 The plants are :data:`experiments.plants.PLANT_CATALOGUE`: the integrating §5.4 servo, a stable third-
 order plant, a lightly damped resonance (ζ = 0.05), a non-minimum-phase plant (zero at s = +1), all at
 10 Hz with the §5.4 weights, and the three-disk plant (collocated y1, two lightly damped modes and an
-integrator) at 64 Hz with the §6.3 weights of :mod:`experiments.lab._torsional`.
+integrator) at 64 Hz with the §6.3 weights of :mod:`experiments.lab.torsional_setup`.
 """
 from __future__ import annotations
 

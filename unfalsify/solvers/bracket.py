@@ -38,13 +38,17 @@ import scipy.optimize
 from .barrier import Deadline, Stop, pcg
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import CirculantDual, ColumnForm
-from .toeplitz import certified_norm, nfft
+from .toeplitz import certified_norm, nfft, spectrum_product
 
 __all__ = ["solve", "solve_bracket", "upper_point", "lower_point", "circulant_dual"]
 
 
 class _Ops:
-    """FFT products of the ARX column form: ``M = T(u)``, ``P`` the projection off range Φ."""
+    """FFT products of the ARX column form: ``M = T(u)``, ``P`` the projection off range Φ.
+
+    The spectrum of u is computed once per grid N (every product reuses it), the products are
+    :func:`~unfalsify.solvers.toeplitz.spectrum_product`.
+    """
 
     def __init__(self, form: ColumnForm, N: int):
         self.f = form
@@ -54,7 +58,7 @@ class _Ops:
         self.b = form.project(form.B)[:, 0]
 
     def M(self, h):
-        return np.fft.irfft(self.U * np.fft.rfft(h, self.N), self.N)[: self.n]
+        return spectrum_product(self.U, h, self.N, self.n)
 
     def Mt(self, x):
         return self.M(x[::-1])[::-1]
@@ -67,7 +71,7 @@ class _Ops:
 
     def R(self, w, x):
         """``R_w x``: the Toeplitz matrix of the weighted spectrum (n × n) times x."""
-        return np.fft.irfft(w * np.fft.rfft(x, self.N), self.N)[: self.n]
+        return spectrum_product(w, x, self.N, self.n)
 
 
 def _ridge_fit(ops: _Ops, w, target, h0, deadline):

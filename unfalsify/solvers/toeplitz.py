@@ -6,6 +6,7 @@ matrices commute, ``T(a) b = T(b) a``, and ``T(a) T(b) = T(a * b)``.
 
 Products
     :func:`conv_cols` (columns ``T(u_k) h_k`` by FFT), :func:`conv_cols_T` (``T(u_k)ᵀ x_k``),
+    :func:`spectrum_product` (``T(u) h`` from a spectrum of u computed once, as the bracket solver reuses it),
     :func:`toeplitz_matrix` (the dense matrix), :func:`toeplitz_stack` (a stack ``(j, m, m)`` of
     ``T(H[:, k])``: one axis convention, column k of H is matrix k of the stack).
 Adjoint
@@ -49,6 +50,7 @@ __all__ = [
     "nfft",
     "conv_cols",
     "conv_cols_T",
+    "spectrum_product",
     "adjoint",
     "adjoint_lowrank",
     "nuclear_norm_lowrank",
@@ -277,7 +279,26 @@ def conv_cols(U: np.ndarray, H: np.ndarray) -> np.ndarray:
             out[t] = np.einsum("ij,ij->j", U[t::-1], H[: t + 1])
         return out
     nf = nfft(m)
-    return np.fft.irfft(np.fft.rfft(U, nf, axis=0) * np.fft.rfft(H, nf, axis=0), nf, axis=0)[:m]
+    return spectrum_product(np.fft.rfft(U, nf, axis=0), H, nf, m)
+
+
+def spectrum_product(S: np.ndarray, x: np.ndarray, N: int, n: int) -> np.ndarray:
+    """The first ``n`` samples of the circular convolution of length ``N`` of x with the sequence of spectrum S.
+
+    ``S = rfft(u, N)`` computed once: with ``N ≥ 2n − 1`` (:func:`nfft`) this is ``T(u) x`` (the causal
+    convolution truncated to n samples), along axis 0, column by column for 2-D ``x`` and ``S``; a weight
+    spectrum in place of ``rfft(u, N)`` gives the product with the Toeplitz matrix of that weighted spectrum.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify.solvers.toeplitz import nfft, spectrum_product, toeplitz_matrix
+    >>> u, x = np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.0, -1.0])
+    >>> N = nfft(3)
+    >>> bool(np.allclose(spectrum_product(np.fft.rfft(u, N), x, N, 3), toeplitz_matrix(u) @ x))
+    True
+    """
+    return np.fft.irfft(S * np.fft.rfft(x, N, axis=0), N, axis=0)[:n]
 
 
 def conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:

@@ -34,6 +34,8 @@ __all__ = [
     "step_metrics_rows",
     "plot_steps",
     "collect_warnings",
+    "SIGMA_PROCESS",
+    "SIGMA_SENSOR",
 ]
 
 #: §5.4 Table 5.1: design name -> (W1 name, W2 name)
@@ -63,6 +65,18 @@ def continuous_weights() -> dict[str, control.TransferFunction]:
 
     ``W1x`` are 100 at DC and 0.2 (W11) / 0.2 (W12) at high frequency; ``W2x`` are 0.05 at
     DC and 1 at high frequency.
+
+    Returns
+    -------
+    dict of str to control.TransferFunction
+        ``"W11"``, ``"W12"`` (performance) and ``"W21"``, ``"W22"`` (control effort); :data:`DESIGNS` pairs them.
+
+    Examples
+    --------
+    >>> from experiments.lab import continuous_weights
+    >>> W = continuous_weights()
+    >>> sorted(W), round(float(abs(W["W11"](0))), 6)
+    (['W11', 'W12', 'W21', 'W22'], 100.0)
     """
     s = control.tf("s")
     return {
@@ -74,7 +88,25 @@ def continuous_weights() -> dict[str, control.TransferFunction]:
 
 
 def design_weights(dt: float = SERVO_DT) -> dict[str, control.StateSpace]:
-    """The §5.4 weights discretised with Tustin at ``dt`` (10 Hz)."""
+    """The §5.4 weights of :func:`continuous_weights` discretised with Tustin at ``dt`` (10 Hz).
+
+    Parameters
+    ----------
+    dt : float, optional
+        Sample time (s); default the servo's 0.1 s.
+
+    Returns
+    -------
+    dict of str to control.StateSpace
+        The four discrete weights under the same names.
+
+    Examples
+    --------
+    >>> from experiments.lab import design_weights
+    >>> W = design_weights()
+    >>> W["W11"].dt, round(float(abs(W["W11"](1.0))), 6)  # Tustin keeps the DC gain
+    (0.1, 100.0)
+    """
     return {name: tustin(W, dt) for name, W in continuous_weights().items()}
 
 
@@ -110,6 +142,32 @@ def servo_data(n: int, *, seed: int = 0, sigma_process: float = SIGMA_PROCESS,
     The PRBS phase and the two noises are drawn from independent streams spawned from
     ``seed``.  ``y_clean`` is the noise-free response to the same PRBS (no process noise
     either), used for the noise-free comparison of Fig. 5.10.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    seed : int, optional
+        Seed of the PRBS phase and the noises.
+    sigma_process, sigma_sensor : float, optional
+        Standard deviations of the noise at the plant input and at the sensor (0.05 each in §5.4).
+    dt : float, optional
+        Sample time (s).
+
+    Returns
+    -------
+    ServoData
+        ``u``, ``y``, ``y_clean`` of shape ``(n,)`` and the settings; ``first(k)`` the first ``k`` samples.
+
+    Examples
+    --------
+    >>> from experiments.lab import servo_data
+    >>> d = servo_data(200, seed=0)
+    >>> d.n, d.dt, d.y.shape
+    (200, 0.1, (200,))
+    >>> u, y = d.first(100)
+    >>> u.shape
+    (100,)
     """
     ss_prbs, ss_noise = np.random.SeedSequence(seed).spawn(2)
     u = prbs(n, seed=np.random.default_rng(ss_prbs))
@@ -125,6 +183,17 @@ def closed_loop_matrix(plant: control.StateSpace, controller: control.StateSpace
     """State matrix of the loop ``u = K [r; y]``, ``y = P u``: :func:`experiments.simulate.closed_loop_system`'s ``A``.
 
     Used for the stability verdict (spectral radius), independently of the time simulation.
+
+    Examples
+    --------
+    The servo under the proportional law ``u = 0.5 (r − y)`` (controller inputs ``[r; y]``):
+
+    >>> import control, numpy as np
+    >>> from experiments import servo
+    >>> from experiments.lab import closed_loop_matrix
+    >>> A = closed_loop_matrix(servo(), control.ss([], [], [], [[0.5, -0.5]], 0.1))
+    >>> A.shape, bool(np.abs(np.linalg.eigvals(A)).max() < 1)
+    ((2, 2), True)
     """
     return np.asarray(closed_loop_system(plant, controller).A, float)
 
@@ -158,7 +227,33 @@ class StepResult:
 
 
 def step_response(plant, controller, n_steps: int = 300, *, perturbation=None) -> StepResult:
-    """Noise-free unit step of ``plant`` (+ ``perturbation``) under ``controller`` (inputs [r; y])."""
+    """Noise-free unit step of ``plant`` (+ ``perturbation``) under ``controller`` (inputs [r; y]).
+
+    Parameters
+    ----------
+    plant : control.StateSpace
+        Discrete plant.
+    controller : control.StateSpace
+        Discrete controller with inputs ``[r; y]``.
+    n_steps : int, optional
+        Length of the run (samples).
+    perturbation : control.StateSpace, optional
+        Additive perturbation of the plant (its response is in ``y``, and in the stability verdict).
+
+    Returns
+    -------
+    StepResult
+        The response and its metrics; ``stable`` from the closed-loop eigenvalues.
+
+    Examples
+    --------
+    >>> import control
+    >>> from experiments import servo
+    >>> from experiments.lab import step_response
+    >>> r = step_response(servo(), control.ss([], [], [], [[0.5, -0.5]], 0.1), 300)
+    >>> r.stable, round(r.spectral_radius, 3), round(r.overshoot, 1), round(r.rise_time, 1)
+    (True, 0.952, 5.0, 2.9)
+    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # overflow in diverging runs
         res = closed_loop(plant, controller, step(n_steps), perturbation=perturbation)
@@ -198,7 +293,29 @@ def _time_metrics(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, fl
 
 
 def step_metrics_rows(results: dict[str, StepResult]) -> tuple[list[str], list[list]]:
-    """Headers and rows of a step-metrics table (unstable loops marked, metrics '—')."""
+    """Headers and rows of a step-metrics table (unstable loops marked, metrics '—').
+
+    Parameters
+    ----------
+    results : dict of str to StepResult
+        Case name → :func:`step_response` result.
+
+    Returns
+    -------
+    headers : list of str
+    rows : list of list
+        One row per case, for :class:`experiments.lab.report.Report` tables.
+
+    Examples
+    --------
+    >>> import control
+    >>> from experiments import servo
+    >>> from experiments.lab import step_metrics_rows, step_response
+    >>> r = step_response(servo(), control.ss([], [], [], [[0.5, -0.5]], 0.1), 300)
+    >>> headers, rows = step_metrics_rows({"P 0.5": r})
+    >>> headers[:2], rows[0][:2]
+    (['case', 'closed loop'], ['P 0.5', 'stable'])
+    """
     headers = ["case", "closed loop", "spectral radius", "rise time (s)", "overshoot (%)",
                "settling 2 % (s)", "steady-state error", "max \\|y\\|"]
     rows = []
@@ -214,7 +331,29 @@ def step_metrics_rows(results: dict[str, StepResult]) -> tuple[list[str], list[l
 
 
 def plot_steps(ax, results: dict[str, StepResult], title: str) -> None:
-    """Step responses on ``ax``; unstable loops dashed, labelled, and clipped at ±PLOT_LIMIT."""
+    """Step responses on ``ax``; unstable loops dashed, labelled, and clipped at ±PLOT_LIMIT.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    results : dict of str to StepResult
+        Case name → :func:`step_response` result.
+    title : str
+        Axes title.
+
+    Examples
+    --------
+    >>> import control
+    >>> from matplotlib.figure import Figure
+    >>> from experiments import servo
+    >>> from experiments.lab import plot_steps, step_response
+    >>> r = step_response(servo(), control.ss([], [], [], [[0.5, -0.5]], 0.1), 100)
+    >>> ax = Figure().subplots()
+    >>> plot_steps(ax, {"P 0.5": r}, "servo, proportional law")
+    >>> [line.get_label() for line in ax.get_lines()][:1]
+    ['P 0.5']
+    """
     for name, r in results.items():
         y = np.array(r.y, dtype=float)
         out = np.nonzero(~np.isfinite(y) | (np.abs(y) > 2 * PLOT_LIMIT))[0]
@@ -240,6 +379,15 @@ def collect_warnings():
 
     The sweeps expect some (near-γ_min levels, rank-deficient noise-free regressors, inaccurate
     solver statuses); the reports list them.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from experiments.lab import collect_warnings
+    >>> with collect_warnings() as log:
+    ...     warnings.warn("near γ_min")
+    >>> [str(w.message) for w in log]
+    ['near γ_min']
     """
     with warnings.catch_warnings(record=True) as log:
         warnings.simplefilter("always")

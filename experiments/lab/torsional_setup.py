@@ -34,10 +34,9 @@ from dataclasses import dataclass
 
 import control as ct
 
-__all__ = ["DT", "WeightSpec", "NONCOLLOCATED", "COLLOCATED", "weights"]
+from .plants import THREE_DISK_DT
 
-#: Sample time of Ch. 6 (64 Hz).
-DT = 1.0 / 64.0
+__all__ = ["WeightSpec", "NONCOLLOCATED", "COLLOCATED", "torsional_weights"]
 
 
 @dataclass(frozen=True)
@@ -72,7 +71,7 @@ class WeightSpec:
         W2 = ct.tf([self.c, self.c * self.a], [1.0, self.b])
         return W1, W2
 
-    def discrete(self, dt: float = DT) -> tuple[ct.StateSpace, ct.StateSpace]:
+    def discrete(self, dt: float = THREE_DISK_DT) -> tuple[ct.StateSpace, ct.StateSpace]:
         """Tustin discretisations of ``(W1, W2)`` at sample time ``dt``, as state space."""
         W1, W2 = self.continuous()
         return _tustin(W1, dt), _tustin(W2, dt)
@@ -92,8 +91,34 @@ NONCOLLOCATED = WeightSpec(wb=20.0, A=1 / 20, M=2.0, c=0.05, a=1.0, b=100.0, lab
 COLLOCATED = WeightSpec(wb=56.0, A=1 / 20, M=2.0, c=0.05, a=1.0, b=100.0, label="§6.3 (y1)")
 
 
-def weights(kind: str, dt: float = DT) -> tuple[ct.StateSpace, ct.StateSpace]:
-    """Discrete ``(W1, W2)`` for ``kind`` in ``{"noncollocated", "collocated"}``."""
+def torsional_weights(kind: str, dt: float = THREE_DISK_DT) -> tuple[ct.StateSpace, ct.StateSpace]:
+    """The Ch. 6 weights of one output of the three-disk plant, discretised by Tustin.
+
+    Parameters
+    ----------
+    kind : {"noncollocated", "collocated"}
+        ``"noncollocated"``: the §6.2 weights of output ``y3`` (:data:`NONCOLLOCATED`); ``"collocated"``: the
+        §6.3 weights of output ``y1`` (:data:`COLLOCATED`).
+    dt : float, optional
+        Sample time (s); default the plant's 1/64 s (:data:`experiments.THREE_DISK_DT`).
+
+    Returns
+    -------
+    W1, W2 : control.StateSpace
+        Discrete performance and control weights.
+
+    Raises
+    ------
+    ValueError
+        Unknown ``kind`` (the message lists the valid ones).
+
+    Examples
+    --------
+    >>> from experiments.lab import torsional_weights
+    >>> W1, W2 = torsional_weights("noncollocated")
+    >>> W1.dt, round(float(abs(W1(1.0))), 6)  # |W1| at DC: 20 (26 dB of rejection)
+    (0.015625, 20.0)
+    """
     specs = {"noncollocated": NONCOLLOCATED, "collocated": COLLOCATED}
     if kind not in specs:
         raise ValueError(f"unknown weight set {kind!r}; use one of {sorted(specs)}")
