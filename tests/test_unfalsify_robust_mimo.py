@@ -166,3 +166,17 @@ def test_predictor_model_reproduces_a_mimo_plant_from_noise_free_data(shape):
     for w in (0.05, 0.7, 2.5):
         z = np.exp(1j * w)
         np.testing.assert_allclose(np.atleast_2d(Ph(z)), np.atleast_2d(P(z)).reshape(l, m), atol=1e-7)
+
+
+def test_untracked_outputs_of_a_tall_plant():
+    """2 × 1: one input cannot track two independent references; inf marks the output not tracked."""
+    P = _mixing_plant([[1.0], [0.5]])
+    K = control.ss([], [], [], [[2.0, 0.0, -2.0, 0.0]], 1.0)       # u = 2(r0 − y0), output 1 ignored
+    cert = uf.certify_loop(P, K, 0.0, tracking_floor=0.4)
+    assert not cert.certified and "fewer inputs (1) than outputs (2)" in cert.reason
+    cert = uf.certify_loop(P, K, 0.0, tracking_floor=[0.4, float("inf")])
+    assert cert.certified and cert.tracks, cert.reason              # T(1) = 2/3 on output 0: error 1/3
+    assert cert.step.output_errors([True, False])[0] == pytest.approx(1 / 3, abs=1e-6)
+    assert robust._steady_state_reason(P, K, 0.01, [0.4, float("inf")]) == ""
+    with pytest.raises(DataError, match="at least one output"):
+        uf.tracking_floors([float("inf")] * 2, 2)

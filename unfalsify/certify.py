@@ -82,11 +82,18 @@ class StepMetrics:
     samples: int
     channel_errors: np.ndarray | None = None
 
-    def output_errors(self) -> np.ndarray:
-        """Per output channel, the worst steady error over the steps (``inf`` when unstable)."""
+    def output_errors(self, tracked=None) -> np.ndarray:
+        """Per output channel, the worst steady error over the steps (``inf`` when unstable).
+
+        ``tracked``: boolean mask of the reference channels whose steps count (default all); a reference
+        nobody tracks (floor ``inf``, :func:`tracking_floors`) says nothing about the others.
+        """
         if self.channel_errors is None:
             return np.array([float(self.final_error)])
-        return np.max(np.asarray(self.channel_errors), axis=1)
+        E = np.asarray(self.channel_errors)
+        if tracked is not None:
+            E = E[:, np.asarray(tracked, bool)]
+        return np.max(E, axis=1) if E.shape[1] else np.zeros(E.shape[0])
 
 
 @result
@@ -138,7 +145,10 @@ class LoopCertificate:
     @property
     def tracks(self) -> bool:
         """The performance floor is met."""
-        return bool(self.step is not None and np.all(self.step.output_errors() <= np.asarray(self.tracking_floor)))
+        if self.step is None:
+            return False
+        floors = np.atleast_1d(np.asarray(self.tracking_floor, float))
+        return bool(np.all(self.step.output_errors(np.isfinite(floors) if floors.size > 1 else None) <= floors))
 
     @property
     def radius(self) -> float:
@@ -266,19 +276,28 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
                        channel_errors=errors)
 
 
-def _check_nonnegative(v, name: str) -> None:
+_TALL_HINT = ("; the plant has fewer inputs ({m}) than outputs ({l}), so no controller tracks independent steps on "
+              "every output: give tracking_floor per output channel, inf for the outputs not tracked")
+
+
+def _check_nonnegative(v, name: str, allow_inf: bool = False) -> None:
     if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
-            math.isfinite(v) and v >= 0):
-        raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
+            (math.isfinite(v) or (allow_inf and v == math.inf)) and v >= 0):
+        raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {v!r}")
 
 
 def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     """The performance floor per output channel: one number for all, or one per channel.
 
+    A plant with fewer inputs than outputs cannot track independent steps on every output: give
+    ``inf`` for the outputs that are not tracked (their references are then not stepped in the
+    check); at least one output must be tracked, or the floor would not exclude a controller that
+    does nothing.
+
     Parameters
     ----------
     tracking_floor : float or sequence of float
-        Mean absolute step error allowed over the last quarter of the run, ≥ 0.
+        Mean absolute step error allowed over the last quarter of the run, ≥ 0 (``inf``: not tracked).
     channels : int
         The plant's outputs ``l``.
 
@@ -289,12 +308,14 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     Raises
     ------
     DataError
-        A negative or non-finite floor, or a sequence whose length is not ``channels``.
+        A negative or NaN floor, a sequence whose length is not ``channels``, or no tracked output.
 
     Examples
     --------
     >>> tracking_floors(0.1, 2).tolist(), tracking_floors([0.1, 0.2], 2).tolist()
     ([0.1, 0.1], [0.1, 0.2])
+    >>> tracking_floors([0.1, float("inf")], 2).tolist()          # output 1 not tracked
+    [0.1, inf]
     """
     if np.ndim(tracking_floor) == 0:
         _check_nonnegative(tracking_floor, "tracking_floor")
@@ -304,8 +325,12 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):
-        _check_nonnegative(f, f"tracking_floor[{k}]")
-    return np.asarray(floors, float)
+        _check_nonnegative(f, f"tracking_floor[{k}]", allow_inf=True)
+    floors = np.asarray(floors, float)
+    if not np.any(np.isfinite(floors)):
+        raise DataError("tracking_floor is inf on every output: at least one output must be tracked (a finite floor), "
+                        "or the floor would not exclude a controller that does nothing")
+    return floors
 
 
 def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracking_floor: float = TRACKING_FLOOR,
@@ -375,11 +400,12 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     elif small_gain > 1.0 / (1.0 + margin):
         reason = (f"small gain: δ·‖K(I+P̂K)⁻¹‖∞ = {delta:.4g} × {bracket.upper:.4g} = {small_gain:.4g} > "
                   f"1/(1 + margin) = {1.0 / (1.0 + margin):.4g}")
-    elif not np.all(step.output_errors() <= floors):
-        worst = int(np.argmax(step.output_errors() - floors))
+    elif not np.all((errs := step.output_errors(np.isfinite(floors))) <= floors):
+        worst = int(np.argmax(errs - floors))
         channel = f" on output {worst}" if l > 1 else ""
-        reason = (f"performance floor: the step on P̂ leaves a mean error {step.output_errors()[worst]:.3g} > "
-                  f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)")
+        reason = (f"performance floor: the step on P̂ leaves a mean error {errs[worst]:.3g} > "
+                  f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)"
+                  + (_TALL_HINT.format(m=P.ninputs, l=l) if P.ninputs < l and np.all(np.isfinite(floors)) else ""))
     elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)
         kyp = bounded_real_certificate(M, 1.0 / ((1.0 + margin) * float(delta)), lower=bracket.lower)
         if not kyp:

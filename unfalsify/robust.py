@@ -408,7 +408,7 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
             if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
                 return (f"the loop is unstable with the static perturbation {_offset_text(E)} of P̂, inside the "
                         f"certified ball of radius {radius:.4g}")
-            e = np.max(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), axis=1)
+            e = _tracked_errors(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), floors)
         except (np.linalg.LinAlgError, ValueError):
             e = np.full(l, np.inf)
         excess = np.nan_to_num(e - floors, nan=np.inf)
@@ -423,7 +423,7 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
     if data_gain is None or not np.all(np.isfinite(data_gain)):
         return ""
     G = np.asarray(data_gain, complex).reshape(l, model.ninputs)
-    e = _dc_errors_at_gain(controller, G)
+    e = _dc_errors_at_gain(controller, G, floors)
     if np.all(e <= floors):
         return ""
     k = int(np.argmax(e - floors))
@@ -432,6 +432,11 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
             f"data show ({_gain_text(np.abs(G))}, the plant's response at the record's lowest DFT frequency) while "
             f"P̂'s DC gain is {_gain_text(dc)}: P̂ is wrong where tracking is decided; "
             "refit it (a longer horizon, a longer or richer record)")
+
+
+def _tracked_errors(E: np.ndarray, floors: np.ndarray) -> np.ndarray:
+    """Per output, the largest steady error over the references that are tracked (finite floor)."""
+    return np.max(E[:, np.isfinite(floors)], axis=1)
 
 
 def _output_text(k: int, l: int) -> str:
@@ -464,8 +469,9 @@ def _gain_text(G) -> str:
     return f"{float(G[0, 0]):.4g}" if G.size == 1 else np.array2string(G, precision=3)
 
 
-def _dc_errors_at_gain(controller, p) -> np.ndarray:
-    """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m)."""
+def _dc_errors_at_gain(controller, p, floors=None) -> np.ndarray:
+    """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m),
+    over the tracked references ``c`` (finite ``floors``; all when None)."""
     G = np.atleast_2d(np.asarray(p, complex))
     l = G.shape[0]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -477,7 +483,8 @@ def _dc_errors_at_gain(controller, p) -> np.ndarray:
             T = np.linalg.solve(np.eye(l) - G @ cy, G @ cr)
         except np.linalg.LinAlgError:
             return np.full(l, np.inf)
-        return np.max(np.abs(np.eye(l) - T), axis=1)
+        E = np.abs(np.eye(l) - T)
+        return np.max(E, axis=1) if floors is None else _tracked_errors(E, floors)
 
 
 def _persistence_reason(pred, u, i: int, what: str) -> str:
