@@ -629,8 +629,16 @@ def _spectrum_rows(R: np.ndarray, N: int) -> np.ndarray:
     h = N // 2 + 1
     out = np.empty(R.shape[:-2] + (h, N), complex)
     out[..., :h] = R[..., :h, :]
-    out[..., h:] = np.conj(R[..., (-np.arange(h)) % N, :][..., :, N - np.arange(h, N)])
+    # rows −v mod N (v < h) and columns N − w (w ≥ h) as reversed slices (views, no gathers)
+    out[..., 0, h:] = np.conj(R[..., 0, N - h:0:-1])
+    out[..., 1:, h:] = np.conj(R[..., N - 1:N - h:-1, N - h:0:-1])
     return out
+
+
+def _reflect(X: np.ndarray, axis: int) -> np.ndarray:
+    """``X`` at the indices −k mod N along ``axis`` (k = 0 … N−1): index 0, then the others reversed."""
+    X = np.moveaxis(X, axis, -1)
+    return np.moveaxis(np.concatenate([X[..., :1], X[..., :0:-1]], axis=-1), -1, axis)
 
 
 def block_corr_hessian(S11, S21, S22, n: int, l: int, m: int) -> np.ndarray:
@@ -657,16 +665,15 @@ def block_corr_hessian(S11, S21, S22, n: int, l: int, m: int) -> np.ndarray:
     B4 = S22.reshape(n, l, n, l).transpose(1, 3, 0, 2)  # [α, γ] of S22
     # half spectra (columns v ≤ N/2) of the real time matrices; the other half by conjugate symmetry
     R21, R11, R22 = (scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2) for X in (R4, A4, B4))
-    u = (-np.arange(N)) % N
-    X1 = np.conj(R21[..., u, :])  # F(S21[α, δ])[u, −v] = conj F[−u, v]            (l, m, N, hN)
-    Y1 = np.ascontiguousarray(np.swapaxes(_spectrum_rows(R21, N)[..., u], -1, -2))  # conj F(S21[γ, β])[−v, u]
-    X2 = R22  # F(S22[α, γ])[u, v]                                                    (l, l, N, hN)
+    X1 = np.conj(_reflect(R21, -2))  # F(S21[α, δ])[u, −v] = conj F[−u, v]                     (l, m, N, hN)
+    Y1 = np.ascontiguousarray(np.swapaxes(_reflect(_spectrum_rows(R21, N), -1), -1, -2))  # conj F(S21[γ, β])[−v, u]
+    X2 = R22  # F(S22[α, γ])[u, v]                                                             (l, l, N, hN)
     Y2 = np.ascontiguousarray(np.conj(np.swapaxes(_spectrum_rows(R11, N), -1, -2)))  # conj F(S11[δ, β])[v, u]
     H = np.empty((n, l, m, n, l, m))
     for k in range(l * m):
         a, b = divmod(k, m)
         # the combinations (γ, δ) ≥ (α, β) only: the Hessian is symmetric, C_{γδαβ}[e, d] = C_{αβγδ}[d, e]
-        spec = (X1[a][None, :] * Y1[:, b][:, None] + X2[a][:, None] * Y2[:, b][None, :]).reshape(l * m, N, hN)[k:]
+        spec = np.stack([X1[a, q % m] * Y1[q // m, b] + X2[a, q // m] * Y2[q % m, b] for q in range(k, l * m)])
         rows = scipy.fft.ifft(spec, axis=-2)[:, :n, :]
         C = 2.0 * scipy.fft.irfft(rows, N, axis=-1)[..., :n]  # (γδ, d, e)
         for q in range(k, l * m):
