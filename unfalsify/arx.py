@@ -123,7 +123,8 @@ class ArxResult:
     na, nb : int
         Orders of ``A(q)`` and ``B(q)``.
     cond_Tu : float
-        cond₂ ``T(u)``.
+        cond₂ ``T(u)`` (several inputs: of the nm × n block Toeplitz signal matrix, as in
+        :func:`unfalsify.unfalsified_gain_result`).
     certificate : Certificate
         Two-sided certificate: ``upper_bound = ‖T(h)‖₂`` and the noise recomputed from
         ``(theta, impulse)``, ``lower_bound`` from the dual point; ``verify()`` recomputes both.

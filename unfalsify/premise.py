@@ -749,7 +749,8 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     >>> e.shape, bool(np.sqrt(np.mean(e ** 2)) < 0.02)                       # about the noise level
     ((97,), True)
     >>> u2 = rng.standard_normal((300, 2))                                   # 2 × 2: y = [u₁ + u₂; u₂] delayed
-    >>> y2 = np.column_stack([np.roll(u2[:, 0] + u2[:, 1], 1), np.roll(u2[:, 1], 1)]) + 0.01 * rng.standard_normal((300, 2))
+    >>> y2 = np.column_stack([np.roll(u2[:, 0] + u2[:, 1], 1), np.roll(u2[:, 1], 1)])
+    >>> y2 += 0.01 * rng.standard_normal((300, 2))
     >>> model2 = predictor_model(sy.fit_predictor(u2[:200], y2[:200], 2), 1.0)
     >>> e2 = output_error_residual(model2, u2[200:], y2[200:], 2)            # (n − i, l)
     >>> e2.shape, bool(np.sqrt(np.mean(e2 ** 2)) < 0.02)
@@ -865,8 +866,9 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     N = u.shape[0]
     n = min(N - i, burn + int(opts.samples))
     if n < burn + 4 * i or n < 2 * burn:
-        raise DataError(f"the output-error segment has {N} samples; it needs at least {i + max(burn + 4 * i, 2 * burn)} "
-                        f"(horizon {i}, burn-in {burn}, 4i rows): pass a longer validation record")
+        raise DataError(f"the output-error segment has {N} samples; it needs at least "
+                        f"{i + max(burn + 4 * i, 2 * burn)} (horizon {i}, burn-in {burn}, 4i rows): pass a longer "
+                        "validation record")
     A = np.asarray(control.ssdata(model)[0], float)
     rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
     with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)

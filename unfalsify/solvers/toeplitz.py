@@ -644,6 +644,24 @@ def block_certified_norm(h) -> float:
     return peak / (1.0 - np.pi * (n - 1) / M)
 
 
+def _spectrum_rows(R: np.ndarray, N: int) -> np.ndarray:
+    """The rows v ≤ N/2 of a full 2-D spectrum F[v, w] (every w) from its half spectrum R (..., N, N/2 + 1)
+    of a real array: ``F[v, w] = conj F[−v, −w]`` supplies the columns w > N/2."""
+    h = N // 2 + 1
+    out = np.empty(R.shape[:-2] + (h, N), complex)
+    out[..., :h] = R[..., :h, :]
+    # rows −v mod N (v < h) and columns N − w (w ≥ h) as reversed slices (views, no gathers)
+    out[..., 0, h:] = np.conj(R[..., 0, N - h:0:-1])
+    out[..., 1:, h:] = np.conj(R[..., N - 1:N - h:-1, N - h:0:-1])
+    return out
+
+
+def _reflect(X: np.ndarray, axis: int) -> np.ndarray:
+    """``X`` at the indices −k mod N along ``axis`` (k = 0 … N−1): index 0, then the others reversed."""
+    X = np.moveaxis(X, axis, -1)
+    return np.moveaxis(np.concatenate([X[..., :1], X[..., :0:-1]], axis=-1), -1, axis)
+
+
 def block_corr_hessian(S11, S21, S22, n: int, l: int, m: int) -> np.ndarray:
     """The barrier Hessian ``tr(F⁻¹E_aF⁻¹E_b)`` of ``F = [δI_nm T(h)ᵀ; T(h) δI_nl]`` for h (n, l, m), by 2-D FFT.
 
@@ -666,23 +684,22 @@ def block_corr_hessian(S11, S21, S22, n: int, l: int, m: int) -> np.ndarray:
     R4 = S21.reshape(n, l, n, m).transpose(1, 3, 0, 2)  # [α, δ] time matrices of S21
     A4 = S11.reshape(n, m, n, m).transpose(1, 3, 0, 2)  # [δ, β] of S11
     B4 = S22.reshape(n, l, n, l).transpose(1, 3, 0, 2)  # [α, γ] of S22
-    F21 = scipy.fft.fft2(R4, (N, N))
-    F11 = scipy.fft.fft2(A4, (N, N))
-    F22 = scipy.fft.fft2(B4, (N, N))
-    v = np.arange(hN)
-    vr = (-v) % N  # reflected columns (the lag −e of C1)
-    # spectra needed at columns v ≤ N/2 only (the result is real: irfft along the last axis)
-    X1 = F21[..., :, vr]  # F(S21[α, δ])[u, −v]            (l, m, N, hN)
-    Y1 = np.conj(np.swapaxes(F21[..., vr, :], -1, -2))  # conj F(S21[γ, β])[−v, u]   (l, m, N, hN)
-    X2 = F22[..., :, :hN]  # F(S22[α, γ])[u, v]            (l, l, N, hN)
-    Y2 = np.conj(np.swapaxes(F11[..., :hN, :], -1, -2))  # conj F(S11[δ, β])[v, u]   (m, m, N, hN)
+    # half spectra (columns v ≤ N/2) of the real time matrices; the other half by conjugate symmetry
+    R21, R11, R22 = (scipy.fft.fft(scipy.fft.rfft(X, N, axis=-1), N, axis=-2) for X in (R4, A4, B4))
+    X1 = np.conj(_reflect(R21, -2))  # F(S21[α, δ])[u, −v] = conj F[−u, v]                     (l, m, N, hN)
+    Y1 = np.ascontiguousarray(np.swapaxes(_reflect(_spectrum_rows(R21, N), -1), -1, -2))  # conj F(S21[γ, β])[−v, u]
+    X2 = R22  # F(S22[α, γ])[u, v]                                                             (l, l, N, hN)
+    Y2 = np.ascontiguousarray(np.conj(np.swapaxes(_spectrum_rows(R11, N), -1, -2)))  # conj F(S11[δ, β])[v, u]
     H = np.empty((n, l, m, n, l, m))
-    for a in range(l):
-        for b in range(m):
-            # all (γ, δ) at once: spec[γ, δ] = X1[α, δ] Y1[γ, β] + X2[α, γ] Y2[δ, β]
-            spec = X1[a][None, :] * Y1[:, b][:, None] + X2[a][:, None] * Y2[:, b][None, :]
-            rows = scipy.fft.ifft(spec, axis=-2)[..., :n, :]
-            C = scipy.fft.irfft(rows, N, axis=-1)[..., :n]  # (γ, δ, d, e)
-            H[:, a, b] = 2.0 * C.transpose(2, 3, 0, 1)  # (d, e, γ, δ)
+    for k in range(l * m):
+        a, b = divmod(k, m)
+        # the combinations (γ, δ) ≥ (α, β) only: the Hessian is symmetric, C_{γδαβ}[e, d] = C_{αβγδ}[d, e]
+        spec = np.stack([X1[a, q % m] * Y1[q // m, b] + X2[a, q // m] * Y2[q % m, b] for q in range(k, l * m)])
+        rows = scipy.fft.ifft(spec, axis=-2)[:, :n, :]
+        C = 2.0 * scipy.fft.irfft(rows, N, axis=-1)[..., :n]  # (γδ, d, e)
+        for q in range(k, l * m):
+            g, dl = divmod(q, m)
+            H[:, a, b, :, g, dl] = C[q - k]
+            H[:, g, dl, :, a, b] = C[q - k].T
     return H.reshape(n * l * m, n * l * m)
 
