@@ -22,8 +22,10 @@ several channels (7.5) runs in the conditioned form on both backends, cvxpy and 
 (the solver ``block_barrier``; ``executor=`` raises :class:`UnknownSolverError` naming ``backend="cvxpy"``),
 and both return the same two-sided certificate (the MIMO dual bound is derived in
 :class:`unfalsify.solvers.columns.BlockColumnForm`).
-One channel each runs the SISO code unchanged.  ``arx_unfalsify``, ``robust_design_from_data`` and the
-premise tests are still SISO.
+``arx_unfalsify`` (multi-output equation error, one Frobenius noise ball), ``robust_design_from_data`` and
+the premise tests (H1 Welch estimate with a spectral-norm radius, local polynomial method, the excitation
+test by σ̄) take several channels too; every norm is then the largest singular value.  One channel each
+runs the SISO code unchanged.
 
 Theorem 7.1
 -----------
@@ -89,10 +91,10 @@ The certificate's premise, tested on the data
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
-   frequency_response_estimate -- Welch estimate ``S_yu/S_uu`` with simultaneous confidence disks
+   frequency_response_estimate -- Welch estimate ``S_yu S_uu⁻¹`` with simultaneous confidence regions (σ̄ radius)
    FrequencyResponseEstimate -- result of ``frequency_response_estimate``
-   low_band_estimate -- response at the lowest DFT frequencies (local polynomial method), with disks
-   LowBandEstimate -- result of ``low_band_estimate``
+   low_band_estimate      -- response at the lowest DFT frequencies (local polynomial method), with regions
+   LowBandEstimate        -- result of ``low_band_estimate``
    check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
    ExcitationCheck        -- result of ``check_excitation``
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
