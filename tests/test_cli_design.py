@@ -154,3 +154,28 @@ def test_weights_from_files_equal_the_defaults(design_run, tmp_path, capsys):
     err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--w1", "100,1,1", "--w2", "1,2,3,4",
                                   "--out", str(tmp_path)])
     assert "DC,FREQ,MAG,HF" in err
+
+
+def test_design_of_a_two_by_two_record(tmp_path, capsys):
+    """Several channels: --u and --y take comma lists; W1, W2 diagonal; a controller with inputs [r; y] (4)."""
+    import control
+
+    from experiments.studies.mimo_pipeline import coupled_lags
+
+    P = coupled_lags()
+    n = 600
+    rng = np.random.default_rng(3)
+    u = np.sign(rng.standard_normal((n, 2)))
+    y = control.forced_response(P, T=np.arange(n), U=u.T).outputs.T + 0.02 * rng.standard_normal((n, 2))
+    rows = (",".join(repr(float(v)) for v in (k, *u[k], *y[k])) for k in range(n))
+    path = tmp_path / "mimo.csv"
+    path.write_text("t,u1,u2,y1,y2\n" + "\n".join(rows) + "\n")
+    assert main(["design", str(path), "--u", "u1,u2", "--y", "y1,y2", "--horizon", "3", "--json",
+                 "--out", str(tmp_path)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["u"] == ["u1", "u2"] and summary["y"] == ["y1", "y2"]
+    assert np.isfinite(summary["delta"]) and (summary["certified"] or summary["reason"])
+    K = load_controller(summary["controller_npz"])
+    assert (K.ninputs, K.noutputs) == (4, 2)
+    assert len(summary["step_final"]) == 2
+    assert_reports_complete(tmp_path / "design", "design")
