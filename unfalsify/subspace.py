@@ -401,12 +401,13 @@ def _warm_state(prev, P: SubspaceProblem, name: str, tol: float) -> tuple[dict |
     # resume from the last centred point at least _WARM_GAP from the optimum: close enough to save the path's
     # early centrings, far enough inside for the changed problem (the last one hugs the boundaries)
     state = next((dict(c) for c in reversed(path) if c["gap"] >= _WARM_GAP), dict(path[0]) if path else {})
-    if not {"H", "d", "gap", "psi"} <= state.keys():  # e.g. a cvxpy result: its point, gap and noise slack
+    if not {"H", "d", "gap", "psi"} <= state.keys():
+        # no barrier path (e.g. a cvxpy result): its optimum, resumed at the same gap as a path point would be,
+        # with slacks as large as those of the path's centre there (an optimum hugs its boundaries, and a
+        # resume at its own tiny gap stalled in the tests)
         cert = prev.certificate
-        gap = cert.relative_gap if np.isfinite(cert.relative_gap) else tol
-        slack = 1.0 - (cert.noise_norm / cert.noise_bound) ** 2 if cert.noise_bound > 0 else 0.0
-        state = dict(H=prev.impulses, d=prev.delta, gap=gap, psi=slack, slack=gap)
-    state["gap"] = max(float(state["gap"]), 1e-3 * float(tol))
+        psi = 1.0 - (cert.noise_norm / cert.noise_bound) ** 2 if cert.noise_bound > 0 else 0.0
+        state = dict(H=prev.impulses, d=prev.delta, gap=_WARM_GAP, psi=max(psi, 1e-3), slack=1e-3)
     H = np.full((i, j), np.nan)
     c = min(j, jp - k)
     H[:, :c] = np.asarray(state["H"], float)[:, k : k + c]
