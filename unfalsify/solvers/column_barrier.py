@@ -320,6 +320,7 @@ class _ColumnBarrier(PathAdvance):
         self.center_tol = 1.0
         self.stalled = 0
         self.steps = 0
+        self.trials = 0  # Cholesky stacks tried (_point): the line search's feasibility tests and the starts
         self.desc = f"structured unfalsification ({self.m}×{self.j})"
         self._prev = None
         self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
@@ -343,6 +344,7 @@ class _ColumnBarrier(PathAdvance):
         if not (psi > 0 and d > 0):
             return None
         T, TtT = self._gram(H) if gram is None else gram
+        self.trials += 1
         inv = _chol_inverse(d * d * np.eye(self.m) - TtT, self.chunks)
         if inv is None:
             return None
@@ -663,7 +665,7 @@ class _ColumnBarrier(PathAdvance):
         up = p.upper()
         self._prev = (up, 0.0)
         out = run_barrier(self, self.f, p, self.nu / p.d if t is None else t, deadline, up)
-        out["cg"] = self.cg_iters
+        out.update(cg=self.cg_iters, trials=self.trials)
         out.pop("last")
         if self.path:
             out["state"] = dict(path=self.path)
@@ -792,7 +794,7 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
         warm = dict(warm_start, H=np.asarray(warm_start["H"], float) * (su / sy), d=float(warm_start["d"]) * su / sy)
     out = solve_columns_barrier(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
                                 workers=workers, warm=warm)
-    stats = {k: out[k] for k in ("newton", "outer", "cg", "warm", "warm_blend", "warm_newton") if k in out}
+    stats = {k: out[k] for k in ("newton", "outer", "cg", "trials", "warm", "warm_blend", "warm_newton") if k in out}
     if "state" in out:
         stats["state"] = dict(path=[dict(c, H=c["H"] * (sy / su), d=c["d"] * sy / su) for c in out["state"]["path"]])
     return unscaled(problem, out["H"], out["upper"], out["status"], clock.elapsed(), V=out["V"], W=out["W"],
