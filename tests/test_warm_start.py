@@ -153,3 +153,22 @@ def test_state_of_a_cvxpy_result_is_usable(small):
     res = _solve(small["u"], small["y"], small["sigma"] * 1.05, warm_start=ref)
     assert res.start == "warm (same window)"
     _same_delta(res, _solve(small["u"], small["y"], small["sigma"] * 1.05))
+
+
+@pytest.mark.slow
+def test_bench_warm_table_quick(tmp_path):
+    """``bench-unfalsify --backend structured --series warm --quick``: every case warm, same δ, verified."""
+    import json
+
+    from experiments.cli import main
+
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "warm",
+                 "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert st["series"] == [] and st["comparison"] is None
+    rows = st["warm"]["rows"]
+    assert len(rows) == 4
+    for r in rows:
+        assert r["overlap"] and r["cold"]["verify"] and r["warm"]["verify"]
+        assert r["warm"]["start"].startswith("warm (") and r["cold"]["start"] == "cold"
+    assert "Warm starts at (i, j) = (6, 60)" in (tmp_path / "bench_unfalsify" / "bench_unfalsify.md").read_text()
