@@ -172,3 +172,29 @@ def test_bench_warm_table_quick(tmp_path):
         assert r["overlap"] and r["cold"]["verify"] and r["warm"]["verify"]
         assert r["warm"]["start"].startswith("warm (") and r["cold"]["start"] == "cold"
     assert "Warm starts at (i, j) = (6, 60)" in (tmp_path / "bench_unfalsify" / "bench_unfalsify.md").read_text()
+
+
+def test_fixed_predictor_warm_equals_cold(small):
+    """L fixed (the predictor of each window): the same mapping of the columns, the same certified δ."""
+    import synthesis as sy
+
+    u, y, sigma = small["u"], small["y"], small["sigma"]
+    first = _solve(u[:-3], y[:-3], sigma, predictor=sy.fit_predictor(u[:-3], y[:-3], I))
+    pred = sy.fit_predictor(u[3:], y[3:], I)
+    cold = _solve(u[3:], y[3:], sigma, predictor=pred)
+    warm = _solve(u[3:], y[3:], sigma, predictor=pred, warm_start=first)
+    assert warm.start == "warm (window advanced by 3 samples)"
+    _same_delta(warm, cold)
+
+
+def test_several_channels_note_the_solver_without_warm_start():
+    rng = np.random.default_rng(3)
+    n = 2 * 3 + 40 - 1
+    u = rng.choice([-1.0, 1.0], size=(n, 2))
+    y = np.column_stack([np.convolve(u[:, 0], [0.0, 0.7, 0.2])[:n], np.convolve(u[:, 1], [0.0, 0.5])[:n]])
+    y = y + 0.1 * rng.standard_normal((n, 2))
+    kw = dict(backend="structured", progress=False)
+    first = uf.subspace_unfalsify(u, y, 3, 0.03, **kw)
+    res = uf.subspace_unfalsify(u, y, 3, 0.03 * 1.05, warm_start=first, **kw)
+    assert res.start.startswith("cold (warm start not used: solver 'block_barrier' has no warm start")
+    assert res.certificate.verify()
