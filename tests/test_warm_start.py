@@ -198,3 +198,19 @@ def test_several_channels_note_the_solver_without_warm_start():
     res = uf.subspace_unfalsify(u, y, 3, 0.03 * 1.05, warm_start=first, **kw)
     assert res.start.startswith("cold (warm start not used: solver 'block_barrier' has no warm start")
     assert res.certificate.verify()
+
+
+@pytest.mark.parametrize("k", [0, 1, 7])
+def test_columns_k_onwards_become_columns_0_onwards(case, k):
+    """The mapping itself (a solve converges from a wrongly mapped point too, so the δ tests cannot see it)."""
+    from unfalsify import subspace
+
+    u, y, n = case["u"], case["y"], case["n"]
+    P = uf.SubspaceProblem.from_data(u[k : n + k], y[k : n + k], I, case["sigma"])
+    assert subspace._window_shift(case["first"].certificate.problem, P) == k
+    state, note = subspace._warm_state(case["first"], P, "column_barrier", TOL)
+    path = case["first"].solver_stats["state"]["path"]
+    resumed = next(c for c in reversed(path) if c["gap"] >= subspace._WARM_GAP)
+    assert state["gap"] == resumed["gap"] and state["d"] == resumed["d"]
+    assert np.array_equal(state["H"][:, : J - k], resumed["H"][:, k:])
+    assert np.all(np.isnan(state["H"][:, J - k :]))
