@@ -685,8 +685,9 @@ class _ColumnBarrier(PathAdvance):
 
     def bound_due(self, t, upper) -> bool:
         """Whether the lower bound (j SVDs, 10–20 % of a solve at (20, 400)) is worth evaluating at t: once the
-        path's own gap ``ν/t`` is within :data:`_BOUND_FACTOR` × ``tol`` of ``upper`` the certified gap can close."""
-        return self.nu / t <= _BOUND_FACTOR * self.tol * upper
+        path's own gap ``ν/t`` is within :data:`_BOUND_FACTOR` × ``tol`` of ``upper`` the certified gap can close;
+        and after a stall, whose verdict (:class:`PathAdvance`) asks whether either bound improved."""
+        return bool(self.stalled) or self.nu / t <= _BOUND_FACTOR * self.tol * upper
 
     def record(self, t, p: _Point) -> None:
         """Keep the centred point at t (impulses, δ, relative gap ``ν/(tδ)``, noise slack ψ/ρ², δ slack)."""
