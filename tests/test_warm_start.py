@@ -208,7 +208,7 @@ def test_columns_k_onwards_become_columns_0_onwards(case, k):
     u, y, n = case["u"], case["y"], case["n"]
     P = uf.SubspaceProblem.from_data(u[k : n + k], y[k : n + k], I, case["sigma"])
     assert subspace._window_shift(case["first"].certificate.problem, P) == k
-    state, note = subspace._warm_state(case["first"], P, "column_barrier", TOL)
+    state, note = subspace._warm_state(case["first"], P, "column_barrier")
     path = case["first"].solver_stats["state"]["path"]
     resumed = next(c for c in reversed(path) if c["gap"] >= subspace._WARM_GAP)
     assert state["gap"] == resumed["gap"] and state["d"] == resumed["d"]

@@ -107,8 +107,9 @@ class SubspaceResult:
         How the solve started: ``"cold"``, ``"warm (window advanced by k samples)"``, or ``"cold (warm start
         not used: <why>)"`` when a ``warm_start`` was passed that the solver could not use.
     solver_stats : dict
-        The structured solvers' counts (``newton``, ``outer``, ``cg``) and, for ``column_barrier``, the
-        ``state`` of the last centring that a ``warm_start`` resumes from.  A by-product: not compared.
+        The structured solvers' counts (``newton``, ``outer``, ``cg``, ``trials``: Cholesky stacks tried)
+        and, for ``column_barrier``, ``state["path"]``: the centred points (impulses, δ, relative gap,
+        slacks; data units) that a ``warm_start`` resumes from.  A by-product: not compared.
     """
 
     delta: float
@@ -357,14 +358,14 @@ def _window_shift(old: SubspaceProblem, new: SubspaceProblem) -> int | None:
     return None
 
 
-def _warm_state(prev, P: SubspaceProblem, name: str, tol: float) -> tuple[dict | None, str]:
+def _warm_state(prev, P: SubspaceProblem, name: str) -> tuple[dict | None, str]:
     """The warm start of solver ``name`` for problem ``P`` from the earlier result ``prev``, and the start note.
 
     Raises :class:`DataError` for a ``prev`` that cannot belong to this kind of problem (not a
     :class:`SubspaceResult`, another horizon or other channels, impulses of the wrong shape); returns
     ``(None, "cold (warm start not used: …)")`` for one this solver cannot use.  A window advanced by k
     samples shifts the Hankel columns by k: old columns ``k…`` are the new columns ``0…``, the new last
-    columns are NaN (the solver gives them its cold start's impulses).
+    columns are NaN (the solver gives them ridge impulses capped at the old δ).
     """
     if not isinstance(prev, SubspaceResult):
         raise DataError(f"warm_start must be the SubspaceResult of an earlier subspace_unfalsify call; got "
@@ -477,11 +478,12 @@ def subspace_unfalsify(
         An earlier result on related data: the same record with the window advanced by k ≥ 0 samples
         (found by matching the samples; its Hankel columns ``k…`` are this window's columns ``0…``), the
         same window at another σ, or both.  The structured backend (one channel, ``column_barrier``)
-        resumes the barrier path from that solve's last centred point, made strictly feasible for the new
-        problem, instead of from the cold start; new columns take the cold start's ridge impulses.  The stop
-        is the same certified gap, so the result equals a cold solve's to ``tol``.  A warm start the solver
-        cannot use (another solver, unrelated data, no finite δ) starts cold and says why in the
-        result's ``start``.
+        resumes the barrier path from a centred point of that solve (the last one at relative gap ≥ 0.1),
+        made strictly feasible for the new problem, instead of from the cold start; new columns get ridge
+        impulses capped at the old δ.  The stop is the same certified gap, so the result equals a cold
+        solve's to ``tol``.  A warm start the solver cannot use (another solver, unrelated data, no finite
+        δ, a resumed path that stalls and is re-solved cold) says why in the result's ``start``.  A
+        result of the cvxpy backend can warm-start the structured one.
 
     Returns
     -------
@@ -562,7 +564,7 @@ def subspace_unfalsify(
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
     start = "cold"
     if warm_start is not None:
-        state, start = _warm_state(warm_start, P, name, float(tol))
+        state, start = _warm_state(warm_start, P, name)
         if state is not None:
             options["warm_start"] = state
     out = run(name, P, **options)
