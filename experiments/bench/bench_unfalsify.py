@@ -473,7 +473,8 @@ def _plot_scaling(series: list[dict], path) -> None:
     ax.set_ylabel("wall time [s]")
     ax.set_title("structured backend: time vs size")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # none with --series warm (the warm-start table alone)
+        ax.legend(fontsize=8)
     save_figure(fig, path)
 
 
