@@ -60,9 +60,10 @@ COMMANDS: dict[str, tuple] = {
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
                                                                      "(default: cvxpy)")),
-                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace"), default="all",
-                                              help="structured backend: all series, the ARX rows or the "
-                                                   "subspace rows only")))),
+                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm"),
+                                              default="all",
+                                              help="structured backend: all series, the ARX rows, the "
+                                                   "subspace rows or the warm-start table only")))),
     "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",

@@ -100,6 +100,16 @@ class SubspaceResult:
         ``s_y`` = rms of the predictor residual).
     regressor_singular_values : ndarray
         Singular values of ``A = [W_p; U_f]``.
+    backend : str
+    n_inputs, n_outputs : int
+        m and l.
+    start : str
+        How the solve started: ``"cold"``, ``"warm (window advanced by k samples)"``, or ``"cold (warm start
+        not used: <why>)"`` when a ``warm_start`` was passed that the solver could not use.
+    solver_stats : dict
+        The structured solvers' counts (``newton``, ``outer``, ``cg``, ``trials``: Cholesky stacks tried)
+        and, for ``column_barrier``, ``state["path"]``: the centred points (impulses, δ, relative gap,
+        slacks; data units) that a ``warm_start`` resumes from.  A by-product: not compared.
     """
 
     delta: float
@@ -122,6 +132,8 @@ class SubspaceResult:
     backend: str = "cvxpy"
     n_inputs: int = 1
     n_outputs: int = 1
+    start: str = "cold"
+    solver_stats: dict = field(default_factory=dict, compare=False)
 
     @property
     def max_violation(self) -> float:
@@ -325,6 +337,85 @@ class SubspaceProblem:
         return self.column_form(scaled=False).lower_bound(V, W, rho=sigma * np.sqrt(self.Uf.size))
 
 
+#: A warm start resumes from the last centred point of the earlier solve whose relative gap ν/(tδ) is at least this.
+_WARM_GAP = 0.1
+
+
+def _window_shift(old: SubspaceProblem, new: SubspaceProblem) -> int | None:
+    """The k ≥ 0 with ``new`` samples ``0…`` equal to ``old`` samples ``k…`` (u and y, over their overlap), or None.
+
+    Exact equality: a window advanced on the same record holds the very same floats.  Candidates are the
+    samples of the old record equal to the new first one (few: y is not quantised), each checked in O(n).
+    """
+    zo = np.hstack([old.u.reshape(old.u.shape[0], -1), old.y.reshape(old.y.shape[0], -1)])
+    zn = np.hstack([new.u.reshape(new.u.shape[0], -1), new.y.reshape(new.y.shape[0], -1)])
+    if zo.shape[1] != zn.shape[1]:
+        return None
+    for k in np.flatnonzero(np.all(zo == zn[0], axis=1)):
+        n = min(zn.shape[0], zo.shape[0] - int(k))
+        if np.array_equal(zo[k : k + n], zn[:n]):
+            return int(k)
+    return None
+
+
+def _warm_state(prev, P: SubspaceProblem, name: str) -> tuple[dict | None, str]:
+    """The warm start of solver ``name`` for problem ``P`` from the earlier result ``prev``, and the start note.
+
+    Raises :class:`DataError` for a ``prev`` that cannot belong to this kind of problem (not a
+    :class:`SubspaceResult`, another horizon or other channels, impulses of the wrong shape); returns
+    ``(None, "cold (warm start not used: …)")`` for one this solver cannot use.  A window advanced by k
+    samples shifts the Hankel columns by k: old columns ``k…`` are the new columns ``0…``, the new last
+    columns are NaN (the solver gives them ridge impulses capped at the old δ).
+    """
+    if not isinstance(prev, SubspaceResult):
+        raise DataError(f"warm_start must be the SubspaceResult of an earlier subspace_unfalsify call; got "
+                        f"{type(prev).__name__} (pass that result, or warm_start=None)")
+    i, m, l = P.horizon, P.n_inputs, P.n_outputs
+    if prev.horizon != i:
+        raise DataError(f"warm_start comes from a solve with horizon {prev.horizon}, this one has horizon {i}: pass "
+                        f"the result of a solve with horizon={i}, or warm_start=None")
+    if (prev.n_inputs, prev.n_outputs) != (m, l):
+        raise DataError(f"warm_start comes from data with {prev.n_inputs} input(s) and {prev.n_outputs} output(s), "
+                        f"these have {m} and {l}: pass the result of a solve on the same channels, or warm_start=None")
+    shape = (i, prev.n_columns) if P.siso else (i, l, m, prev.n_columns)
+    if np.shape(prev.impulses) != shape:
+        raise DataError(f"warm_start.impulses has shape {np.shape(prev.impulses)}, not {shape} (horizon {i}, its "
+                        f"{prev.n_columns} columns): pass a SubspaceResult as subspace_unfalsify returned it")
+
+    def cold(why):
+        return None, f"cold (warm start not used: {why})"
+
+    if name != "column_barrier":
+        return cold(f"solver {name!r} has no warm start; it needs backend='structured' on one channel "
+                    "without executor=")
+    if not (np.isfinite(prev.delta) and np.all(np.isfinite(prev.impulses))):
+        return cold("the earlier solve has no finite δ")
+    old = getattr(prev.certificate, "problem", None)
+    k = _window_shift(old, P) if isinstance(old, SubspaceProblem) else None
+    if k is None:
+        return cold("these data do not continue the earlier window (its samples k… are not this window's first "
+                    "samples for any k)")
+    j, jp = P.n_columns, prev.n_columns
+    if k >= jp:
+        return cold(f"the window advanced by {k} samples, at least the {jp} columns of the earlier one: none in common")
+    path = list((prev.solver_stats.get("state") or {}).get("path") or [])
+    # resume from the last centred point at least _WARM_GAP from the optimum: close enough to save the path's
+    # early centrings, far enough inside for the changed problem (the last one hugs the boundaries)
+    state = next((dict(c) for c in reversed(path) if c["gap"] >= _WARM_GAP), dict(path[0]) if path else {})
+    if not {"H", "d", "gap", "psi"} <= state.keys():
+        # no barrier path (e.g. a cvxpy result): its optimum, resumed at the same gap as a path point would be,
+        # with slacks as large as those of the path's centre there (an optimum hugs its boundaries, and a
+        # resume at its own tiny gap stalled in the tests)
+        cert = prev.certificate
+        psi = 1.0 - (cert.noise_norm / cert.noise_bound) ** 2 if cert.noise_bound > 0 else 0.0
+        state = dict(H=prev.impulses, d=prev.delta, gap=_WARM_GAP, psi=max(psi, 1e-3), slack=1e-3)
+    H = np.full((i, j), np.nan)
+    c = min(j, jp - k)
+    H[:, :c] = np.asarray(state["H"], float)[:, k : k + c]
+    state["H"] = H
+    return state, ("warm (same window)" if k == 0 else f"warm (window advanced by {k} sample{'s' if k > 1 else ''})")
+
+
 def subspace_unfalsify(
     u,
     y,
@@ -342,6 +433,7 @@ def subspace_unfalsify(
     progress: bool = True,
     executor=None,
     workers: int | None = None,
+    warm_start: SubspaceResult | None = None,
 ) -> SubspaceResult:
     """Smallest δ bounding the column operators ``Δ_k`` that unfalsify the subspace model: (7.5).
 
@@ -382,6 +474,16 @@ def subspace_unfalsify(
         threads do not compete with BLAS's own; the result equals the one-thread solve up to the
         order of floating-point sums.  One channel only: the solver for several channels
         (``block_barrier``) runs on one thread and ignores it.
+    warm_start : SubspaceResult, optional
+        An earlier result on related data: the same record with the window advanced by k ≥ 0 samples
+        (found by matching the samples; its Hankel columns ``k…`` are this window's columns ``0…``), the
+        same window at another σ, or both.  The structured backend (one channel, ``column_barrier``)
+        resumes the barrier path from a centred point of that solve (the last one at relative gap ≥ 0.1),
+        made strictly feasible for the new problem, instead of from the cold start; new columns get ridge
+        impulses capped at the old δ.  The stop is the same certified gap, so the result equals a cold
+        solve's to ``tol``.  A warm start the solver cannot use (another solver, unrelated data, no finite
+        δ, a resumed path that stalls and is re-solved cold) says why in the result's ``start``.  A
+        result of the cvxpy backend can warm-start the structured one.
 
     Returns
     -------
@@ -396,6 +498,9 @@ def subspace_unfalsify(
     UnknownSolverError
         Unknown backend (a ``ValueError``; the message lists the valid names), or several channels with
         ``executor=`` (the message names ``backend="cvxpy"``).
+    DataError
+        ``warm_start`` that is not a :class:`SubspaceResult` of this horizon and these channels (the message
+        names the fix).
     ValueError
         Unknown form (``form="thesis"`` with several channels); incompatible options.
     UnfalsificationError
@@ -418,6 +523,12 @@ def subspace_unfalsify(
     >>> fast = subspace_unfalsify(u, y, 3, 0.02, backend="structured", progress=False)
     >>> bool(abs(fast.delta - sub.delta) <= 1e-4 * sub.delta)
     True
+
+    The window advanced by 5 samples, re-solved from the solve above (same certified tolerance):
+
+    >>> nxt = subspace_unfalsify(u[5:], y[5:], 3, 0.02, backend="structured", progress=False, warm_start=fast)
+    >>> nxt.start, bool(nxt.certificate.verify())
+    ('warm (window advanced by 5 samples)', True)
     """
     form = check_form(form)
     name = resolve("subspace", backend)
@@ -451,7 +562,15 @@ def subspace_unfalsify(
         options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
     else:
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
+    start = "cold"
+    if warm_start is not None:
+        state, start = _warm_state(warm_start, P, name)
+        if state is not None:
+            options["warm_start"] = state
     out = run(name, P, **options)
+    note = out.stats.get("warm")
+    if note is not None and note != "used":
+        start = f"cold (warm start not used: {note})"
     cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
     L = out.params
     w = i * (m + l)  # columns of L_w
@@ -476,4 +595,6 @@ def subspace_unfalsify(
         backend=backend,
         n_inputs=m,
         n_outputs=l,
+        start=start,
+        solver_stats=dict(out.stats),
     )

@@ -31,6 +31,13 @@ arx`` / ``--series subspace``: those rows only); each row carries the certified 
 peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
 (δ difference and speed ratio; Clarabel's child gets 900 s).  ``both`` runs the cvxpy series and the
 structured series.
+
+The structured rows report the Newton steps and trial factorisations (Cholesky stacks tried, line search
+included) where the solver counts them.  The **warm-start table** (``--backend structured``, series ``all``
+or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
+(``subspace_unfalsify(..., warm_start=...)``) of the same new problem at (i, j) = (20, 400), L optimised,
+tol 1e-4: the window advanced by k ∈ {1, 10, 50} samples, and the same window at σ × 1.05; median of 3
+repeats, load average noted.
 """
 from __future__ import annotations
 
@@ -246,7 +253,98 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         "status": res.status, "delta": res.delta, "lower": cert.lower_bound, "upper": cert.upper_bound,
         "relative_gap": cert.relative_gap, "verify": bool(cert.verify()), "wall_s": wall,
         "peak_rss_mb": _rss_mb(), "rss_start_mb": rss0, "cond_Tu": res.cond_Tu,
+        # Newton steps and trial factorisations (column_barrier; the ARX rows have the Newton steps only)
+        "newton": getattr(res, "solver_stats", {}).get("newton"),
+        "trials": getattr(res, "solver_stats", {}).get("trials"),
     }
+
+
+def _count(x):
+    return "" if x is None else int(x)
+
+
+#: warm-start table (issue 27, item 4): (i, j), window advances k, the σ factor of the same-window case, repeats
+WARM_SIZE, WARM_SHIFTS, WARM_SIGMA_FACTOR, WARM_REPEATS = (20, 400), (1, 10, 50), 1.05, 3
+QUICK_WARM_SIZE, QUICK_WARM_REPEATS = (6, 60), 1
+
+
+def _solve_warm_case(spec: dict, case, seed: int) -> dict:
+    """One warm-start case in the child process: the first window's cold solve (not timed), then ``repeats``
+    × (cold solve of the new problem, warm solve of it from the first), each timed around the whole
+    ``subspace_unfalsify`` call; medians, and the load average before and after."""
+    import unfalsify as uf
+
+    warnings.simplefilter("ignore")
+    (i, j), (k, factor), repeats = spec["size"], case, spec["repeats"]
+    n = 2 * i + j - 1
+    u, y = _data(n + max(spec["shifts"]), seed)
+    A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    sigma = 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
+    kw = dict(backend="structured", tol=spec["tol"], progress=False, workers=1)
+    first = uf.subspace_unfalsify(u[:n], y[:n], i, sigma, **kw)
+    load0 = os.getloadavg()[0]
+    runs = {"cold": [], "warm": []}
+    for _ in range(repeats):
+        for name, extra in (("cold", {}), ("warm", {"warm_start": first})):
+            t0 = time.perf_counter()
+            res = uf.subspace_unfalsify(u[k : n + k], y[k : n + k], i, sigma * factor, **kw, **extra)
+            wall = time.perf_counter() - t0
+            cert = res.certificate
+            runs[name].append(dict(wall=wall, solve=res.solve_time, newton=res.solver_stats.get("newton"),
+                                   outer=res.solver_stats.get("outer"), trials=res.solver_stats.get("trials"),
+                                   gap=cert.relative_gap, delta=res.delta, verify=bool(cert.verify()),
+                                   lower=cert.lower_bound, upper=cert.upper_bound, start=res.start))
+    out = {"k": k, "sigma_factor": factor, "load": (load0, os.getloadavg()[0]), "peak_rss_mb": _rss_mb()}
+    for name, rs in runs.items():
+        out[name] = dict(rs[-1], wall=float(np.median([r["wall"] for r in rs])),
+                         solve=float(np.median([r["solve"] for r in rs])), walls=[r["wall"] for r in rs],
+                         verify=all(r["verify"] for r in rs))
+    c, w = out["cold"], out["warm"]
+    out["overlap"] = bool(max(c["lower"], w["lower"]) <= min(c["upper"], w["upper"]) * (1 + 1e-9))
+    return out
+
+
+def _run_warm(opts) -> dict:
+    """The warm-start table: each case in its own child process (``_solve_warm_case``)."""
+    spec = dict(size=QUICK_WARM_SIZE if opts.quick else WARM_SIZE, repeats=QUICK_WARM_REPEATS if opts.quick
+                else WARM_REPEATS, shifts=WARM_SHIFTS, tol=1e-4)
+    cases = [(k, 1.0) for k in WARM_SHIFTS] + [(0, WARM_SIGMA_FACTOR)]
+    rows = []
+    for case in tqdm(cases, desc="bench-unfalsify: warm starts", leave=False):
+        row = _run_with_budget(spec, case, opts.seed, 1200.0, worker=_solve_warm_case, label=str(case))
+        rows.append(row)
+        if "cold" in row:
+            tqdm.write(f"[bench-unfalsify] warm start {case}: cold {row['cold']['wall']:.2f} s, warm "
+                       f"{row['warm']['wall']:.2f} s", file=sys.stderr)
+    return {"size": spec["size"], "repeats": spec["repeats"], "tol": spec["tol"], "rows": rows}
+
+
+def _report_warm(rep: Report, warm: dict) -> None:
+    i, j = warm["size"]
+    rep.section(f"Warm starts at (i, j) = ({i}, {j}), L optimised, tol {warm['tol']:g}")
+    rep.text(
+        "`subspace_unfalsify(..., warm_start=first)`, `first` the cold solve of the first window; the new problem "
+        f"is the window advanced by k samples (same σ) or the first window at σ × {WARM_SIGMA_FACTOR}. Cold and "
+        f"warm alternate, {warm['repeats']} repeat(s) each, medians; `wall` is the whole call (problem set-up, "
+        "solve, certificate), `solve` the solver's own time; `workers=1`. `overlap`: the two certified brackets "
+        "intersect (the same δ to the certified gap). Load: 1-min load average before → after the case."
+    )
+    rows = []
+    for r in warm["rows"]:
+        if "cold" not in r:
+            rows.append([r.get("label"), r.get("status"), *[""] * 12])
+            continue
+        c, w = r["cold"], r["warm"]
+        case = f"k = {r['k']}" if r["sigma_factor"] == 1.0 else f"σ × {r['sigma_factor']:g}"
+        rows.append([case, c["wall"], w["wall"], w["wall"] / c["wall"], c["solve"], w["solve"], _count(c["newton"]),
+                     _count(w["newton"]), _count(c["trials"]), _count(w["trials"]), c["gap"], w["gap"],
+                     f"{r['overlap']} / {c['verify'] and w['verify']}", f"{r['load'][0]:.1f} → {r['load'][1]:.1f}"])
+    rep.table(["case", "cold wall [s]", "warm wall [s]", "warm/cold", "cold solve [s]", "warm solve [s]",
+               "cold Newton", "warm Newton", "cold trials", "warm trials", "cold gap", "warm gap",
+               "overlap / verify", "load"], rows, floatfmt=".3g")
+    starts = sorted({r["warm"]["start"] for r in warm["rows"] if "warm" in r})
+    rep.text("Warm starts: " + "; ".join(f"`{s}`" for s in starts) + ".")
 
 
 def _label(spec: dict, size: int) -> str:
@@ -375,7 +473,8 @@ def _plot_scaling(series: list[dict], path) -> None:
     ax.set_ylabel("wall time [s]")
     ax.set_title("structured backend: time vs size")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # none with --series warm (the warm-start table alone)
+        ax.legend(fontsize=8)
     save_figure(fig, path)
 
 
@@ -415,7 +514,7 @@ def _run_structured(opts, rep: Report) -> dict:
     only = (getattr(opts, "extra", None) or {}).get("series") or "all"
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
-            continue
+            continue  # (--series warm: the warm-start table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
@@ -430,7 +529,8 @@ def _run_structured(opts, rep: Report) -> dict:
         series.append({"series": spec["name"], "kind": spec["kind"], "L_fixed": spec.get("fixed"), "tol": spec["tol"],
                        "rows": rows, "exponent": _fit_exponent(rows)})
 
-    comparison = None if only == "subspace" else _compare_arx(opts, limit)
+    comparison = None if only in ("subspace", "warm") else _compare_arx(opts, limit)
+    warm = _run_warm(opts) if only in ("all", "warm") else None
 
     rep.section("Structured backend")
     rep.text(
@@ -446,13 +546,14 @@ def _run_structured(opts, rep: Report) -> dict:
         "least-squares predictor (`synthesis.fit_predictor`), which is also the fixed L. Peak RSS is that of "
         "the child process (it starts at `RSS₀`: the interpreter with numpy/scipy/cvxpy loaded)."
     )
-    headers = ["series", "size", "status", "lower", "upper", "gap", "tol", "verify", "wall [s]", "peak RSS [MB]",
-               "RSS₀ [MB]"]
+    headers = ["series", "size", "status", "lower", "upper", "gap", "tol", "verify", "wall [s]", "Newton",
+               "trial fact.", "peak RSS [MB]", "RSS₀ [MB]"]
     rows_md, rows_csv = [], []
     for s in series:
         for r in s["rows"]:
             vals = [r.get("status"), r.get("lower", float("nan")), r.get("upper", float("nan")),
                     r.get("relative_gap", float("nan")), s["tol"], r.get("verify", ""), r["wall_s"],
+                    _count(r.get("newton")), _count(r.get("trials")),
                     r.get("peak_rss_mb", float("nan")), r.get("rss_start_mb", float("nan"))]
             rows_md.append([s["series"], r["label"], *vals])
             rows_csv.append([s["series"], r["label"], r.get("size"), r.get("n_samples"), *vals,
@@ -462,17 +563,19 @@ def _run_structured(opts, rep: Report) -> dict:
     rep.table(["series", "p"], [[s["series"], s["exponent"]] for s in series], floatfmt=".2f")
     if comparison is not None:
         _report_comparison(rep, comparison)
+    if warm is not None:
+        _report_warm(rep, warm)
     csv_path = opts.out / "bench_unfalsify_structured.csv"
     opts.out.mkdir(parents=True, exist_ok=True)
     with csv_path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["series", "label", "unknowns", "n_samples", "status", "lower", "upper", "relative_gap", "tol",
-                    "verify", "wall_s", "peak_rss_mb", "rss_start_mb", "delta", "error"])
+                    "verify", "wall_s", "newton", "trials", "peak_rss_mb", "rss_start_mb", "delta", "error"])
         w.writerows(rows_csv)
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "comparison": comparison, "time_limit_s": limit, "csv": csv_path.name,
+    return {"series": series, "comparison": comparison, "warm": warm, "time_limit_s": limit, "csv": csv_path.name,
             "figure": png.name}
 
 

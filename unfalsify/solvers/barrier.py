@@ -113,20 +113,33 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
 
     ``upper`` is the certified norm of the starting point's impulses.  Returns the best bracket:
     ``lower``, ``upper``, the impulses ``H`` of the upper side, the dual point ``V``, ``W`` of the lower
-    side, ``status``, ``newton``, ``outer`` and ``time``.
+    side, ``status``, ``newton``, ``outer`` and ``time``; and the last centred point ``last`` with its path
+    parameter ``t`` (None before the first centring).  A method with a ``record(t, point)`` method is shown
+    every centred point (what a warm start of a related problem resumes from); one with ``bound_due(t, upper)``
+    has the lower bound evaluated only where that is true (the rest of the loop sees the best bound so far;
+    a bound skipped at the last centring is evaluated when the loop ends, whatever ended it).
     """
-    best = dict(lower=0.0, upper=upper, H=method.impulses(point), V=None, W=None, newton=0, outer=0)
-    status, bar = "optimal", None
+    best = dict(lower=0.0, upper=upper, H=method.impulses(point), V=None, W=None, newton=0, outer=0, last=None,
+                t=None)
+    status, bar, pending = "optimal", None, None
+    bound_due = getattr(method, "bound_due", lambda t, upper: True)
     try:
         while True:
             point, step = method.centre(t, point, deadline)
+            best.update(last=point, t=t)
+            if hasattr(method, "record"):
+                method.record(t, point)
             upper = method.upper(point)
             if upper < best["upper"]:
                 best.update(upper=upper, H=method.impulses(point))
             V, W = method.dual(t, point, step)
-            lower = form.lower_bound(V, W)
-            if lower > best["lower"]:
-                best.update(lower=lower, V=V, W=W)
+            if bound_due(t, upper):
+                lower = form.lower_bound(V, W)
+                pending = None
+                if lower > best["lower"]:
+                    best.update(lower=lower, V=V, W=W)
+            else:  # far from the tolerance: the bound (SVDs) can wait; evaluated if the loop ends here
+                lower, pending = best["lower"], (V, W)
             best.update(newton=method.steps, outer=best["outer"] + 1)
             bar = tick_progress(bar, method.progress, deadline.elapsed(), method.desc, method.steps, best)
             if gap_closed(best, method.tol):
@@ -137,6 +150,13 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     finally:
         if bar is not None:
             bar.close()
+    if pending is not None:  # a stop before the bounds were due: the last centring's bound, as before
+        try:
+            lower = form.lower_bound(*pending)
+            if lower > best["lower"]:
+                best.update(lower=lower, V=pending[0], W=pending[1])
+        except (KeyboardInterrupt, *SOLVE_ERRORS):
+            pass
     best.update(status=status, newton=method.steps, time=deadline.elapsed())
     return best
 

@@ -32,6 +32,17 @@ w = 60).  Structure used:
   ‖T(h_k)‖ = δ crawled for 30 full Newton steps of 7e-5 each in the second centring.  Steps use a safeguarded secant line search
   on the slope of f_t (function values lose their digits at large t), not the short damped step.
 
+* **Warm starts** (``warm=``, :meth:`_ColumnBarrier.warm`).  Every centred point is recorded (impulses, δ,
+  relative gap ``ν/(tδ)``, slacks); a related problem (window advanced by k samples: old columns k… are the
+  new columns 0…; or another σ) resumes from the last recorded point at gap ≥ 0.1 (chosen by the front end),
+  made strictly feasible, at that gap's t.  Later points hug the boundaries and stalled after the data moved
+  (measured at (20, 400): 60 Newton steps at λ² ≈ 3 after a one-sample advance); a resumed path that still
+  stalls is re-solved cold.  The tail of the path (about 4 steps per centring, set by ``_NOISE_KEEP``) is
+  what a warm start cannot skip: 23–33 Newton steps against 36–38 cold there.
+* **Lower bounds when they can close the gap.**  The bound costs j SVDs; it is evaluated once ``ν/t`` is
+  within :data:`_BOUND_FACTOR` × tol of δ (:meth:`_ColumnBarrier.bound_due`), and at the last centring whatever
+  ends the solve.
+
 * **Threads over columns.**  The stacks (products, Cholesky factors, FFT Hessians) are split into
   contiguous column chunks run on a thread pool (:class:`_Chunks`, ``workers=``), BLAS held to one
   thread per worker.
@@ -282,6 +293,14 @@ def _deflation(Cmul, W):
         return None
 
 
+#: The lower bound is evaluated once the path's gap ν/t is within this factor of the tolerance (``bound_due``).
+_BOUND_FACTOR = 100.0
+#: Warm start (:meth:`_ColumnBarrier.warm`): the noise slack kept, as a fraction of the old centre's.
+_WARM_PSI = 0.5
+#: Warm start: a centring ends when λ² ≤ _FAR_DECREMENT has not halved over this many Newton steps.
+_WARM_STAGNATION = 4
+#: New columns of a warm start keep ``‖T(h_k)‖₂`` at most this fraction of the old δ (:meth:`_capped_ridge`).
+_WARM_CAP = 0.9
 #: Fraction of the noise slack ψ a line-search step must keep (``_noise_step``).
 _NOISE_KEEP = 0.5
 #: Newton decrement λ² above which a step counts as far from the centre (inexact CG, see ``_centre``).
@@ -312,8 +331,12 @@ class _ColumnBarrier(PathAdvance):
         self.center_tol = 1.0
         self.stalled = 0
         self.steps = 0
+        self.trials = 0  # Cholesky stacks tried (_point): the line search's feasibility tests and the starts
         self.desc = f"structured unfalsification ({self.m}×{self.j})"
         self._prev = None
+        self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
+        self.path = []  # the centred points (record())
+        self.warm_started = False  # set by warm()
 
     # ---- evaluation --------------------------------------------------------------------------
     def _resid(self, H):
@@ -332,6 +355,7 @@ class _ColumnBarrier(PathAdvance):
         if not (psi > 0 and d > 0):
             return None
         T, TtT = self._gram(H) if gram is None else gram
+        self.trials += 1
         inv = _chol_inverse(d * d * np.eye(self.m) - TtT, self.chunks)
         if inv is None:
             return None
@@ -497,7 +521,7 @@ class _ColumnBarrier(PathAdvance):
     def start(self, B0) -> _Point:
         """Ridge impulses with ``‖B0 − H̃‖_F = 0.7 ρ`` (B0 = B minus a point of 𝓛), δ 20 % above their norm."""
         parts = self.chunks.map(lambda sl: np.linalg.svd(self.Tu[sl]), self.j, self.Tu.size)
-        Us, s, Vt = (np.concatenate(x) for x in zip(*parts))
+        Us, s, Vt = self._svd = tuple(np.concatenate(x) for x in zip(*parts))
         beta = np.einsum("kia,ik->ka", Us, B0)
         target = (0.7 * self.f.rho) ** 2
         lam = ridge_lambda(s, beta, target)
@@ -508,6 +532,93 @@ class _ColumnBarrier(PathAdvance):
         if p is None:  # pragma: no cover - the ridge point is strictly inside by construction
             raise Stop("failed")
         return p
+
+    def warm(self, B0, warm: dict):
+        """A strictly feasible point near a centred point of a related solve, and the t to resume at.
+
+        ``warm``: ``H`` (m × j, scaled units; NaN columns are new), ``d`` (that point's δ), ``gap``
+        (``ν/(t δ)`` of its centring), ``psi`` (its noise slack over ρ²) and ``slack`` (its ``δ/max_k‖T(h_k)‖₂ − 1``).
+        New columns get ridge impulses capped at :data:`_WARM_CAP` × the old δ (:meth:`_capped_ridge`).  If the
+        residual then leaves the noise ball (new data, a new predictor space, a smaller σ), the smallest
+        ridge correction of all columns brings it back to the old slack (the projection onto 𝓛^⊥ can only
+        shorten the corrected residual); as a safety net the point then moves along the segment to the cold
+        ridge start (strictly feasible, so the segment stays in the convex domain) until the noise slack is
+        :data:`_WARM_PSI` of the old one.  δ is then
+        raised above every column's ``‖T(h_k)‖₂`` by the old relative slack, and t is the old centring's in
+        this problem's terms (the same ``ν/(tδ)``; measured at (20, 400): resuming at the trace rule
+        ``t = Σ tr F_k⁻¹`` or one μ-step below the old t cost as many Newton steps or more).
+        Returns ``(point, t)``, or None when the point is unusable (then the caller starts cold).
+        """
+        ridge = self.start(B0)
+        H = np.asarray(warm["H"], float)
+        if H.shape != (self.m, self.j):
+            return None
+        new = ~np.all(np.isfinite(H), axis=0)
+        d_old = float(warm.get("d", np.nan))
+        if np.any(new):
+            H = H.copy()
+            H[:, new] = self._capped_ridge(B0[:, new], self.Tu[new], _WARM_CAP * d_old) if np.isfinite(d_old) \
+                else ridge.H[:, new]
+        rho2 = self.f.rho**2
+        psi_min = min(_WARM_PSI * max(float(warm["psi"]), 0.0) * rho2, ridge.psi)
+        rw = self._resid(H)
+        if float(np.sum(rw * rw)) > rho2 - psi_min:
+            # outside the noise ball (new data, a new predictor space, a smaller σ): the smallest ridge
+            # correction of every column that brings the residual back inside (λ as large as possible)
+            Us, s, Vt = self._svd
+            beta = np.einsum("kia,ik->ka", Us, rw)
+            lam = ridge_lambda(s, beta, rho2 - 2.0 * psi_min)
+            H = H + np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
+            rw = self._resid(H)
+        # smallest a with ‖r_w + a (r_r − r_w)‖² ≤ ρ² − ψ_min (the residual is affine in a): the segment to the
+        # strictly feasible ridge start, should the correction above fall short by rounding
+        dr = ridge.r - rw
+        qa, qb, qc = float(np.sum(dr * dr)), 2.0 * float(np.sum(rw * dr)), float(np.sum(rw * rw)) - (rho2 - psi_min)
+        if qc <= 0.0:
+            a = 0.0
+        elif qa <= 0.0:
+            a = 1.0
+        else:
+            a = min(1.0, (-qb - np.sqrt(max(qb * qb - 4.0 * qa * qc, 0.0))) / (2.0 * qa))
+        H = H + a * (ridge.H - H)
+        gram = self._gram(H)
+        up = _max_norm(gram[1], self.chunks)
+        gap = float(warm["gap"])
+        if not (np.isfinite(gap) and gap > 0.0 and np.all(np.isfinite(H))):
+            return None
+        slack = min(max(float(warm.get("slack", 0.0)), 1e-9), 0.2)
+        p = self._point(H, up * (1.0 + slack) + 1e-12, gram)
+        if p is None:
+            return None
+        self.warm_blend, self.warm_started = float(a), True
+        # the old centring's t, in this problem's terms: the same relative gap ν/(tδ) (measured at (20, 400):
+        # resuming at the trace rule t = Σ tr F_k⁻¹ or one μ-step below the old t cost as many or more steps)
+        return p, self.nu / (gap * p.d)
+
+    def _capped_ridge(self, B0, Tu, cap: float) -> np.ndarray:
+        """Ridge impulses of the columns ``B0`` (m × c, inputs ``Tu`` (c, m, m)), each with the smallest λ
+        that keeps ``‖T(h_k)‖₂ ≤ cap``.
+
+        The new columns of an advanced window: the cold start's ridge impulses fit the data with the whole
+        noise budget to spare and have norms far above the old δ (measured at (20, 400): 6.6 against 1.7),
+        which would throw the resumed point far off the path; capped at the old δ they sit where the old
+        columns are.  Bisection on log₁₀ λ for all columns at once (the norm falls as λ grows)."""
+        Us, s, Vt = np.linalg.svd(Tu)
+        beta = np.einsum("kia,ik->ka", Us, B0)
+
+        def impulses(lam):
+            return np.einsum("kai,ka->ik", Vt, s / (s * s + lam[:, None]) * beta)
+
+        def norms(H):
+            T = toeplitz_stack(H)
+            return np.sqrt(np.maximum(np.linalg.eigvalsh(_tr(T) @ T)[:, -1], 0.0))
+
+        lo, hi = np.full(B0.shape[1], -30.0), np.full(B0.shape[1], 10.0)
+        for _ in range(45):
+            mid = 0.5 * (lo + hi)
+            over = norms(impulses(10.0**mid)) > cap
+            lo, hi = np.where(over, mid, lo), np.where(over, hi, mid)
+        return impulses(10.0**hi)
 
     # ---- main loop ---------------------------------------------------------------------------
     def centre(self, t, p, deadline: Deadline):
@@ -520,7 +631,7 @@ class _ColumnBarrier(PathAdvance):
         to 2e-6 relative; the steps near the centre, whose directions also make the dual point, keep
         ``cg_tol``.
         """
-        lam2_prev = np.inf
+        lam2_prev, recent = np.inf, []
         for _ in range(60):
             deadline.check()
             self.far = lam2_prev > _FAR_DECREMENT
@@ -533,6 +644,13 @@ class _ColumnBarrier(PathAdvance):
                 self.stalled += 1
                 break
             if lam2 <= self.center_tol:
+                break
+            recent = (recent + [lam2])[-_WARM_STAGNATION:]
+            if self.warm_started and lam2 <= _FAR_DECREMENT and len(recent) == _WARM_STAGNATION \
+                    and min(recent[1:]) > 0.5 * recent[0]:
+                # warm start: full Newton steps that no longer reduce λ² (measured at (20, 400), window advanced by
+                # one sample: λ² between 2 and 4 for 50 steps).  Near enough to the centre for the dual point,
+                # whose bound is certified wherever it is taken; the path goes on from here.
                 break
             pn, _ = self._line_search(t, p, dh, dlt, -lam2)
             if pn is None:  # rounding-level stall: take the bounds here; run() stops if they do not improve
@@ -552,17 +670,33 @@ class _ColumnBarrier(PathAdvance):
         dh, dlt, _ = step
         return self._dual(t, p, dh, dlt)
 
-    def run(self, p: _Point) -> dict:
+    def run(self, p: _Point, t: float | None = None) -> dict:
+        """:func:`run_barrier` from ``p`` at path parameter ``t`` (default the cold ``ν/δ``); adds the CG count
+        and the state a warm start of a related problem needs (``state``: :meth:`warm`'s ``d``, ``gap``, ``psi``)."""
         deadline = Deadline(self.time_limit)
         up = p.upper()
         self._prev = (up, 0.0)
-        out = run_barrier(self, self.f, p, self.nu / p.d, deadline, up)
-        out["cg"] = self.cg_iters
+        out = run_barrier(self, self.f, p, self.nu / p.d if t is None else t, deadline, up)
+        out.update(cg=self.cg_iters, trials=self.trials)
+        out.pop("last")
+        if self.path:
+            out["state"] = dict(path=self.path)
         return out
+
+    def bound_due(self, t, upper) -> bool:
+        """Whether the lower bound (j SVDs, 10–20 % of a solve at (20, 400)) is worth evaluating at t: once the
+        path's own gap ``ν/t`` is within :data:`_BOUND_FACTOR` × ``tol`` of ``upper`` the certified gap can close;
+        and after a stall, whose verdict (:class:`PathAdvance`) asks whether either bound improved."""
+        return bool(self.stalled) or self.nu / t <= _BOUND_FACTOR * self.tol * upper
+
+    def record(self, t, p: _Point) -> None:
+        """Keep the centred point at t (impulses, δ, relative gap ``ν/(tδ)``, noise slack ψ/ρ², δ slack)."""
+        self.path.append(dict(H=p.H, d=float(p.d), gap=float(self.nu / (t * p.d)), psi=float(p.psi / self.f.rho**2),
+                              slack=float(p.d / p.upper() - 1.0)))
 
 
 def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_limit=None, progress=True,
-                          mu=5.0, noise_weight=None, workers: int | None = 1) -> dict:
+                          mu=5.0, noise_weight=None, workers: int | None = 1, warm: dict | None = None) -> dict:
     """Run the column barrier method on ``form`` (program (C) of (7.5)).
 
     Parameters
@@ -583,14 +717,20 @@ def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_li
         Threads over the column stack (:class:`_Chunks`); ``None``: ``os.cpu_count()``.  BLAS is held
         to one thread per worker during the solve (threadpoolctl), ``workers=1`` included: the solve
         then uses exactly ``workers`` cores.
+    warm : dict, optional
+        Resume from a related solve's last centred point (:meth:`_ColumnBarrier.warm`; scaled units):
+        ``H`` (m × j, NaN columns are new), ``d``, ``gap``, ``psi`` as in the ``state`` this function returns.
+        The stop is the same certified gap.  If the point is unusable the solve starts cold and ``warm`` in
+        the answer says why.
 
     Returns
     -------
     dict
         status (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the best upper
         bound and its impulses ``H`` (m × j), the best lower bound and its dual point ``V`` (m × j),
-        ``W`` (j × m × m), Newton, outer and CG iteration counts, wall time.  Ctrl-C during the solve
-        returns the bracket so far with status ``interrupted``.
+        ``W`` (j × m × m), Newton, outer and CG iteration counts, wall time, ``t`` and ``state`` of the last
+        centring (what ``warm`` takes), and ``warm``: ``"used"``, or why the warm point was not (only when
+        ``warm`` was given).  Ctrl-C during the solve returns the bracket so far with status ``interrupted``.
     """
     n = check_workers(workers)
     from threadpoolctl import threadpool_limits
@@ -599,11 +739,11 @@ def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_li
     # thread competing with other jobs was measured 5.5× slower (183 s against 33 s at (50, 500) under load)
     with threadpool_limits(limits=1, user_api="blas"):
         if n == 1:
-            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _SERIAL)
+            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _SERIAL, warm)
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=n) as pool:
-            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _Chunks(pool, n))
+            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _Chunks(pool, n), warm)
 
 
 def check_workers(workers) -> int:
@@ -615,27 +755,60 @@ def check_workers(workers) -> int:
     return int(workers)
 
 
-def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunks) -> dict:
+def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunks, warm=None) -> dict:
     solver = _ColumnBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu, noise_weight=noise_weight,
                             chunks=chunks)
     clock = Deadline()
+    t, note = None, None
     try:
-        p = solver.start(B0)
+        if warm is not None:
+            resumed = solver.warm(B0, warm)
+            if resumed is None:
+                note = "the warm point could not be made strictly feasible; started cold"
+            else:
+                note = "used"
+        if warm is None or resumed is None:
+            p = solver.start(B0)
+        else:
+            p, t = resumed
     except KeyboardInterrupt:
         return dict(status="interrupted", lower=0.0, upper=float("nan"), H=np.zeros((form.m, form.j)), V=None,
                     W=None, outer=0, newton=0, cg=0, time=clock.elapsed())
-    return solver.run(p)
+    out = solver.run(p, t)
+    if note == "used" and out["status"] in ("failed", "max_iter"):
+        # the resumed path stalled: never an answer worse than cold, so solve again from the cold start
+        note = (f"the resumed path stopped with status {out['status']!r} after {out['newton']} Newton steps; "
+                "re-solved cold")
+        wasted = out["newton"]
+        out = _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks)
+        out["warm_newton"] = wasted
+    if note is not None:
+        out.update(warm=note, warm_blend=solver.warm_blend)
+    return out
 
 
 def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
-          workers: int | None = 1) -> SolverOutput:
+          workers: int | None = 1, warm_start: dict | None = None) -> SolverOutput:
     """Registered solver ``"column_barrier"``: (7.5) of an :class:`unfalsify.SubspaceProblem` (L optimised
-    or fixed), certified to the relative gap ``tol``; the answer in data units."""
+    or fixed), certified to the relative gap ``tol``; the answer in data units.
+
+    ``warm_start``: the ``state`` of a related solve (``stats["state"]`` of an earlier answer, data units),
+    its impulses already mapped onto this problem's columns (NaN columns are new); see
+    :func:`solve_columns_barrier`.  The answer's ``stats`` carry ``state`` (data units) for the next one.
+    """
     f = problem.column_form(scaled=True)
     clock = Deadline()
     if zero_answer(f):
-        return unscaled(problem, np.zeros(f.U.shape), 0.0, "optimal", clock.elapsed())
+        return unscaled(problem, np.zeros(f.U.shape), 0.0, "optimal", clock.elapsed(),
+                        stats={} if warm_start is None else dict(warm="not needed: δ = 0 without a solve"))
+    su, sy = problem.scale
+    warm = None
+    if warm_start is not None:  # data units -> this problem's scaled units (impulses and δ scale by s_u/s_y)
+        warm = dict(warm_start, H=np.asarray(warm_start["H"], float) * (su / sy), d=float(warm_start["d"]) * su / sy)
     out = solve_columns_barrier(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
-                                workers=workers)
+                                workers=workers, warm=warm)
+    stats = {k: out[k] for k in ("newton", "outer", "cg", "trials", "warm", "warm_blend", "warm_newton") if k in out}
+    if "state" in out:
+        stats["state"] = dict(path=[dict(c, H=c["H"] * (sy / su), d=c["d"] * sy / su) for c in out["state"]["path"]])
     return unscaled(problem, out["H"], out["upper"], out["status"], clock.elapsed(), V=out["V"], W=out["W"],
-                    stats={k: out[k] for k in ("newton", "outer", "cg") if k in out})
+                    stats=stats)
