@@ -336,3 +336,18 @@ def test_structured_newton_system_matches_the_dense_hessian():
     step = -np.linalg.solve(0.5 * (Hess + Hess.T), g0)
     dH, dlt, _ = s._newton(t, p)
     np.testing.assert_allclose(np.r_[dH.ravel(), dlt], step, rtol=1e-4, atol=1e-6 * np.abs(step).max())
+
+
+def test_primal_norms_are_exact_above_the_lanczos_size():
+    """The certificate's upper side: i·max(l, m) = 420 > 400 used to switch to a Lanczos estimate."""
+    from unfalsify.subspace import SubspaceProblem
+
+    i, l, m = 210, 2, 2
+    rng = np.random.default_rng(0)
+    n = 2 * i + 3
+    P = SubspaceProblem.from_data(rng.standard_normal((n, m)), rng.standard_normal((n, l)), i, 0.1)
+    H = rng.standard_normal((i, l, m, P.Uf.shape[1])) / i
+    L = np.zeros((i * l, P.A.shape[0]))
+    d, _ = P.evaluate_primal(H, L)
+    dense = max(np.linalg.norm(block_toeplitz_matrix(H[..., k]), 2) for k in range(H.shape[-1]))
+    assert d == dense                                              # the dense SVD, bit for bit
