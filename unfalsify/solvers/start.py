@@ -59,6 +59,14 @@ def operator_svd(M: np.ndarray, *, basis: np.ndarray | None = None, split=None):
     ``split``: optional ``split(work)`` that applies ``work(sl)`` to slices of the stack (in parallel) and returns
     the list of its results in order, e.g. ``lambda work: chunks.map(work, j, M.size)``; the SVDs are
     LAPACK calls per operator, so the split does not change a bit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M = np.stack([np.tril(np.ones((3, 3))), 2.0 * np.eye(3)])
+    >>> U, s, Vt = operator_svd(M, basis=np.array([[1.0], [0.0], [0.0]]))   # rows 1 and 2 of each M_k kept
+    >>> s.round(6).tolist()
+    [[2.135779, 0.662153, 0.0], [2.0, 2.0, 0.0]]
     """
     if basis is not None:
         M = M - basis @ (basis.T @ M)
@@ -78,7 +86,16 @@ def coordinates(U: np.ndarray, B0: np.ndarray) -> np.ndarray:
 
 def impulses(s: np.ndarray, Vt: np.ndarray, beta: np.ndarray, lam) -> np.ndarray:
     """The ridge impulses ``h_k = V_k (s_k/(s_k² + λ_k) β_k)`` as columns (p, j), ``lam`` one λ or one per column;
-    of one operator (s (q,), Vt (q, p), β (q,)): h (p,)."""
+    of one operator (s (q,), Vt (q, p), β (q,)): h (p,).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, b = np.eye(2), np.array([1.0, 2.0])
+    >>> U, s, Vt = operator_svd(M)
+    >>> impulses(s, Vt, coordinates(U, b), 1.0).tolist()          # (MᵀM + λI)⁻¹Mᵀb with λ = 1
+    [0.5, 1.0]
+    """
     lam = np.asarray(lam, float)
     c = s / (s * s + (lam[:, None] if lam.ndim else lam)) * beta
     if Vt.ndim == 2:
