@@ -22,7 +22,8 @@ Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier`` an
 
 Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
 :mod:`~unfalsify.solvers.columns` (the column form every structured solver takes and its dual bound),
-:mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG) and
+:mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG),
+:mod:`~unfalsify.solvers.start` (the barrier solvers' ridge starting point) and
 :mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →

@@ -48,8 +48,9 @@ import scipy.linalg
 from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
+from .start import operator_svd, ridge_fit
 from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_hessian, block_toeplitz_matrix,
-                       certified_norm, corr_hessian, ridge_lambda, toeplitz_gram, toeplitz_matrix)
+                       certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix)
 
 __all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
 
@@ -356,14 +357,8 @@ def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarr
     """
     channels = isinstance(form, BlockColumnForm)
     Tu = _channel_operator(form) if channels else toeplitz_matrix(form.U[:, 0])
-    if form.Ql is not None:
-        Tu = Tu - form.Ql @ (form.Ql.T @ Tu)
     # several channels: M is nl × nlm (wide); the thin factors span every direction the fit can use
-    Us, sv, Vt = np.linalg.svd(Tu, full_matrices=False) if channels else np.linalg.svd(Tu)
-    beta = Us.T @ B0[:, 0]
-    target = (frac * form.rho) ** 2
-    lam = ridge_lambda(sv, beta, target)
-    return Vt.T @ (sv / (sv * sv + lam) * beta)
+    return ridge_fit(operator_svd(Tu, basis=form.Ql), B0[:, 0], (frac * form.rho) ** 2)
 
 
 def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True) -> SolverOutput:

@@ -39,7 +39,7 @@ import scipy.linalg
 from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
-from .toeplitz import ridge_lambda
+from .start import operator_svd, ridge_fit
 
 __all__ = ["solve"]
 
@@ -258,11 +258,7 @@ class _BlockBarrier(PathAdvance):
     # ---- start -------------------------------------------------------------------------------
     def start(self) -> _Point:
         """Ridge impulses per column with ``‖PB − 𝓜H‖_F = 0.7 ρ``, δ 20 % above their norm."""
-        B0 = self.f.project(self.f.B)
-        Us, s, Vt = np.linalg.svd(self.M, full_matrices=False)  # (j, il, il), (j, il), (j, il, p)
-        beta = np.einsum("kab,ak->kb", Us, B0)
-        lam = ridge_lambda(s, beta, (0.7 * self.f.rho) ** 2)
-        H = np.einsum("kap,ka->pk", Vt, s / (s * s + lam) * beta)
+        H = ridge_fit(operator_svd(self.M), self.f.project(self.f.B), (0.7 * self.f.rho) ** 2)
         T = _toeplitz_blocks(H, self.i, self.l, self.m)
         up = float(np.linalg.svd(T, compute_uv=False)[:, 0].max())
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))

@@ -73,7 +73,8 @@ import scipy.linalg
 from .barrier import Deadline, PathAdvance, Stop, linearised_dual, pcg, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
-from .toeplitz import _tr, adjoint, corr_hessian, ridge_lambda, toeplitz_stack
+from .start import coordinates, impulses, operator_svd, ridge_fit
+from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_stack
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
 
@@ -520,12 +521,8 @@ class _ColumnBarrier(PathAdvance):
     # ---- starting point ----------------------------------------------------------------------
     def start(self, B0) -> _Point:
         """Ridge impulses with ``‖B0 − H̃‖_F = 0.7 ρ`` (B0 = B minus a point of 𝓛), δ 20 % above their norm."""
-        parts = self.chunks.map(lambda sl: np.linalg.svd(self.Tu[sl]), self.j, self.Tu.size)
-        Us, s, Vt = self._svd = tuple(np.concatenate(x) for x in zip(*parts))
-        beta = np.einsum("kia,ik->ka", Us, B0)
-        target = (0.7 * self.f.rho) ** 2
-        lam = ridge_lambda(s, beta, target)
-        H = np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
+        self._svd = operator_svd(self.Tu, split=lambda work: self.chunks.map(work, self.j, self.Tu.size))
+        H = ridge_fit(self._svd, B0, (0.7 * self.f.rho) ** 2)
         gram = self._gram(H)
         up = _max_norm(gram[1], self.chunks)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up), gram)
@@ -565,10 +562,7 @@ class _ColumnBarrier(PathAdvance):
         if float(np.sum(rw * rw)) > rho2 - psi_min:
             # outside the noise ball (new data, a new predictor space, a smaller σ): the smallest ridge
             # correction of every column that brings the residual back inside (λ as large as possible)
-            Us, s, Vt = self._svd
-            beta = np.einsum("kia,ik->ka", Us, rw)
-            lam = ridge_lambda(s, beta, rho2 - 2.0 * psi_min)
-            H = H + np.einsum("kai,ka->ik", Vt, s / (s * s + lam) * beta)
+            H = H + ridge_fit(self._svd, rw, rho2 - 2.0 * psi_min)
             rw = self._resid(H)
         # smallest a with ‖r_w + a (r_r − r_w)‖² ≤ ρ² − ψ_min (the residual is affine in a): the segment to the
         # strictly feasible ridge start, should the correction above fall short by rounding
@@ -603,11 +597,8 @@ class _ColumnBarrier(PathAdvance):
         noise budget to spare and have norms far above the old δ (measured at (20, 400): 6.6 against 1.7),
         which would throw the resumed point far off the path; capped at the old δ they sit where the old
         columns are.  Bisection on log₁₀ λ for all columns at once (the norm falls as λ grows)."""
-        Us, s, Vt = np.linalg.svd(Tu)
-        beta = np.einsum("kia,ik->ka", Us, B0)
-
-        def impulses(lam):
-            return np.einsum("kai,ka->ik", Vt, s / (s * s + lam[:, None]) * beta)
+        Us, s, Vt = operator_svd(Tu)
+        beta = coordinates(Us, B0)
 
         def norms(H):
             T = toeplitz_stack(H)
@@ -616,9 +607,9 @@ class _ColumnBarrier(PathAdvance):
         lo, hi = np.full(B0.shape[1], -30.0), np.full(B0.shape[1], 10.0)
         for _ in range(45):
             mid = 0.5 * (lo + hi)
-            over = norms(impulses(10.0**mid)) > cap
+            over = norms(impulses(s, Vt, beta, 10.0**mid)) > cap
             lo, hi = np.where(over, mid, lo), np.where(over, hi, mid)
-        return impulses(10.0**hi)
+        return impulses(s, Vt, beta, 10.0**hi)
 
     # ---- main loop ---------------------------------------------------------------------------
     def centre(self, t, p, deadline: Deadline):

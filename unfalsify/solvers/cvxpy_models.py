@@ -101,14 +101,6 @@ def _toeplitz_norm_lmi(h: cp.Expression, delta: cp.Expression, n: int) -> cp.Con
     return cp.bmat([[delta * eye, T.T], [T, delta * eye]]) >> 0
 
 
-def _dual_in_data_units(P, v, W, su):
-    """The solver's dual, best-scaled for the certificate and in data units (None, None when missing)."""
-    if v is None or not (np.all(np.isfinite(v)) and np.all(np.isfinite(W))):
-        return None, None
-    v, W = _best_scaled_dual(P.column_form(scaled=True), v, W)
-    return v, W * su  # data units: T(u)ᵀv = s_u T(u/s_u)ᵀv (and M(u) likewise)
-
-
 def _best_scaled_dual(form: ColumnForm, v, W) -> tuple[np.ndarray, object]:
     """A solver's (v, W) with the relative scale and sign of W chosen to maximise the bound.
 
@@ -130,8 +122,9 @@ def _best_scaled_dual(form: ColumnForm, v, W) -> tuple[np.ndarray, object]:
 
 
 def _data_units_dual(P, V, W, su: float):
-    """A subspace model's (V, W) with the best relative scale (:func:`_best_scaled_dual`), W in data units;
-    ``(None, None)`` when the solver gave no finite dual point."""
+    """A model's (V, W) with the best relative scale (:func:`_best_scaled_dual`), W in data units (only W is
+    rescaled, by s_u: ``M(u)ᵀv = s_u M(u/s_u)ᵀv``); ``(None, None)`` when the solver gave no finite dual
+    point.  Every cvxpy model of (7.4) and (7.5) ends with it."""
     if V is None or not (np.all(np.isfinite(V)) and np.all(np.isfinite(W))):
         return None, None
     V, W = _best_scaled_dual(P.column_form(scaled=True), V, W)
@@ -201,7 +194,7 @@ def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
             Z21 = np.asarray(Z, float)[n:, :n]
             v = -2.0 * adjoint(Z21)
             W = -2.0 * Z21 @ Tu_s.T
-    v, W = _dual_in_data_units(P, v, W, su)
+    v, W = _data_units_dual(P, v, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=h_out, params=theta_out, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=v, dual_W=W, problem=prob)
 
@@ -414,6 +407,6 @@ def _arx_channels_model(P, solver, solver_options) -> SolverOutput:
     if lam is not None and Z is not None and xi_s is not None and np.linalg.norm(xi_s) > 0:
         v = float(lam) * xi_s / np.linalg.norm(xi_s)
         W = -2.0 * np.asarray(Z, float)[n * m :, : n * m]
-    v, W = _dual_in_data_units(P, v, W, su)
+    v, W = _data_units_dual(P, v, W, su)
     return SolverOutput(delta=d_s * sy / su, impulses=H, params=th, status=SolverStatus(status),
                         solve_time=elapsed, dual_v=v, dual_W=W, problem=prob)

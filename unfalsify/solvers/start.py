@@ -1,0 +1,112 @@
+"""The strictly feasible starting point of the barrier solvers: ridge impulses inside the noise ball.
+
+Every barrier solver of the column form (C) (:mod:`~unfalsify.solvers.columns`) starts from the impulses
+that fit the data column by column with a ridge penalty,
+
+    h_k = argmin ‖b_k − M_k h‖² + λ‖h‖²,     Σ_k ‖b_k − M_k h_k‖² = target  (one λ for all columns),
+
+where ``b_k`` is column k of ``B0 = P B`` (B with its component in 𝓛 removed) and ``M_k`` the linear map
+``h ↦ T(h)u_k`` of column k (for the ARX program (7.4) first projected onto 𝓛^⊥, ``basis``).  With the
+thin SVD ``M_k = U_k diag(s_k) V_kᵀ`` and the data coordinates ``β_k = U_kᵀ b_k`` the fit is
+``h_k = V_k (s_k/(s_k² + λ) β_k)`` and its residual ``Σ (λ/(s² + λ))² β²`` grows with λ, so λ is found
+by bisection (:func:`~unfalsify.solvers.toeplitz.ridge_lambda`).  A target below ρ² leaves the noise
+slack ψ > 0 and every ``T(h_k)`` finite, so the point (h, δ) with δ above every ``‖T(h_k)‖₂`` is
+strictly feasible; the solvers choose the target (``0.9 ρ`` for (7.4), ``0.7 ρ`` for (7.5)) and the
+margin on δ, which stay theirs.
+
+Where it lives.  This is solver arithmetic, not part of the problem: :mod:`~unfalsify.solvers.columns`
+defines (C) and its dual bound for every solver (the cvxpy models, the bracket and the split use it,
+none of them needs a starting point), so the start sits in its own small module beside the three
+barrier solvers that use it (``arx_barrier``, ``column_barrier``, ``block_barrier``) and imports only
+:mod:`~unfalsify.solvers.toeplitz`.  The operators are passed in as a stack because the solvers build
+them differently (Toeplitz matrices of the input columns, per-channel block operators, the ARX channel
+operator); the warm start of ``column_barrier`` reuses the same SVD and contractions for its ridge
+corrections (:func:`coordinates`, :func:`impulses`).
+
+One operator or a stack.  The ARX program has one column and one operator (n × n, or nl × nlm with
+several channels) and passes it as a matrix: its contractions are the matrix–vector products ``Uᵀb``,
+``V c`` (BLAS).  The subspace programs pass stacks (j operators): their contractions are ``einsum``
+over the stack.  The two forms round differently in the last bits (measured: starting points 1e-16
+apart, δ after the solve up to 1e-13); each solver keeps the arithmetic it had before the three copies
+were merged, so no result changed by a bit (``tests/test_solver_start.py``).
+
+Examples
+--------
+>>> import numpy as np
+>>> from unfalsify.solvers.start import operator_svd, ridge_fit
+>>> M = np.stack([np.tril(np.ones((4, 4))), np.eye(4)])      # two columns' operators (2, 4, 4)
+>>> B0 = np.array([[1.0, 0.5], [2.0, -1.0], [0.0, 0.3], [1.0, 0.2]])
+>>> H = ridge_fit(operator_svd(M), B0, target=0.25)
+>>> H.shape
+(4, 2)
+>>> r = B0 - np.stack([M[k] @ H[:, k] for k in range(2)], axis=1)
+>>> bool(abs(float(np.sum(r * r)) - 0.25) < 1e-9)
+True
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .toeplitz import ridge_lambda
+
+__all__ = ["operator_svd", "coordinates", "impulses", "ridge_fit"]
+
+
+def operator_svd(M: np.ndarray, *, basis: np.ndarray | None = None, split=None):
+    """Thin SVD ``(U, s, Vt)`` of every operator of the stack ``M`` (j, r, p), or of one operator (r, p), each
+    first projected onto the orthogonal complement of ``span basis`` (r × q, orthonormal columns) when given.
+
+    ``split``: optional ``split(work)`` that applies ``work(sl)`` to slices of the stack (in parallel) and returns
+    the list of its results in order, e.g. ``lambda work: chunks.map(work, j, M.size)``; the SVDs are
+    LAPACK calls per operator, so the split does not change a bit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M = np.stack([np.tril(np.ones((3, 3))), 2.0 * np.eye(3)])
+    >>> U, s, Vt = operator_svd(M, basis=np.array([[1.0], [0.0], [0.0]]))   # rows 1 and 2 of each M_k kept
+    >>> s.round(6).tolist()
+    [[2.135779, 0.662153, 0.0], [2.0, 2.0, 0.0]]
+    """
+    if basis is not None:
+        M = M - basis @ (basis.T @ M)
+    if split is None:
+        return tuple(np.linalg.svd(M, full_matrices=False))
+    parts = split(lambda sl: np.linalg.svd(M[sl], full_matrices=False))
+    return tuple(np.concatenate(x) for x in zip(*parts))
+
+
+def coordinates(U: np.ndarray, B0: np.ndarray) -> np.ndarray:
+    """The data coordinates ``β_k = U_kᵀ b_k`` (j, q) of the columns of ``B0`` (r, j); of one operator
+    (U (r, q)) and one column (``B0`` (r,)): ``β = Uᵀ b`` (q,)."""
+    if U.ndim == 2:
+        return U.T @ B0
+    return np.einsum("kaq,ak->kq", U, B0)
+
+
+def impulses(s: np.ndarray, Vt: np.ndarray, beta: np.ndarray, lam) -> np.ndarray:
+    """The ridge impulses ``h_k = V_k (s_k/(s_k² + λ_k) β_k)`` as columns (p, j), ``lam`` one λ or one per column;
+    of one operator (s (q,), Vt (q, p), β (q,)): h (p,).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> M, b = np.eye(2), np.array([1.0, 2.0])
+    >>> U, s, Vt = operator_svd(M)
+    >>> impulses(s, Vt, coordinates(U, b), 1.0).tolist()          # (MᵀM + λI)⁻¹Mᵀb with λ = 1
+    [0.5, 1.0]
+    """
+    lam = np.asarray(lam, float)
+    c = s / (s * s + (lam[:, None] if lam.ndim else lam)) * beta
+    if Vt.ndim == 2:
+        return Vt.T @ c
+    return np.einsum("kqp,kq->pk", Vt, c)
+
+
+def ridge_fit(svd, B0: np.ndarray, target: float) -> np.ndarray:
+    """Ridge impulses (p, j) of the columns of ``B0`` (r, j) with one λ and the residual
+    ``Σ_k ‖b_k − M_k h_k‖² = target`` (to the bisection's resolution, on the side below it);
+    ``svd`` from :func:`operator_svd`.  Of one operator and one column ``B0`` (r,): h (p,)."""
+    U, s, Vt = svd
+    beta = coordinates(U, B0)
+    return impulses(s, Vt, beta, ridge_lambda(s, beta, target))
