@@ -32,8 +32,26 @@ peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
 (δ difference and speed ratio; Clarabel's child gets 900 s).  ``both`` runs the cvxpy series and the
 structured series.
 
-The structured rows report the Newton steps and trial factorisations (Cholesky stacks tried, line search
-included) where the solver counts them.  The **warm-start table** (``--backend structured``, series ``all``
+Each structured row (issue 27, item 6) runs in a fresh child process, so its peak RSS (``ru_maxrss``) is that
+row's: the front end's solve (bracket, certificate, ``verify()``), then ``repeats`` (3; ``--quick``: 1) × the
+registry solver alone (``unfalsify.solvers.run`` on the certificate's problem) by today's route and, alternating,
+by the former route (:func:`unfalsify.solvers.baselines.former_hessian`: the FFT Hessian before issue 27's
+pruning) where the solver forms FFT Hessians (``arx_barrier``, ``column_barrier``); medians.  The row reports
+the solve time, the baseline's time in the same run and their ratio, the relative δ difference of the two routes,
+the Newton steps and trial factorisations (Cholesky stacks tried, line search included; ARX does not count
+them), the **arithmetic-limit time** and the ratio to it, the peak RSS and the 1-min load at the row's start and
+end; the table notes the load before and after the series.
+
+Arithmetic limit: the flops the method needs at its measured counts, divided by the matmul rate measured in the
+same child (a numpy matmul of the row's size, timed: an n × n product for ARX, a (j, i, i) stack for the subspace
+rows, BLAS as in the solve).  Counted from the sizes (m = n for ARX, j = 1; m = i for the subspace rows), per
+column and Newton step: the blocks of F⁻¹ and the gradient's products (``K⁻¹``, ``T K⁻¹``, ``(T K⁻¹) Tᵀ``,
+``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian: 8m³), the FFT Hessian (four real 2-D transforms of
+2m × 2m, ``2.5 N² log₂ N²`` each) and for ARX the Cholesky of the Newton system (m³/3); per trial factorisation
+the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well ((10/3) m³ in
+all; ARX: one trial per Newton step, the accepted point).  The CG of L optimised, the certificate and the set-up
+are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
+and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
 or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
 (``subspace_unfalsify(..., warm_start=...)``) of the same new problem at (i, j) = (20, 400), L optimised,
 tol 1e-4: the window advanced by k ∈ {1, 10, 50} samples, and the same window at σ × 1.05; median of 3
@@ -41,6 +59,7 @@ repeats, load average noted.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import multiprocessing as mp
 import os
@@ -217,14 +236,64 @@ def _structured_label(spec: dict, size) -> str:
     return f"n={size}" if spec["kind"] == "arx" else f"(i, j)=({size[0]}, {size[1]})"
 
 
+#: repeats of the timed solves of a structured row (the row reports medians); ``--quick``: 1
+STRUCTURED_REPEATS, QUICK_STRUCTURED_REPEATS = 3, 1
+
+
+def _matmul_peak(shape: tuple, min_seconds: float = 0.05) -> float:
+    """Flops per second of a timed numpy matmul of ``shape`` (a stack (j, m, m) or a matrix (n, n)): the best of
+    3 timings (a peak: on the shared machine the median followed the load, 24 against 7 GF/s in one run), each
+    repeating the product until it has run ``min_seconds`` (BLAS threads as the solve has)."""
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    flops = 2.0 * float(np.prod(shape)) * shape[-1]
+    rates = []
+    for _ in range(3):
+        count, t0 = 0, time.perf_counter()
+        while True:
+            a @ b
+            count += 1
+            elapsed = time.perf_counter() - t0
+            if elapsed >= min_seconds:
+                break
+        rates.append(count * flops / elapsed)
+    return float(max(rates))
+
+
+def _fft_flops(m: int) -> float:
+    """Flops of the FFT Hessian of one m × m block set: four real 2-D transforms of N × N (N = 2m), counted as
+    ``2.5 N² log₂ N²`` each (half the classical ``5 N² log₂ N²`` of a complex transform)."""
+    N = 2 * m
+    return 4 * 2.5 * N * N * np.log2(N * N)
+
+
+def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
+    """The flops the method needs at its measured counts (the bench docstring's arithmetic limit); None where
+    not defined (no Newton count: the bracket route, the 2×2 rows)."""
+    if newton is None:
+        return None
+    newton = int(newton)
+    trials = newton if trials is None else int(trials)  # ARX does not count them: one accepted point per step
+    m3 = float(m) ** 3
+    if kind == "arx":  # j = 1, m = n
+        return newton * (8.0 * m3 + m3 / 3.0 + _fft_flops(m)) + trials * m3 / 3.0
+    return j * (newton * (8.0 * m3 + _fft_flops(m)) + trials * (10.0 / 3.0) * m3)
+
+
 def _solve_structured_one(spec: dict, size, seed: int) -> dict:
-    """One structured solve (runs in the child process); the bracket is the returned certificate's."""
+    """One structured row (runs in the child process): the front end's solve (bracket, certificate, verify), the
+    matmul peak, then ``repeats`` × (the registry solver by today's route, the same solver by the former route
+    of :mod:`unfalsify.solvers.baselines`), alternating; medians, counts and the δ agreement of the two routes."""
     import synthesis as sy
     import unfalsify as uf
+    from unfalsify import solvers
+    from unfalsify.solvers import baselines
 
     warnings.simplefilter("ignore")
     rss0 = _rss_mb()
+    load0 = os.getloadavg()[0]
     limit = spec["limit"]
+    channels = spec.get("channels", 1)
     if spec["kind"] == "arx":
         n = size
         u, y = _data(n, seed)
@@ -234,10 +303,11 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
                                progress=False, method=spec.get("method", "barrier"))
         wall = time.perf_counter() - t0
         unknowns, i, j = n, None, None
+        name = solvers.resolve("arx", "structured", spec.get("method", "barrier"))
+        block, peak_shape = (n, 1), (n, n)
     else:
         i, j = size
         n = 2 * i + j - 1
-        channels = spec.get("channels", 1)
         u, y = _mimo_data(n, seed) if channels > 1 else _data(n, seed)
         pred = sy.fit_predictor(u, y, i)
         A, _, Yf = uf.subspace_data(u, y, i)
@@ -247,16 +317,51 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
                                     tol=spec["tol"], time_limit=limit, progress=False)
         wall = time.perf_counter() - t0
         unknowns = i * j * channels**2
+        name = "block_barrier" if channels > 1 else solvers.resolve("subspace", "structured")
+        block, peak_shape = (i, j), (j, i * channels, i * channels)
     cert = res.certificate
-    return {
+    peak = _matmul_peak(peak_shape, 0.01 if spec.get("repeats", 1) == 1 else 0.05)
+    # the former route differs only where the solver forms FFT Hessians (corr_hessian): arx_barrier (one
+    # channel) and column_barrier; the bracket route has no Hessian, block_barrier forms its own dense blocks
+    baseline = name in ("arx_barrier", "column_barrier") and channels == 1
+    runs = {"current": [], "baseline": []}
+    if name == "bracket":  # FFT only (n = 10⁴, up to 50 min): no Hessian, no former route; the front end's solve
+        runs["current"].append(dict(wall=float(res.solve_time), delta=res.delta, status=res.status, newton=None,
+                                    trials=None))
+    for _ in range(0 if name == "bracket" else spec.get("repeats", 1)):
+        for route in ("current", "baseline") if baseline else ("current",):
+            context = baselines.former_hessian() if route == "baseline" else contextlib.nullcontext()
+            with context:
+                t0 = time.perf_counter()
+                out = solvers.run(name, cert.problem, tol=spec["tol"], time_limit=limit, progress=False)
+                runs[route].append(dict(wall=time.perf_counter() - t0, delta=out.delta, status=str(out.status),
+                                        newton=out.stats.get("newton"), trials=out.stats.get("trials")))
+    cur = runs["current"]
+    newton, trials = cur[-1]["newton"], cur[-1]["trials"]
+    solve_s = float(np.median([r["wall"] for r in cur]))
+    flops = _needed_flops(spec["kind"], block[0], block[1], newton, trials) if channels == 1 else None
+    limit_s = flops / peak if flops is not None else None
+    row = {
         "label": _structured_label(spec, size), "size": unknowns, "i": i, "j": j, "n_samples": n,
         "status": res.status, "delta": res.delta, "lower": cert.lower_bound, "upper": cert.upper_bound,
         "relative_gap": cert.relative_gap, "verify": bool(cert.verify()), "wall_s": wall,
         "peak_rss_mb": _rss_mb(), "rss_start_mb": rss0, "cond_Tu": res.cond_Tu,
-        # Newton steps and trial factorisations (column_barrier; the ARX rows have the Newton steps only)
-        "newton": getattr(res, "solver_stats", {}).get("newton"),
-        "trials": getattr(res, "solver_stats", {}).get("trials"),
+        # the registry solver's own counts (Newton steps, trial Cholesky stacks where the solver counts them)
+        "newton": newton, "trials": trials, "solve_s": solve_s, "solve_walls": [r["wall"] for r in cur],
+        "repeats": len(cur), "matmul_gflops": peak / 1e9, "needed_gflop": None if flops is None else flops / 1e9,
+        "limit_s": limit_s, "limit_ratio": None if limit_s is None else solve_s / limit_s,
+        "load": (load0, os.getloadavg()[0]),
     }
+    if runs["baseline"]:
+        old = runs["baseline"]
+        row.update(baseline_s=float(np.median([r["wall"] for r in old])), baseline_walls=[r["wall"] for r in old],
+                   baseline_newton=old[-1]["newton"],
+                   baseline_delta_rel=abs(old[-1]["delta"] - cur[-1]["delta"]) / max(abs(old[-1]["delta"]), 1e-300))
+    return row
+
+
+def _fmt(x, spec: str = ".3g") -> str:
+    return "" if x is None else format(x, spec)
 
 
 def _count(x):
@@ -512,14 +617,17 @@ def _run_structured(opts, rep: Report) -> dict:
     limit = QUICK_STRUCTURED_LIMIT_S if opts.quick else STRUCTURED_LIMIT_S
     series = []
     only = (getattr(opts, "extra", None) or {}).get("series") or "all"
+    load_before = os.getloadavg()
+    repeats = QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
             continue  # (--series warm: the warm-start table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
-            spec = dict(spec, limit=spec.get("limits", {}).get(size, base))
-            row_budget = spec["limit"] + 120.0
+            spec = dict(spec, limit=spec.get("limits", {}).get(size, base), repeats=repeats)
+            # the front end's solve, then repeats × (today's route, the former route), each up to the limit
+            row_budget = spec["limit"] * (1 + 2 * repeats) + 120.0
             row = _run_with_budget(spec, size, opts.seed, row_budget, worker=_solve_structured_one,
                                    label=_structured_label(spec, size))
             rows.append(row)
@@ -528,6 +636,7 @@ def _run_structured(opts, rep: Report) -> dict:
                        file=sys.stderr)
         series.append({"series": spec["name"], "kind": spec["kind"], "L_fixed": spec.get("fixed"), "tol": spec["tol"],
                        "rows": rows, "exponent": _fit_exponent(rows)})
+    load_after = os.getloadavg()
 
     comparison = None if only in ("subspace", "warm") else _compare_arx(opts, limit)
     warm = _run_warm(opts) if only in ("all", "warm") else None
@@ -544,17 +653,34 @@ def _run_structured(opts, rep: Report) -> dict:
         "`upper` are the certificate's bounds recomputed from the data and the returned primal/dual points; "
         "`verify` re-checks them; `gap` = (upper − lower)/upper. Subspace: σ = ½ × rms residual of the "
         "least-squares predictor (`synthesis.fit_predictor`), which is also the fixed L. Peak RSS is that of "
-        "the child process (it starts at `RSS₀`: the interpreter with numpy/scipy/cvxpy loaded)."
+        "the child process (it starts at `RSS₀`: the interpreter with numpy/scipy/cvxpy loaded), over all the "
+        "row's solves (one problem size)."
     )
-    headers = ["series", "size", "status", "lower", "upper", "gap", "tol", "verify", "wall [s]", "Newton",
-               "trial fact.", "peak RSS [MB]", "RSS₀ [MB]"]
+    rep.text(
+        f"`solve [s]`: the registry solver alone (`unfalsify.solvers.run`), median of {repeats} repeat(s); `wall [s]`: "
+        "the first, front-end call (problem set-up, solve, certificate). `baseline [s]`: the same solver on the same "
+        "problem with the former FFT Hessian (`unfalsify.solvers.baselines.former_hessian`), alternating with "
+        "today's route in the same child, median; `×` = baseline/solve; `|Δδ|/δ` between the two routes (blank: "
+        "the route has no FFT Hessian, so no former route). `limit [s]` = the flops the method needs at its "
+        "measured Newton steps and trial factorisations (module docstring) / the matmul rate `GF/s` timed in the "
+        "same child on a product of the row's size; `ratio` = solve / limit. `load`: 1-min load average at the "
+        f"row's start → end. Table load: {load_before[0]:.2f} → {load_after[0]:.2f} (1-min), "
+        f"{load_before[1]:.2f} → {load_after[1]:.2f} (5-min); {os.cpu_count()} CPU(s)."
+    )
+    headers = ["series", "size", "status", "lower", "upper", "gap", "tol", "verify", "wall [s]", "solve [s]",
+               "baseline [s]", "×", "|Δδ|/δ", "Newton", "trial fact.", "GF/s", "limit [s]", "ratio",
+               "peak RSS [MB]", "RSS₀ [MB]", "load"]
     rows_md, rows_csv = [], []
     for s in series:
         for r in s["rows"]:
+            speed = r["baseline_s"] / r["solve_s"] if r.get("baseline_s") else None
+            load = f"{r['load'][0]:.1f} → {r['load'][1]:.1f}" if "load" in r else ""
             vals = [r.get("status"), r.get("lower", float("nan")), r.get("upper", float("nan")),
                     r.get("relative_gap", float("nan")), s["tol"], r.get("verify", ""), r["wall_s"],
-                    _count(r.get("newton")), _count(r.get("trials")),
-                    r.get("peak_rss_mb", float("nan")), r.get("rss_start_mb", float("nan"))]
+                    r.get("solve_s", float("nan")), _fmt(r.get("baseline_s")), _fmt(speed, ".2f"),
+                    _fmt(r.get("baseline_delta_rel"), ".1e"), _count(r.get("newton")), _count(r.get("trials")),
+                    _fmt(r.get("matmul_gflops"), ".1f"), _fmt(r.get("limit_s")), _fmt(r.get("limit_ratio"), ".1f"),
+                    r.get("peak_rss_mb", float("nan")), r.get("rss_start_mb", float("nan")), load]
             rows_md.append([s["series"], r["label"], *vals])
             rows_csv.append([s["series"], r["label"], r.get("size"), r.get("n_samples"), *vals,
                              r.get("delta", float("nan")), r.get("error", "")])
@@ -570,13 +696,15 @@ def _run_structured(opts, rep: Report) -> dict:
     with csv_path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["series", "label", "unknowns", "n_samples", "status", "lower", "upper", "relative_gap", "tol",
-                    "verify", "wall_s", "newton", "trials", "peak_rss_mb", "rss_start_mb", "delta", "error"])
+                    "verify", "wall_s", "solve_s", "baseline_s", "speedup", "baseline_delta_rel", "newton", "trials",
+                    "matmul_gflops", "limit_s", "limit_ratio", "peak_rss_mb", "rss_start_mb", "load", "delta",
+                    "error"])
         w.writerows(rows_csv)
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
     return {"series": series, "comparison": comparison, "warm": warm, "time_limit_s": limit, "csv": csv_path.name,
-            "figure": png.name}
+            "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
 
 
 def run(opts) -> dict:

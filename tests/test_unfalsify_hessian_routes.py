@@ -1,0 +1,71 @@
+"""The pruned FFT Hessian (issue 27, item 2) against the former route kept in ``unfalsify.solvers.baselines``:
+the same Hessians to rounding, and the same solves (δ to 1e-10 relative, Newton steps, certificates)."""
+import contextlib
+
+import numpy as np
+import pytest
+
+import unfalsify as uf
+from unfalsify import solvers
+from unfalsify.solvers import baselines
+from unfalsify.solvers.toeplitz import _HESSIAN_ROUTE, corr_hessian
+
+
+@pytest.mark.parametrize("j, m", [(1, 1), (1, 2), (3, 5), (7, 20), (2, 65), (1, 130)])
+def test_corr_hessian_equals_former_route(j, m):
+    rng = np.random.default_rng(m + j)
+    S11, S22 = (A + np.swapaxes(A, -1, -2) for A in rng.standard_normal((2, j, m, m)))
+    S21 = rng.standard_normal((j, m, m))
+    H = corr_hessian(S11, S21, S22, m)
+    F = baselines.former_corr_hessian(S11, S21, S22, m)
+    assert H.shape == (j, m, m)
+    assert np.max(np.abs(H - F)) <= 1e-12 * np.max(np.abs(F))
+
+
+def test_former_hessian_context_restores_the_route():
+    with pytest.raises(RuntimeError):
+        with baselines.former_hessian():
+            assert _HESSIAN_ROUTE["route"] == "former"
+            raise RuntimeError
+    assert _HESSIAN_ROUTE["route"] == "pruned"
+
+
+def _servo(n, seed):
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal(n))
+    y = np.convolve(u, [0.0, 0.6, 0.25, -0.1])[:n] + 0.05 * rng.standard_normal(n)
+    return u, y
+
+
+def _same(run, name):
+    """The front end's answer (certificate verified) and the registry solver's (δ, Newton steps), by both routes."""
+    answers = {}
+    for route in ("pruned", "former"):
+        with baselines.former_hessian() if route == "former" else contextlib.nullcontext():
+            res = run()
+            out = solvers.run(name, res.certificate.problem, tol=1e-6, progress=False)
+        assert res.certificate.verify()
+        answers[route] = (res.delta, out.delta, out.stats["newton"])
+    (d_new, s_new, n_new), (d_old, s_old, n_old) = answers["pruned"], answers["former"]
+    assert abs(d_new - d_old) <= 1e-10 * abs(d_old) and abs(s_new - s_old) <= 1e-10 * abs(s_old)
+    assert n_new == n_old
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_arx_solve_equals_former_route(seed):
+    u, y = _servo(60 + 20 * seed, seed)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    _same(lambda: uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False), "arx_barrier")
+
+
+@pytest.mark.parametrize("seed, fixed", [(0, False), (1, True), (2, False)])
+def test_subspace_solve_equals_former_route(seed, fixed):
+    import synthesis as sy
+
+    i, j = 4 + seed, 30
+    u, y = _servo(2 * i + j - 1, 10 + seed)
+    pred = sy.fit_predictor(u, y, i)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+    _same(lambda: uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred if fixed else None,
+                                        tol=1e-6, progress=False), "column_barrier")

@@ -1,0 +1,85 @@
+"""
+Former routes of the structured solvers, kept as measured references
+====================================================================
+
+``python -m experiments bench-unfalsify --backend structured`` times every structured solve twice in the
+same child process: by today's route and by the route it replaced (issue 27: every speed-up measured in the
+same run against the former route).  This module gives the former routes a public name, so that the
+benchmark needs no private name of the library.  They give the same numbers to rounding; they are not the
+routes to use, and they may go with the benchmark that measures them.
+
+   former_corr_hessian  -- the barrier Hessian by the former 2-D FFT route (zero-padded and flipped copies)
+   former_hessian       -- context manager: every solve inside it uses ``former_corr_hessian``
+
+>>> import numpy as np
+>>> from unfalsify.solvers import baselines
+>>> from unfalsify.solvers.toeplitz import corr_hessian
+>>> rng = np.random.default_rng(0)
+>>> S11, S21, S22 = (rng.standard_normal((2, 5, 5)) for _ in range(3))
+>>> bool(np.allclose(baselines.former_corr_hessian(S11, S21, S22, 5), corr_hessian(S11, S21, S22, 5)))
+True
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+from . import toeplitz
+
+__all__ = ["former_corr_hessian", "former_hessian"]
+
+
+def former_corr_hessian(S11, S21, S22, m):
+    """The barrier Hessian of :func:`unfalsify.solvers.toeplitz.corr_hessian` by the former route.
+
+    Each of the three forward 2-D transforms pads its input with zeros by copying (scipy's padding of
+    the column axis), S11 and S22 are flipped by copies, and the rows of lags read are gathered after a
+    full inverse transform.  Kept to time today's route against it in the same run.
+
+    Parameters
+    ----------
+    S11, S21, S22 : ndarray, shape (j, m, m)
+        Blocks of ``F⁻¹`` per column (S11, S22 symmetric).
+    m : int
+        The size of the blocks.
+
+    Returns
+    -------
+    ndarray, shape (j, m, m)
+        The Hessian ``tr(F⁻¹E_aF⁻¹E_b)`` of each column.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify.solvers.baselines import former_corr_hessian
+    >>> from unfalsify.solvers.toeplitz import corr_hessian
+    >>> S = np.eye(4)[None]
+    >>> bool(np.allclose(former_corr_hessian(S, 0 * S, S, 4), corr_hessian(S, 0 * S, S, 4)))
+    True
+    """
+    return toeplitz._former_corr_hessian(S11, S21, S22, m)
+
+
+@contextmanager
+def former_hessian():
+    """Inside this context every structured solve forms its barrier Hessians by :func:`former_corr_hessian`.
+
+    A process-wide switch (not thread-safe: the benchmark runs one solve per child process); the former
+    route is restored on leaving, also after an exception.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify.solvers import baselines
+    >>> from unfalsify.solvers.toeplitz import corr_hessian
+    >>> S = np.eye(3)[None]
+    >>> with baselines.former_hessian():
+    ...     H = corr_hessian(S, 0 * S, S, 3)
+    >>> bool(np.allclose(H, corr_hessian(S, 0 * S, S, 3)))
+    True
+    """
+    route = toeplitz._HESSIAN_ROUTE["route"]
+    toeplitz._HESSIAN_ROUTE["route"] = "former"
+    try:
+        yield
+    finally:
+        toeplitz._HESSIAN_ROUTE["route"] = route
