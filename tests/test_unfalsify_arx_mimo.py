@@ -10,21 +10,14 @@ import pytest
 import synthesis
 
 import unfalsify as uf
+from _references import SHAPES, block_toeplitz_by_loops
 from synthesis import DataError
 from unfalsify.solvers import CHANNELS, arx_barrier
 from unfalsify.solvers import toeplitz as tz
 
-SHAPES = [(2, 1), (1, 2), (2, 2)]  # (l outputs, m inputs)
 
 
-def _bt(h):
-    """Block lower-triangular Toeplitz matrix of h (n, l, m), by loops (independent of the package)."""
-    n, l, m = h.shape
-    T = np.zeros((n * l, n * m))
-    for r in range(n):
-        for c in range(r + 1):
-            T[r * l:(r + 1) * l, c * m:(c + 1) * m] = h[r - c]
-    return T
+_bt = block_toeplitz_by_loops
 
 
 def _fir(u, H):
