@@ -101,7 +101,7 @@ The command line (``python -m experiments --help``):
 >>> from experiments.cli import COMMANDS
 >>> list(COMMANDS)  # doctest: +NORMALIZE_WHITESPACE
 ['demo', 'design-example', 'noncollocated', 'adaptive', 'chapter7', 'robust-pipeline', 'robust-adversarial',
- 'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep', 'design',
+ 'mimo-pipeline', 'bench-predictor', 'bench-adaptive', 'bench-unfalsify', 'bench-norms', 'bench-split', 'sweep', 'design',
  'cd-player', 'compare']
 """
 import sys as _sys
