@@ -93,7 +93,8 @@ def test_steady_state_across_the_ball_is_judged_per_channel():
     # the data's gain: with G_data = 0.2 I the loop leaves 1 − 0.8/1.8 on each channel
     why = robust._steady_state_reason(P, K, 0.01, 0.25, data_gain=0.2 * np.eye(2))
     assert "low-frequency gain the data show" in why
-    np.testing.assert_allclose(robust._dc_errors_at_gain(K, 0.2 * np.eye(2)), [1 - 0.8 / 1.8] * 2)
+    np.testing.assert_allclose(robust._dc_errors_at_gain(K, 0.2 * np.eye(2), uf.tracking_floors(0.25, 2)),
+                               [1 - 0.8 / 1.8] * 2)
 
 
 def test_persistence_of_a_mimo_window():

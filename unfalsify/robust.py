@@ -469,9 +469,9 @@ def _gain_text(G) -> str:
     return f"{float(G[0, 0]):.4g}" if G.size == 1 else np.array2string(G, precision=3)
 
 
-def _dc_errors_at_gain(controller, p, floors=None) -> np.ndarray:
+def _dc_errors_at_gain(controller, p, floors: np.ndarray) -> np.ndarray:
     """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m),
-    over the tracked references ``c`` (finite ``floors``; all when None)."""
+    over the tracked references ``c`` (finite ``floors``)."""
     G = np.atleast_2d(np.asarray(p, complex))
     l = G.shape[0]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -483,8 +483,7 @@ def _dc_errors_at_gain(controller, p, floors=None) -> np.ndarray:
             T = np.linalg.solve(np.eye(l) - G @ cy, G @ cr)
         except np.linalg.LinAlgError:
             return np.full(l, np.inf)
-        E = np.abs(np.eye(l) - T)
-        return np.max(E, axis=1) if floors is None else _tracked_errors(E, floors)
+        return _tracked_errors(np.abs(np.eye(l) - T), floors)
 
 
 def _persistence_reason(pred, u, i: int, what: str) -> str:
@@ -1131,7 +1130,7 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     """
     u_all, y_all = channel_pair(u, y)
     n = u_all.shape[0]
-    m, l = (u_all.shape[1], y_all.shape[1]) if u_all.ndim == 2 else (1, 1)
+    m, l = _channels(u_all, y_all)
     i = check_horizon(horizon, n)
     fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
     if window == "auto":

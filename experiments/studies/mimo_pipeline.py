@@ -9,8 +9,10 @@ two nearly collinear inputs (``u₂ = 0.95 u₁ + 0.05 e``: the data barely sepa
 Each run: a record of ``RECORD`` samples and a second, held-out experiment of ``HELD_OUT`` samples;
 :func:`unfalsify.robust_design_from_data` in record mode (``window="auto"``, ``sigma="auto"``,
 ``validation=`` the second experiment; the tracking floor 0.1 on the first ``m`` outputs, the others
-not tracked -- one input cannot track two independent references) with diagonal weights (:func:`synthesis.diagonal_weight` of
-``makeweight(100, (π/30, 1), 0.2, 1)`` (0.01 on an output that is not tracked) and ``makeweight(0.05, (π/10, 0.3), 1, 1)`` in rad/sample).
+not tracked -- one input cannot track two independent references) with the design CLI's default weights
+on every channel (:func:`experiments.studies.design_cli.default_weights`: ``makeweight(100, (ω_N/30, 1), 0.2,
+dt)`` and ``makeweight(0.05, (ω_N/10, 0.3), 1, dt)``, ω_N = π/dt; 0.01 on an output that is not tracked),
+stacked by :func:`synthesis.diagonal_weight`.
 Independently of the pipeline, the loop it returns is judged on the true plant: stability, the
 proven ``δ·‖K(I + PK)⁻¹‖∞`` (largest singular value), a step on each reference channel alone, and the
 premise the certificate rests on, ``‖P − P̂‖∞/δ``.  A *false certificate* is a certified loop the
@@ -21,7 +23,6 @@ on 150 held-out samples.
 """
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -35,6 +36,9 @@ import synthesis
 import unfalsify as uf
 
 from ..lab.report import Report, finish_report, write_csv
+from .adversarial import verdict
+from .design_cli import default_weights
+from .robust_pipeline import premise_ratio
 
 __all__ = ["run", "summary_lines", "PLANTS", "EXCITATIONS", "judge", "make_record", "Case"]
 
@@ -129,12 +133,7 @@ def make_record(case: Case):
 
 
 def _weights(P):
-    W1 = synthesis.makeweight(100.0, (math.pi / 30, 1.0), 0.2, 1.0)
-    W2 = synthesis.makeweight(0.05, (math.pi / 10, 0.3), 1.0, 1.0)
-    dt = float(P.dt)
-    if dt != 1.0:  # the same shapes in rad/sample at the plant's sample time
-        W1 = synthesis.makeweight(100.0, (math.pi / 30 / dt, 1.0), 0.2, dt)
-        W2 = synthesis.makeweight(0.05, (math.pi / 10 / dt, 0.3), 1.0, dt)
+    W1, W2, _ = default_weights(float(P.dt))   # the design CLI's defaults, relative to the Nyquist frequency
     # outputs beyond the m that can be tracked get a small static weight: the design does not chase them
     W1s = [W1 if k < P.ninputs else 0.01 for k in range(P.noutputs)]
     return synthesis.diagonal_weight(*W1s), synthesis.diagonal_weight(W2, channels=P.ninputs)
@@ -165,15 +164,6 @@ def judge(P, controller, delta: float, floor=None) -> dict:
     return out
 
 
-def premise_ratio(P, model, delta: float) -> float:
-    """``‖P − P̂‖∞/δ`` (proven upper side; inf when either is not stable or δ = 0)."""
-    for sys in (P, model):
-        if sys.nstates and np.max(np.abs(np.linalg.eigvals(sys.A))) >= 1.0 - 1e-9:
-            return float("inf")
-    b = synthesis.hinf_norm(control.ss(P) - control.ss(model))
-    return float(b.upper / delta) if delta > 0 and math.isfinite(b.upper) else float("inf")
-
-
 def run_case(case: Case, premise: uf.PremiseOptions | None = None) -> dict:
     """One pipeline run and its true-plant verdict (``premise``: how the premise is tested, default options)."""
     P, (u, y), validation = make_record(case)
@@ -188,16 +178,13 @@ def run_case(case: Case, premise: uf.PremiseOptions | None = None) -> dict:
                                             dt=float(P.dt), premise=premise,
                                             certificate=uf.CertificateOptions(tracking_floor=tracking_floor(P)))
         except (synthesis.DataError, uf.UnfalsificationError) as exc:
-            row.update(verdict="refused_by_error", certified=False, reason=str(exc), seconds=time.perf_counter() - t0)
+            row.update(verdict=verdict(False, False, None, exc), certified=False, reason=str(exc),
+                       seconds=time.perf_counter() - t0)
             return row
     warned = any(issubclass(w.category, uf.NotCertifiedWarning) for w in caught)
     true = judge(P, rd.controller, rd.delta)
-    if rd.certified:
-        verdict = "certified" if true["ok"] else "false_certificate"
-    else:
-        verdict = "not_certified" if warned else "silent_failure"
-    row.update(verdict=verdict, certified=bool(rd.certified), delta=float(rd.delta),
-               decided_by=rd.premise.decided_by, premise_ratio=premise_ratio(P, rd.model, rd.delta),
+    row.update(verdict=verdict(rd.certified, warned, true), certified=bool(rd.certified), delta=float(rd.delta),
+               decided_by=rd.premise.decided_by, premise_ratio=premise_ratio(P, rd.model, rd.delta)[0],
                true_small_gain=true["small_gain"], true_stable=true["stable"], true_step_error=true["step_error"],
                true_fails="; ".join(true["fails"]), reason=rd.reason, seconds=time.perf_counter() - t0)
     return row
@@ -228,7 +215,8 @@ QUICK_PREMISE = uf.PremiseOptions(samples=150)
 
 def summarise(rows: list[dict]) -> dict:
     verdicts = {v: sum(r["verdict"] == v for r in rows) for v in
-                ("certified", "false_certificate", "not_certified", "refused_by_error", "silent_failure")}
+                ("certified", "false_certificate", "not_certified", "refused_by_error", "refused_without_fix",
+                 "silent_failure")}
     ratios = [r["premise_ratio"] for r in rows if r["verdict"] == "certified"]
     return {"runs": len(rows), "certified": verdicts["certified"], "false_certificates": verdicts["false_certificate"],
             "silent_failures": verdicts["silent_failure"], "verdicts": verdicts,
