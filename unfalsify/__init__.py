@@ -206,8 +206,8 @@ from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .solvers.split import split_solve
 from .model import predictor_model
-from .certify import (LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, loop_parts, step_metrics,
-                      tracking_floors)
+from .certify import (LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, coprime_channel, loop_parts,
+                      step_metrics, tracking_floors)
 from .premise import (
     EXCITATION_FLOOR,
     ExcitationCheck,
@@ -223,6 +223,8 @@ from .premise import (
     output_error_residual,
     output_error_unfalsify,
 )
+from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
+                      coprime_factors, coprime_gap, coprime_unfalsify, error_gap, model_error_estimate)
 from .robust import (
     AdditiveRobustness,
     CertificateOptions,
@@ -278,6 +280,7 @@ __all__ = [
     "StepMetrics",
     "certify_loop",
     "closed_loop_ry",
+    "coprime_channel",
     "loop_parts",
     "step_metrics",
     "tracking_floors",
@@ -294,6 +297,16 @@ __all__ = [
     "low_band_estimate",
     "output_error_residual",
     "output_error_unfalsify",
+    "CoprimeFactors",
+    "CoprimePremise",
+    "CoprimeUnfalsification",
+    "check_coprime_premise",
+    "coprime_distance",
+    "coprime_factors",
+    "coprime_gap",
+    "coprime_unfalsify",
+    "error_gap",
+    "model_error_estimate",
     "AdditiveRobustness",
     "DesignSearch",
     "FewDataWarning",

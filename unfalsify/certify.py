@@ -43,8 +43,8 @@ from synthesis.validation import DataError, as_discrete_system, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
-__all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "loop_parts",
-           "step_metrics", "tracking_floors"]
+__all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "coprime_channel",
+           "loop_parts", "step_metrics", "tracking_floors"]
 
 #: Default performance floor: mean |r − y| over the last quarter of a unit step.
 TRACKING_FLOOR = 0.1
@@ -124,6 +124,10 @@ class LoopCertificate:
         The second proof of the small gain: ``‖M̂‖∞ < 1/((1 + margin)·δ)`` by a matrix ``P``
         (:meth:`BoundedRealCertificate.verify` re-checks it).  Computed when the pencil test
         passes and ``δ > 0``; certified needs it proven too.
+    uncertainty : {"additive", "coprime"}
+        The family certified: ``P̂ + Δ`` with ``‖Δ‖∞ ≤ (1 + margin)δ`` (``norm`` bounds
+        ``‖K(I+P̂K)⁻¹‖∞``), or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)δ`` (``δ`` is
+        then ε and ``norm`` bounds ``‖[K; I](M̂ + N̂K)⁻¹‖∞``, :func:`coprime_channel`).
     """
 
     certified: bool
@@ -136,6 +140,7 @@ class LoopCertificate:
     step: StepMetrics | None
     tracking_floor: float | tuple
     bounded_real: BoundedRealCertificate | None = None
+    uncertainty: str = "additive"
 
     @property
     def stable(self) -> bool:
@@ -222,6 +227,56 @@ def additive_channel(plant, controller) -> control.StateSpace:
     """
     P, C, l = loop_parts(plant, controller)
     return control.feedback(C[:, l:], P, sign=+1)  # u = Cy (P u + d)  =>  u = (I − Cy P)⁻¹ Cy d
+
+
+def coprime_channel(factors, controller) -> control.StateSpace:
+    """``H = [C_y; I](M̂ − N̂C_y)⁻¹``: the map ``v ↦ [u; y]`` a coprime-factor perturbation sees.
+
+    With ``P = (M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` the loop reads ``M̂y = N̂u + v``, ``v = [Δ_N  −Δ_M][u; y]``
+    (:mod:`unfalsify.coprime`); it is stable for every stable ``[Δ_N Δ_M]`` with ``‖[Δ_N Δ_M]‖∞ ‖H‖∞ < 1``
+    if it is nominally stable.  The realisation closes the loop around ``M̂⁻¹[N̂  I]`` in one state
+    (:meth:`CoprimeFactors.equation`), so every pole of ``H`` is a pole of the nominal closed loop -- also
+    for an integrating P̂, whose ``M̂⁻¹`` alone is unstable.
+
+    Parameters
+    ----------
+    factors : CoprimeFactors
+        ``(N̂, M̂)`` of P̂ (:func:`unfalsify.coprime_factors`).
+    controller : control.StateSpace
+        Inputs ``[r; y]``, outputs ``u``, the factors' sample time.
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs ``v`` (l), outputs ``[u; y]`` (m + l).
+
+    Examples
+    --------
+    >>> import numpy as np, control
+    >>> from unfalsify import CoprimeFactors
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)  # 0.1/(z − 1)
+    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y)
+    >>> H = coprime_channel(F, K)                          # [−2; 1] z/(z − 0.8), a pole at 0 from the delay line
+    >>> sorted(H.poles().real.round(6).tolist()), np.round(np.abs(control.dcgain(H)).ravel(), 6).tolist()
+    ([0.0, 0.8], [10.0, 5.0])
+    """
+    G = factors.equation()
+    P, C, l = loop_parts(factors.model(), controller)
+    m = P.ninputs
+    A, B, Cp, D = (np.asarray(X, float) for X in control.ssdata(G))
+    Bu, Bv, Du = B[:, :m], B[:, m:], D[:, :m]
+    K = C[:, l:]
+    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(K))
+    # y = Cp x + Du u + v, u = Cc xc + Dc y  =>  (I − Du Dc) y = Cp x + Du Cc xc + v
+    E = np.linalg.inv(np.eye(l) - Du @ Dc)
+    Yx, Yc, Yv = E @ Cp, E @ Du @ Cc, E
+    Ux, Uc, Uv = Dc @ Yx, Cc + Dc @ Yc, Dc @ Yv
+    n, nc = A.shape[0], Ac.shape[0]
+    Acl = np.block([[A + Bu @ Ux, Bu @ Uc], [Bc @ Yx, Ac + Bc @ Yc]]) if nc else A + Bu @ Ux
+    Bcl = np.vstack([Bv + Bu @ Uv, Bc @ Yv]) if nc else Bv + Bu @ Uv
+    Ccl = np.block([[Ux, Uc], [Yx, Yc]]) if nc else np.vstack([Ux, Yx])
+    Dcl = np.vstack([Uv, Yv])
+    return control.ss(Acl, Bcl.reshape(n + nc, l), Ccl.reshape(m + l, n + nc), Dcl, P.dt)
 
 
 def closed_loop_ry(plant, controller) -> control.StateSpace:
@@ -334,8 +389,9 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
 
 
 def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracking_floor: float = TRACKING_FLOOR,
-                 step_samples: int = STEP_SAMPLES, tol: float = 1e-8) -> LoopCertificate:
-    """Certify the implemented loop ``(P̂, K)`` for additive uncertainty of size δ (see the module docstring).
+                 step_samples: int = STEP_SAMPLES, tol: float = 1e-8, factors=None) -> LoopCertificate:
+    """Certify the implemented loop ``(P̂, K)`` for additive uncertainty of size δ (see the module docstring),
+    or, with ``factors``, for coprime-factor uncertainty of size ε = δ.
 
     Parameters
     ----------
@@ -354,6 +410,9 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
         Length of the step run.
     tol : float
         Relative gap of the H∞ bracket.
+    factors : CoprimeFactors, optional
+        ``P̂ = M̂⁻¹N̂`` (:func:`unfalsify.coprime_factors`; ``model`` must be this P̂): the small gain is then
+        ``δ·‖[K; I](M̂ + N̂K)⁻¹‖∞`` (:func:`coprime_channel`), which stays finite for an integrating P̂.
 
     Returns
     -------
@@ -383,10 +442,15 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     P, C, l = loop_parts(model, controller)
     floors = tracking_floors(tracking_floor, l)
     tracking_floor = float(floors[0]) if np.ndim(tracking_floor) == 0 else tuple(float(f) for f in floors)
-    M = control.feedback(C[:, l:], P, sign=+1)
+    if factors is None:
+        M, kind, name = control.feedback(C[:, l:], P, sign=+1), "additive", "‖K(I+P̂K)⁻¹‖∞"
+    else:
+        _check_factors(P, factors)
+        M, kind, name = coprime_channel(factors, C), "coprime", "‖[K; I](M̂+N̂K)⁻¹‖∞"
     Am = np.asarray(M.A, float)
     rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0
-    common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor)
+    common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor,
+                  uncertainty=kind)
     if not rho < 1.0:
         return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model P̂ (spectral radius {rho:.6g})",
                                norm=None, small_gain=float("inf"), step=None, **common)
@@ -396,9 +460,10 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     step = step_metrics(_closed_loop_ry(P, C, l), int(step_samples))
     reason = ""
     if not math.isfinite(bracket.upper):
-        reason = f"‖K(I+P̂K)⁻¹‖∞ not proven finite ({bracket.reason})"
+        reason = f"{name} not proven finite ({bracket.reason})"
     elif small_gain > 1.0 / (1.0 + margin):
-        reason = (f"small gain: δ·‖K(I+P̂K)⁻¹‖∞ = {delta:.4g} × {bracket.upper:.4g} = {small_gain:.4g} > "
+        size = "δ" if factors is None else "ε"
+        reason = (f"small gain: {size}·{name} = {delta:.4g} × {bracket.upper:.4g} = {small_gain:.4g} > "
                   f"1/(1 + margin) = {1.0 / (1.0 + margin):.4g}")
     elif not np.all((errs := step.output_errors(np.isfinite(floors))) <= floors):
         worst = int(np.argmax(errs - floors))
@@ -413,3 +478,19 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
                       f"not by a bounded-real matrix P ({kyp.reason})")
     return LoopCertificate(certified=not reason, reason=reason, norm=bracket, small_gain=small_gain, step=step,
                            bounded_real=kyp, **common)
+
+
+def _check_factors(P, factors) -> None:
+    """``P`` must be ``M̂⁻¹N̂`` of ``factors`` (compared at three frequencies)."""
+    try:
+        same_shape = (factors.inputs, factors.outputs) == (P.ninputs, P.noutputs)
+        w = np.array([0.3, 1.1, 2.7]) / float(P.dt)
+        Nw, Mw = factors.response(w)
+        ours = np.moveaxis(np.asarray(P.horner(np.exp(1j * w * P.dt)), complex).reshape(P.noutputs, P.ninputs, 3),
+                           -1, 0)
+        same = same_shape and np.allclose(Mw @ ours, Nw, rtol=1e-6, atol=1e-9 * (1.0 + np.max(np.abs(Nw))))
+    except (AttributeError, ValueError, np.linalg.LinAlgError) as exc:
+        raise DataError(f"factors must be the CoprimeFactors of the model ({exc})") from None
+    if not same:
+        raise DataError("the factors are not those of the model (M̂ P̂ ≠ N̂): pass model=factors.model(), or the "
+                        "factors of unfalsify.coprime_factors(pred, dt) for the predictor of the model")

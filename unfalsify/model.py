@@ -74,14 +74,29 @@ def predictor_model(pred, dt) -> control.StateSpace:
     if not (np.all(np.isfinite(Lw)) and np.all(np.isfinite(Lu))):
         raise DataError("predictor contains NaN or infinite entries; refit it on finite data")
     dt = check_sample_time(dt, "dt")
-    C, D = Lw[:l], Lu[:l, :m]
+    return _delay_line(Lw[:l], Lu[:l, :m], i, m, l, dt)
+
+
+def _delay_line(C, D, i: int, m: int, l: int, dt: float, disturbance: bool = False) -> control.StateSpace:
+    """The delay-line realisation of ``y_k = C w_p(k) + D u_k`` (+ ``v_k`` with ``disturbance``: inputs ``[u; v]``).
+
+    ``v`` enters the equation ``y_k = C w_p(k) + D u_k + v_k`` itself, so it reaches the state like ``y_k`` does:
+    that is the input of the coprime factors' equation ``M̂ y = N̂ u + v`` (:mod:`unfalsify.coprime`).
+    """
+    nu, ny = i * m, i * l
     n = nu + ny
     A = np.zeros((n, n))
-    B = np.zeros((n, m))
+    B = np.zeros((n, m + (l if disturbance else 0)))
     A[: nu - m, m:nu] = np.eye(nu - m)          # u_{k-i+1} … u_{k-1} move up
-    B[nu - m: nu] = np.eye(m)                   # u_k enters last
+    B[nu - m: nu, :m] = np.eye(m)               # u_k enters last
     A[nu: n - l, nu + l:] = np.eye(ny - l)      # y_{k-i+1} … y_{k-1} move up
-    A[n - l:] = C                               # y_k = C x_k + D u_k enters last
-    B[n - l:] = D
-    return control.ss(A, B, C, D, dt, inputs=[f"u[{c}]" for c in range(m)],
+    A[n - l:] = C                               # y_k = C x_k + D u_k (+ v_k) enters last
+    B[n - l:, :m] = D
+    Dfull = np.asarray(D, float)
+    inputs = [f"u[{c}]" for c in range(m)]
+    if disturbance:
+        B[n - l:, m:] = np.eye(l)
+        Dfull = np.hstack([Dfull, np.eye(l)])
+        inputs += [f"v[{c}]" for c in range(l)]
+    return control.ss(A, B, np.asarray(C, float), Dfull, dt, inputs=inputs,
                       outputs=[f"y[{c}]" for c in range(l)], name="predictor_model")

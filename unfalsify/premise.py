@@ -76,7 +76,7 @@ from synthesis.validation import DataError, as_signal
 
 from ._common import channel_pair, siso_pair
 from .arx import ArxResult, arx_unfalsify
-from .certify import additive_channel
+from .certify import additive_channel, coprime_channel
 
 __all__ = [
     "EXCITATION_FLOOR",
@@ -1135,7 +1135,7 @@ class ExcitationCheck:
 
 
 def check_excitation(model, controller, frf: FrequencyResponseEstimate,
-                     low_band: LowBandEstimate | None = None) -> ExcitationCheck:
+                     low_band: LowBandEstimate | None = None, *, factors=None) -> ExcitationCheck:
     """Check that the data determine the plant where the loop ``(P̂, K)`` is sensitive.
 
     At each Welch frequency the confidence disk ``|(P − P̂) − D̂| ≤ r`` must lie where the loop is
@@ -1169,6 +1169,12 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         input and the output error ``y − P̂u`` (:attr:`PremiseTest.frf`).
     low_band : LowBandEstimate, optional
         ``D̂`` below the Welch resolution (:attr:`PremiseTest.low_band`).
+    factors : CoprimeFactors, optional
+        The coprime-factor form (:mod:`unfalsify.coprime`): ``frf`` and ``low_band`` then estimate
+        ``R = M̂P − N̂`` (:attr:`CoprimePremise.error_frf`) and the loop's map is ``C_y(M̂ − N̂C_y)⁻¹`` (the ``u``
+        rows of :func:`unfalsify.coprime_channel`).  Since ``I − PC_y = M̂⁻¹(M̂ − N̂C_y)(I − (M̂ − N̂C_y)⁻¹RC_y)``,
+        the same test is the frequency-wise condition of the loop, and it stays finite at an integrating P̂'s
+        pole, where ``P − P̂`` and its estimate are unbounded.
 
     Returns
     -------
@@ -1205,7 +1211,10 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex.ok, "u[:, 1]" in ex.reason
     (False, True)
     """
-    M = additive_channel(model, controller)
+    if factors is None:
+        M, norm = additive_channel(model, controller), "K(I+P̂K)⁻¹"
+    else:
+        M, norm = coprime_channel(factors, controller)[: model.ninputs, :], "K(M̂+N̂K)⁻¹"
     mimo = frf.response.ndim == 3 or (low_band is not None and low_band.response.ndim == 3)
     if not mimo:
         freq, dist, radius = frf.frequency, np.abs(frf.response), frf.radius
@@ -1249,7 +1258,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     unit = _unit(frf.dt)
     band = _bands(freq, bad, unit)
     lo, hi = float(freq[bad].min()), float(freq[bad].max())
-    norm = "‖K(I+P̂K)⁻¹‖₂" if mimo else "|K(I+P̂K)⁻¹|"
+    norm = f"‖{norm}‖₂" if mimo else f"|{norm}|"
     signal = ("independent white PRBS or multisines covering that band on the inputs" if mimo
               else "white PRBS or a multisine covering that band")
     if np.all(~np.isfinite(radius[bad]) | (radius[bad] >= dist[bad])):

@@ -64,6 +64,7 @@ from ._common import channel_pair, check_sigma
 from .exceptions import SolverWarning, UnfalsificationError
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
                       tracking_floors)
+from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .model import predictor_model
 from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
@@ -299,6 +300,13 @@ class RobustDesignResult:
         The verdict on ``(P̂_ref, K)``.
     reference_note : str
         Why there is no reference model (``''`` when there is one).
+    uncertainty : {"additive", "coprime"}
+        The family the certificate speaks of (``CertificateOptions.uncertainty``): ``P̂ + Δ`` with
+        ``‖Δ‖∞ ≤ (1 + margin)·delta``, or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)·epsilon``.
+        The design is sized by ``delta`` either way.
+    coprime : CoprimePremise or None
+        The coprime-factor premise (ε by Theorem 7.1 on the equation error, in sample and held out, each with
+        its certificate; the gap to the data's estimates), when it was tested.
     """
 
     unfalsification: SubspaceResult
@@ -321,6 +329,8 @@ class RobustDesignResult:
     premise_reason: str = ""
     excitation: ExcitationCheck | None = None
     tracking_reason: str = ""
+    uncertainty: str = "additive"
+    coprime: CoprimePremise | None = None
 
     @property
     def controller(self) -> control.StateSpace:
@@ -339,6 +349,11 @@ class RobustDesignResult:
         """Why the loop is not certified (``''`` when it is)."""
         return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
                                self.tracking_reason)
+
+    @property
+    def epsilon(self) -> float:
+        """ε of the coprime-factor family (NaN when that form was not tested)."""
+        return float(self.coprime.epsilon) if self.coprime is not None else float("nan")
 
     @property
     def delta_subspace(self) -> float:
@@ -420,6 +435,12 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
                 f"{_offset_text(where)} (a static offset inside the certified ball of radius {radius:.4g}): the loop "
                 "tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
                 "frequency (integral action) or reduce δ (a longer or richer record)")
+    return _data_gain_reason(model, controller, floors, data_gain)
+
+
+def _data_gain_reason(model, controller, floors: np.ndarray, data_gain) -> str:
+    """Why the loop does not track at ``data_gain``, the low-frequency gain the data show (``''`` when it does)."""
+    l = model.noutputs
     if data_gain is None or not np.all(np.isfinite(data_gain)):
         return ""
     G = np.asarray(data_gain, complex).reshape(l, model.ninputs)
@@ -822,15 +843,18 @@ def robust_design_from_data(
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
     space = _DesignSpace(u, y, pred, predictor, predictor_for, W1, W2, delta, design, dt)
     ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
-    premise_reason = "; ".join(r for r in (prem.reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason)
+    cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
+                                           ref_model)
+    premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason)
                                if r)
-    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate)
+    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
     if premise_reason or judge.missing is not None:
         search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
     chosen, c, rec, records = _search_designs(space, judge, search, i)
     if not rec.certified:
         tried = len(records)
-        msg = (f"the §7.4 loop is NOT certified for δ = {delta:.4g}: {rec.reason}"
+        size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
+        msg = (f"the §7.4 loop is NOT certified for {size}: {rec.reason}"
                + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made"))
         if require_certified:
             raise NotCertifiedError(msg)
@@ -842,7 +866,8 @@ def robust_design_from_data(
         gamma_min_nominal=float(g_nom), covered_delta=float(c / chosen.gamma if chosen.gamma > 0 else np.inf),
         model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
-        premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason)
+        premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
+        uncertainty="additive" if ball is None else "coprime", coprime=cop)
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
@@ -964,8 +989,9 @@ def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, d
 class _LoopJudge:
     """Every check a design's loop must pass: certificates on P̂ and P̂_ref, the premise, excitation, tracking."""
 
-    def __init__(self, model, ref_model, ref_note, prem, premise_reason, delta, options: CertificateOptions):
-        self.model, self.ref_model, self.prem = model, ref_model, prem
+    def __init__(self, model, ref_model, ref_note, prem, premise_reason, delta, options: CertificateOptions,
+                 ball: "_CoprimeBall | None" = None):
+        self.model, self.ref_model, self.prem, self.ball = model, ref_model, prem, ball
         self.premise_reason, self.delta = premise_reason, delta
         self.margin = _positive_real(options.margin, "certificate_margin", allow_equal=True)
         self.floor = options.tracking_floor  # one number, or one per output channel (certify.tracking_floors)
@@ -980,6 +1006,8 @@ class _LoopJudge:
                                            step=None, tracking_floor=self.floor)
 
     def record(self, h, cz, ratio, c, d) -> SearchRecord:
+        if self.ball is not None:
+            return self._coprime_record(h, cz, ratio, c, d)
         prem = self.prem
         ref = (certify_loop(self.ref_model, d.controller, self.delta, **self.cert_opts)
                if self.ref_model is not None else self.missing)
@@ -990,6 +1018,116 @@ class _LoopJudge:
         track = (_steady_state_reason(self.model, d.controller, (1.0 + self.margin) * self.delta, self.floor, gain)
                  if cert.stable else "")
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+
+    def _coprime_record(self, h, cz, ratio, c, d) -> SearchRecord:
+        """The same checks in coprime-factor form: small gain ``ε‖[K; I](M̂+N̂K)⁻¹‖∞`` on P̂ and P̂_ref."""
+        b = self.ball
+        ref = (certify_loop(self.ref_model, d.controller, b.ref_eps, factors=b.ref_factors, **self.cert_opts)
+               if self.ref_model is not None and b.ref_factors is not None else self.missing)
+        cert = certify_loop(self.model, d.controller, b.eps, factors=b.factors, **self.cert_opts)
+        exc = (check_excitation(self.model, d.controller, b.frf, b.low_band, factors=b.factors)
+               if b.frf is not None and cert.stable else None)
+        track = (_coprime_tracking_reason(b, d.controller, (1.0 + self.margin) * b.eps, self.floor)
+                 if cert.stable else "")
+        return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+
+
+@dataclass(frozen=True)
+class _CoprimeBall:
+    """What the coprime-factor judge needs: the factors and ε of P̂ and P̂_ref, estimates of ``R = M̂P − N̂``, the
+    data's gain."""
+
+    factors: object
+    eps: float
+    ref_factors: object
+    ref_eps: float
+    frf: object
+    low_band: object
+    data_gain: object
+
+
+def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u, y, unf, validation, premise,
+                  space: "_DesignSpace", ref_model):
+    """``(coprime premise or None, ball or None, premise reason)``: which form the loop is certified in.
+
+    ``"auto"`` moves to the coprime form only when the data refute the additive premise and do not refute the
+    coprime one; otherwise the additive verdict stands, with the coprime form's reason beside it.
+    """
+    if options.uncertainty == "additive" or (options.uncertainty == "auto" and not prem.reason):
+        return None, None, prem.reason
+    opts = premise or PremiseOptions()
+    factors = coprime_factors(pred, float(model.dt))
+    cop = check_coprime_premise(factors, u, y, float(unf.sigma), validation=validation, options=opts)
+    if options.uncertainty == "auto" and not cop.ok:
+        return cop, None, f"{prem.reason}; in coprime-factor form too: {cop.reason}"
+    if not math.isfinite(cop.epsilon):
+        return cop, None, cop.reason or "no coprime-factor ε could be certified"
+    ref_factors, ref_eps, reason = None, cop.epsilon, cop.reason
+    if ref_model is not None:
+        ref_h = 2 * int(pred.horizon) if options.reference_horizon is None else int(options.reference_horizon)
+        ref_factors = coprime_factors(space.predictor_at(ref_h), float(model.dt))
+        data = validation if validation is not None else (u, y)
+        try:
+            ref_cu = coprime_unfalsify(ref_factors, *data, held_out=validation is not None, options=opts)
+            ref_eps = float(np.fmax(cop.epsilon, ref_cu.epsilon))
+        except DataError as exc:
+            reason = "; ".join(r for r in (reason, f"no coprime-factor ε for the reference model P̂_ref ({exc})") if r)
+    gain = _coprime_data_gain(factors, cop.error_low_band)
+    ball = _CoprimeBall(factors=factors, eps=float(cop.epsilon), ref_factors=ref_factors, ref_eps=float(ref_eps),
+                        frf=cop.error_frf, low_band=cop.error_low_band, data_gain=gain)
+    return cop, ball, reason
+
+
+def _coprime_data_gain(factors, low_band):
+    """The plant's gain the data show at the lowest low-band frequency, ``M̂⁻¹(N̂ + R̂)`` (None without one)."""
+    if low_band is None or low_band.frequency.size == 0:
+        return None
+    Nw, Mw = factors.response(low_band.frequency[:1])
+    R = np.asarray(low_band.response[:1], complex).reshape(1, factors.outputs, factors.inputs)
+    try:
+        return np.linalg.solve(Mw[0], Nw[0] + R[0])
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _coprime_static_gains(factors, radius: float, angles: int = 64) -> list:
+    """Static plants ``(M̂(1) + E_M)⁻¹(N̂(1) + E_N)`` with ``‖[E_N E_M]‖₂ = radius`` the tracking check tries.
+
+    One channel: the whole circle ``(E_N, E_M) = radius (cos θ, sin θ)`` at ``angles`` points (the DC gain
+    is a Möbius function of each, so the sampled extremes approach the ball's).  Several: the same circle
+    along ``[I_{l×m}  I_l]``, a test at those offsets, not a proof over the matrix ball.
+    """
+    N1, M1 = (X[0].real for X in factors.response(np.zeros(1)))
+    l, m = N1.shape
+    DN = np.eye(l, m) / max(np.linalg.norm(np.eye(l, m), 2), 1e-300)
+    gains = []
+    for t in np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False):
+        Mp = M1 + radius * np.sin(t) * np.eye(l)
+        if np.linalg.cond(Mp) > 1e12:
+            continue  # the family holds a plant with a pole at 1 here: its neighbours on the circle stand for it
+        gains.append(np.linalg.solve(Mp, N1 + radius * np.cos(t) * DN))
+    return gains
+
+
+def _coprime_tracking_reason(ball: _CoprimeBall, controller, radius: float, floor) -> str:
+    """:func:`_steady_state_reason` for the coprime family: the loop must track at every static plant of the ball."""
+    l = ball.factors.outputs
+    floors = tracking_floors(floor, l)
+    worst, where, errs = -np.inf, None, None
+    for G in _coprime_static_gains(ball.factors, radius):
+        e = _dc_errors_at_gain(controller, G, floors)
+        excess = np.nan_to_num(e - floors, nan=np.inf)
+        if not np.max(excess) <= worst:
+            worst, where, errs = float(np.max(excess)), G, e
+    if worst > 0:
+        k = int(np.argmax(errs - floors))
+        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the static plant "
+                f"of gain {_gain_text(where)} inside the certified coprime-factor ball of radius {radius:.4g}: the "
+                "loop tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
+                "frequency (integral action) or reduce ε (a longer or richer record)")
+    if ball.data_gain is None:
+        return ""
+    return _data_gain_reason(ball.factors.model(), controller, floors, ball.data_gain)
 
 
 def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch | None, i: int):
@@ -1042,6 +1180,10 @@ class DesignOptions:
         _positive_real(self.margin, "margin", allow_equal=True)
 
 
+#: the uncertainty families a loop can be certified for (``CertificateOptions.uncertainty``)
+UNCERTAINTY_FORMS = ("auto", "additive", "coprime")
+
+
 @dataclass(frozen=True)
 class CertificateOptions:
     """The loop certificate of :func:`robust_design_from_data` (step 5).
@@ -1061,6 +1203,12 @@ class CertificateOptions:
         Without a reference model the loop is not certified (default): measured on an integrating
         plant with a resonance (i = 10), certificates on P̂ alone failed on the true plant, while P̂ and
         P̂_ref together never did on the plants tried.  ``False`` certifies on P̂ alone (weaker).
+    uncertainty : {"auto", "additive", "coprime"}
+        The family the loop is certified for.  ``"additive"``: ``P̂ + Δ``, ``‖Δ‖∞ ≤ (1 + margin)δ``.
+        ``"coprime"``: ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)``, ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)ε`` around P̂'s FIR factors
+        (:mod:`unfalsify.coprime`), finite for an integrating plant, whose ``‖P − P̂‖∞`` is infinite.
+        ``"auto"`` (default): additive, and the coprime form when the data refute the additive premise
+        (each form's premise is tested in its own terms; the result says which one certified).
     """
 
     margin: float = CERTIFICATE_MARGIN
@@ -1068,6 +1216,12 @@ class CertificateOptions:
     step_samples: int = STEP_SAMPLES
     reference_horizon: int | None = None
     require_reference: bool = True
+    uncertainty: str = "auto"
+
+    def __post_init__(self):
+        if self.uncertainty not in UNCERTAINTY_FORMS:
+            raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
+                            f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")
 
 
 @dataclass(frozen=True)

@@ -72,7 +72,7 @@ from ..lab.report import LiveTable, Report, finish_report, write_csv
 from ..lab.servo_setup import design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import closed_loop, collect_data
-from .robust_pipeline import _true_loop, premise_ratio
+from .robust_pipeline import _true_loop, premise_ratio, result_premise_ratio
 
 __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excitation_class", "catalogue",
            "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",
@@ -470,13 +470,14 @@ def make_record(case: Case) -> Record:
 
 
 # ----------------------------------------------------------------------------------------------- judge
-def judge(P, controller, delta: float, tracking_floor: float) -> dict:
+def judge(P, controller, delta: float, tracking_floor: float, uncertainty: str = "additive", factors=None) -> dict:
     """The true-plant check of :func:`experiments.studies.robust_pipeline._true_loop` plus its failure flags.
 
     Returns its dict with ``fails`` (list of what failed: unstable, small gain ≥ 1, no tracking,
-    does not survive a size-δ perturbation) and ``ok`` (none failed).
+    does not survive a size-δ perturbation) and ``ok`` (none failed).  ``uncertainty="coprime"``: ``delta``
+    is ε and the small gain and perturbations are the coprime-factor ones.
     """
-    t = _true_loop(P, controller, delta, tracking_floor)
+    t = _true_loop(P, controller, delta, tracking_floor, uncertainty, factors)
     fails = []
     if not t["stable"]:
         fails.append("true loop unstable")
@@ -577,8 +578,9 @@ def run_case(case: Case) -> dict:
         return out
     out.update(delta=float(rd.delta), certified=bool(rd.certified), reason=rd.reason,
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
-    out["premise_ratio"], out["premise_note"] = premise_ratio(rec.plant, rd.model, rd.delta)
-    if rd.reference_model is not None:
+    out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
+    out["premise_ratio"], out["premise_note"] = result_premise_ratio(rec.plant, rd)
+    if rd.reference_model is not None and rd.uncertainty == "additive":
         out["premise_ratio_ref"] = premise_ratio(rec.plant, rd.reference_model, rd.delta)[0]
     out["true"], out["verdict"] = judge_result(rd, rec.plant, out["warned"])
     return out
@@ -591,7 +593,9 @@ def judge_result(rd, P, warned: bool) -> tuple[dict, str]:
     (so a hand-made result can be judged too).  A judge that raises fails the run.
     """
     try:
-        true = judge(P, rd.controller, rd.delta, rd.certificate.tracking_floor)
+        coprime = getattr(rd, "uncertainty", "additive") == "coprime"
+        true = judge(P, rd.controller, rd.epsilon if coprime else rd.delta, rd.certificate.tracking_floor,
+                     "coprime" if coprime else "additive", rd.coprime.factors if coprime else None)
     except Exception as exc:  # noqa: BLE001 - a judge that cannot judge must not pass the run
         true = {"stable": False, "small_gain": float("inf"), "ok": False,
                 "fails": [f"judge failed: {type(exc).__name__}: {exc}"]}

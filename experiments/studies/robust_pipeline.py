@@ -47,7 +47,8 @@ from ..lab.signals import prbs
 from ..lab.simulate import collect_data
 from .chapter7 import worst_phase_allpass
 
-__all__ = ["run", "run_case", "plant_and_weights", "premise_ratio", "PIPELINE_PLANTS", "Config"]
+__all__ = ["run", "run_case", "plant_and_weights", "premise_ratio", "result_premise_ratio", "true_factors",
+           "PIPELINE_PLANTS", "Config"]
 
 #: The 10 Hz plants of this experiment: name -> factory.
 PIPELINE_PLANTS = {
@@ -75,8 +76,14 @@ class Config:
         return cls(plants=("third_order", "resonant", "nonminimum_phase"), seeds=(0,), sizes=((10, 30),))
 
 
-def _true_loop(P, K, delta: float, tracking_floor: float) -> dict:
-    """Checks on the true plant, independent of the pipeline's models."""
+def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "additive", factors=None) -> dict:
+    """Checks on the true plant, independent of the pipeline's models.
+
+    ``uncertainty="coprime"`` (``delta`` is then ε, ``factors`` P̂'s): ε-balls of different factorisations of
+    one plant are not comparable, so the true plant is factored *like P̂* (:func:`true_factors` with
+    ``like=factors``); the small gain is ``ε‖[K; I](M + NK)⁻¹‖∞`` of those factors and the perturbations are
+    the size-ε coprime ones ``N + εz⁻¹``, ``N − ε``, ``M ± ε``.
+    """
     rob = uf.additive_robustness(P, K)
     out = {"stable": rob.stable, "spectral_radius": rob.spectral_radius,
            "small_gain": float(delta * rob.peak) if rob.stable else float("inf")}
@@ -84,7 +91,13 @@ def _true_loop(P, K, delta: float, tracking_floor: float) -> dict:
     out.update(step_error=step.final_error, overshoot_pct=100.0 * step.overshoot,
                tracks=bool(rob.stable and step.final_error <= tracking_floor))
     radii = []
-    if rob.stable and delta > 0:
+    if rob.stable and delta > 0 and uncertainty == "coprime":
+        F = true_factors(P, like=factors)
+        peak = synthesis.hinf_norm(uf.coprime_channel(F, K)).upper
+        out["small_gain"] = float(delta * peak)
+        for pd in _coprime_perturbations(F, delta):
+            radii.append(uf.additive_robustness(pd, K).spectral_radius)
+    elif rob.stable and delta > 0:
         dt = P.dt
         perts = [control.tf([delta], [1.0, 0.0], dt), control.tf([-delta], [1.0], dt),
                  worst_phase_allpass(P, K, delta)[0]]
@@ -93,6 +106,74 @@ def _true_loop(P, K, delta: float, tracking_floor: float) -> dict:
     out["perturbed_max_radius"] = float(max(radii)) if radii else float("nan")
     out["survives"] = bool(rob.stable and (not radii or max(radii) < 1.0))
     return out
+
+
+def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -> uf.CoprimeFactors:
+    """FIR left factors ``P = N(q⁻¹)/M(q⁻¹)``, ``M(∞) = 1``, of a single-channel plant.
+
+    ``P = b(z)/a(z)`` with ``a`` monic of degree n: ``M = a(z) z^{−n}``, ``N = b(z) z^{−n}``.  With ``like`` (P̂'s
+    factors, degree i) both are multiplied by the FIR ``Q`` of degree i that brings ``[NQ  MQ]`` closest to
+    ``[N̂  M̂]`` in least squares over ``points`` frequencies: P̂'s factors carry a near-common factor (an ARX
+    model of order i above the plant's), and a coprime ball is only meaningful in the factorisation it was
+    measured in.  ``[NQ − N̂  MQ − M̂]`` is then one admissible perturbation: its H∞ norm bounds the plant's
+    distance from the family from above (:func:`result_premise_ratio`).
+    """
+    tf = control.tf(P)
+    if tf.ninputs != 1 or tf.noutputs != 1:
+        raise DataError("true_factors takes a single-channel plant")
+    num = np.trim_zeros(np.atleast_1d(np.asarray(tf.num[0][0], float)), "f")
+    den = np.trim_zeros(np.atleast_1d(np.asarray(tf.den[0][0], float)), "f")
+    num = np.concatenate([np.zeros(den.size - num.size), num]) / den[0]
+    den = den / den[0]
+    if like is not None:
+        w = np.linspace(0.0, np.pi, points)
+        zi = np.exp(-1j * np.outer(w, np.arange(like.horizon + 1)))              # z^{−d}, d = 0 … i
+        Nw, Mw = zi[:, :num.size] @ num, zi[:, :den.size] @ den
+        Nh, Mh = (X[:, 0, 0] for X in like.response(w / like.dt))
+        A = np.vstack([Nw[:, None] * zi, Mw[:, None] * zi])                      # [N; M] Q as a function of Q
+        b = np.concatenate([Nh, Mh])
+        q = np.linalg.lstsq(np.vstack([A.real, A.imag]), np.concatenate([b.real, b.imag]), rcond=None)[0]
+        num, den = np.convolve(num, q), np.convolve(den, q)
+        num, den = num / den[0], den / den[0]
+    return uf.CoprimeFactors(N=num.reshape(-1, 1, 1), M=den.reshape(-1, 1, 1), dt=float(tf.dt))
+
+
+def _fir_gap(F: uf.CoprimeFactors, G: uf.CoprimeFactors, points: int = 8192) -> float:
+    """``max_ω ‖[N_F − N_G  M_F − M_G]‖₂`` on a dense grid (FIR differences: the grid sees every peak)."""
+    k = max(F.horizon, G.horizon) + 1
+    pad = lambda X: np.concatenate([X[:, 0, 0], np.zeros(k - X.shape[0])])  # noqa: E731
+    dN, dM = pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)
+    return float(np.max(np.sqrt(np.abs(np.fft.rfft(dN, points)) ** 2 + np.abs(np.fft.rfft(dM, points)) ** 2)))
+
+
+def _coprime_perturbations(F: uf.CoprimeFactors, eps: float) -> list:
+    """The plants ``(M + Δ_M)⁻¹(N + Δ_N)`` for ``(Δ_N, Δ_M) = (εz⁻¹, 0), (−ε, 0), (0, ε), (0, −ε)``."""
+    plants = []
+    for k, dN, dM in ((1, eps, 0.0), (0, -eps, 0.0), (0, 0.0, eps), (0, 0.0, -eps)):
+        N, M = F.N[:, 0, 0].copy(), F.M[:, 0, 0].copy()
+        if N.size < 2:
+            N, M = np.append(N, 0.0), np.append(M, 0.0)
+        N[k] += dN
+        M[0] += dM
+        plants.append(control.ss(control.tf(N, M, F.dt)))
+    return plants
+
+
+def result_premise_ratio(P, rd) -> tuple[float, str]:
+    """The premise ratio of a pipeline result in the form it was certified in.
+
+    Additive: ``‖P − P̂‖∞/δ`` (:func:`premise_ratio`).  Coprime: the true plant's largest pointwise coprime
+    distance from P̂'s factors over ε (:func:`unfalsify.coprime_distance`, a lower bound of the true ratio).
+    """
+    if getattr(rd, "uncertainty", "additive") != "coprime":
+        return premise_ratio(P, rd.model, rd.delta)
+    eps = float(rd.epsilon)
+    F = rd.coprime.factors
+    low, w = uf.coprime_distance(F, P)
+    high = _fir_gap(true_factors(P, like=F), F)
+    ratio = high / eps if eps > 0 else float("inf")
+    return ratio, (f"coprime: between {low / eps:.3g} (pointwise distance at {w:.3g} rad/s) and {ratio:.3g} "
+                   "(the true plant factored like P̂)")
 
 
 def premise_ratio(P, model, delta: float) -> tuple[float, str]:
@@ -169,14 +250,17 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     seconds = time.perf_counter() - t0
     warned = [str(w.message) for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
     floor = rd.certificate.tracking_floor
-    robust = _true_loop(P, rd.controller, rd.delta, floor)
-    ratio, ratio_note = premise_ratio(P, rd.model, rd.delta)
+    size = rd.epsilon if rd.uncertainty == "coprime" else rd.delta
+    robust = _true_loop(P, rd.controller, size, floor, rd.uncertainty,
+                        rd.coprime.factors if rd.coprime is not None else None)
+    ratio, ratio_note = result_premise_ratio(P, rd)
     nominal_design = synthesis.hinf_design(pred, W1, W2, dt=dt)
     nominal = _true_loop(P, nominal_design.controller, rd.delta, floor)
     d = rd.design
     return {
         "plant": plant, "seed": int(seed), "i": int(i), "j": int(j), "sigma": sigma, "delta": rd.delta,
         "delta_subspace": rd.delta_subspace, "delta_output_error": rd.delta_output_error,
+        "uncertainty": rd.uncertainty, "epsilon": rd.epsilon,
         "decided_by": rd.premise.decided_by, "premise_ratio": ratio, "premise_note": ratio_note,
         "certified": rd.certified, "reason": rd.reason, "warned": bool(warned), "designs_tried": len(rd.search),
         "chosen": {"horizon": d.horizon, "causal": d.causal, "gamma_ratio": rd.gamma / rd.gamma_min_a,

@@ -1,0 +1,199 @@
+"""Coprime-factor uncertainty of P̂ (issue 24, item 4): factors, channel, Theorem 7.1 on the equation error,
+the pointwise gaps, and the pipeline's coprime form on an integrating plant.
+
+Every number is checked by a second route: the factors against ``predictor_model`` and the predictor's own
+one-step error, the channel against ``[C_y; I](M̂ − N̂C_y)⁻¹`` evaluated pointwise, ε against the cvxpy model,
+the gaps against least-norm solutions by ``lstsq`` and against sampled plants.
+"""
+import pickle
+
+import control
+import numpy as np
+import pytest
+
+import synthesis as sy
+import unfalsify as uf
+from synthesis.validation import DataError
+
+SHAPES = [(1, 1), (2, 2), (2, 1), (1, 2)]  # (l, m)
+
+
+def _arx_data(l, m, n=400, noise=0.01, seed=0):
+    """A stable l × m plant with output noise; u white."""
+    rng = np.random.default_rng(seed)
+    A = np.diag(np.linspace(0.5, 0.8, 2 * l))[:2 * l, :2 * l]
+    B = rng.standard_normal((2 * l, m))
+    C = rng.standard_normal((l, 2 * l))
+    P = control.ss(A, B, C, np.zeros((l, m)), 1.0)
+    u = rng.standard_normal((n, m))
+    y = np.asarray(control.forced_response(P, T=np.arange(n), U=u.T).outputs).reshape(l, n).T
+    return P, u, y + noise * rng.standard_normal((n, l))
+
+
+def _predictor_error(pred, u, y):
+    """The first block row's one-step error, by loops over the delay line (second route to the residual)."""
+    i, m, l = pred.horizon, pred.m, pred.l
+    C, D = pred.Lw[:l], pred.Lu[:l, :m]
+    out = []
+    for k in range(i, u.shape[0]):
+        wp = np.concatenate([u[k - i:k].reshape(-1), y[k - i:k].reshape(-1)])
+        out.append(y[k] - C @ wp - D @ u[k])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("l,m", SHAPES)
+def test_factors_are_the_predictor_model(l, m):
+    _, u, y = _arx_data(l, m)
+    pred = sy.fit_predictor(u, y, 3)
+    F = uf.coprime_factors(pred, 1.0)
+    assert F.N.shape == (4, l, m) and F.M.shape == (4, l, l) and np.allclose(F.M[0], np.eye(l))
+    P = uf.predictor_model(pred, 1.0)
+    w = np.linspace(0.05, 3.0, 7)
+    G = np.moveaxis(np.asarray(P.horner(np.exp(1j * w)), complex).reshape(l, m, -1), -1, 0)
+    Nw, Mw = F.response(w)
+    assert np.allclose(Mw @ G, Nw, atol=1e-9)                     # M̂ P̂ = N̂
+    G2 = np.moveaxis(np.asarray(F.model().horner(np.exp(1j * w)), complex).reshape(l, m, -1), -1, 0)
+    assert np.allclose(G2, G, atol=1e-9)
+    e = F.residual(u, y).reshape(-1, l)
+    assert np.allclose(e, _predictor_error(pred, u, y), atol=1e-10)
+    assert pickle.loads(pickle.dumps(F)) == F
+
+
+@pytest.mark.parametrize("l,m", SHAPES)
+def test_coprime_channel_matches_its_formula(l, m):
+    _, u, y = _arx_data(l, m, seed=1)
+    F = uf.coprime_factors(sy.fit_predictor(u, y, 2), 1.0)
+    rng = np.random.default_rng(4)
+    Cy = -0.2 * rng.standard_normal((m, l))
+    K = control.ss([[0.3]], rng.standard_normal((1, 2 * l)) * 0.1, rng.standard_normal((m, 1)) * 0.1,
+                   np.hstack([-Cy, Cy]), 1.0)
+    H = uf.coprime_channel(F, K)
+    assert (H.ninputs, H.noutputs) == (l, m + l)
+    w = np.linspace(0.01, 3.1, 9)
+    z = np.exp(1j * w)
+    got = np.moveaxis(np.asarray(H.horner(z), complex).reshape(m + l, l, -1), -1, 0)
+    Kc = np.moveaxis(np.asarray(K.horner(z), complex).reshape(m, 2 * l, -1), -1, 0)[:, :, l:]
+    Nw, Mw = F.response(w)
+    inv = np.linalg.inv(Mw - Nw @ Kc)
+    want = np.concatenate([Kc @ inv, inv], axis=1)
+    assert np.allclose(got, want, atol=1e-8)
+
+
+def test_channel_is_finite_for_an_integrator_and_certify_uses_it():
+    F = uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    K = control.ss([], [], [], [[2.0, -2.0]], 1.0)
+    H = uf.coprime_channel(F, K)
+    w = np.linspace(0.0, np.pi, 20001)
+    grid = np.max(np.linalg.norm(np.asarray(H.horner(np.exp(1j * w)), complex).reshape(2, -1), axis=0))
+    cert = uf.certify_loop(F.model(), K, 0.05, factors=F)
+    assert cert.uncertainty == "coprime" and cert.certified
+    assert cert.norm.lower <= grid * (1 + 1e-9) and cert.norm.upper >= grid * (1 - 1e-6)
+    assert cert.small_gain == pytest.approx(0.05 * cert.norm.upper)
+    assert cert.bounded_real is not None and cert.bounded_real.verify()
+    too_big = uf.certify_loop(F.model(), K, 1.0 / grid, factors=F)
+    assert not too_big.certified and too_big.reason.startswith("small gain: ε")
+    other = uf.CoprimeFactors(N=np.array([[[0.0]], [[0.2]]]), M=F.M, dt=1.0)
+    with pytest.raises(DataError, match="not those of the model"):
+        uf.certify_loop(F.model(), K, 0.05, factors=other)
+
+
+@pytest.mark.parametrize("l,m", [(1, 1), (2, 1)])
+def test_coprime_gap_is_the_least_norm_perturbation(l, m):
+    F = uf.coprime_factors(sy.fit_predictor(*_arx_data(l, m, seed=2)[1:], 2), 1.0)
+    rng = np.random.default_rng(5)
+    w = np.array([0.1, 0.7, 2.0])
+    G = rng.standard_normal((3, l, m)) + 1j * rng.standard_normal((3, l, m))
+    gap = uf.coprime_gap(F, w, G if l * m > 1 else G[:, 0, 0])
+    Nw, Mw = F.response(w)
+    for k in range(3):
+        Z = np.vstack([np.eye(m), G[k]])                              # X Z = M̂G − N̂, X = [Δ_N  −Δ_M]
+        R = Mw[k] @ G[k] - Nw[k]
+        X = np.linalg.lstsq(Z.T, R.T, rcond=None)[0].T               # the least-norm solution
+        assert gap[k] == pytest.approx(np.linalg.norm(X, 2), rel=1e-9)
+    # with a radius: a lower bound over the whole region (sampled plants in it all need at least that much)
+    r = np.full(3, 0.3)
+    low = uf.coprime_gap(F, w, G if l * m > 1 else G[:, 0, 0], r)
+    for _ in range(200):
+        E = rng.standard_normal((3, l, m)) + 1j * rng.standard_normal((3, l, m))
+        E *= (0.3 * rng.uniform(size=3) / np.linalg.norm(E, 2, axis=(1, 2)))[:, None, None]
+        exact = uf.coprime_gap(F, w, (G + E) if l * m > 1 else (G + E)[:, 0, 0])
+        assert np.all(low <= exact + 1e-12)
+
+
+def test_error_gap_is_a_lower_bound_of_the_distance():
+    """From an estimate of R = M̂P − N̂ alone (no estimate of P), below the exact distance of every P it allows."""
+    F = uf.coprime_factors(sy.fit_predictor(*_arx_data(1, 1, seed=3)[1:], 3), 1.0)
+    rng = np.random.default_rng(6)
+    w = np.linspace(0.05, 3.0, 12)
+    Nw, Mw = F.response(w)
+    R0 = 0.3 * (rng.standard_normal(12) + 1j * rng.standard_normal(12))
+    est = uf.LowBandEstimate(frequency=w, response=R0, radius=np.full(12, 0.1), confidence=0.99, window=16,
+                             degree=2, samples=100, dt=1.0)
+    low = uf.error_gap(F, est)
+    for _ in range(100):
+        R = R0 + 0.1 * rng.uniform(size=12) * np.exp(2j * np.pi * rng.uniform(size=12))
+        P = (Nw[:, 0, 0] + R) / Mw[:, 0, 0]
+        assert np.all(low <= uf.coprime_gap(F, w, P) + 1e-12)
+
+
+def _integrator(n, seed, noise=0.02):
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal(n))
+    y = np.zeros(n)
+    for k in range(1, n):
+        y[k] = 0.95 * y[k - 1] + 0.05 * y[k - 2 if k > 1 else 0] + 0.1 * u[k - 1]   # a pole at 1
+    return u, y + noise * rng.standard_normal(n)
+
+
+FAST = uf.PremiseOptions(samples=150)  # short held-out segments keep these tests to seconds
+
+
+def test_coprime_unfalsify_certificate_and_second_route():
+    u, y = _integrator(700, 0)
+    F = uf.coprime_factors(sy.fit_predictor(u[:400], y[:400], 3), 1.0)
+    cu = uf.coprime_unfalsify(F, u[400:], y[400:], held_out=True, options=FAST)
+    assert cu.held_out and cu.unfalsification.certificate.verify()
+    assert 0.0 <= cu.epsilon < 0.05
+    # the same program (Theorem 7.1 on w = [u; y] → e) through the cvxpy model, short segment
+    e = F.residual(u[400:433], y[400:433])   # 30 rows: the cvxpy model of two input channels grows fast
+    w = np.column_stack([u[403:433], y[403:433]])
+    sigma = 0.5 * np.std(e)
+    short = uf.coprime_unfalsify(F, u[400:433], y[400:433], held_out=True, sigma=sigma,
+                                 options=uf.PremiseOptions(tol=1e-7))
+    ref = uf.arx_unfalsify(w, e[:, None], 0, 0, sigma, free_rows=3, solver="CLARABEL")
+    assert short.epsilon == pytest.approx(ref.delta, rel=1e-4, abs=1e-7)
+    # wrong factors (twice the gain) need a much larger ε on the same data
+    wrong = uf.CoprimeFactors(N=2.0 * F.N, M=F.M, dt=1.0)
+    assert uf.coprime_unfalsify(wrong, u[400:], y[400:], held_out=True, sigma=cu.sigma,
+                                options=FAST).epsilon > 10 * cu.epsilon
+    with pytest.raises(DataError, match="longer record"):
+        uf.coprime_unfalsify(F, u[:12], y[:12], held_out=True)
+
+
+def test_check_coprime_premise_grows_with_the_model_error():
+    """ε of a biased P̂ grows to the size of its distance from the plant (the smallest unfalsified ε, so it may sit
+    below the distance by what the noise ball absorbs: the certificate's margin is for that), or it is refused."""
+    u, y = _integrator(1200, 1)
+    F = uf.coprime_factors(sy.fit_predictor(u[:700], y[:700], 3), 1.0)
+    good = uf.check_coprime_premise(F, u[:60], y[:60], 0.01, validation=(u[700:], y[700:]), options=FAST)
+    assert good.ok and good.epsilon == max(good.in_sample.epsilon, good.held_out.epsilon)
+    assert good.error_frf is not None and good.inconsistency < 1
+    assert pickle.loads(pickle.dumps(good)).epsilon == good.epsilon
+    plant = control.tf([0.1, 0.0], [1.0, -0.95, -0.05], 1.0)
+    biased = uf.CoprimeFactors(N=0.5 * F.N, M=F.M, dt=1.0)   # half the gain
+    bad = uf.check_coprime_premise(biased, u[:60], y[:60], 0.01, validation=(u[700:], y[700:]), options=FAST)
+    distance, _ = uf.coprime_distance(biased, plant)
+    assert distance > 5 * uf.coprime_distance(F, plant)[0]
+    assert not bad.ok or (bad.epsilon > 0.5 * distance and bad.epsilon > 2 * good.epsilon)
+
+
+@pytest.mark.slow
+def test_pipeline_certifies_an_integrating_plant_in_coprime_form_only():
+    """The additive premise is false for an integrator (‖P − P̂‖∞ = ∞); "auto" moves to the coprime form and its
+    loop holds on the true plant; "additive" refuses."""
+    from experiments.studies.robust_pipeline import _true_loop, run_case
+
+    case = run_case("servo", 0, 10, 30)
+    assert case["certified"] and case["uncertainty"] == "coprime" and case["invariant_holds"]
+    assert case["true"]["stable"] and case["true"]["tracks"] and case["true"]["small_gain"] < 1
+    assert _true_loop is not None

@@ -1,0 +1,573 @@
+"""Left coprime factors of the data-based model P̂, and the uncertainty they carry.
+
+The predictor's first block row is an ARX model (:mod:`unfalsify.model`),
+
+    y_k + Σ_{d=1..i} M_d y_{k−d} = Σ_{d=0..i} N_d u_{k−d},
+
+that is ``P̂ = M̂⁻¹N̂`` with the polynomial matrices ``M̂(q) = I + Σ M_d q^{−d}`` (l × l) and
+``N̂(q) = Σ N_d q^{−d}`` (l × m).  Both are FIR, hence stable, *whatever the poles of P̂*: for a plant
+with an integrator ``‖P − P̂‖∞`` is infinite (P̂'s pole never sits exactly at 1), so no additive
+certificate can hold, while the factors stay bounded.  The uncertainty model of this module is
+
+    P = (M̂ + Δ_M)⁻¹ (N̂ + Δ_N),    [Δ_N  Δ_M] stable,  ‖[Δ_N  Δ_M]‖∞ ≤ ε.
+
+**Robust stability** (small gain).  With ``u = C_y y`` (the controller's feedback part, inputs
+``[r; y]`` as everywhere in :mod:`unfalsify`), ``M̂ y = N̂ u + v`` with ``v = Δ_N u − Δ_M y``: the
+perturbation sees the map ``v ↦ [u; y]``,
+
+    H = [C_y; I] (M̂ − N̂ C_y)⁻¹,
+
+which is stable exactly when the nominal loop is (the factors are coprime FIR).  The loop is stable for
+every plant of the family when ``ε ‖H‖∞ < 1`` (:func:`unfalsify.coprime_channel`,
+:func:`unfalsify.certify_loop` with ``factors=``).
+
+**Unfalsification** (Theorem 7.1).  On a record the *equation error* ``e = M̂y − N̂u`` equals
+``[Δ_N  −Δ_M] [u; y] + ξ`` for the true perturbation and the noise ξ: that is Theorem 7.1 with input
+``w = [u; y]`` (m + l channels) and output ``e`` (l channels), solved with its two-sided certificate by
+:func:`unfalsify.arx_unfalsify` (:func:`coprime_unfalsify`).  The residual is the record's whole
+input–output relation in the form the certificate uses (no simulation of P̂ is needed: the factors are
+FIR, the equation holds sample by sample).
+
+**The premise and its second route.**  At each frequency a plant ``G`` needs a perturbation of norm at
+least ``‖(M̂G − N̂)(I + GᴴG)^{−1/2}‖₂`` (the least-norm ``X`` with ``X [I; G] = M̂G − N̂``): the
+*pointwise coprime distance* (:func:`coprime_gap`).  Over a confidence region ``‖G − Ĝ‖₂ ≤ r`` of a
+nonparametric estimate it is at least ``(σ̄(M̂Ĝ − N̂) − r σ̄(M̂))₊ / √(1 + (σ̄(Ĝ) + r)²)``;
+:func:`check_coprime_premise` refuses where that exceeds ε.  The distance is finite where
+``|P| → ∞`` (it tends to ``σ̄`` of ``M̂``'s part there), so an integrator is judged by how well P̂
+places its pole, not by an infinite gain difference.
+
+What no finite record proves: that ε also bounds the perturbation at frequencies and in directions the
+input did not excite; :func:`unfalsify.check_excitation` checks the loop there.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from synthesis.results import result
+from synthesis.validation import DataError
+
+from ._common import channel_pair
+from .arx import ArxResult, arx_unfalsify
+from .model import _delay_line, predictor_model
+from .premise import (FrequencyResponseEstimate, LowBandEstimate, PremiseOptions, _bands, _fir_sigma, _io_pair,
+                      _low_bins, _unit, frequency_response_estimate, low_band_estimate)
+
+__all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap", "model_error_estimate",
+           "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
+
+
+@result
+@dataclass(frozen=True, eq=False)
+class CoprimeFactors:
+    """``P̂ = M̂⁻¹N̂``: the FIR polynomial matrices of the predictor's first block row (module docstring).
+
+    Attributes
+    ----------
+    N : ndarray, shape (i + 1, l, m)
+        ``N̂(q) = Σ_d N[d] q^{−d}``.
+    M : ndarray, shape (i + 1, l, l)
+        ``M̂(q) = Σ_d M[d] q^{−d}``, ``M[0] = I``.
+    dt : float
+        Sample time.
+    """
+
+    N: np.ndarray
+    M: np.ndarray
+    dt: float
+
+    @property
+    def horizon(self) -> int:
+        """``i``, the degree of the polynomials."""
+        return int(self.N.shape[0] - 1)
+
+    @property
+    def inputs(self) -> int:
+        return int(self.N.shape[2])
+
+    @property
+    def outputs(self) -> int:
+        return int(self.N.shape[1])
+
+    def response(self, omega) -> tuple[np.ndarray, np.ndarray]:
+        """``(N̂, M̂)`` at ``z = e^{jω dt}``: arrays (F, l, m) and (F, l, l) for ``omega`` (F,) in rad/s."""
+        w = np.atleast_1d(np.asarray(omega, float))
+        powers = np.exp(-1j * np.outer(w * self.dt, np.arange(self.horizon + 1)))  # z^{−d}
+        return np.einsum("fd,dab->fab", powers, self.N), np.einsum("fd,dab->fab", powers, self.M)
+
+    def residual(self, u, y) -> np.ndarray:
+        """The equation error ``e_k = Σ M_d y_{k−d} − Σ N_d u_{k−d}`` for ``k ≥ i``: (n − i,) or (n − i, l).
+
+        Every sample uses measured data only (no simulation, no initial state to guess).
+        """
+        u, y = _io_pair(u, y)
+        U, Y = u.reshape(u.shape[0], -1), y.reshape(y.shape[0], -1)
+        if U.shape[1] != self.inputs or Y.shape[1] != self.outputs:
+            raise DataError(f"the factors have {self.inputs} input(s) and {self.outputs} output(s), the data "
+                            f"{U.shape[1]} and {Y.shape[1]}: pass the record of the channels P̂ was fitted on")
+        i, n = self.horizon, U.shape[0]
+        if n <= i:
+            raise DataError(f"the record has {n} samples; the equation error needs more than i = {i}")
+        e = np.zeros((n - i, self.outputs))
+        for d in range(i + 1):
+            e += Y[i - d: n - d] @ self.M[d].T - U[i - d: n - d] @ self.N[d].T
+        return e[:, 0] if u.ndim == 1 else e
+
+    def model(self) -> control.StateSpace:
+        """``P̂ = M̂⁻¹N̂`` in the delay-line state (the same realisation as :func:`unfalsify.predictor_model`)."""
+        C, D = self._row()
+        return _delay_line(C, D, self.horizon, self.inputs, self.outputs, self.dt)
+
+    def equation(self) -> control.StateSpace:
+        """``M̂⁻¹ [N̂  I]``: inputs ``[u; v]``, output ``y``, one realisation (so ``v`` and ``u`` share P̂'s poles)."""
+        C, D = self._row()
+        return _delay_line(C, D, self.horizon, self.inputs, self.outputs, self.dt, disturbance=True)
+
+    def _row(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(C, D)`` of ``y_k = C w_p(k) + D u_k``, ``w_p = [u_{k−i} … u_{k−1}; y_{k−i} … y_{k−1}]``."""
+        i = self.horizon
+        Cu = np.hstack([self.N[i - s] for s in range(i)])    # column block s multiplies u_{k−i+s}: lag i − s
+        Cy = np.hstack([-self.M[i - s] for s in range(i)])
+        return np.hstack([Cu, Cy]), np.asarray(self.N[0], float)
+
+
+def coprime_factors(pred, dt) -> CoprimeFactors:
+    """The left coprime factors ``(N̂, M̂)`` of the predictor's first block row (module docstring).
+
+    Parameters
+    ----------
+    pred : synthesis.Predictor
+        ``Lw``, ``Lu``, ``horizon``, ``m``, ``l`` (as for :func:`unfalsify.predictor_model`).
+    dt : float
+        The data's sample time.
+
+    Returns
+    -------
+    CoprimeFactors
+
+    Examples
+    --------
+    An integrator ``y_k = y_{k−1} + 0.1 u_{k−1}``: ``M̂(q) = 1 − q⁻¹``, ``N̂(q) = 0.1 q⁻¹``, both FIR.
+
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(200)
+    >>> y = np.concatenate([[0.0], np.cumsum(0.1 * u)[:-1]])
+    >>> F = coprime_factors(sy.fit_predictor(u, y, 1), 1.0)
+    >>> np.round(F.M[:, 0, 0], 6).tolist(), np.round(F.N[:, 0, 0], 6).tolist()
+    ([1.0, -1.0], [0.0, 0.1])
+    >>> bool(np.max(np.abs(F.residual(u, y))) < 1e-9)                    # the equation holds exactly
+    True
+    """
+    model = predictor_model(pred, dt)  # validates the predictor and dt
+    i, m, l = int(pred.horizon), int(pred.m), int(pred.l)
+    C, D = np.asarray(model.C, float), np.asarray(model.D, float)
+    N = np.zeros((i + 1, l, m))
+    M = np.zeros((i + 1, l, l))
+    N[0], M[0] = D, np.eye(l)
+    for d in range(1, i + 1):
+        s = i - d  # the column block of lag d
+        N[d] = C[:, s * m:(s + 1) * m]
+        M[d] = -C[:, i * m + s * l: i * m + (s + 1) * l]
+    return CoprimeFactors(N=N, M=M, dt=float(model.dt))
+
+
+def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np.ndarray:
+    """Pointwise lower bound of the coprime perturbation ``‖[Δ_N Δ_M]‖₂`` a plant near ``response`` needs.
+
+    Parameters
+    ----------
+    factors : CoprimeFactors
+    frequency : array_like, shape (F,)
+        rad/s.
+    response : array_like, complex, shape (F,) or (F, l, m)
+        A plant's frequency response ``G``, or an estimate ``Ĝ``.
+    radius : array_like, shape (F,), optional
+        A confidence radius ``‖G − Ĝ‖₂ ≤ r`` around ``response``.  None or 0: the exact least norm
+        ``‖(M̂G − N̂)(I + GᴴG)^{−1/2}‖₂``; otherwise ``(σ̄(M̂Ĝ − N̂) − r σ̄(M̂))₊ / √(1 + (σ̄(Ĝ) + r)²)``, a lower
+        bound over the whole region (``‖X‖ ≥ ‖XZ‖/‖Z‖`` for any ``X`` with ``X Z = M̂G − N̂``).
+
+    Returns
+    -------
+    ndarray, shape (F,)
+        NaN where the response is not finite; 0 where the radius is infinite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    >>> w = np.array([0.01, 0.1, 1.0])
+    >>> G = 0.1 / (np.exp(1j * w) - 1.0)                         # the plant itself: distance 0
+    >>> bool(np.allclose(coprime_gap(F, w, G), 0.0, atol=1e-12))
+    True
+    >>> G2 = 0.2 / (np.exp(1j * w) - 1.0)                        # twice the gain: M̂G₂ − N̂ = 0.1 z⁻¹
+    >>> np.round(coprime_gap(F, w, G2), 4).tolist()             # 0.1/√(1 + |G₂|²): finite, small near DC
+    [0.005, 0.0447, 0.0979]
+    """
+    w = np.atleast_1d(np.asarray(frequency, float))
+    G = np.asarray(response, complex)
+    siso = G.ndim == 1
+    G = G.reshape(w.size, factors.outputs, factors.inputs)
+    Nw, Mw = factors.response(w)
+    out = np.full(w.size, np.nan)
+    ok = np.all(np.isfinite(G), axis=(1, 2))
+    if not np.any(ok):
+        return out
+    R = Mw[ok] @ G[ok] - Nw[ok]
+    r = None if radius is None else np.broadcast_to(np.asarray(radius, float), w.shape)[ok]
+    if r is None or not np.any(r > 0):
+        if siso:
+            out[ok] = np.abs(R[:, 0, 0]) / np.sqrt(1.0 + np.abs(G[ok, 0, 0]) ** 2)
+        else:
+            gram = np.eye(factors.inputs) + np.conj(np.swapaxes(G[ok], 1, 2)) @ G[ok]
+            lam, V = np.linalg.eigh(gram)
+            inv_sqrt = V @ (np.conj(np.swapaxes(V, 1, 2)) / np.sqrt(lam)[:, :, None])
+            out[ok] = np.linalg.norm(R @ inv_sqrt, ord=2, axis=(1, 2))
+        return out
+    norm = (lambda X: np.abs(X[:, 0, 0])) if siso else (lambda X: np.linalg.norm(X, ord=2, axis=(1, 2)))
+    with np.errstate(invalid="ignore"):
+        low = np.maximum(norm(R) - r * norm(Mw[ok]), 0.0) / np.sqrt(1.0 + (norm(G[ok]) + r) ** 2)
+    out[ok] = np.where(np.isfinite(r), low, 0.0)
+    return out
+
+
+def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple[float, float]:
+    """``(distance, frequency)``: the largest pointwise coprime distance of ``plant`` from ``(N̂, M̂)`` on a grid.
+
+    A lower bound of the least ``‖[Δ_N Δ_M]‖∞`` with ``plant = (M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` (every admissible
+    perturbation has at least this norm at each frequency); what a study reports as the premise ratio
+    ``distance/ε`` of a coprime certificate (above 1: the premise is false).  The grid is logarithmic from
+    ``10⁻⁴`` of Nyquist to Nyquist.
+
+    Examples
+    --------
+    >>> import control, numpy as np
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    >>> d, w = coprime_distance(F, control.tf([0.1], [1.0, -1.0], 1.0))
+    >>> bool(d < 1e-12)
+    True
+    """
+    sys = control.ss(plant)
+    nyq = np.pi / factors.dt
+    w = np.concatenate([np.geomspace(1e-4 * nyq, nyq, points)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        G = np.moveaxis(np.asarray(sys.horner(np.exp(1j * w * factors.dt)), complex), -1, 0)
+    gap = coprime_gap(factors, w, G.reshape(w.size, factors.outputs, factors.inputs))
+    k = int(np.nanargmax(gap)) if np.any(np.isfinite(gap)) else 0
+    return float(gap[k]), float(w[k])
+
+
+@result
+@dataclass(frozen=True, eq=False)
+class CoprimeUnfalsification:
+    """Theorem 7.1 on the equation error ``e = M̂y − N̂u`` with input ``w = [u; y]`` (module docstring).
+
+    Attributes
+    ----------
+    epsilon : float
+        The certified upper end of the smallest unfalsified ``‖[Δ_N Δ_M]‖∞`` (NaN when the solve certified
+        nothing).
+    unfalsification : ArxResult
+        The program (7.4) with no ARX parameters on ``(w, e)``, with its two-sided ``certificate``.
+    residual : ndarray
+        ``e`` on the segment (rows after the horizon).
+    sigma : float
+        Admissible rms noise of the equation (pooled over the outputs).
+    sigma_rule : str
+    held_out : bool
+        The record was not used to fit P̂.
+    burn_in : int
+        Free rows at the start (Δ's own transient from the unknown past of ``w``).
+    """
+
+    epsilon: float
+    unfalsification: ArxResult | None
+    residual: np.ndarray
+    sigma: float
+    sigma_rule: str
+    held_out: bool
+    burn_in: int
+
+
+def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=None,
+                      options: PremiseOptions | None = None) -> CoprimeUnfalsification:
+    """The smallest coprime-factor uncertainty ``‖[Δ_N Δ_M]‖∞`` that explains the record (Theorem 7.1).
+
+    Parameters
+    ----------
+    factors : CoprimeFactors
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
+        A record of the plant, best one not used to fit P̂ (``held_out``).
+    held_out : bool
+    sigma : float, optional
+        Admissible rms noise of the equation ``M̂y = N̂u + v`` (per output sample).  Default
+        ``options.sigma``, else estimated: the residual rms, per degree of freedom, of a least-squares fit of
+        ``e`` on the input's last ``taps`` samples and the output's *past* ``taps`` samples -- what no linear
+        causal map of the past explains is called noise.  (The output's current sample holds the noise
+        itself, so it is left out of the fit; Theorem 7.1 still lets Δ act on it.)
+    options : PremiseOptions, optional
+        ``samples`` (largest segment), ``burn_in``, ``taps``, ``tol``, ``time_limit``.
+
+    Returns
+    -------
+    CoprimeUnfalsification
+
+    Examples
+    --------
+    >>> import numpy as np, synthesis as sy
+    >>> rng = np.random.default_rng(2)
+    >>> u = np.sign(rng.standard_normal(700))
+    >>> y = np.zeros(700)
+    >>> for k in range(1, 700):
+    ...     y[k] = y[k - 1] + 0.1 * u[k - 1]                            # an integrator
+    >>> y += 0.02 * rng.standard_normal(700)
+    >>> F = coprime_factors(sy.fit_predictor(u[:400], y[:400], 4), 1.0)
+    >>> cu = coprime_unfalsify(F, u[400:], y[400:], held_out=True)
+    >>> bool(0 <= cu.epsilon < 0.05), cu.unfalsification.certificate.verify()
+    (True, True)
+    """
+    opts = options or PremiseOptions()
+    u, y = _io_pair(u, y)
+    i = factors.horizon
+    burn = i if opts.burn_in is None else int(opts.burn_in)
+    e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
+    n = min(e_all.shape[0], burn + int(opts.samples))
+    width = factors.inputs + factors.outputs
+    if sigma is None and opts.sigma is not None:
+        sigma = opts.sigma
+    # an estimated σ needs rows for its fit (4 per coefficient); a given one only a few rows beyond the burn-in
+    rows = max(4 * i, 16 * width) if sigma is None else 2 * width
+    if n < burn + rows or n < 2 * burn:
+        raise DataError(f"the record has {u.shape[0]} samples; the coprime test needs at least "
+                        f"{i + max(burn + rows, 2 * burn)} (horizon {i}, burn-in {burn}): pass a longer record")
+    U = u.reshape(u.shape[0], -1)[i:i + n]
+    Y = y.reshape(y.shape[0], -1)
+    w = np.hstack([U, Y[i:i + n]])
+    e = e_all[:n]
+    if sigma is not None:
+        sigma, rule = float(sigma), "given"
+    else:
+        taps = opts.taps if opts.taps is not None else min((n - burn) // (4 * width), max(4 * i, 20))
+        past = np.hstack([U, Y[i - 1:i - 1 + n]])  # u_k … and y_{k−1} …: the current output is left out
+        sigma = _fir_sigma(past, e, int(taps), burn)
+        sigma = max(sigma, 1e-12 * max(float(np.sqrt(np.mean(e ** 2))), 1e-300))
+        rule = (f"residual rms of a least-squares fit of the equation error on the input's last {taps} samples and "
+                f"the output's past {taps}, per degree of freedom (rows {burn}…{n - 1})")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a non-optimal status is read from the result below
+        res = arx_unfalsify(w, e, 0, 0, sigma, backend="structured", tol=opts.tol, time_limit=opts.time_limit,
+                            progress=False, free_rows=burn)
+    eps = float(res.delta) if math.isfinite(res.delta) else float("nan")
+    residual = e_all[:, 0] if factors.outputs == 1 and np.ndim(y) == 1 else e_all
+    return CoprimeUnfalsification(epsilon=eps, unfalsification=res, residual=residual, sigma=float(sigma),
+                                  sigma_rule=rule, held_out=bool(held_out), burn_in=burn)
+
+
+@result
+@dataclass(frozen=True, eq=False)
+class CoprimePremise:
+    """The premise of a coprime-factor certificate, tested on the data (module docstring).
+
+    Attributes
+    ----------
+    factors : CoprimeFactors
+        ``(N̂, M̂)`` of P̂.
+    in_sample : CoprimeUnfalsification or None
+        Theorem 7.1 on the window P̂ was fitted on, at the admissible noise of (7.5).
+    held_out : CoprimeUnfalsification or None
+        Theorem 7.1 on the held-out record (``validation=``), noise estimated.
+    epsilon : float
+        The larger of the two: what the loop is certified for.
+    decided_by : str
+        ``"in sample"`` or ``"held out"``.
+    inconsistency : float
+        ``max gap/ε`` of :func:`coprime_gap` over the excited Welch frequencies and the low band (> 1: the
+        data place the plant outside the ε-family).
+    reason : str
+        ``''`` when the premise survived; otherwise why not, and the fix.
+    error_frf, error_low_band : FrequencyResponseEstimate, LowBandEstimate or None
+        Nonparametric estimates of ``R = M̂P − N̂`` (from ``u`` to the equation error ``e``) on the held-out
+        record (the window without one), which the gap was measured with (:func:`error_gap`);
+        :func:`model_error_estimate` turns them into estimates of ``P − P̂`` for
+        :func:`unfalsify.check_excitation`.
+    """
+
+    factors: CoprimeFactors
+    in_sample: CoprimeUnfalsification | None
+    held_out: CoprimeUnfalsification | None
+    epsilon: float
+    decided_by: str
+    inconsistency: float
+    reason: str
+    error_frf: FrequencyResponseEstimate | None = None
+    error_low_band: LowBandEstimate | None = None
+
+    @property
+    def ok(self) -> bool:
+        """The premise survived the tests."""
+        return not self.reason
+
+
+def _solve_or_reason(factors, data, held_out: bool, sigma, opts, what: str, reasons: list):
+    try:
+        cu = coprime_unfalsify(factors, *data, held_out=held_out, sigma=sigma, options=opts)
+    except DataError as exc:
+        reasons.append(f"the coprime test on the {what} cannot run ({exc})")
+        return None
+    if not math.isfinite(cu.epsilon):
+        st = cu.unfalsification.status if cu.unfalsification is not None else "none"
+        reasons.append(f"Theorem 7.1 on the {what}'s equation error certified no ε (status {st!r}); use a longer "
+                       "record or a looser tolerance")
+    return cu
+
+
+def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
+    """Lower bound of the pointwise coprime distance from an estimate of the equation error's response.
+
+    ``est`` estimates ``R = M̂P − N̂`` (the response from ``u`` to ``e = M̂y − N̂u``) with radius ``r``.  Since
+    ``P = M̂⁻¹(N̂ + R)`` has ``σ̄(P) ≤ (σ̄(N̂) + σ̄(R))/σ_min(M̂)``, the least perturbation
+    ``‖R(I + PᴴP)^{−1/2}‖₂ ≥ σ̄(R)/√(1 + σ̄(P)²)`` is at least ``x μ/√(μ² + (ν + x)²)`` with ``x = (σ̄(R̂) − r)₊``,
+    ``μ = σ_min(M̂)``, ``ν = σ̄(N̂)`` (increasing in x).  No estimate of P itself is used: a Welch estimate
+    of an integrating plant is biased near DC (the window's main lobe averages a response that changes
+    within a bin), while R is smooth there.  Where ``M̂`` vanishes (P̂'s integrator) the bound is 0: the data
+    cannot show a coprime error at a pole.
+    """
+    w = np.asarray(est.frequency, float)
+    Nw, Mw = factors.response(w)
+    R = np.asarray(est.response, complex).reshape(w.size, factors.outputs, factors.inputs)
+    if factors.outputs == factors.inputs == 1:
+        x, mu, nu = np.abs(R[:, 0, 0]), np.abs(Mw[:, 0, 0]), np.abs(Nw[:, 0, 0])
+    else:
+        x = np.full(w.size, np.nan)
+        ok = np.all(np.isfinite(R), axis=(1, 2))
+        x[ok] = np.linalg.norm(R[ok], ord=2, axis=(1, 2))
+        mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
+        nu = np.linalg.norm(Nw, ord=2, axis=(1, 2))
+    with np.errstate(invalid="ignore"):
+        x = np.maximum(x - np.asarray(est.radius, float), 0.0)
+        return np.where(np.isfinite(est.radius), x * mu / np.sqrt(mu ** 2 + (nu + x) ** 2), 0.0)
+
+
+def model_error_estimate(factors: CoprimeFactors, est):
+    """The estimate of ``R = M̂P − N̂`` turned into one of the additive error ``P − P̂ = M̂⁻¹R``.
+
+    Radius ``r/σ_min(M̂)`` (``‖M̂⁻¹(R − R̂)‖ ≤ r/σ_min``): what :func:`unfalsify.check_excitation` takes.  Its test
+    ``σ̄(D̂K̃) + r_D σ̄(K̃)`` with ``K̃ = C_y(I − P̂C_y)⁻¹`` is, for one channel, exactly
+    ``(|R̂| + r)·|C_y/(M̂ − N̂C_y)|``: the frequency-wise condition of the coprime loop, finite at P̂'s poles.
+    """
+    w = np.asarray(est.frequency, float)
+    _, Mw = factors.response(w)
+    R = np.asarray(est.response, complex)
+    if R.ndim == 1:
+        m0 = Mw[:, 0, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return dataclasses.replace(est, response=R / m0, radius=np.asarray(est.radius, float) / np.abs(m0))
+    D = np.linalg.solve(Mw, R)
+    mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return dataclasses.replace(est, response=D, radius=np.asarray(est.radius, float) / mu)
+
+
+def _gap_reason(factors, est, eps: float, where: str) -> tuple[float, str]:
+    """``max gap/ε`` over an estimate's usable frequencies and, where the gap exceeds ε, why."""
+    usable = np.isfinite(est.radius)
+    if isinstance(est, FrequencyResponseEstimate):
+        usable &= est.excited
+    if not np.any(usable):
+        return float("nan"), ""
+    gap = np.nan_to_num(np.where(usable, error_gap(factors, est), -np.inf), nan=-np.inf)
+    k = int(np.argmax(gap))
+    worst = gap[k] / eps if eps > 0 else (float("inf") if gap[k] > 0 else 0.0)
+    if not gap[k] > eps:
+        return float(worst), ""
+    unit = _unit(est.dt)
+    return float(worst), (f"{where} the data place the plant outside the coprime-factor family of P̂ (a perturbation "
+                          f"of at least {gap[k]:.3g} > ε = {eps:.4g} at {est.frequency[k]:.3g} {unit}; "
+                          f"{_bands(est.frequency, gap > eps, unit)}): P̂ is biased there; fit it on a longer or "
+                          "richer record (white PRBS), or raise the horizon")
+
+
+def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *, validation=None,
+                          options: PremiseOptions | None = None) -> CoprimePremise:
+    """Test the premise of a coprime-factor certificate on the data (module docstring).
+
+    ε is the larger of Theorem 7.1 on the window's equation error at the admissible noise of (7.5)
+    (``sigma_window``: the same residual, the predictor's first row, in the same units) and on the held-out
+    record's with the noise estimated (:func:`coprime_unfalsify`).  The plant's Welch estimate and its
+    low-band estimate on the held-out record (the window without one) must then lie within ε of the family
+    (:func:`error_gap`: the estimates of ``R = M̂P − N̂`` from the input to the equation error, with their
+    confidence radii) at every excited frequency.
+
+    Parameters
+    ----------
+    factors : CoprimeFactors
+    u, y : array_like
+        The window P̂ was fitted on.
+    sigma_window : float
+        Admissible rms noise of (7.5).
+    validation : tuple of array_like, optional
+        ``(u_v, y_v)``, a record not used to fit P̂.
+    options : PremiseOptions, optional
+
+    Returns
+    -------
+    CoprimePremise
+
+    Examples
+    --------
+    >>> import numpy as np, synthesis as sy
+    >>> rng = np.random.default_rng(3)
+    >>> u = np.sign(rng.standard_normal(1200))
+    >>> y = np.zeros(1200)
+    >>> for k in range(1, 1200):
+    ...     y[k] = y[k - 1] + 0.1 * u[k - 1]                            # an integrator
+    >>> y += 0.02 * rng.standard_normal(1200)
+    >>> F = coprime_factors(sy.fit_predictor(u[:700], y[:700], 4), 1.0)
+    >>> p = check_coprime_premise(F, u[:60], y[:60], 0.01, validation=(u[700:], y[700:]))
+    >>> p.ok, p.epsilon >= p.held_out.epsilon, p.decided_by in ("in sample", "held out")
+    (True, True, True)
+    """
+    opts = options or PremiseOptions()
+    u, y = channel_pair(u, y)
+    reasons: list = []
+    inside = _solve_or_reason(factors, (u, y), False, float(sigma_window), opts, "window", reasons)
+    data, outside = (u, y), None
+    if validation is not None:
+        try:
+            uv, yv = validation
+        except (TypeError, ValueError):
+            raise DataError("validation must be a pair (u, y) of held-out data of the same plant") from None
+        data = channel_pair(uv, yv, "validation ")
+        outside = _solve_or_reason(factors, data, True, None, opts, "held-out record", reasons)
+    eps_in = inside.epsilon if inside is not None else float("nan")
+    eps_out = outside.epsilon if outside is not None else float("nan")
+    eps = float(np.nanmax([eps_in, eps_out])) if np.isfinite([eps_in, eps_out]).any() else float("nan")
+    decided = "held out" if math.isfinite(eps_out) and not eps_out < eps else "in sample"
+    worst, frf, low = float("nan"), None, None
+    if math.isfinite(eps):
+        uu, yy = data
+        e = factors.residual(uu, yy)   # FIR: every row is usable, no transient
+        ue = uu[factors.horizon:]
+        try:
+            frf = frequency_response_estimate(ue, e, factors.dt, nperseg=opts.nperseg, confidence=opts.confidence)
+        except DataError as exc:
+            reasons.append(f"no frequency-response estimate of the equation error ({exc})")
+    if frf is not None:
+        worst, why = _gap_reason(factors, frf, eps, "at the Welch frequencies")
+        if why:
+            reasons.append(why)
+        bins = _low_bins(e.shape[0], frf.nperseg, 1 if ue.ndim == 1 else ue.shape[1])
+        if bins:
+            low = low_band_estimate(ue, e, factors.dt, bins=bins, confidence=opts.confidence)
+            low_worst, why = _gap_reason(factors, low, eps, "at low frequency (below the Welch resolution)")
+            worst = float(np.fmax(worst, low_worst))
+            if why:
+                reasons.append(why)
+    return CoprimePremise(factors=factors, in_sample=inside, held_out=outside, epsilon=eps, decided_by=decided,
+                          inconsistency=worst, reason="; ".join(reasons), error_frf=frf, error_low_band=low)
