@@ -185,15 +185,3 @@ def test_check_coprime_premise_grows_with_the_model_error():
     distance, _ = uf.coprime_distance(biased, plant)
     assert distance > 5 * uf.coprime_distance(F, plant)[0]
     assert not bad.ok or (bad.epsilon > 0.5 * distance and bad.epsilon > 2 * good.epsilon)
-
-
-@pytest.mark.slow
-def test_pipeline_certifies_an_integrating_plant_in_coprime_form_only():
-    """The additive premise is false for an integrator (‖P − P̂‖∞ = ∞); "auto" moves to the coprime form and its
-    loop holds on the true plant; "additive" refuses."""
-    from experiments.studies.robust_pipeline import _true_loop, run_case
-
-    case = run_case("servo", 0, 10, 30)
-    assert case["certified"] and case["uncertainty"] == "coprime" and case["invariant_holds"]
-    assert case["true"]["stable"] and case["true"]["tracks"] and case["true"]["small_gain"] < 1
-    assert _true_loop is not None

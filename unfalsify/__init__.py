@@ -99,10 +99,25 @@ The certificate's premise, tested on the data
    ExcitationCheck        -- result of ``check_excitation``
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
 
+Coprime-factor uncertainty (finite for integrating plants)
+----------------------------------------------------------
+
+   coprime_factors        -- ``P̂ = M̂⁻¹N̂``: the FIR factors of the predictor's first block row
+   CoprimeFactors         -- the factors, their response, equation error ``M̂y − N̂u`` and realisations
+   coprime_unfalsify      -- smallest ‖[Δ_N Δ_M]‖∞ explaining the equation error (Thm 7.1 on w = [u; y], two-sided)
+   CoprimeUnfalsification -- result of ``coprime_unfalsify``
+   check_coprime_premise  -- ε in sample and held out, and the gap to the data's estimate of ``M̂P − N̂``
+   CoprimePremise         -- result of ``check_coprime_premise``
+   coprime_gap            -- pointwise least coprime perturbation a plant (or a confidence region) needs
+   error_gap              -- its lower bound from an estimate of ``M̂P − N̂`` alone
+   coprime_distance       -- a plant's largest pointwise coprime distance from the factors (a lower bound)
+   model_error_estimate   -- an estimate of ``M̂P − N̂`` turned into one of ``P − P̂``
+   coprime_channel        -- ``[C_y; I](M̂ − N̂C_y)⁻¹``, the map a coprime-factor perturbation sees
+
 Loop certificate
 ----------------
 
-   certify_loop           -- certify the loop (P̂, K) for additive uncertainty of size δ
+   certify_loop           -- certify the loop (P̂, K) for additive (or, with ``factors=``, coprime-factor) uncertainty
    LoopCertificate        -- result of ``certify_loop``
    additive_robustness    -- nominal stability and a certified ‖K(I+PK)⁻¹‖∞ of a controller with inputs [r; y]
    AdditiveRobustness     -- result of ``additive_robustness``

@@ -381,11 +381,12 @@ class CoprimePremise:
     in_sample : CoprimeUnfalsification or None
         Theorem 7.1 on the window P̂ was fitted on, at the admissible noise of (7.5).
     held_out : CoprimeUnfalsification or None
-        Theorem 7.1 on the held-out record (``validation=``), noise estimated.
+        Theorem 7.1 on the held-out record (``validation=``), noise estimated; without one, on the window itself
+        (its ``held_out`` is then False: in sample, optimistic).
     epsilon : float
         The larger of the two: what the loop is certified for.
     decided_by : str
-        ``"in sample"`` or ``"held out"``.
+        ``"in sample"``, ``"held out"`` or ``"in sample, noise estimated"`` (no held-out record).
     inconsistency : float
         ``max gap/ε`` of :func:`coprime_gap` over the excited Welch frequencies and the low band (> 1: the
         data place the plant outside the ε-family).
@@ -437,6 +438,17 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     of an integrating plant is biased near DC (the window's main lobe averages a response that changes
     within a bin), while R is smooth there.  Where ``M̂`` vanishes (P̂'s integrator) the bound is 0: the data
     cannot show a coprime error at a pole.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify import LowBandEstimate
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    >>> w = np.array([0.0, 1.0])                                # at DC M̂ = 0: no evidence there
+    >>> est = LowBandEstimate(frequency=w, response=np.array([0.1, 0.1]), radius=np.array([0.02, 0.02]),
+    ...                       confidence=0.99, window=16, degree=2, samples=100, dt=1.0)
+    >>> np.round(error_gap(F, est), 4).tolist()
+    [0.0, 0.0786]
     """
     w = np.asarray(est.frequency, float)
     Nw, Mw = factors.response(w)
@@ -459,7 +471,19 @@ def model_error_estimate(factors: CoprimeFactors, est):
 
     Radius ``r/σ_min(M̂)`` (``‖M̂⁻¹(R − R̂)‖ ≤ r/σ_min``): what :func:`unfalsify.check_excitation` takes.  Its test
     ``σ̄(D̂K̃) + r_D σ̄(K̃)`` with ``K̃ = C_y(I − P̂C_y)⁻¹`` is, for one channel, exactly
-    ``(|R̂| + r)·|C_y/(M̂ − N̂C_y)|``: the frequency-wise condition of the coprime loop, finite at P̂'s poles.
+    ``(|R̂| + r)·|C_y/(M̂ − N̂C_y)|``: the frequency-wise condition of the coprime loop, finite at P̂'s poles
+    (:func:`unfalsify.check_excitation` with ``factors=`` runs that form directly).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify import LowBandEstimate
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-0.5]]]), dt=1.0)
+    >>> est = LowBandEstimate(frequency=np.array([0.0]), response=np.array([0.1]), radius=np.array([0.02]),
+    ...                       confidence=0.99, window=16, degree=2, samples=100, dt=1.0)
+    >>> D = model_error_estimate(F, est)                         # M̂(1) = 0.5: P − P̂ = R/0.5
+    >>> np.round(D.response.real, 6).tolist(), np.round(D.radius, 6).tolist()
+    ([0.2], [0.04])
     """
     w = np.asarray(est.frequency, float)
     _, Mw = factors.response(w)
@@ -537,18 +561,23 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
     u, y = channel_pair(u, y)
     reasons: list = []
     inside = _solve_or_reason(factors, (u, y), False, float(sigma_window), opts, "window", reasons)
-    data, outside = (u, y), None
+    data = (u, y)
     if validation is not None:
         try:
             uv, yv = validation
         except (TypeError, ValueError):
             raise DataError("validation must be a pair (u, y) of held-out data of the same plant") from None
         data = channel_pair(uv, yv, "validation ")
-        outside = _solve_or_reason(factors, data, True, None, opts, "held-out record", reasons)
+    # without a held-out record the window stands in for it (in sample: optimistic, and the result says so)
+    outside = _solve_or_reason(factors, data, validation is not None, None, opts,
+                               "held-out record" if validation is not None else "window (no held-out record)",
+                               reasons)
     eps_in = inside.epsilon if inside is not None else float("nan")
     eps_out = outside.epsilon if outside is not None else float("nan")
     eps = float(np.nanmax([eps_in, eps_out])) if np.isfinite([eps_in, eps_out]).any() else float("nan")
-    decided = "held out" if math.isfinite(eps_out) and not eps_out < eps else "in sample"
+    decided = "in sample"
+    if math.isfinite(eps_out) and not eps_out < eps:
+        decided = "held out" if outside.held_out else "in sample, noise estimated"
     worst, frf, low = float("nan"), None, None
     if math.isfinite(eps):
         uu, yy = data

@@ -307,6 +307,9 @@ class RobustDesignResult:
     coprime : CoprimePremise or None
         The coprime-factor premise (ε by Theorem 7.1 on the equation error, in sample and held out, each with
         its certificate; the gap to the data's estimates), when it was tested.
+    additive_reason : str
+        Why ``uncertainty="auto"`` left the additive form (the data refute its premise); ``''`` otherwise.
+        :attr:`reason` repeats it when the coprime form does not certify either.
     """
 
     unfalsification: SubspaceResult
@@ -331,6 +334,7 @@ class RobustDesignResult:
     tracking_reason: str = ""
     uncertainty: str = "additive"
     coprime: CoprimePremise | None = None
+    additive_reason: str = ""
 
     @property
     def controller(self) -> control.StateSpace:
@@ -347,8 +351,8 @@ class RobustDesignResult:
     @property
     def reason(self) -> str:
         """Why the loop is not certified (``''`` when it is)."""
-        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
-                               self.tracking_reason)
+        return _with_form(_verdict_reason(self.certificate, self.reference_certificate, self.premise_reason,
+                                          self.excitation, self.tracking_reason), self.additive_reason)
 
     @property
     def epsilon(self) -> float:
@@ -375,6 +379,13 @@ class RobustDesignResult:
     def covers_delta(self) -> bool:
         """Same as :attr:`certified`: δ is covered only when the implemented loop is certified."""
         return self.certified
+
+
+def _with_form(reason: str, additive_reason: str) -> str:
+    """A coprime-form refusal, with why the additive form was left before it."""
+    if not reason or not additive_reason:
+        return reason
+    return f"in coprime-factor form: {reason}; the additive form was not used: {additive_reason}"
 
 
 def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
@@ -845,6 +856,7 @@ def robust_design_from_data(
     ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
     cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
                                            ref_model)
+    additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason)
                                if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
@@ -854,7 +866,7 @@ def robust_design_from_data(
     if not rec.certified:
         tried = len(records)
         size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
-        msg = (f"the §7.4 loop is NOT certified for {size}: {rec.reason}"
+        msg = (f"the §7.4 loop is NOT certified for {size}: {_with_form(rec.reason, additive_reason)}"
                + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made"))
         if require_certified:
             raise NotCertifiedError(msg)
@@ -867,7 +879,7 @@ def robust_design_from_data(
         model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
-        uncertainty="additive" if ball is None else "coprime", coprime=cop)
+        uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason)
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,

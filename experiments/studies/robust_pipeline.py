@@ -260,7 +260,7 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
     return {
         "plant": plant, "seed": int(seed), "i": int(i), "j": int(j), "sigma": sigma, "delta": rd.delta,
         "delta_subspace": rd.delta_subspace, "delta_output_error": rd.delta_output_error,
-        "uncertainty": rd.uncertainty, "epsilon": rd.epsilon,
+        "uncertainty": rd.uncertainty, "epsilon": rd.epsilon, "additive_premise_reason": rd.premise.reason,
         "decided_by": rd.premise.decided_by, "premise_ratio": ratio, "premise_note": ratio_note,
         "certified": rd.certified, "reason": rd.reason, "warned": bool(warned), "designs_tried": len(rd.search),
         "chosen": {"horizon": d.horizon, "causal": d.causal, "gamma_ratio": rd.gamma / rd.gamma_min_a,
