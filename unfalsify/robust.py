@@ -708,6 +708,18 @@ def robust_design_from_data(
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
+    **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
+    ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
+    certifies in the family ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)``, ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)ε``, around the FIR factors
+    ``P̂ = M̂⁻¹N̂`` of the predictor's first row (:mod:`unfalsify.coprime`), with the premise tested in its own
+    terms: ε is the larger of Theorem 7.1 on the equation error ``M̂y − N̂u`` (input ``[u; y]``) on the window
+    at the σ of (7.5) and on the held-out record with the noise estimated, each with its two-sided
+    certificate; the data's estimate of ``M̂P − N̂`` must lie within ε of the family at every excited
+    frequency; the loop needs ``ε‖[K; I](M̂ + N̂K)⁻¹‖∞ ≤ 1/(1 + margin)`` proven (pencil test and bounded-real
+    matrix) on P̂ and P̂_ref, the same frequency-wise excitation test, and tracking at every static plant of
+    the ball.  ``result.uncertainty`` says which family is certified, ``result.epsilon`` its size and
+    ``result.additive_reason`` why the additive form was left.  The design is sized by δ either way.
+
     Parameters
     ----------
     u, y : array_like, shape (n,) or (n, m) and (n, l)

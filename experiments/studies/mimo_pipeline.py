@@ -182,9 +182,14 @@ def run_case(case: Case, premise: uf.PremiseOptions | None = None) -> dict:
                        seconds=time.perf_counter() - t0)
             return row
     warned = any(issubclass(w.category, uf.NotCertifiedWarning) for w in caught)
-    true = judge(P, rd.controller, rd.delta)
+    coprime = rd.uncertainty == "coprime"
+    # a coprime-factor certificate says nothing of δ‖K(I+PK)⁻¹‖∞: its loop is judged by stability and tracking,
+    # its premise by the true plant's pointwise coprime distance from P̂'s factors (a lower bound) over ε
+    true = judge(P, rd.controller, 0.0 if coprime else rd.delta)
+    ratio = (uf.coprime_distance(rd.coprime.factors, P)[0] / rd.epsilon if coprime
+             else premise_ratio(P, rd.model, rd.delta)[0])
     row.update(verdict=verdict(rd.certified, warned, true), certified=bool(rd.certified), delta=float(rd.delta),
-               decided_by=rd.premise.decided_by, premise_ratio=premise_ratio(P, rd.model, rd.delta)[0],
+               uncertainty=rd.uncertainty, decided_by=rd.premise.decided_by, premise_ratio=ratio,
                true_small_gain=true["small_gain"], true_stable=true["stable"], true_step_error=true["step_error"],
                true_fails="; ".join(true["fails"]), reason=rd.reason, seconds=time.perf_counter() - t0)
     return row
