@@ -385,7 +385,8 @@ def _with_form(reason: str, additive_reason: str) -> str:
     """A coprime-form refusal, with why the additive form was left before it."""
     if not reason or not additive_reason:
         return reason
-    return f"in coprime-factor form: {reason}; the additive form was not used: {additive_reason}"
+    return (f"in coprime-factor form: {reason}; the additive form was not used: premise not supported by the data: "
+            f"{additive_reason}")
 
 
 def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
