@@ -55,12 +55,13 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse.linalg
 
 from .arx_barrier import ridge_start
 from .barrier import Deadline, Stop, cholesky_retry, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
-from .toeplitz import adjoint, certified_norm, corr_hessian, toeplitz_matrix
+from .toeplitz import adjoint, certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix
 
 __all__ = ["solve", "solve_arx_pd", "nt_scaling", "soc_scaling"]
 
@@ -163,22 +164,37 @@ def _soc_step(x, d):
     return min(pos) if pos else np.inf
 
 
-def _sdp_step(lam, dt):
-    """Largest α (inf if none) with ``diag(lam) + α dt ⪰ 0``: ``1/max(0, −λ_min(Λ^{-1/2} dt Λ^{-1/2}))``."""
+def _sdp_step(lam, dt, *, exact=False):
+    """Largest α (inf if none) with ``diag(lam) + α dt ⪰ 0``: ``1/max(0, −λ_min(Λ^{-1/2} dt Λ^{-1/2}))``.
+
+    λ_min by Lanczos (ARPACK, O(N²) per product) unless ``exact`` or it does not converge (then LAPACK's
+    smallest eigenvalue, O(N³)).  A Lanczos value lies above λ_min by at most its tolerance, so the step can
+    overshoot by a relative ~1e-8; the caller's fraction to the boundary (0.99) and its Cholesky check of the
+    new point cover that."""
     r = 1.0 / np.sqrt(lam)
-    D = dt * r[:, None] * r[None, :]
-    low = float(scipy.linalg.eigvalsh(D, subset_by_index=[0, 0], driver="evr", check_finite=False)[0])
+    D = dt * r[:, None]
+    D *= r[None, :]
+    low = None
+    if not exact and D.shape[0] > 60:
+        try:
+            low = float(scipy.sparse.linalg.eigsh(D, k=1, which="SA", tol=1e-8, return_eigenvectors=False,
+                                                  ncv=min(D.shape[0], 40))[0])
+        except scipy.sparse.linalg.ArpackNoConvergence:
+            low = None
+    if low is None:
+        low = float(scipy.linalg.eigvalsh(D, subset_by_index=[0, 0], driver="evr", check_finite=False)[0])
     return np.inf if low >= 0.0 else -1.0 / low
 
 
 # ---- the iterate and one predictor–corrector step ---------------------------------------------------
 class _Point:
-    """Primal (h, δ) with its slacks ``S = F(h, δ)`` and ``s_Q = (ρ, b − Ah)``; dual ``Z``, ``z``."""
+    """Primal (h, δ) with its slacks ``S = F(h, δ)`` and ``s_Q = (ρ, b − Ah)``; dual ``Z``, ``z``; ``Lz`` the
+    Cholesky factor of Z once computed (the step's feasibility check computes it for the next scaling)."""
 
-    __slots__ = ("h", "d", "Z", "z", "T", "sq")
+    __slots__ = ("h", "d", "Z", "z", "T", "sq", "Lz")
 
-    def __init__(self, h, d, Z, z, form: ColumnForm, A: np.ndarray, b: np.ndarray):
-        self.h, self.d, self.Z, self.z = h, float(d), Z, z
+    def __init__(self, h, d, Z, z, form: ColumnForm, A: np.ndarray, b: np.ndarray, Lz=None):
+        self.h, self.d, self.Z, self.z, self.Lz = h, float(d), Z, z, Lz
         self.T = toeplitz_matrix(h)
         self.sq = np.r_[form.rho, b - A @ h]
 
@@ -197,6 +213,13 @@ def _lmi(T, d):
     F[n:, :n] = T
     F[np.diag_indices(2 * n)] = d
     return F
+
+
+class _Scaling:
+    """The NT scaling of one iterate with the products the iteration reuses: ``Rinv`` (R⁻¹), ``lam``,
+    ``Winv`` (W⁻¹ = R⁻ᵀR⁻¹), ``M = R⁻¹R⁻ᵀ`` and the SOC's ``beta``, ``v``."""
+
+    __slots__ = ("Rinv", "lam", "Winv", "M", "beta", "v")
 
 
 class _ArxPrimalDual:
@@ -226,6 +249,34 @@ class _ArxPrimalDual:
         n = self.n
         return -2.0 * adjoint(p.Z[n:, :n]) + self.A.T @ p.z[1:], 1.0 - float(np.trace(p.Z))
 
+    def _scaling(self, p: _Point) -> _Scaling:
+        """:func:`nt_scaling` of ``(F(h, δ), Z)`` with ``S L`` formed from T(h) (two n × n × 2n products instead
+        of one 2n-cubed), and the SOC scaling."""
+        n = self.n
+        L = p.Lz
+        if L is None:
+            L = scipy.linalg.cholesky(p.Z, lower=True, check_finite=False)
+            self.factorisations += 1
+        SL = p.d * L
+        SL[:n] += p.T.T @ L[n:]
+        SL[n:] += p.T @ L[:n]
+        G = L.T @ SL
+        G += G.T
+        G *= 0.5
+        lam2, Q = scipy.linalg.eigh(G, overwrite_a=True, check_finite=False, driver="evd")
+        self.factorisations += 1
+        if not lam2[0] > 0.0:
+            raise np.linalg.LinAlgError("the NT scaling needs F(h, δ) ≻ 0 and Z ≻ 0")
+        sc = _Scaling()
+        sc.lam = np.sqrt(lam2)
+        Q /= np.sqrt(sc.lam)
+        B = L @ Q  # R⁻ᵀ
+        sc.Rinv = B.T
+        sc.Winv = B @ B.T
+        sc.M = B.T @ B
+        sc.beta, sc.v = soc_scaling(p.sq, p.z)
+        return sc
+
     def _schur(self, Winv, beta, w):
         """The Schur complement ``Gᵀ(WᵀW)⁻¹G`` of the module docstring, (n + 1) × (n + 1)."""
         n = self.n
@@ -239,32 +290,69 @@ class _ArxPrimalDual:
         H[n, n] = float(np.sum(Winv * Winv))
         return H
 
-    def _direction(self, p, sc, cf, rx, tL, tq):
+    def _scaled_slack_step(self, sc: _Scaling, dh, dd):
+        """``ds̃ = R⁻¹ F(dh, dδ) R⁻ᵀ = dδ M + X + Xᵀ`` with ``X = R⁻¹₂ T(dh) R⁻¹₁ᵀ`` (R⁻¹ = [R⁻¹₁ R⁻¹₂] by
+        columns): F's off-diagonal blocks give ``R⁻¹₁T(dh)ᵀR⁻¹₂ᵀ + R⁻¹₂T(dh)R⁻¹₁ᵀ``."""
+        n = self.n
+        C, D = sc.Rinv[:, :n], sc.Rinv[:, n:]
+        X = D @ (toeplitz_matrix(dh) @ C.T)
+        out = X + X.T
+        out += dd * sc.M
+        return out
+
+    def _direction(self, sc: _Scaling, cf, rx, tL, tq, *, affine=False):
         """Solve the scaled Newton system for the right-hand side ``t̃ = (tL, tq)``.
 
+        ``affine``: ``tL = −Λ`` (diagonal, given as the vector −lam), whose terms are cheaper.
         Returns ``(dh, dδ, dsL, dzL, dsq, dzq)``: the step in x and the scaled slack/dual steps
         (``ds̃ + dz̃ = t̃``)."""
         n = self.n
-        Rinv, lam, Winv, beta, w = sc
-        Y = Rinv.T @ tL @ Rinv  # (WᵀW)⁻¹Wᵀ t̃ for the LMI block
-        wq = _soc_winv(beta, w, tq)  # (WᵀW)⁻¹Wᵀ t̃ for the SOC
+        C, D = sc.Rinv[:, :n], sc.Rinv[:, n:]
+        # (WᵀW)⁻¹Wᵀ t̃ = R⁻ᵀ t̃ R⁻¹ for the LMI block: its (2, 1) block and trace are all the right-hand side needs
+        if affine:
+            Y21 = (tL[:, None] * D).T @ C
+            trY = float(tL @ np.diag(sc.M))
+        else:
+            Y21 = D.T @ (tL @ C)
+            trY = float(np.sum(tL * sc.M))
+        wq = _soc_winv(sc.beta, sc.v, tq)  # (WᵀW)⁻¹Wᵀ t̃ for the SOC
         rhs = np.empty(n + 1)
-        rhs[:n] = -rx[0] + 2.0 * adjoint(Y[n:, :n]) - self.A.T @ wq[1:]
-        rhs[n] = -rx[1] + float(np.trace(Y))
+        rhs[:n] = -rx[0] + 2.0 * adjoint(Y21) - self.A.T @ wq[1:]
+        rhs[n] = -rx[1] + trY
         sol = scipy.linalg.cho_solve(cf, rhs, check_finite=False)
         dh, dd = sol[:n], float(sol[n])
-        dS = _lmi(toeplitz_matrix(dh), dd)
-        dsL = Rinv @ dS @ Rinv.T
-        dsL = 0.5 * (dsL + dsL.T)
-        dzL = tL - dsL
-        dsq_raw = np.r_[0.0, -(self.A @ dh)]
-        dsq = _soc_winv(beta, w, dsq_raw)
+        dsL = self._scaled_slack_step(sc, dh, dd)
+        dzL = -dsL
+        if affine:
+            dzL[np.diag_indices(2 * n)] += tL
+        else:
+            dzL += tL
+        dsq = _soc_winv(sc.beta, sc.v, np.r_[0.0, -(self.A @ dh)])
         dzq = tq - dsq
         return dh, dd, dsL, dzL, dsq, dzq
 
-    def _max_step(self, lam, lq, dsL, dzL, dsq, dzq):
+    def _max_step(self, sc: _Scaling, lq, dsL, dzL, dsq, dzq):
         self.factorisations += 2
-        return min(_sdp_step(lam, dsL), _sdp_step(lam, dzL), _soc_step(lq, dsq), _soc_step(lq, dzq))
+        return min(_sdp_step(sc.lam, dsL), _sdp_step(sc.lam, dzL), _soc_step(lq, dsq), _soc_step(lq, dzq))
+
+    def _feasible(self, h, d, Z):
+        """Cholesky factor of Z and whether ``F(h, δ) ≻ 0`` (``δ²I − T(h)ᵀT(h)`` factorises), or None."""
+        self.factorisations += 1
+        try:
+            Lz = scipy.linalg.cholesky(Z, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            return None
+        if not d > 0.0:
+            return None
+        K = toeplitz_gram(h)
+        K *= -1.0
+        K[np.diag_indices_from(K)] += d * d
+        self.factorisations += 1
+        try:
+            scipy.linalg.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            return None
+        return Lz
 
     def centre(self, mu, p: _Point, deadline: Deadline):
         """One Mehrotra predictor–corrector iteration from ``p``; returns the new point and its step length."""
@@ -272,38 +360,48 @@ class _ArxPrimalDual:
         if self.steps >= self.max_iter:
             raise Stop("max_iter")
         n = self.n
-        S = p.slack()
-        Rinv, lam, Winv = nt_scaling(S, p.Z)
-        beta, w = soc_scaling(p.sq, p.z)
-        self.factorisations += 2
-        lq = _soc_w(beta, w, p.z)  # = W_Q⁻¹ s_Q
-        sc = (Rinv, lam, Winv, beta, w)
-        cf = cholesky_retry(self._schur(Winv, beta, w))
+        sc = self._scaling(p)
+        lam = sc.lam
+        lq = _soc_w(sc.beta, sc.v, p.z)  # = W_Q⁻¹ s_Q
+        cf = cholesky_retry(self._schur(sc.Winv, sc.beta, sc.v))
         self.factorisations += 1
         rx = self._residual_x(p)
         gap = float(lam @ lam + lq @ lq)
         mu = gap / self.nu
         # predictor (affine scaling): ds̃ + dz̃ = −λ
-        _, _, dsL, dzL, dsq, dzq = self._direction(p, sc, cf, rx, -np.diag(lam), -lq)
-        a = min(1.0, self._max_step(lam, lq, dsL, dzL, dsq, dzq))
-        gap_a = (float(np.sum((np.diag(lam) + a * dsL) * (np.diag(lam) + a * dzL)))
+        _, _, dsL, dzL, dsq, dzq = self._direction(sc, cf, rx, -lam, -lq, affine=True)
+        a = min(1.0, self._max_step(sc, lq, dsL, dzL, dsq, dzq))
+        diag = np.diag_indices(2 * n)
+        gap_a = (float(np.sum(dsL * dzL)) * a * a + a * float(lam @ (np.diag(dsL) + np.diag(dzL))) + float(lam @ lam)
                  + float((lq + a * dsq) @ (lq + a * dzq)))
         sigma = min(1.0, max(0.0, gap_a / gap)) ** 3
         # corrector: λ∘(ds̃ + dz̃) = σμe − λ∘λ − ds̃_a∘dz̃_a
-        RL = -0.5 * (dsL @ dzL + dzL @ dsL)
-        RL[np.diag_indices(2 * n)] += sigma * mu - lam * lam
-        tL = 2.0 * RL / (lam[:, None] + lam[None, :])
+        RL = dsL @ dzL
+        RL += RL.T
+        RL *= -0.5
+        RL[diag] += sigma * mu - lam * lam
+        RL /= lam[:, None] + lam[None, :]
+        RL *= 2.0
+        tL = RL
         Rq = -_soc_prod(lq, lq) - _soc_prod(dsq, dzq)
         Rq[0] += sigma * mu
         tq = _soc_div(lq, Rq)
-        dh, dd, dsL, dzL, dsq, dzq = self._direction(p, sc, cf, rx, tL, tq)
-        amax = self._max_step(lam, lq, dsL, dzL, dsq, dzq)
+        dh, dd, dsL, dzL, dsq, dzq = self._direction(sc, cf, rx, tL, tq)
+        amax = self._max_step(sc, lq, dsL, dzL, dsq, dzq)
         a = min(1.0, self.eta * amax)
-        dZ = Rinv.T @ dzL @ Rinv
-        dz = _soc_winv(beta, w, dzq)
-        Z = p.Z + a * dZ
-        Z = 0.5 * (Z + Z.T)
-        new = _Point(p.h + a * dh, p.d + a * dd, Z, p.z + a * dz, self.f, self.A, self.b)
+        dZ = sc.Rinv.T @ dzL @ sc.Rinv
+        dz = _soc_winv(sc.beta, sc.v, dzq)
+        for _ in range(30):  # the exact boundary is Lanczos's estimate: back off until both sides factorise
+            Z = p.Z + a * dZ
+            Z += Z.T
+            Z *= 0.5
+            Lz = self._feasible(p.h + a * dh, p.d + a * dd, Z)
+            if Lz is not None:
+                break
+            a *= 0.5
+        else:
+            raise Stop("failed")
+        new = _Point(p.h + a * dh, p.d + a * dd, Z, p.z + a * dz, self.f, self.A, self.b, Lz=Lz)
         self.steps += 1
         self.last_gap = gap
         if not (np.isfinite(a) and np.all(np.isfinite(new.h)) and np.isfinite(new.d)):
