@@ -214,3 +214,16 @@ def test_ctrl_c_returns_the_best_certified_bracket(monkeypatch):
     assert r.status == "interrupted" and calls[0] == 6
     c = r.certificate
     assert c.verify() and c.ok() and 0 < c.lower_bound <= c.upper_bound
+
+
+def test_a_real_tiny_time_limit_stops_before_the_first_iteration_with_the_start_certified():
+    # no iteration finishes: the start's impulses are the certified upper side; there is no dual point yet
+    # (lower NaN, as for arx_barrier), and the front end warns
+    u, y = servo_arx_data(100, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    with pytest.warns(uf.SolverWarning, match="time_limit"):
+        r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", method="primal_dual", time_limit=1e-9,
+                             progress=False)
+    c = r.certificate
+    assert r.status == "time_limit" and c.verify() and c.ok()
+    assert np.isfinite(c.upper_bound) and not c.lower_bound > c.upper_bound
