@@ -227,3 +227,16 @@ def test_a_real_tiny_time_limit_stops_before_the_first_iteration_with_the_start_
     c = r.certificate
     assert r.status == "time_limit" and c.verify() and c.ok()
     assert np.isfinite(c.upper_bound) and not c.lower_bound > c.upper_bound
+
+
+@pytest.mark.parametrize("free_rows, frac", [(0, 0.9), (3, 0.2), (3, 0.5)])
+def test_free_rows_and_tight_tolerance_against_the_barrier_method(free_rows, frac):
+    # 𝓛 with whole rows (free equation errors) and tol 1e-7: the same δ as arx_barrier to the certified gaps
+    u, y = servo_arx_data(60, 3)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    kw = dict(backend="structured", free_rows=free_rows, progress=False, tol=1e-7)
+    rp = uf.arx_unfalsify(u, y, 2, 2, frac * rms, method="primal_dual", **kw)
+    rb = uf.arx_unfalsify(u, y, 2, 2, frac * rms, **kw)
+    assert rp.status == rb.status == "optimal"
+    assert rp.certificate.verify() and rp.certificate.relative_gap <= 1e-7
+    assert rp.delta == pytest.approx(rb.delta, rel=2e-7)
