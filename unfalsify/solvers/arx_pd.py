@@ -43,11 +43,14 @@ scaled space) leaves ``Gᵀ(WᵀW)⁻¹G dx = −r_x − Gᵀ(WᵀW)⁻¹Wᵀt̃
 One Cholesky factor of this (n + 1) × (n + 1) matrix serves the predictor and the corrector.  Step lengths are
 exact: the smallest eigenvalue of ``Λ^{-1/2} d̃ Λ^{-1/2}`` for the LMI, a quadratic for the SOC.
 
-Cost.  Every iteration works on dense 2n × 2n matrices: one Cholesky of Z, one symmetric eigendecomposition
-(the NT point), about eight 2n × 2n products and four smallest-eigenvalue computations (step lengths), against
-n × n Cholesky factorisations and products for the barrier method.  The iteration count is small and nearly
-independent of n, the cost per iteration is about 10–20× a barrier Newton step (see
-``experiments/bench/BENCHMARKS.md`` for the measured comparison).  Memory O(n²) (about ten 2n × 2n arrays).
+Cost.  Every iteration works on dense 2n × 2n matrices, because Z has no structure: one Cholesky of Z (the
+feasibility check of the previous step), one symmetric eigendecomposition (the NT point), about eight 2n × 2n
+products (half of them triangular or symmetric: trmm, syrk) and four Lanczos step lengths, against n × n Cholesky
+factorisations and products for the barrier method.  Measured (``bench-unfalsify --series arx-pd``, tol 1e-4):
+10–11 iterations at n = 200 … 1000 against 44–77 barrier Newton steps, but one iteration costs about 9–10 Newton
+steps at n = 1000 (6.3 s; the eigendecomposition alone 1.5 s), so the method is slower than ``arx_barrier``
+there (0.75× at n = 1000, 0.62× at n = 400, 0.93× at n = 200; ``experiments/bench/BENCHMARKS.md``).
+Memory O(n²) (about ten 2n × 2n arrays).
 
 Several channels are not supported (the registry's ``CHANNELS`` does not list ``"arx_pd"``).
 """
