@@ -798,7 +798,8 @@ def _run_structured(opts, rep: Report) -> dict:
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd, "time_limit_s": limit, "csv": csv_path.name,
+    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd, "time_limit_s": limit,
+            "csv": csv_path.name,
             "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
 
 
