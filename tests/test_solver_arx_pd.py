@@ -240,3 +240,25 @@ def test_free_rows_and_tight_tolerance_against_the_barrier_method(free_rows, fra
     assert rp.status == rb.status == "optimal"
     assert rp.certificate.verify() and rp.certificate.relative_gap <= 1e-7
     assert rp.delta == pytest.approx(rb.delta, rel=2e-7)
+
+
+def test_a_numerical_failure_mid_solve_keeps_the_certified_bracket(monkeypatch):
+    # a LinAlgError in the 5th NT scaling ends the solve with status "failed" and the best bracket so far
+    u, y = servo_arx_data(60, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    calls = [0]
+    orig = apd._ArxPrimalDual._scaling
+
+    def scaling(self, p):
+        calls[0] += 1
+        if calls[0] == 5:
+            raise np.linalg.LinAlgError("injected")
+        return orig(self, p)
+
+    monkeypatch.setattr(apd._ArxPrimalDual, "_scaling", scaling)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", method="primal_dual", tol=1e-12,
+                             progress=False)
+    assert r.status == "failed"
+    c = r.certificate
+    assert c.verify() and c.ok() and 0 < c.lower_bound <= c.upper_bound
