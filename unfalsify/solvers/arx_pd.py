@@ -64,8 +64,9 @@ from scipy.linalg import blas as _blas
 from .arx_barrier import ridge_start
 from .barrier import Deadline, Stop, cholesky_retry, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
+from .arx_barrier import _Channels, _channel_operator, _Siso
 from .columns import BlockColumnForm, ColumnForm
-from .toeplitz import adjoint, certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix
+from .toeplitz import toeplitz_matrix
 
 __all__ = ["solve", "solve_arx_pd", "nt_scaling", "soc_scaling"]
 
@@ -197,9 +198,9 @@ class _Point:
 
     __slots__ = ("h", "d", "Z", "z", "T", "sq", "Lz")
 
-    def __init__(self, h, d, Z, z, form: ColumnForm, A: np.ndarray, b: np.ndarray, Lz=None):
+    def __init__(self, h, d, Z, z, form: ColumnForm, A: np.ndarray, b: np.ndarray, ops, Lz=None, T=None):
         self.h, self.d, self.Z, self.z, self.Lz = h, float(d), Z, z, Lz
-        self.T = toeplitz_matrix(h)
+        self.T = ops.toeplitz(h) if T is None else T
         self.sq = np.r_[form.rho, b - A @ h]
 
     def slack(self) -> np.ndarray:
@@ -208,14 +209,15 @@ class _Point:
 
 
 def _lmi(T, d):
-    """``[dI Tᵀ; T dI]``."""
-    n = T.shape[0]
-    F = np.empty((2 * n, 2 * n))
-    F[:n, :n] = 0.0
-    F[n:, n:] = 0.0
-    F[:n, n:] = T.T
-    F[n:, :n] = T
-    F[np.diag_indices(2 * n)] = d
+    """``[dI Tᵀ; T dI]`` for T of shape (N₂, N₁) (N₁ + N₂ square)."""
+    n2, n1 = T.shape
+    N = n1 + n2
+    F = np.empty((N, N))
+    F[:n1, :n1] = 0.0
+    F[n1:, n1:] = 0.0
+    F[:n1, n1:] = T.T
+    F[n1:, :n1] = T
+    F[np.diag_indices(N)] = d
     return F
 
 
@@ -238,17 +240,27 @@ class _ArxPrimalDual:
     predictor–corrector iteration, ``t`` the complementarity μ, ``advance`` the stall check."""
 
     def __init__(self, form: ColumnForm, *, tol, time_limit, progress, max_iter=200, eta=0.99):
-        if form.j != 1 or isinstance(form, BlockColumnForm):
-            raise ValueError("the primal–dual solver is for the single-channel ARX program (j = 1)")
+        if form.j != 1:
+            raise ValueError("the primal–dual solver is for the ARX program (j = 1)")
         self.f = form
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.max_iter, self.eta = max_iter, eta
-        self.n = n = form.m
-        self.desc = f"primal-dual ARX unfalsification (n={n})"
-        self.A = form.project(toeplitz_matrix(form.U[:, 0]))
+        if isinstance(form, BlockColumnForm):  # several channels: T(h) is nl × nm (module docstring)
+            self.ops = _Channels(form)
+            n, l, m = form.i, form.n_out, form.n_in
+            self.desc = f"primal-dual ARX unfalsification ({l}×{m}, n={n})"
+            self.A = form.project(_channel_operator(form))
+        else:
+            self.ops = _Siso(form)
+            n, l, m = form.m, 1, 1
+            self.desc = f"primal-dual ARX unfalsification (n={n})"
+            self.A = form.project(toeplitz_matrix(form.U[:, 0]))
+        self.N1, self.N2 = n * m, n * l  # the LMI's blocks: δI_nm (top left), δI_nl (bottom right)
+        self.N = self.N1 + self.N2
+        self.p = n * l * m  # unknowns h
         self.b = form.project(form.B)[:, 0]
         self.AtA = self.A.T @ self.A
-        self.nu = 2 * n + 1  # the degree of K
+        self.nu = self.N + 1  # the degree of K
         self.steps = 0
         self.factorisations = 0
         self.small_steps = 0
@@ -257,20 +269,20 @@ class _ArxPrimalDual:
     # -- the linear algebra of one iteration
     def _residual_x(self, p: _Point):
         """``r_x = Gᵀz + c``: ``(−2T*(Z₂₁) + Aᵀz₁, 1 − tr Z)``."""
-        n = self.n
-        return -2.0 * adjoint(p.Z[n:, :n]) + self.A.T @ p.z[1:], 1.0 - float(np.trace(p.Z))
+        n1 = self.N1
+        return -2.0 * self.ops.adjoint(p.Z[n1:, :n1]) + self.A.T @ p.z[1:], 1.0 - float(np.trace(p.Z))
 
     def _scaling(self, p: _Point) -> _Scaling:
         """:func:`nt_scaling` of ``(F(h, δ), Z)`` with ``S L`` formed from T(h) (two n × n × 2n products instead
         of one 2n-cubed), and the SOC scaling."""
-        n = self.n
+        n1 = self.N1
         L = p.Lz
         if L is None:
             L = scipy.linalg.cholesky(p.Z, lower=True, check_finite=False)
             self.factorisations += 1
         SL = p.d * L
-        SL[:n] += p.T.T @ L[n:]
-        SL[n:] += p.T @ L[:n]
+        SL[:n1] += p.T.T @ L[n1:]
+        SL[n1:] += p.T @ L[:n1]
         # triangular and symmetric BLAS (trmm, syrk): half the flops of a general product each
         G = _blas.dtrmm(1.0, L, SL, lower=1, trans_a=1)  # Lᵀ S L
         G += G.T
@@ -290,24 +302,24 @@ class _ArxPrimalDual:
         return sc
 
     def _schur(self, Winv, beta, w):
-        """The Schur complement ``Gᵀ(WᵀW)⁻¹G`` of the module docstring, (n + 1) × (n + 1)."""
-        n = self.n
-        W11, W21, W22 = Winv[:n, :n], Winv[n:, :n], Winv[n:, n:]
-        H = np.empty((n + 1, n + 1))
+        """The Schur complement ``Gᵀ(WᵀW)⁻¹G`` of the module docstring, (p + 1) × (p + 1) (p unknowns h)."""
+        n1, p = self.N1, self.p
+        W11, W21, W22 = Winv[:n1, :n1], Winv[n1:, :n1], Winv[n1:, n1:]
+        H = np.empty((p + 1, p + 1))
         Aw = self.A.T @ w[1:]
-        H[:n, :n] = corr_hessian(W11[None], W21[None], W22[None], n)[0]
-        H[:n, :n] += (self.AtA + 8.0 * w[0] ** 2 * np.outer(Aw, Aw)) / beta**2
+        H[:p, :p] = self.ops.hessian(W11, W21, W22)  # corr_hessian (block_corr_hessian) of W⁻¹'s blocks
+        H[:p, :p] += (self.AtA + 8.0 * w[0] ** 2 * np.outer(Aw, Aw)) / beta**2
         W2_21 = W21 @ W11 + W22 @ W21  # (W⁻²)₂₁
-        H[:n, n] = H[n, :n] = 2.0 * adjoint(W2_21)
-        H[n, n] = float(np.sum(Winv * Winv))
+        H[:p, p] = H[p, :p] = 2.0 * self.ops.adjoint(W2_21)
+        H[p, p] = float(np.sum(Winv * Winv))
         return H
 
     def _scaled_slack_step(self, sc: _Scaling, dh, dd):
         """``ds̃ = R⁻¹ F(dh, dδ) R⁻ᵀ = dδ M + X + Xᵀ`` with ``X = R⁻¹₂ T(dh) R⁻¹₁ᵀ`` (R⁻¹ = [R⁻¹₁ R⁻¹₂] by
         columns): F's off-diagonal blocks give ``R⁻¹₁T(dh)ᵀR⁻¹₂ᵀ + R⁻¹₂T(dh)R⁻¹₁ᵀ``."""
-        n = self.n
-        C, D = sc.Rinv[:, :n], sc.Rinv[:, n:]
-        X = D @ (toeplitz_matrix(dh) @ C.T)
+        n1 = self.N1
+        C, D = sc.Rinv[:, :n1], sc.Rinv[:, n1:]
+        X = D @ (self.ops.toeplitz(dh) @ C.T)
         out = X + X.T
         out += dd * sc.M
         return out
@@ -318,8 +330,8 @@ class _ArxPrimalDual:
         ``affine``: ``tL = −Λ`` (diagonal, given as the vector −lam), whose terms are cheaper.
         Returns ``(dh, dδ, dsL, dzL, dsq, dzq)``: the step in x and the scaled slack/dual steps
         (``ds̃ + dz̃ = t̃``)."""
-        n = self.n
-        C, D = sc.Rinv[:, :n], sc.Rinv[:, n:]
+        n1, p = self.N1, self.p
+        C, D = sc.Rinv[:, :n1], sc.Rinv[:, n1:]
         # (WᵀW)⁻¹Wᵀ t̃ = R⁻ᵀ t̃ R⁻¹ for the LMI block: its (2, 1) block and trace are all the right-hand side needs
         if affine:
             Y21 = (tL[:, None] * D).T @ C
@@ -328,15 +340,15 @@ class _ArxPrimalDual:
             Y21 = D.T @ (tL @ C)
             trY = float(np.sum(tL * sc.M))
         wq = _soc_winv(sc.beta, sc.v, tq)  # (WᵀW)⁻¹Wᵀ t̃ for the SOC
-        rhs = np.empty(n + 1)
-        rhs[:n] = -rx[0] + 2.0 * adjoint(Y21) - self.A.T @ wq[1:]
-        rhs[n] = -rx[1] + trY
+        rhs = np.empty(p + 1)
+        rhs[:p] = -rx[0] + 2.0 * self.ops.adjoint(Y21) - self.A.T @ wq[1:]
+        rhs[p] = -rx[1] + trY
         sol = scipy.linalg.cho_solve(cf, rhs, check_finite=False)
-        dh, dd = sol[:n], float(sol[n])
+        dh, dd = sol[:p], float(sol[p])
         dsL = self._scaled_slack_step(sc, dh, dd)
         dzL = -dsL
         if affine:
-            dzL[np.diag_indices(2 * n)] += tL
+            dzL[np.diag_indices(self.N)] += tL
         else:
             dzL += tL
         dsq = _soc_winv(sc.beta, sc.v, np.r_[0.0, -(self.A @ dh)])
@@ -348,7 +360,8 @@ class _ArxPrimalDual:
         return min(_sdp_step(sc.lam, dsL), _sdp_step(sc.lam, dzL), _soc_step(lq, dsq), _soc_step(lq, dzq))
 
     def _feasible(self, h, d, Z):
-        """Cholesky factor of Z and whether ``F(h, δ) ≻ 0`` (``δ²I − T(h)ᵀT(h)`` factorises), or None."""
+        """``(Lz, T)``: the Cholesky factor of Z and T(h) if ``F(h, δ) ≻ 0`` (``δ²I − T(h)ᵀT(h)`` factorises and,
+        for a rectangular T, δ > 0), else None."""
         self.factorisations += 1
         try:
             Lz = scipy.linalg.cholesky(Z, lower=True, check_finite=False)
@@ -356,7 +369,8 @@ class _ArxPrimalDual:
             return None
         if not d > 0.0:
             return None
-        K = toeplitz_gram(h)
+        T = self.ops.toeplitz(h)
+        K = self.ops.gram(h, T)
         K *= -1.0
         K[np.diag_indices_from(K)] += d * d
         self.factorisations += 1
@@ -364,14 +378,13 @@ class _ArxPrimalDual:
             scipy.linalg.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
         except np.linalg.LinAlgError:
             return None
-        return Lz
+        return Lz, T
 
     def centre(self, mu, p: _Point, deadline: Deadline):
         """One Mehrotra predictor–corrector iteration from ``p``; returns the new point and its step length."""
         deadline.check()
         if self.steps >= self.max_iter:
             raise Stop("max_iter")
-        n = self.n
         sc = self._scaling(p)
         lam = sc.lam
         lq = _soc_w(sc.beta, sc.v, p.z)  # = W_Q⁻¹ s_Q
@@ -383,7 +396,7 @@ class _ArxPrimalDual:
         # predictor (affine scaling): ds̃ + dz̃ = −λ
         _, _, dsL, dzL, dsq, dzq = self._direction(sc, cf, rx, -lam, -lq, affine=True)
         a = min(1.0, self._max_step(sc, lq, dsL, dzL, dsq, dzq))
-        diag = np.diag_indices(2 * n)
+        diag = np.diag_indices(self.N)
         gap_a = (float(np.sum(dsL * dzL)) * a * a + a * float(lam @ (np.diag(dsL) + np.diag(dzL))) + float(lam @ lam)
                  + float((lq + a * dsq) @ (lq + a * dzq)))
         sigma = min(1.0, max(0.0, gap_a / gap)) ** 3
@@ -407,13 +420,14 @@ class _ArxPrimalDual:
             Z = p.Z + a * dZ
             Z += Z.T
             Z *= 0.5
-            Lz = self._feasible(p.h + a * dh, p.d + a * dd, Z)
-            if Lz is not None:
+            ok = self._feasible(p.h + a * dh, p.d + a * dd, Z)
+            if ok is not None:
                 break
             a *= 0.5
         else:
             raise Stop("failed")
-        new = _Point(p.h + a * dh, p.d + a * dd, Z, p.z + a * dz, self.f, self.A, self.b, Lz=Lz)
+        new = _Point(p.h + a * dh, p.d + a * dd, Z, p.z + a * dz, self.f, self.A, self.b, self.ops, Lz=ok[0],
+                     T=ok[1])
         self.steps += 1
         self.last_gap = gap
         if not (np.isfinite(a) and np.all(np.isfinite(new.h)) and np.isfinite(new.d)):
@@ -427,15 +441,15 @@ class _ArxPrimalDual:
         return self.last_gap <= max(10.0 * self.tol, 1e-2) * max(upper, 1e-300)
 
     def upper(self, p: _Point) -> float:
-        return certified_norm(p.h)
+        return self.ops.norm(p.h)
 
     def impulses(self, p: _Point) -> np.ndarray:
         return p.h[:, None].copy()
 
     def dual(self, mu, p: _Point, step):
         """``V = −z₁``, ``W = −2Z₂₁`` (module docstring) for :meth:`ColumnForm.lower_bound`."""
-        n = self.n
-        return -p.z[1:, None].copy(), -2.0 * p.Z[None, n:, :n]
+        n1 = self.N1
+        return -p.z[1:, None].copy(), -2.0 * p.Z[None, n1:, :n1]
 
     def advance(self, mu, p, step, bounds, deadline):
         if self.small_steps >= 3:  # no progress possible: the end of double precision here
@@ -444,12 +458,12 @@ class _ArxPrimalDual:
 
     def run(self, h0):
         deadline = Deadline(self.time_limit)
-        up0 = certified_norm(h0)
+        up0 = self.ops.norm(h0)
         d0 = 1.2 * up0 + 1e-3 * (1.0 + up0)
-        n = self.n
-        Z0 = np.eye(2 * n) / (2 * n)
-        p0 = _Point(h0, d0, Z0, np.zeros(n + 1), self.f, self.A, self.b)
-        p0.z[0] = d0 / (2 * n * self.f.rho)  # ⟨s_Q, z_Q⟩ = the LMI block's μ per degree
+        N = self.N
+        Z0 = np.eye(N) / N
+        p0 = _Point(h0, d0, Z0, np.zeros(self.b.size + 1), self.f, self.A, self.b, self.ops)
+        p0.z[0] = d0 / (N * self.f.rho)  # ⟨s_Q, z_Q⟩ = the LMI block's μ per degree
         return run_barrier(self, self.f, p0, np.inf, deadline, up0)
 
 
@@ -483,14 +497,16 @@ def solve_arx_pd(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=None,
 
 
 def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True) -> SolverOutput:
-    """Registered solver ``"arx_pd"``: (7.4) of a single-channel :class:`unfalsify.ArxProblem`, certified to the
-    relative gap ``tol`` by the primal–dual method of the module docstring; the answer in data units."""
+    """Registered solver ``"arx_pd"``: (7.4) of an :class:`unfalsify.ArxProblem` (one channel or several),
+    certified to the relative gap ``tol`` by the primal–dual method of the module docstring; the answer in data
+    units."""
     f = problem.column_form(scaled=True)
     deadline = Deadline()
+    shape = (problem.n,) if problem.siso else (problem.n, problem.n_outputs, problem.n_inputs)
     if zero_answer(f):
-        return unscaled(problem, np.zeros(problem.n), 0.0, "optimal", deadline.elapsed())
+        return unscaled(problem, np.zeros(shape), 0.0, "optimal", deadline.elapsed())
     out = solve_arx_pd(f, ridge_start(f, f.project(f.B)), tol=float(tol), time_limit=time_limit, progress=progress)
     W = None if out["W"] is None else out["W"][0]
     V = None if out["V"] is None else out["V"][:, 0]
-    return unscaled(problem, out["H"][:, 0], out["upper"], out["status"], deadline.elapsed(), V=V, W=W,
-                    stats=dict(newton=out["newton"], outer=out["outer"], factorisations=out["factorisations"]))
+    return unscaled(problem, out["H"][:, 0].reshape(shape), out["upper"], out["status"], deadline.elapsed(), V=V,
+                    W=W, stats=dict(newton=out["newton"], outer=out["outer"], factorisations=out["factorisations"]))
