@@ -2,7 +2,8 @@
 
 Its NT-scaled Schur complement against a dense construction, its SOC scaling against the defining identities,
 its answer against ``arx_barrier`` and the cvxpy model to the certified gap on random ARX problems, the
-certificates, and an early stop (time limit, Ctrl-C) that keeps a certified bracket."""
+certificates, several channels, and an early stop (time limit, Ctrl-C, numerical failure) that keeps a certified
+bracket."""
 import warnings
 
 import numpy as np
@@ -152,12 +153,52 @@ def test_zero_delta_when_sigma_covers_the_least_squares_residual():
     assert r.status == "optimal" and r.delta == 0.0
 
 
-def test_several_channels_are_refused_by_name():
-    rng = np.random.default_rng(0)
-    u, y = rng.standard_normal((20, 2)), rng.standard_normal((20, 2))
-    with pytest.raises(uf.UnknownSolverError, match="method='barrier'"):
-        uf.arx_unfalsify(u, y, 0, 0, 0.1, backend="structured", method="primal_dual")
-    assert "arx_pd" not in solvers.CHANNELS
+@pytest.mark.parametrize("l, m, na, free_rows", [(2, 1, 1, 0), (1, 2, 1, 0), (2, 2, 0, 3)])
+def test_several_channels_equal_the_barrier_method_and_cvxpy(l, m, na, free_rows):
+    # block-Toeplitz T(h) (nl × nm), the channel operator, block_corr_hessian of W⁻¹'s blocks
+    rng = np.random.default_rng(l + 2 * m)
+    n = 16
+    u = np.sign(rng.standard_normal((n, m)))
+    H = [np.zeros((l, m)), rng.standard_normal((l, m)), 0.5 * rng.standard_normal((l, m))]
+    y = sum(np.vstack([np.zeros((k, l)), u[: n - k] @ Hk.T]) for k, Hk in enumerate(H))
+    y = y + 0.1 * rng.standard_normal((n, l))
+    _, rms = uf.arx_least_squares(u, y, na, na)
+    sigma = 0.5 * rms if na else 0.15 * float(np.sqrt(np.mean(y[free_rows:] ** 2)))
+    kw = dict(free_rows=free_rows, progress=False)
+    rp = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", method="primal_dual", **kw)
+    rb = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", **kw)
+    rc = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, free_rows=free_rows)
+    c = rp.certificate
+    assert rp.status == rb.status == "optimal" and c.verify() and c.ok() and c.relative_gap <= 1e-6
+    assert rp.impulse.shape == (n, l, m) and (rp.n_outputs, rp.n_inputs) == (l, m)
+    assert rp.delta == pytest.approx(rb.delta, rel=2e-6)
+    assert c.lower_bound * (1 - 1e-6) <= rc.delta <= c.upper_bound * (1 + 1e-6)
+
+
+def test_nt_schur_block_of_several_channels_is_the_dense_sum():
+    # the (p + 1)² Schur complement for a 2 × 1 problem against tr(W⁻¹E_aW⁻¹E_b) built from block_toeplitz_matrix
+    from unfalsify.solvers.toeplitz import block_toeplitz_matrix
+
+    rng = np.random.default_rng(7)
+    n, l, m = 5, 2, 1
+    u = np.sign(rng.standard_normal((n, m)))
+    y = rng.standard_normal((n, l))
+    f = uf.ArxProblem.from_data(u, y, 0, 0, 0.1).column_form(scaled=True)
+    method = apd._ArxPrimalDual(f, tol=1e-6, time_limit=None, progress=False)
+    p = n * l * m
+    T = block_toeplitz_matrix(rng.standard_normal((n, l, m)))
+    S = apd._lmi(T, 1.1 * np.linalg.norm(T, 2))
+    X = rng.standard_normal(S.shape)
+    _, _, Winv = apd.nt_scaling(S, X @ X.T + 0.1 * np.eye(S.shape[0]))
+    E = [apd._lmi(block_toeplitz_matrix(e.reshape(n, l, m)), 0.0) for e in np.eye(p)] + [np.eye(S.shape[0])]
+    dense = np.array([[np.trace(Winv @ Ea @ Winv @ Eb) for Eb in E] for Ea in E])
+    s, z = rng.standard_normal((2, n * l + 1))
+    s[0], z[0] = np.linalg.norm(s[1:]) + 0.5, np.linalg.norm(z[1:]) + 0.3
+    beta, v = apd.soc_scaling(s, z)
+    Wq = np.column_stack([apd._soc_w(beta, v, e) for e in np.eye(n * l + 1)])
+    Gq = np.vstack([np.zeros((1, p)), method.A])
+    dense[:p, :p] += Gq.T @ np.linalg.inv(Wq @ Wq) @ Gq
+    np.testing.assert_allclose(method._schur(Winv, beta, v), dense, rtol=1e-9, atol=1e-10 * np.abs(dense).max())
 
 
 # ---- early stops keep a certified bracket -----------------------------------------------------------------

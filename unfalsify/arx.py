@@ -476,7 +476,7 @@ def arx_unfalsify(
         Structured backend.  ``"barrier"``: the Cholesky barrier method of :mod:`unfalsify.solvers.arx_barrier`
         (O(n²) memory, O(n³) per Newton step), certified to the relative gap ``tol``.  ``"primal_dual"``: the
         primal–dual interior-point method of :mod:`unfalsify.solvers.arx_pd` (NT scaling, Mehrotra
-        predictor–corrector; one channel only), the same certificate and stopping rule.  ``"bracket"``:
+        predictor–corrector; one channel or several), the same certificate and stopping rule.  ``"bracket"``:
         FFT-only bounds of :mod:`unfalsify.solvers.bracket` (O(n) memory, n = 10⁴ in minutes): a feasible h
         with a small spectral peak (upper) and a circulant dual point (lower); the result has status
         ``"bracket"``, δ = the certified upper bound and a :class:`SolverWarning` stating the relative
@@ -498,7 +498,7 @@ def arx_unfalsify(
         Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
     UnknownSolverError
         Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names), or
-        ``method="bracket"`` or ``"primal_dual"`` with several channels (the message names ``method="barrier"``).
+        ``method="bracket"`` with several channels (the message names ``method="barrier"``).
     ValueError
         Unknown ``form``, ``form="thesis"`` with the structured backend or several channels, or
         ``method="bracket"`` with the cvxpy backend.
@@ -549,7 +549,7 @@ def arx_unfalsify(
         shape = f"{P.n_outputs}×{P.n_inputs}"
         if form != "conditioned":
             raise ValueError(f"form='thesis' is written for one channel; with {shape} data use form='conditioned'")
-        if name not in CHANNELS:  # method="bracket" or "primal_dual"
+        if name not in CHANNELS:  # method="bracket"
             raise UnknownSolverError(f"method={method!r} solves single-channel data only; for {shape} data use "
                                      "method='barrier' (or backend='cvxpy')")
     if form == "thesis" and not P.cond_Tu <= COND_WARN:

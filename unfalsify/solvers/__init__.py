@@ -10,14 +10,14 @@ name                what                                                        
 ==================  =========================================================================  ==========
 ``cvxpy``           the reference LMI models through cvxpy and a conic solver                  arx, subspace
 ``arx_barrier``     Cholesky barrier method, certified to a relative gap (O(n²) memory)        arx
-``arx_pd``          primal–dual interior point (NT scaling, Mehrotra), same certificate; SISO  arx
+``arx_pd``          primal–dual interior point (NT scaling, Mehrotra), same certificate        arx
 ``bracket``         FFT-only certified bracket, gap reported (O(n) memory, n = 10⁴)             arx
 ``column_barrier``  column barrier method with threads over the columns                        subspace
 ``block_barrier``   barrier method for several channels (l × m operators, dense block Hessians)  subspace
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
 
-Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier`` and ``block_barrier``
+Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier``, ``arx_pd`` and ``block_barrier``
 (:data:`CHANNELS`) take them, ``backend="structured"`` of (7.5) resolves to ``block_barrier`` there; the others raise
 :class:`~unfalsify.UnknownSolverError` naming ``backend="cvxpy"``.
 
@@ -28,7 +28,7 @@ Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`Sol
 :mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
-``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``, one channel)
+``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``)
 or ``bracket`` (``method="bracket"``) for (7.4), ``column_barrier`` for (7.5); ``executor=`` → ``split``.
 
 >>> from unfalsify import solvers
@@ -73,7 +73,7 @@ PROGRAMS = {
 }
 
 #: the solvers that take several channels (``problem.siso`` False: u (n, m), y (n, l) with m + l > 2)
-CHANNELS = ("cvxpy", "arx_barrier", "block_barrier")
+CHANNELS = ("cvxpy", "arx_barrier", "arx_pd", "block_barrier")
 
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")

@@ -40,7 +40,7 @@ scaled space) leaves ``Gᵀ(WᵀW)⁻¹G dx = −r_x − Gᵀ(WᵀW)⁻¹Wᵀt̃
   ``Aᵀ(W_Q⁻²)₁₁A = (AᵀA + 8v₀² (Aᵀv₁)(Aᵀv₁)ᵀ)/β²`` (``AᵀA`` formed once, a rank-one update per iteration);
 * h–δ column ``tr(W⁻¹E_aW⁻¹) = 2 T*((W⁻²)₂₁)`` and δ–δ entry ``tr W⁻² = ‖W⁻¹‖²_F``.
 
-One Cholesky factor of this (n + 1) × (n + 1) matrix serves the predictor and the corrector.  Step lengths are
+One Cholesky factor of this (n + 1) × (n + 1) matrix ((nlm + 1)² for several channels) serves the predictor and the corrector.  Step lengths are
 exact: the smallest eigenvalue of ``Λ^{-1/2} d̃ Λ^{-1/2}`` for the LMI, a quadratic for the SOC.
 
 Cost.  Every iteration works on dense 2n × 2n matrices, because Z has no structure: one Cholesky of Z (the
@@ -52,7 +52,13 @@ steps at n = 1000 (6.3 s; the eigendecomposition alone 1.5 s), so the method is 
 there (0.75× at n = 1000, 0.62× at n = 400, 0.93× at n = 200; ``experiments/bench/BENCHMARKS.md``).
 Memory O(n²) (about ten 2n × 2n arrays).
 
-Several channels are not supported (the registry's ``CHANNELS`` does not list ``"arx_pd"``).
+Several channels (u (n, m), y (n, l); :class:`~unfalsify.solvers.arx_barrier.ArxBlockForm`).  The same method with
+h the nlm Markov parameters (C order (t, α, β)), T(h) the nl × nm block lower-triangular Toeplitz matrix, the LMI
+``[δI_nm T(h)ᵀ; T(h) δI_nl]`` of order n(l + m) (ν = n(l + m) + 1), the SOC of order nl + 1, ``A`` the projected
+dense channel operator; the structure-dependent pieces (T(h), its Gram, the block adjoint, the block FFT Hessian
+:func:`~unfalsify.solvers.toeplitz.block_corr_hessian` of the blocks of ``W⁻¹``, the certified block norm) are
+those of :mod:`~unfalsify.solvers.arx_barrier` (its ``_Siso`` / ``_Channels``), and the dual point is
+``W = −2Z₂₁`` (nl × nm) for :meth:`BlockColumnForm.lower_bound`.  One channel each runs the SISO routines.
 """
 from __future__ import annotations
 
