@@ -60,10 +60,14 @@ COMMANDS: dict[str, tuple] = {
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
                                                                      "(default: cvxpy)")),
-                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm"),
+                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm", "arx-pd"),
                                               default="all",
                                               help="structured backend: all series, the ARX rows, the "
-                                                   "subspace rows or the warm-start table only")))),
+                                                   "subspace rows, the warm-start table or the primal-dual "
+                                                   "against barrier table only")),
+                         (("--sizes",), dict(dest="sizes", default=None, metavar="N,N,...",
+                                             help="structured backend, arx-pd table: the ARX sizes "
+                                                  "(default 200,400,1000)")))),
     "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",

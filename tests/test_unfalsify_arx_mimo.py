@@ -92,7 +92,7 @@ def test_block_certified_norm_never_underestimates(monkeypatch):
 
 
 def test_registry_lists_the_solvers_that_take_several_channels():
-    assert set(CHANNELS) == {"cvxpy", "arx_barrier", "block_barrier"}
+    assert set(CHANNELS) == {"cvxpy", "arx_barrier", "arx_pd", "block_barrier"}
 
 
 # ---- (7.4) against the independent program -------------------------------------------------------

@@ -84,3 +84,16 @@ def test_cli_extra_arguments_are_per_command(tmp_path):
         main(["bench-norms", "--quick", "--backend", "structured", "--out", str(tmp_path)])
     with pytest.raises(SystemExit):
         main(["bench-unfalsify", "--backend", "nope", "--out", str(tmp_path)])
+
+
+@pytest.mark.slow
+def test_bench_unfalsify_primal_dual_table(tmp_path):
+    # ``--series arx-pd``: arx_pd against arx_barrier on the same problems, both certified, brackets overlapping
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "arx-pd", "--sizes", "30",
+                 "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert st["series"] == [] and st["comparison"] is None and st["warm"] is None
+    (row,) = st["primal_dual"]["rows"]
+    assert row["n"] == 30 and row["overlap"] is True and row["ratio"] > 0
+    for name in ("arx_barrier", "arx_pd"):
+        assert row[name]["status"] == "optimal" and row[name]["gap"] <= 1e-4

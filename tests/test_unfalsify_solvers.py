@@ -39,11 +39,12 @@ def _subspace(fixed):
 
 def test_backend_and_method_resolve_to_registered_solvers():
     assert uf.SOLVERS is solvers.SOLVERS
-    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "bracket", "column_barrier",
+    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "arx_pd", "bracket", "column_barrier",
                                    "block_barrier", "split"}
     assert solvers.resolve("arx", "cvxpy") == solvers.resolve("subspace", "cvxpy") == "cvxpy"
     assert solvers.resolve("arx", "structured") == "arx_barrier"
     assert solvers.resolve("arx", "structured", "bracket") == "bracket"
+    assert solvers.resolve("arx", "structured", "primal_dual") == "arx_pd"
     assert solvers.resolve("subspace", "structured") == "column_barrier"
     for program, name in [(p, n) for n, ps in solvers.PROGRAMS.items() for p in ps]:
         assert name in solvers.SOLVERS and program in ("arx", "subspace")
@@ -66,6 +67,7 @@ def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
 @pytest.mark.parametrize("name, problem, options", [
     ("cvxpy", "arx", {}),
     ("arx_barrier", "arx", dict(progress=False)),
+    ("arx_pd", "arx", dict(progress=False)),
     ("bracket", "arx", dict(progress=False)),
     ("cvxpy", "subspace", {}),
     ("column_barrier", "subspace", dict(progress=False)),
@@ -76,7 +78,7 @@ def test_every_solver_meets_the_contract(name, problem, options):
     out = solvers.run(name, P, **options)
     assert isinstance(out, uf.SolverOutput) and isinstance(out.status, uf.SolverStatus)
     assert out.status in (uf.SolverStatus.OPTIMAL, uf.SolverStatus.BRACKET)
-    assert out.bracketed == (name in ("arx_barrier", "bracket", "column_barrier"))
+    assert out.bracketed == (name in ("arx_barrier", "arx_pd", "bracket", "column_barrier"))
     up, noise = P.evaluate_primal(out.impulses, out.params)  # data units: the primal point is feasible
     assert noise <= P.sigma * np.sqrt(P.n_noise) * (1 + 1e-6)
     assert up <= out.delta * (1 + 1e-6)

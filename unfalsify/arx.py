@@ -78,7 +78,7 @@ from synthesis.validation import as_signal
 
 from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
-from .solvers import resolve, run
+from .solvers import CHANNELS, resolve, run
 from .solvers.arx_barrier import ArxBlockForm
 from .solvers.columns import ColumnForm
 from .solvers.toeplitz import (block_certified_norm, block_conv_cols, certified_norm, conv_cols, signal_toeplitz,
@@ -472,9 +472,11 @@ def arx_unfalsify(
         bracket so far is returned with status ``"time_limit"`` (``"interrupted"``) and a warning.
     progress : bool
         Structured backend: a tqdm bar (outer iteration, bounds) for solves longer than ~2 s.
-    method : {"barrier", "bracket"}
+    method : {"barrier", "bracket", "primal_dual"}
         Structured backend.  ``"barrier"``: the Cholesky barrier method of :mod:`unfalsify.solvers.arx_barrier`
-        (O(n²) memory, O(n³) per Newton step), certified to the relative gap ``tol``.  ``"bracket"``:
+        (O(n²) memory, O(n³) per Newton step), certified to the relative gap ``tol``.  ``"primal_dual"``: the
+        primal–dual interior-point method of :mod:`unfalsify.solvers.arx_pd` (NT scaling, Mehrotra
+        predictor–corrector; one channel or several), the same certificate and stopping rule.  ``"bracket"``:
         FFT-only bounds of :mod:`unfalsify.solvers.bracket` (O(n) memory, n = 10⁴ in minutes): a feasible h
         with a small spectral peak (upper) and a circulant dual point (lower); the result has status
         ``"bracket"``, δ = the certified upper bound and a :class:`SolverWarning` stating the relative
@@ -547,8 +549,8 @@ def arx_unfalsify(
         shape = f"{P.n_outputs}×{P.n_inputs}"
         if form != "conditioned":
             raise ValueError(f"form='thesis' is written for one channel; with {shape} data use form='conditioned'")
-        if name == "bracket":
-            raise UnknownSolverError(f"method='bracket' solves single-channel data only; for {shape} data use "
+        if name not in CHANNELS:  # method="bracket"
+            raise UnknownSolverError(f"method={method!r} solves single-channel data only; for {shape} data use "
                                      "method='barrier' (or backend='cvxpy')")
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(

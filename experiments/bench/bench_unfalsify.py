@@ -32,6 +32,14 @@ peak RSS.  ARX n = 80 is also solved by cvxpy/Clarabel in the same run
 (δ difference and speed ratio; Clarabel's child gets 900 s).  ``both`` runs the cvxpy series and the
 structured series.
 
+``--series arx-pd`` (also part of ``all``) times the primal–dual solver ``"arx_pd"``
+(:mod:`unfalsify.solvers.arx_pd`, ``method="primal_dual"``) against ``"arx_barrier"`` on the same ARX problem in
+the same child process: ``repeats`` × both solvers through the registry (``unfalsify.solvers.run``), the order
+alternating between repeats (barrier first, then primal–dual first, …), tol 1e-4, n = 200, 400, 1000 (``--sizes``
+overrides, e.g. ``--sizes 200,400,1000,3000``; ``--quick``: 30, 60); medians, the ratio barrier/primal–dual,
+iteration counts, both certified brackets recomputed from the data (``evaluate_primal`` / ``evaluate_dual``) and
+the 1-min load average before and after every solve.
+
 Each structured row (issue 27, item 6) runs in a fresh child process, so its peak RSS (``ru_maxrss``) is that
 row's: the front end's solve (bracket, certificate, ``verify()``), then ``repeats`` (3; ``--quick``: 1) × the
 registry solver alone (``unfalsify.solvers.run`` on the certificate's problem) by today's route and, alternating,
@@ -360,6 +368,90 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     return row
 
 
+#: the primal–dual head-to-head (``--series arx-pd``): sizes, tolerance, limit per solve
+PD_SIZES, QUICK_PD_SIZES, PD_TOL, PD_LIMIT_S = (200, 400, 1000), (30, 60), 1e-4, 1800.0
+
+
+def _solve_pd_pair(spec: dict, size: int, seed: int) -> dict:
+    """One size of the primal–dual head-to-head in the child process: ``repeats`` × (``arx_barrier``,
+    ``arx_pd``) on the same :class:`unfalsify.ArxProblem`, the order alternating between repeats; every
+    solve's wall time, status, δ, counts, certified bracket (recomputed from the data) and load."""
+    import unfalsify as uf
+    from unfalsify import solvers
+
+    warnings.simplefilter("ignore")
+    u, y = _data(size, seed)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+    runs = {"arx_barrier": [], "arx_pd": []}
+    for k in range(spec["repeats"]):
+        order = ("arx_barrier", "arx_pd") if k % 2 == 0 else ("arx_pd", "arx_barrier")
+        for name in order:
+            load0 = os.getloadavg()[0]
+            t0 = time.perf_counter()
+            out = solvers.run(name, P, tol=spec["tol"], time_limit=spec["limit"], progress=False)
+            wall = time.perf_counter() - t0
+            load1 = os.getloadavg()[0]
+            upper, _ = P.evaluate_primal(out.impulses, out.params)
+            lower = P.evaluate_dual(out.dual_v, out.dual_W) if out.dual_W is not None else 0.0
+            runs[name].append(dict(wall=wall, status=str(out.status.value), delta=out.delta, upper=upper,
+                                   lower=lower, gap=(upper - lower) / upper, load=(load0, load1), **out.stats))
+    row = {"n": size, "repeats": spec["repeats"], "peak_rss_mb": _rss_mb()}
+    for name, rs in runs.items():
+        row[name] = dict(rs[-1], wall=float(np.median([r["wall"] for r in rs])), walls=[r["wall"] for r in rs],
+                         loads=[r["load"] for r in rs])
+    b, p = row["arx_barrier"], row["arx_pd"]
+    row["ratio"] = b["wall"] / p["wall"]
+    row["delta_rel"] = abs(b["delta"] - p["delta"]) / max(abs(b["delta"]), 1e-300)
+    row["overlap"] = bool(max(b["lower"], p["lower"]) <= min(b["upper"], p["upper"]) * (1 + 1e-9))
+    return row
+
+
+def _run_pd(opts) -> dict:
+    """The primal–dual head-to-head: each size in its own child process (:func:`_solve_pd_pair`)."""
+    sizes = (getattr(opts, "extra", None) or {}).get("sizes")
+    sizes = [int(x) for x in sizes.split(",")] if sizes else list(QUICK_PD_SIZES if opts.quick else PD_SIZES)
+    repeats = QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
+    spec = dict(tol=PD_TOL, limit=QUICK_STRUCTURED_LIMIT_S if opts.quick else PD_LIMIT_S, repeats=repeats)
+    rows = []
+    load_before = os.getloadavg()
+    for n in tqdm(sizes, desc="bench-unfalsify: arx_pd against arx_barrier", leave=False):
+        row = _run_with_budget(spec, n, opts.seed, spec["limit"] * 2 * repeats + 120.0, worker=_solve_pd_pair,
+                               label=f"n={n}")
+        rows.append(row)
+        if "ratio" in row:
+            tqdm.write(f"[bench-unfalsify] n={n}: arx_barrier {row['arx_barrier']['wall']:.2f} s, arx_pd "
+                       f"{row['arx_pd']['wall']:.2f} s ({row['ratio']:.2f}×)", file=sys.stderr)
+    return {"rows": rows, "tol": spec["tol"], "repeats": repeats, "time_limit_s": spec["limit"],
+            "load": {"before": list(load_before), "after": list(os.getloadavg())}}
+
+
+def _report_pd(rep: Report, pd: dict) -> None:
+    rep.section(f"ARX (7.4): primal–dual (`arx_pd`) against the barrier method (`arx_barrier`), tol {pd['tol']:g}")
+    rep.text(
+        "Same problem, same child process, registry solvers alone (`unfalsify.solvers.run`), "
+        f"{pd['repeats']} repeat(s) each, the order alternating between repeats; medians. `×` = barrier/primal–dual "
+        "(above 1: primal–dual faster). Iterations: barrier Newton steps; primal–dual predictor–corrector "
+        "iterations (factorisations: its dense Cholesky, eigendecompositions and smallest-eigenvalue computations). "
+        "`gap`: the certified relative gap of each answer, both sides recomputed from the data; `overlap`: the two "
+        "brackets intersect. `load`: 1-min load average, lowest → highest over the row's solves. Table load: "
+        f"{pd['load']['before'][0]:.2f} → {pd['load']['after'][0]:.2f} (1-min); {os.cpu_count()} CPU(s)."
+    )
+    rows = []
+    for r in pd["rows"]:
+        if "ratio" not in r:
+            rows.append([r.get("label"), r.get("status"), *[""] * 10])
+            continue
+        b, p = r["arx_barrier"], r["arx_pd"]
+        loads = [x for s in (b, p) for pair in s["loads"] for x in pair]
+        rows.append([f"n={r['n']}", b["wall"], p["wall"], f"{r['ratio']:.2f}", _count(b.get("newton")),
+                     _count(p.get("newton")), _count(p.get("factorisations")), f"{b['status']} / {p['status']}",
+                     f"{b['gap']:.1e} / {p['gap']:.1e}", f"{r['delta_rel']:.1e}", str(r["overlap"]),
+                     f"{min(loads):.1f} → {max(loads):.1f}"])
+    rep.table(["size", "arx_barrier [s]", "arx_pd [s]", "×", "barrier Newton", "pd iterations", "pd fact.",
+               "status", "gap", "|Δδ|/δ", "overlap", "load"], rows, floatfmt=".3g")
+
+
 def _fmt(x, spec: str = ".3g") -> str:
     return "" if x is None else format(x, spec)
 
@@ -621,7 +713,7 @@ def _run_structured(opts, rep: Report) -> dict:
     repeats = QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
-            continue  # (--series warm: the warm-start table alone)
+            continue  # (--series warm / arx-pd: that table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
@@ -638,8 +730,9 @@ def _run_structured(opts, rep: Report) -> dict:
                        "rows": rows, "exponent": _fit_exponent(rows)})
     load_after = os.getloadavg()
 
-    comparison = None if only in ("subspace", "warm") else _compare_arx(opts, limit)
+    comparison = None if only in ("subspace", "warm", "arx-pd") else _compare_arx(opts, limit)
     warm = _run_warm(opts) if only in ("all", "warm") else None
+    pd = _run_pd(opts) if only in ("all", "arx-pd") else None
 
     rep.section("Structured backend")
     rep.text(
@@ -691,6 +784,8 @@ def _run_structured(opts, rep: Report) -> dict:
         _report_comparison(rep, comparison)
     if warm is not None:
         _report_warm(rep, warm)
+    if pd is not None:
+        _report_pd(rep, pd)
     csv_path = opts.out / "bench_unfalsify_structured.csv"
     opts.out.mkdir(parents=True, exist_ok=True)
     with csv_path.open("w", newline="") as fh:
@@ -703,7 +798,8 @@ def _run_structured(opts, rep: Report) -> dict:
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "comparison": comparison, "warm": warm, "time_limit_s": limit, "csv": csv_path.name,
+    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd, "time_limit_s": limit,
+            "csv": csv_path.name,
             "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
 
 

@@ -10,13 +10,14 @@ name                what                                                        
 ==================  =========================================================================  ==========
 ``cvxpy``           the reference LMI models through cvxpy and a conic solver                  arx, subspace
 ``arx_barrier``     Cholesky barrier method, certified to a relative gap (O(n²) memory)        arx
+``arx_pd``          primal–dual interior point (NT scaling, Mehrotra), same certificate        arx
 ``bracket``         FFT-only certified bracket, gap reported (O(n) memory, n = 10⁴)             arx
 ``column_barrier``  column barrier method with threads over the columns                        subspace
 ``block_barrier``   barrier method for several channels (l × m operators, dense block Hessians)  subspace
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
 
-Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier`` and ``block_barrier``
+Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier``, ``arx_pd`` and ``block_barrier``
 (:data:`CHANNELS`) take them, ``backend="structured"`` of (7.5) resolves to ``block_barrier`` there; the others raise
 :class:`~unfalsify.UnknownSolverError` naming ``backend="cvxpy"``.
 
@@ -27,19 +28,21 @@ Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`Sol
 :mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
-``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``) or ``bracket``
-(``method="bracket"``) for (7.4), ``column_barrier`` for (7.5); ``executor=`` → ``split``.
+``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``)
+or ``bracket`` (``method="bracket"``) for (7.4), ``column_barrier`` for (7.5); ``executor=`` → ``split``.
 
 >>> from unfalsify import solvers
 >>> sorted(solvers.SOLVERS)
-['arx_barrier', 'block_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
+['arx_barrier', 'arx_pd', 'block_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
 >>> solvers.resolve("arx", "structured", "bracket")
 'bracket'
+>>> solvers.resolve("arx", "structured", "primal_dual")
+'arx_pd'
 """
 from __future__ import annotations
 
 from ..exceptions import UnknownSolverError
-from . import arx_barrier, block_barrier, bracket, column_barrier, cvxpy_models, split
+from . import arx_barrier, arx_pd, block_barrier, bracket, column_barrier, cvxpy_models, split
 from .base import SolverOutput, SolverStatus
 from .column_barrier import check_workers
 
@@ -51,6 +54,7 @@ __all__ = ["SOLVERS", "BACKENDS", "SolverOutput", "SolverStatus"]
 SOLVERS = {
     "cvxpy": cvxpy_models.solve,
     "arx_barrier": arx_barrier.solve,
+    "arx_pd": arx_pd.solve,
     "bracket": bracket.solve,
     "column_barrier": column_barrier.solve,
     "block_barrier": block_barrier.solve,
@@ -61,6 +65,7 @@ SOLVERS = {
 PROGRAMS = {
     "cvxpy": ("arx", "subspace"),
     "arx_barrier": ("arx",),
+    "arx_pd": ("arx",),
     "bracket": ("arx",),
     "column_barrier": ("subspace",),
     "block_barrier": ("subspace",),
@@ -68,16 +73,16 @@ PROGRAMS = {
 }
 
 #: the solvers that take several channels (``problem.siso`` False: u (n, m), y (n, l) with m + l > 2)
-CHANNELS = ("cvxpy", "arx_barrier", "block_barrier")
+CHANNELS = ("cvxpy", "arx_barrier", "arx_pd", "block_barrier")
 
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")
 
 #: ``method=`` of the structured backend of (7.4)
-METHODS = ("barrier", "bracket")
+METHODS = ("barrier", "bracket", "primal_dual")
 
 # (program, method) of backend="structured" -> solver
-_STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket",
+_STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket", ("arx", "primal_dual"): "arx_pd",
                ("subspace", "barrier"): "column_barrier"}
 
 
