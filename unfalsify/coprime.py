@@ -328,7 +328,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     ...     y[k] = y[k - 1] + 0.1 * u[k - 1]                            # an integrator
     >>> y += 0.02 * rng.standard_normal(700)
     >>> F = coprime_factors(sy.fit_predictor(u[:400], y[:400], 4), 1.0)
-    >>> cu = coprime_unfalsify(F, u[400:], y[400:], held_out=True)
+    >>> cu = coprime_unfalsify(F, u[400:560], y[400:560], held_out=True)
     >>> bool(0 <= cu.epsilon < 0.05), cu.unfalsification.certificate.verify()
     (True, True)
     """
@@ -553,7 +553,7 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
     ...     y[k] = y[k - 1] + 0.1 * u[k - 1]                            # an integrator
     >>> y += 0.02 * rng.standard_normal(1200)
     >>> F = coprime_factors(sy.fit_predictor(u[:700], y[:700], 4), 1.0)
-    >>> p = check_coprime_premise(F, u[:60], y[:60], 0.01, validation=(u[700:], y[700:]))
+    >>> p = check_coprime_premise(F, u[:60], y[:60], 0.01, validation=(u[700:900], y[700:900]))
     >>> p.ok, p.epsilon >= p.held_out.epsilon, p.decided_by in ("in sample", "held out")
     (True, True, True)
     """

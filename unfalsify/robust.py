@@ -427,7 +427,7 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
         return ""
     l = model.noutputs
     floors = tracking_floors(floor, l)
-    worst, where, errs = -np.inf, None, None
+    tried = []
     for E in _static_offsets(model, controller, radius):
         try:
             loop = closed_loop_ry(model + control.ss([], [], [], E, model.dt), controller)
@@ -438,9 +438,8 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
             e = _tracked_errors(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), floors)
         except (np.linalg.LinAlgError, ValueError):
             e = np.full(l, np.inf)
-        excess = np.nan_to_num(e - floors, nan=np.inf)
-        if not np.max(excess) <= worst:
-            worst, where, errs = float(np.max(excess)), E, e
+        tried.append((E, e))
+    worst, where, errs = _worst_excess(tried, floors)
     if worst > 0:
         k = int(np.argmax(errs - floors))
         return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the plant P̂ "
@@ -465,6 +464,16 @@ def _data_gain_reason(model, controller, floors: np.ndarray, data_gain) -> str:
             f"data show ({_gain_text(np.abs(G))}, the plant's response at the record's lowest DFT frequency) while "
             f"P̂'s DC gain is {_gain_text(dc)}: P̂ is wrong where tracking is decided; "
             "refit it (a longer horizon, a longer or richer record)")
+
+
+def _worst_excess(tried, floors: np.ndarray):
+    """``(excess, where, errors)`` of the ``(where, errors)`` pair whose errors exceed their floors most."""
+    worst, where, errs = -np.inf, None, None
+    for w, e in tried:
+        excess = np.nan_to_num(e - floors, nan=np.inf)
+        if not np.max(excess) <= worst:
+            worst, where, errs = float(np.max(excess)), w, e
+    return worst, where, errs
 
 
 def _tracked_errors(E: np.ndarray, floors: np.ndarray) -> np.ndarray:
@@ -1138,12 +1147,8 @@ def _coprime_tracking_reason(ball: _CoprimeBall, controller, radius: float, floo
     """:func:`_steady_state_reason` for the coprime family: the loop must track at every static plant of the ball."""
     l = ball.factors.outputs
     floors = tracking_floors(floor, l)
-    worst, where, errs = -np.inf, None, None
-    for G in _coprime_static_gains(ball.factors, radius):
-        e = _dc_errors_at_gain(controller, G, floors)
-        excess = np.nan_to_num(e - floors, nan=np.inf)
-        if not np.max(excess) <= worst:
-            worst, where, errs = float(np.max(excess)), G, e
+    worst, where, errs = _worst_excess(((G, _dc_errors_at_gain(controller, G, floors))
+                                        for G in _coprime_static_gains(ball.factors, radius)), floors)
     if worst > 0:
         k = int(np.argmax(errs - floors))
         return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the static plant "
