@@ -126,5 +126,7 @@ def run(name: str, problem, **options) -> SolverOutput:
     if not getattr(problem, "siso", True) and name not in CHANNELS:
         raise UnknownSolverError(
             f"solver {name!r} solves single-channel data only; for {problem.n_outputs}×{problem.n_inputs} data "
-            "(several inputs or outputs) use backend='cvxpy' or backend='structured' without executor=")
+            "(several inputs or outputs) use backend='cvxpy' or backend='structured'"
+            + (" without executor=" if name == "split" else "")
+            + f" (the solvers that take several channels: {_names(n for n in CHANNELS if problem.program in PROGRAMS[n])})")
     return SOLVERS[name](problem, **options)
