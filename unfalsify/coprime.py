@@ -62,6 +62,11 @@ __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
 
 
+#: largest number of Markov parameters n·l·(m + l) of Δ in one coprime solve (measured on 2 cores: a 2 × 2
+#: output-error solve with 1200 takes about 26 s)
+_MAX_VARIABLES = 1200
+
+
 @result
 @dataclass(frozen=True, eq=False)
 class CoprimeFactors:
@@ -312,7 +317,8 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
         causal map of the past explains is called noise.  (The output's current sample holds the noise
         itself, so it is left out of the fit; Theorem 7.1 still lets Δ act on it.)
     options : PremiseOptions, optional
-        ``samples`` (largest segment), ``burn_in``, ``taps``, ``tol``, ``time_limit``.
+        ``samples`` (largest segment), ``burn_in``, ``taps``, ``tol``, ``time_limit``.  Several channels use at
+        most ``1200/(l(m + l))`` rows beyond the burn-in (Δ's Markov parameters are the program's variables).
 
     Returns
     -------
@@ -337,7 +343,9 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)
     e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
-    n = min(e_all.shape[0], burn + int(opts.samples))
+    # Δ has n·l·(m + l) Markov parameters; the structured solve grows like their cube, so several channels
+    # get fewer rows (one channel each keeps the 300 of PremiseOptions.samples)
+    n = min(e_all.shape[0], burn + int(opts.samples), burn + _MAX_VARIABLES // (factors.outputs * width))
     width = factors.inputs + factors.outputs
     if sigma is None and opts.sigma is not None:
         sigma = opts.sigma
