@@ -208,3 +208,15 @@ def test_no_import_circles(package):
     for m in sorted(edges):
         if m not in state:
             visit(m, [m])
+
+
+def test_arx_barrier_counts_its_trial_factorisations():
+    """ARX results carry the solver's counts: every Newton step factorises K at least once (its accepted point),
+    the line searches and path steps more; cvxpy keeps none."""
+    rng = np.random.default_rng(8)
+    u = rng.standard_normal(120)
+    y = np.convolve(u, [0.0, 0.8, 0.3])[:120] + 0.05 * rng.standard_normal(120)
+    res = uf.arx_unfalsify(u, y, 1, 2, 0.03, backend="structured", progress=False)
+    stats = res.solver_stats
+    assert stats["newton"] >= 1 and stats["trials"] >= stats["newton"] + 1 and stats["outer"] >= 1
+    assert uf.arx_unfalsify(u[:40], y[:40], 1, 2, 0.03, solver="CLARABEL").solver_stats == {}

@@ -134,6 +134,9 @@ class ArxResult:
     backend : str
     n_inputs, n_outputs : int
         m and l (1 and 1 for SISO data).
+    solver_stats : dict
+        The solver's counts where it keeps them (``newton``, ``outer``; ``trials``: Cholesky factorisations tried
+        by ``arx_barrier``; ``factorisations`` by ``arx_pd``); empty for cvxpy.
     """
 
     delta: float
@@ -153,6 +156,7 @@ class ArxResult:
     backend: str = "cvxpy"
     n_inputs: int = 1
     n_outputs: int = 1
+    solver_stats: dict = field(default_factory=dict, compare=False)
 
     @property
     def a(self) -> np.ndarray:
@@ -572,4 +576,4 @@ def arx_unfalsify(
     return ArxResult(delta=delta, theta=out.params, noise=xi, impulse=out.impulses, status=out.status.value,
                      solve_time=out.solve_time, problem=out.problem, form=form, sigma=P.sigma, na=P.na, nb=P.nb,
                      cond_Tu=P.cond_Tu, certificate=cert, scale=P.scale, backend=backend, n_inputs=P.n_inputs,
-                     n_outputs=P.n_outputs)
+                     n_outputs=P.n_outputs, solver_stats=dict(out.stats))

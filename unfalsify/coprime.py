@@ -345,8 +345,8 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
     # Δ has n·l·(m + l) Markov parameters; the structured solve grows like their cube, so several channels
     # get fewer rows (one channel each keeps the 300 of PremiseOptions.samples)
-    n = min(e_all.shape[0], burn + int(opts.samples), burn + _MAX_VARIABLES // (factors.outputs * width))
     width = factors.inputs + factors.outputs
+    n = min(e_all.shape[0], burn + int(opts.samples), burn + _MAX_VARIABLES // (factors.outputs * width))
     if sigma is None and opts.sigma is not None:
         sigma = opts.sigma
     # an estimated σ needs rows for its fit (4 per coefficient); a given one only a few rows beyond the burn-in

@@ -46,8 +46,7 @@ registry solver alone (``unfalsify.solvers.run`` on the certificate's problem) b
 by the former route (:func:`unfalsify.solvers.baselines.former_hessian`: the FFT Hessian before issue 27's
 pruning) where the solver forms FFT Hessians (``arx_barrier``, ``column_barrier``); medians.  The row reports
 the solve time, the baseline's time in the same run and their ratio, the relative δ difference of the two routes,
-the Newton steps and trial factorisations (Cholesky stacks tried, line search included; ARX does not count
-them), the **arithmetic-limit time** and the ratio to it, the peak RSS and the 1-min load at the row's start and
+the Newton steps and trial factorisations (Cholesky stacks tried, line search and path steps included), the **arithmetic-limit time** and the ratio to it, the peak RSS and the 1-min load at the row's start and
 end; the table notes the load before and after the series.
 
 Arithmetic limit: the flops the method needs at its measured counts, divided by the matmul rate measured in the
@@ -57,7 +56,7 @@ column and Newton step: the blocks of F⁻¹ and the gradient's products (``K⁻
 ``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian: 8m³), the FFT Hessian (four real 2-D transforms of
 2m × 2m, ``2.5 N² log₂ N²`` each) and for ARX the Cholesky of the Newton system (m³/3); per trial factorisation
 the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well ((10/3) m³ in
-all; ARX: one trial per Newton step, the accepted point).  The CG of L optimised, the certificate and the set-up
+all).  The CG of L optimised, the certificate and the set-up
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
 and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
 or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
@@ -281,7 +280,7 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     if newton is None:
         return None
     newton = int(newton)
-    trials = newton if trials is None else int(trials)  # ARX does not count them: one accepted point per step
+    trials = newton if trials is None else int(trials)  # a solver without counts: one accepted point per step
     m3 = float(m) ** 3
     if kind == "arx":  # j = 1, m = n
         return newton * (8.0 * m3 + m3 / 3.0 + _fft_flops(m)) + trials * m3 / 3.0

@@ -192,6 +192,7 @@ class _ArxBarrier:
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.center_tol, self.max_newton = mu, center_tol, max_newton
         self.steps = 0
+        self.trials = 0  # Cholesky factorisations of K tried (line searches and path steps included)
         if isinstance(form, BlockColumnForm):
             self.ops = _Channels(form)
             n, l, m = form.i, form.n_out, form.n_in
@@ -208,7 +209,9 @@ class _ArxBarrier:
         self.MtPM = PM.T @ PM
 
     def _state(self, h, d) -> _State:
-        return _State(h, d, self.f, self.ops)
+        s = _State(h, d, self.f, self.ops)
+        self.trials += bool(s.d > 0.0 and s.psi > 0.0)  # only then is K factorised
+        return s
 
     # ---- one Newton step ---------------------------------------------------------------------
     def _inverse_blocks(self, s: _State):
@@ -339,12 +342,14 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
         The bracket of :func:`unfalsify.solvers.barrier.run_barrier` (scaled units): ``status``
         (``optimal``, ``time_limit``, ``interrupted``, ``max_iter``, ``failed``), the best certified
         ``upper`` and its impulses ``H`` (n × 1), the best ``lower`` and its dual point ``V`` (n × 1),
-        ``W`` (1 × n × n), ``newton``, ``outer``, ``time``.
+        ``W`` (1 × n × n), ``newton``, ``outer``, ``time``, and ``trials`` (Cholesky factorisations of K tried).
     """
     if mu is None:
         mu = 8.0 if form.m <= 200 else 3.0
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
-    return solver.run(np.asarray(h0, float).reshape(-1))
+    out = solver.run(np.asarray(h0, float).reshape(-1))
+    out["trials"] = solver.trials
+    return out
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:
@@ -374,7 +379,7 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True)
     W = None if out["W"] is None else out["W"][0]
     V = None if out["V"] is None else out["V"][:, 0]
     return unscaled(problem, out["H"][:, 0].reshape(shape), out["upper"], out["status"], deadline.elapsed(), V=V,
-                    W=W, stats=dict(newton=out["newton"], outer=out["outer"]))
+                    W=W, stats=dict(newton=out["newton"], outer=out["outer"], trials=out["trials"]))
 
 
 def _channel_operator(form: BlockColumnForm) -> np.ndarray:
