@@ -38,7 +38,7 @@ import unfalsify as uf
 from ..lab.report import Report, finish_report, write_csv
 from .adversarial import verdict
 from .design_cli import default_weights
-from .robust_pipeline import premise_ratio
+from .robust_pipeline import premise_ratio, result_premise_ratio, true_factors
 
 __all__ = ["run", "summary_lines", "PLANTS", "EXCITATIONS", "judge", "make_record", "Case"]
 
@@ -164,6 +164,28 @@ def judge(P, controller, delta: float, floor=None) -> dict:
     return out
 
 
+def _coprime_judge(P, rd, true: dict) -> tuple[dict, float]:
+    """A coprime-factor certificate on the true plant: ``(judge, premise ratio)``.
+
+    One output: the small gain ``ε‖[K; I](M + NK)⁻¹‖∞`` with the plant factored like P̂
+    (:func:`experiments.studies.robust_pipeline.true_factors`) joins the judge, and the premise ratio is the
+    upper end of its bracket (:func:`~experiments.studies.robust_pipeline.result_premise_ratio`).  Several outputs
+    (no polynomial-matrix factorisation here): stability and tracking only, and the pointwise coprime distance
+    over ε, a lower bound of the ratio.
+    """
+    if P.noutputs != 1:
+        true = dict(true, small_gain=float("nan"))
+        return true, uf.coprime_distance(rd.coprime.factors, P)[0] / rd.epsilon
+    if true["stable"]:
+        F = true_factors(P, like=rd.coprime.factors)
+        gain = rd.epsilon * synthesis.hinf_norm(uf.coprime_channel(F, rd.controller)).upper
+        true = dict(true, small_gain=float(gain))
+        if not gain < 1.0:
+            true["fails"] = true["fails"] + [f"true ε‖[K; I](M+NK)⁻¹‖∞ = {gain:.3g} ≥ 1"]
+            true["ok"] = False
+    return true, result_premise_ratio(P, rd)[0]
+
+
 def run_case(case: Case, premise: uf.PremiseOptions | None = None) -> dict:
     """One pipeline run and its true-plant verdict (``premise``: how the premise is tested, default options)."""
     P, (u, y), validation = make_record(case)
@@ -183,11 +205,11 @@ def run_case(case: Case, premise: uf.PremiseOptions | None = None) -> dict:
             return row
     warned = any(issubclass(w.category, uf.NotCertifiedWarning) for w in caught)
     coprime = rd.uncertainty == "coprime"
-    # a coprime-factor certificate says nothing of δ‖K(I+PK)⁻¹‖∞: its loop is judged by stability and tracking,
-    # its premise by the true plant's pointwise coprime distance from P̂'s factors (a lower bound) over ε
     true = judge(P, rd.controller, 0.0 if coprime else rd.delta)
-    ratio = (uf.coprime_distance(rd.coprime.factors, P)[0] / rd.epsilon if coprime
-             else premise_ratio(P, rd.model, rd.delta)[0])
+    if coprime:
+        true, ratio = _coprime_judge(P, rd, true)
+    else:
+        ratio = premise_ratio(P, rd.model, rd.delta)[0]
     row.update(verdict=verdict(rd.certified, warned, true), certified=bool(rd.certified), delta=float(rd.delta),
                uncertainty=rd.uncertainty, decided_by=rd.premise.decided_by, premise_ratio=ratio,
                true_small_gain=true["small_gain"], true_stable=true["stable"], true_step_error=true["step_error"],

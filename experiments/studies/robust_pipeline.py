@@ -109,53 +109,57 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
 
 
 def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -> uf.CoprimeFactors:
-    """FIR left factors ``P = N(q⁻¹)/M(q⁻¹)``, ``M(∞) = 1``, of a single-channel plant.
+    """FIR left factors ``P = M(q⁻¹)⁻¹N(q⁻¹)``, ``M(∞) = 1``, of a plant with one output (any number of inputs).
 
-    ``P = b(z)/a(z)`` with ``a`` monic of degree n: ``M = a(z) z^{−n}``, ``N = b(z) z^{−n}``.  With ``like`` (P̂'s
-    factors, degree i) both are multiplied by the FIR ``Q`` of degree i that brings ``[NQ  MQ]`` closest to
-    ``[N̂  M̂]`` in least squares over ``points`` frequencies: P̂'s factors carry a near-common factor (an ARX
-    model of order i above the plant's), and a coprime ball is only meaningful in the factorisation it was
-    measured in.  ``[NQ − N̂  MQ − M̂]`` is then one admissible perturbation: its H∞ norm bounds the plant's
-    distance from the family from above (:func:`result_premise_ratio`).
+    From a realisation ``(A, B, C, D)`` of order n: ``M = det(zI − A) z^{−n}`` and, input by input,
+    ``N_j = (det(zI − A + b_j C) − det(zI − A) + d_j det(zI − A)) z^{−n}`` (``C adj(zI − A) b = det(zI − A + bC) −
+    det(zI − A)``).  With ``like`` (P̂'s factors, degree i) both are multiplied by the FIR ``Q`` of degree i that
+    brings ``[NQ  MQ]`` closest to ``[N̂  M̂]`` in least squares over ``points`` frequencies: P̂'s factors carry a
+    near-common factor (an ARX model of order i above the plant's), and a coprime ball is only meaningful in the
+    factorisation it was measured in.  ``[NQ − N̂  MQ − M̂]`` is then one admissible perturbation: its H∞ norm
+    bounds the plant's distance from the family from above (:func:`result_premise_ratio`).
     """
-    tf = control.tf(P)
-    if tf.ninputs != 1 or tf.noutputs != 1:
-        raise DataError("true_factors takes a single-channel plant")
-    num = np.trim_zeros(np.atleast_1d(np.asarray(tf.num[0][0], float)), "f")
-    den = np.trim_zeros(np.atleast_1d(np.asarray(tf.den[0][0], float)), "f")
-    num = np.concatenate([np.zeros(den.size - num.size), num]) / den[0]
-    den = den / den[0]
+    sys = control.ss(P)
+    if sys.noutputs != 1:
+        raise DataError("true_factors takes a plant with one output (several inputs are fine)")
+    A, B, C, D = (np.atleast_2d(np.asarray(X, float)) for X in control.ssdata(sys))
+    den = np.poly(A) if A.size else np.ones(1)
+    num = np.array([np.poly(A - np.outer(B[:, j], C[0])) - den + D[0, j] * den if A.size else D[0, j] * den
+                    for j in range(sys.ninputs)])                                  # (m, n + 1)
     if like is not None:
         w = np.linspace(0.0, np.pi, points)
         zi = np.exp(-1j * np.outer(w, np.arange(like.horizon + 1)))              # z^{−d}, d = 0 … i
-        Nw, Mw = zi[:, :num.size] @ num, zi[:, :den.size] @ den
-        Nh, Mh = (X[:, 0, 0] for X in like.response(w / like.dt))
-        A = np.vstack([Nw[:, None] * zi, Mw[:, None] * zi])                      # [N; M] Q as a function of Q
-        b = np.concatenate([Nh, Mh])
-        q = np.linalg.lstsq(np.vstack([A.real, A.imag]), np.concatenate([b.real, b.imag]), rcond=None)[0]
-        num, den = np.convolve(num, q), np.convolve(den, q)
-        num, den = num / den[0], den / den[0]
-    return uf.CoprimeFactors(N=num.reshape(-1, 1, 1), M=den.reshape(-1, 1, 1), dt=float(tf.dt))
+        Nh, Mh = like.response(w / like.dt)
+        rows = [(zi[:, :den.size] @ c)[:, None] * zi for c in (*num, den)]       # [N_j; M] Q as functions of Q
+        target = [Nh[:, 0, j] for j in range(sys.ninputs)] + [Mh[:, 0, 0]]
+        Aq, bq = np.vstack(rows), np.concatenate(target)
+        q = np.linalg.lstsq(np.vstack([Aq.real, Aq.imag]), np.concatenate([bq.real, bq.imag]), rcond=None)[0]
+        num = np.array([np.convolve(c, q) for c in num])
+        den = np.convolve(den, q)
+    scale = den[0]
+    return uf.CoprimeFactors(N=(num.T / scale)[:, None, :], M=(den / scale).reshape(-1, 1, 1), dt=float(sys.dt))
 
 
 def _fir_gap(F: uf.CoprimeFactors, G: uf.CoprimeFactors, points: int = 8192) -> float:
-    """``max_ω ‖[N_F − N_G  M_F − M_G]‖₂`` on a dense grid (FIR differences: the grid sees every peak)."""
+    """``max_ω ‖[N_F − N_G  M_F − M_G]‖₂`` on a dense grid, one output (FIR differences: the grid sees every peak)."""
     k = max(F.horizon, G.horizon) + 1
-    pad = lambda X: np.concatenate([X[:, 0, 0], np.zeros(k - X.shape[0])])  # noqa: E731
-    dN, dM = pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)
-    return float(np.max(np.sqrt(np.abs(np.fft.rfft(dN, points)) ** 2 + np.abs(np.fft.rfft(dM, points)) ** 2)))
+    pad = lambda X: np.vstack([X[:, 0, :], np.zeros((k - X.shape[0], X.shape[2]))])  # noqa: E731
+    diff = np.hstack([pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)])                     # (k, m + 1)
+    return float(np.max(np.linalg.norm(np.fft.rfft(diff, points, axis=0), axis=1)))
 
 
 def _coprime_perturbations(F: uf.CoprimeFactors, eps: float) -> list:
-    """The plants ``(M + Δ_M)⁻¹(N + Δ_N)`` for ``(Δ_N, Δ_M) = (εz⁻¹, 0), (−ε, 0), (0, ε), (0, −ε)``."""
+    """The plants ``(M + Δ_M)⁻¹(N + Δ_N)`` for ``(Δ_N, Δ_M) = (εz⁻¹e₁ᵀ, 0), (−εe₁ᵀ, 0), (0, ε), (0, −ε)`` (one output)."""
     plants = []
     for k, dN, dM in ((1, eps, 0.0), (0, -eps, 0.0), (0, 0.0, eps), (0, 0.0, -eps)):
-        N, M = F.N[:, 0, 0].copy(), F.M[:, 0, 0].copy()
-        if N.size < 2:
-            N, M = np.append(N, 0.0), np.append(M, 0.0)
-        N[k] += dN
+        N, M = F.N[:, 0, :].copy(), F.M[:, 0, 0].copy()
+        if M.size < 2:
+            N, M = np.vstack([N, np.zeros((1, N.shape[1]))]), np.append(M, 0.0)
+        N[k, 0] += dN
         M[0] += dM
-        plants.append(control.ss(control.tf(N, M, F.dt)))
+        M = M / M[0]  # the realisation keeps M(∞) = 1: divide both factors by it
+        N = N / (1.0 + dM)
+        plants.append(uf.CoprimeFactors(N=N[:, None, :], M=M.reshape(-1, 1, 1), dt=F.dt).model())
     return plants
 
 
