@@ -145,7 +145,7 @@ def _integrator(n, seed, noise=0.02):
     return u, y + noise * rng.standard_normal(n)
 
 
-FAST = uf.PremiseOptions(samples=150)  # short held-out segments keep these tests to seconds
+FAST = uf.PremiseOptions(coprime_samples=120)  # short held-out segments keep these tests to seconds
 
 
 def test_coprime_unfalsify_certificate_and_second_route():

@@ -317,8 +317,9 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
         causal map of the past explains is called noise.  (The output's current sample holds the noise
         itself, so it is left out of the fit; Theorem 7.1 still lets Δ act on it.)
     options : PremiseOptions, optional
-        ``samples`` (largest segment), ``burn_in``, ``taps``, ``tol``, ``time_limit``.  Several channels use at
-        most ``1200/(l(m + l))`` rows beyond the burn-in (Δ's Markov parameters are the program's variables).
+        ``coprime_samples`` (largest segment beyond the burn-in, default 200), ``burn_in``, ``taps``, ``tol``,
+        ``time_limit``.  Several channels use at most ``1200/(l(m + l))`` rows beyond the burn-in (Δ's Markov
+        parameters are the program's variables).
 
     Returns
     -------
@@ -344,9 +345,9 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     burn = i if opts.burn_in is None else int(opts.burn_in)
     e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
     # Δ has n·l·(m + l) Markov parameters; the structured solve grows like their cube, so several channels
-    # get fewer rows (one channel each keeps the 300 of PremiseOptions.samples)
+    # get fewer rows
     width = factors.inputs + factors.outputs
-    n = min(e_all.shape[0], burn + int(opts.samples), burn + _MAX_VARIABLES // (factors.outputs * width))
+    n = min(e_all.shape[0], burn + int(opts.coprime_samples), burn + _MAX_VARIABLES // (factors.outputs * width))
     if sigma is None and opts.sigma is not None:
         sigma = opts.sigma
     # an estimated σ needs rows for its fit (4 per coefficient); a given one only a few rows beyond the burn-in
