@@ -332,7 +332,7 @@ class RobustDesignResult:
     premise_reason: str = ""
     excitation: ExcitationCheck | None = None
     tracking_reason: str = ""
-    uncertainty: str = "auto"
+    uncertainty: str = "additive"
     coprime: CoprimePremise | None = None
     additive_reason: str = ""
 
