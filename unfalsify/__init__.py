@@ -111,7 +111,6 @@ Coprime-factor uncertainty (finite for integrating plants)
    coprime_gap            -- pointwise least coprime perturbation a plant (or a confidence region) needs
    error_gap              -- its lower bound from an estimate of ``M̂P − N̂`` alone
    coprime_distance       -- a plant's largest pointwise coprime distance from the factors (a lower bound)
-   model_error_estimate   -- an estimate of ``M̂P − N̂`` turned into one of ``P − P̂``
    coprime_channel        -- ``[C_y; I](M̂ − N̂C_y)⁻¹``, the map a coprime-factor perturbation sees
 
 Loop certificate
@@ -239,7 +238,7 @@ from .premise import (
     output_error_unfalsify,
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
-                      coprime_factors, coprime_gap, coprime_unfalsify, error_gap, model_error_estimate)
+                      coprime_factors, coprime_gap, coprime_unfalsify, error_gap)
 from .robust import (
     AdditiveRobustness,
     CertificateOptions,
@@ -321,7 +320,6 @@ __all__ = [
     "coprime_gap",
     "coprime_unfalsify",
     "error_gap",
-    "model_error_estimate",
     "AdditiveRobustness",
     "DesignSearch",
     "FewDataWarning",

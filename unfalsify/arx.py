@@ -74,9 +74,8 @@ import numpy as np
 from synthesis import DataError
 from synthesis.results import result
 
-from synthesis.validation import as_signal
 
-from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one
+from ._common import COND_WARN, Certificate, certify, channel_pair, check_form, check_sigma, rms_or_one
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
 from .solvers.arx_barrier import ArxBlockForm
@@ -186,15 +185,6 @@ def _order(v, name: str) -> int:
     return int(v)
 
 
-def _pair(u, y) -> tuple[np.ndarray, np.ndarray]:
-    """``(u, y)``: 1-D for one channel each (the SISO code paths, unchanged), else (n, m) and (n, l)."""
-    u = as_signal(u, "u")
-    y = as_signal(y, "y", n=u.shape[0])
-    if u.shape[1] == 1 and y.shape[1] == 1:
-        return u[:, 0].copy(), y[:, 0].copy()
-    return u, y
-
-
 def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     """``(Φ, Y)`` of §7.2.1 with zero initial conditions, so that ``e(θ) = Φθ + Y``.
 
@@ -215,7 +205,7 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     >>> Phi.shape, Y.shape                                                  # na·l + nb·m = 5 columns
     ((3, 5), (3, 3))
     """
-    u, y = _pair(u, y)
+    u, y = channel_pair(u, y)
     na, nb = _order(na, "na"), _order(nb, "nb")
     n = u.shape[0]
     if u.ndim == 2:
@@ -315,7 +305,7 @@ class ArxProblem:
     @classmethod
     def from_data(cls, u, y, na, nb, sigma, free_rows: int = 0) -> "ArxProblem":
         """Validate (raises :class:`DataError`) and scale; u (n,) or (n, m), y (n,) or (n, l)."""
-        u, y = _pair(u, y)
+        u, y = channel_pair(u, y)
         na, nb = _order(na, "na"), _order(nb, "nb")
         free_rows = _order(free_rows, "free_rows")
         sigma = check_sigma(sigma)

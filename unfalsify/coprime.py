@@ -41,7 +41,6 @@ input did not excite; :func:`unfalsify.check_excitation` checks the loop there.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -55,10 +54,10 @@ from synthesis.validation import DataError
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
-from .premise import (FrequencyResponseEstimate, LowBandEstimate, PremiseOptions, _bands, _fir_sigma, _io_pair,
+from .premise import (FrequencyResponseEstimate, LowBandEstimate, PremiseOptions, _bands, _fir_sigma,
                       _low_bins, _unit, frequency_response_estimate, low_band_estimate)
 
-__all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap", "model_error_estimate",
+__all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
 
 
@@ -110,7 +109,7 @@ class CoprimeFactors:
 
         Every sample uses measured data only (no simulation, no initial state to guess).
         """
-        u, y = _io_pair(u, y)
+        u, y = channel_pair(u, y)
         U, Y = u.reshape(u.shape[0], -1), y.reshape(y.shape[0], -1)
         if U.shape[1] != self.inputs or Y.shape[1] != self.outputs:
             raise DataError(f"the factors have {self.inputs} input(s) and {self.outputs} output(s), the data "
@@ -340,7 +339,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     (True, True)
     """
     opts = options or PremiseOptions()
-    u, y = _io_pair(u, y)
+    u, y = channel_pair(u, y)
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)
     e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
@@ -403,9 +402,8 @@ class CoprimePremise:
         ``''`` when the premise survived; otherwise why not, and the fix.
     error_frf, error_low_band : FrequencyResponseEstimate, LowBandEstimate or None
         Nonparametric estimates of ``R = M̂P − N̂`` (from ``u`` to the equation error ``e``) on the held-out
-        record (the window without one), which the gap was measured with (:func:`error_gap`);
-        :func:`model_error_estimate` turns them into estimates of ``P − P̂`` for
-        :func:`unfalsify.check_excitation`.
+        record (the window without one), which the gap was measured with (:func:`error_gap`) and which
+        :func:`unfalsify.check_excitation` takes with ``factors=``.
     """
 
     factors: CoprimeFactors
@@ -473,38 +471,6 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         x = np.maximum(x - np.asarray(est.radius, float), 0.0)
         return np.where(np.isfinite(est.radius), x * mu / np.sqrt(mu ** 2 + (nu + x) ** 2), 0.0)
-
-
-def model_error_estimate(factors: CoprimeFactors, est):
-    """The estimate of ``R = M̂P − N̂`` turned into one of the additive error ``P − P̂ = M̂⁻¹R``.
-
-    Radius ``r/σ_min(M̂)`` (``‖M̂⁻¹(R − R̂)‖ ≤ r/σ_min``): what :func:`unfalsify.check_excitation` takes.  Its test
-    ``σ̄(D̂K̃) + r_D σ̄(K̃)`` with ``K̃ = C_y(I − P̂C_y)⁻¹`` is, for one channel, exactly
-    ``(|R̂| + r)·|C_y/(M̂ − N̂C_y)|``: the frequency-wise condition of the coprime loop, finite at P̂'s poles
-    (:func:`unfalsify.check_excitation` with ``factors=`` runs that form directly).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from unfalsify import LowBandEstimate
-    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-0.5]]]), dt=1.0)
-    >>> est = LowBandEstimate(frequency=np.array([0.0]), response=np.array([0.1]), radius=np.array([0.02]),
-    ...                       confidence=0.99, window=16, degree=2, samples=100, dt=1.0)
-    >>> D = model_error_estimate(F, est)                         # M̂(1) = 0.5: P − P̂ = R/0.5
-    >>> np.round(D.response.real, 6).tolist(), np.round(D.radius, 6).tolist()
-    ([0.2], [0.04])
-    """
-    w = np.asarray(est.frequency, float)
-    _, Mw = factors.response(w)
-    R = np.asarray(est.response, complex)
-    if R.ndim == 1:
-        m0 = Mw[:, 0, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return dataclasses.replace(est, response=R / m0, radius=np.asarray(est.radius, float) / np.abs(m0))
-    D = np.linalg.solve(Mw, R)
-    mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return dataclasses.replace(est, response=D, radius=np.asarray(est.radius, float) / mu)
 
 
 def _gap_reason(factors, est, eps: float, where: str) -> tuple[float, str]:
@@ -589,8 +555,9 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
         decided = "held out" if outside.held_out else "in sample, noise estimated"
     worst, frf, low = float("nan"), None, None
     if math.isfinite(eps):
-        uu, yy = data
-        e = factors.residual(uu, yy)   # FIR: every row is usable, no transient
+        uu, _ = data
+        # the equation error of the whole record (FIR: every row usable), already formed by the solve above
+        e = outside.residual if outside is not None else factors.residual(*data)
         ue = uu[factors.horizon:]
         try:
             frf = frequency_response_estimate(ue, e, factors.dt, nperseg=opts.nperseg, confidence=opts.confidence)

@@ -762,7 +762,7 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     ((98, 2), True)
     """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
-    u, y = _io_pair(u, y)
+    u, y = channel_pair(u, y)
     i = int(horizon)
     m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])
     if A.shape[0] != i * (m + l) or B.shape[1] != m or C.shape[0] != l:
@@ -776,15 +776,6 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     if u.ndim == 1:
         return y[i:] - np.asarray(yhat).reshape(-1)
     return y[i:] - np.asarray(yhat).reshape(-1, l)
-
-
-def _io_pair(u, y) -> tuple[np.ndarray, np.ndarray]:
-    """``(u, y)``: 1-D for one channel each (the SISO code, unchanged), else (n, m) and (n, l)."""
-    u = as_signal(u, "u")
-    y = as_signal(y, "y", n=u.shape[0])
-    if u.shape[1] == 1 and y.shape[1] == 1:
-        return u[:, 0].copy(), y[:, 0].copy()
-    return u, y
 
 
 def _fir_rss(u: np.ndarray, e: np.ndarray, taps: int, burn: int) -> tuple[float, int]:
@@ -866,7 +857,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     """
     opts = options or PremiseOptions()
     i = int(horizon)
-    u, y = _io_pair(u, y)
+    u, y = channel_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)
     N = u.shape[0]
     n = min(N - i, burn + int(opts.samples))

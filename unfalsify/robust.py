@@ -1008,9 +1008,14 @@ class _DesignSpace:
                        dt=self.dt), c
 
 
+def _reference_horizon(options: CertificateOptions, i: int) -> int:
+    """The horizon of the reference model P̂_ref: ``options.reference_horizon``, default 2i."""
+    return 2 * i if options.reference_horizon is None else int(options.reference_horizon)
+
+
 def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, dt: float):
     """``(P̂_ref, note, persistence reason)``: the model at the reference horizon, or why there is none."""
-    ref_h = 2 * i if options.reference_horizon is None else int(options.reference_horizon)
+    ref_h = _reference_horizon(options, i)
     try:
         ref_pred = space.predictor_at(ref_h)
         return (predictor_model(ref_pred, dt), "",
@@ -1115,8 +1120,8 @@ def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u
         return cop, None, cop.reason or "no coprime-factor ε could be certified"
     ref_factors = None
     if ref_model is not None:
-        ref_h = 2 * int(pred.horizon) if options.reference_horizon is None else int(options.reference_horizon)
-        ref_factors = coprime_factors(space.predictor_at(ref_h), float(model.dt))
+        ref_factors = coprime_factors(space.predictor_at(_reference_horizon(options, int(pred.horizon))),
+                                      float(model.dt))
     ball = _CoprimeBall(factors, cop.epsilon, ref_factors, validation if validation is not None else (u, y),
                         validation is not None, opts, cop.error_frf, cop.error_low_band,
                         _coprime_data_gain(factors, cop.error_low_band))
