@@ -115,10 +115,11 @@ def test_ctrl_c_returns_the_best_certified_bracket(monkeypatch):
     assert r.status == "interrupted" and calls[0] == 25
     c = r.certificate
     assert c.verify() and c.ok() and r.delta == pytest.approx(c.upper_bound, rel=1e-12)
-    assert len(seen) >= 1 and seen[-1][0] > 0  # at least one outer iteration had finished
+    assert len(seen) >= 1  # at least one outer iteration had finished
     lo, up = seen[-1]
-    assert c.relative_gap == pytest.approx((up - lo) / up, rel=1e-6)  # that bracket, not a worse one
-    assert 0 < c.lower_bound <= c.upper_bound
+    # that bracket or a better one: bounds not yet due at the last centring are evaluated when the solve ends
+    assert c.relative_gap <= (up - lo) / up * (1 + 1e-6)
+    assert 0 < c.lower_bound <= c.upper_bound <= up
 
 
 def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
@@ -138,7 +139,7 @@ def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
     c = r.certificate
     assert c.verify() and c.ok()
     lo, up = seen[-1]
-    assert lo > 0 and c.relative_gap == pytest.approx((up - lo) / up, rel=1e-6)
+    assert c.lower_bound > 0 and c.relative_gap <= (up - lo) / up * (1 + 1e-6)  # that bracket or a better one
 
 
 @pytest.mark.parametrize("where", ["lower", "upper"])

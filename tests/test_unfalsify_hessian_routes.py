@@ -69,3 +69,82 @@ def test_subspace_solve_equals_former_route(seed, fixed):
     sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
     _same(lambda: uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred if fixed else None,
                                         tol=1e-6, progress=False), "column_barrier")
+
+
+def test_former_routes_context_restores_both_switches():
+    from unfalsify.solvers import arx_barrier
+
+    with pytest.raises(RuntimeError):
+        with baselines.former_routes():
+            assert _HESSIAN_ROUTE["route"] == "former" and arx_barrier._STEP_ROUTE["route"] == "former"
+            raise RuntimeError
+    assert _HESSIAN_ROUTE["route"] == "pruned" and arx_barrier._STEP_ROUTE["route"] == "blas3"
+
+
+def _routes(problem, tol=1e-6):
+    """``arx_barrier`` on ``problem`` by today's route and by :func:`baselines.former_routes`."""
+    out = {}
+    for route in ("blas3", "former"):
+        with baselines.former_routes() if route == "former" else contextlib.nullcontext():
+            out[route] = solvers.run("arx_barrier", problem, tol=tol, progress=False)
+    return out["blas3"], out["former"]
+
+
+@pytest.mark.parametrize("seed, n", [(0, 40), (1, 90), (2, 250)])
+def test_arx_step_algebra_equals_former_route(seed, n):
+    """potri/trmm, the bounds near the tolerance only and threaded FFTs: the same iterates as the former
+    algebra (Newton steps and δ), and a certified gap within tol checked from the data."""
+    u, y = _servo(n, 20 + seed)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+    new, old = _routes(P)
+    assert new.stats["newton"] == old.stats["newton"] and new.stats["outer"] == old.stats["outer"]
+    assert abs(new.delta - old.delta) <= 1e-9 * old.delta
+    upper, _ = P.evaluate_primal(new.impulses, new.params)
+    lower = P.evaluate_dual(new.dual_v, new.dual_W)
+    assert lower <= upper and upper - lower <= 1e-6 * upper * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("l, m", [(2, 2), (1, 2), (2, 1)])
+def test_arx_step_algebra_equals_former_route_with_channels(l, m):
+    rng = np.random.default_rng(10 * l + m)
+    n = 50
+    u = np.sign(rng.standard_normal((n, m)))
+    G = rng.standard_normal((3, l, m))
+    y = sum(np.roll(u, k + 1, axis=0) @ G[k].T for k in range(3)) + 0.05 * rng.standard_normal((n, l))
+    _, rms = uf.arx_least_squares(u, y, 1, 2)
+    P = uf.ArxProblem.from_data(u, y, 1, 2, 0.5 * rms)
+    new, old = _routes(P)
+    assert new.stats["newton"] == old.stats["newton"]
+    assert abs(new.delta - old.delta) <= 1e-9 * old.delta
+
+
+def test_bounds_deferred_to_the_tolerance_are_evaluated_when_a_time_limit_ends_the_solve(monkeypatch):
+    """A stop far from the tolerance (before the bounds are due) still returns the last centring's certified
+    bounds: the same bracket as a solve that evaluates them at every centring, verified from the data."""
+    from unfalsify.solvers import arx_barrier, barrier
+
+    centre = arx_barrier._ArxBarrier.centre
+    u, y = _servo(120, 5)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+    answers = {}
+    for due in (False, True):
+        calls = []
+
+        def stopped(self, t, s, deadline):
+            calls.append(t)
+            if len(calls) == 3:  # the third centring: a time limit, the bounds not yet due
+                raise barrier.Stop("time_limit")
+            return centre(self, t, s, deadline)
+
+        monkeypatch.setattr(arx_barrier._ArxBarrier, "centre", stopped)
+        monkeypatch.setattr(arx_barrier._ArxBarrier, "upper_due", lambda self, t, s, due=due: due)
+        monkeypatch.setattr(arx_barrier._ArxBarrier, "bound_due", lambda self, t, upper, due=due: due)
+        out = solvers.run("arx_barrier", P, tol=1e-8, progress=False)
+        assert str(out.status.value) == "time_limit"
+        upper, _ = P.evaluate_primal(out.impulses, out.params)
+        lower = P.evaluate_dual(out.dual_v, out.dual_W)
+        assert 0 < lower <= upper and abs(out.delta - upper) <= 1e-9 * upper
+        answers[due] = (upper, lower)
+    assert np.allclose(answers[False], answers[True], rtol=1e-9, atol=0)

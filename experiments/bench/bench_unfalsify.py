@@ -43,8 +43,9 @@ the 1-min load average before and after every solve.
 Each structured row (issue 27, item 6) runs in a fresh child process, so its peak RSS (``ru_maxrss``) is that
 row's: the front end's solve (bracket, certificate, ``verify()``), then ``repeats`` (3; ``--quick``: 1) × the
 registry solver alone (``unfalsify.solvers.run`` on the certificate's problem) by today's route and, alternating,
-by the former route (:func:`unfalsify.solvers.baselines.former_hessian`: the FFT Hessian before issue 27's
-pruning) where the solver forms FFT Hessians (``arx_barrier``, ``column_barrier``); medians.  The row reports
+by the former route (:func:`unfalsify.solvers.baselines.former_routes`: the FFT Hessian before issue 27's
+pruning and, in ``arx_barrier``, the Newton-step algebra before its BLAS-3 rewrite) where the solver forms FFT
+Hessians (``arx_barrier``, ``column_barrier``); medians.  The row reports
 the solve time, the baseline's time in the same run and their ratio, the relative δ difference of the two routes,
 the Newton steps and trial factorisations (Cholesky stacks tried, line search and path steps included), the **arithmetic-limit time** and the ratio to it, the peak RSS and the 1-min load at the row's start and
 end; the table notes the load before and after the series.
@@ -337,7 +338,7 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
                                     trials=None))
     for _ in range(0 if name == "bracket" else spec.get("repeats", 1)):
         for route in ("current", "baseline") if baseline else ("current",):
-            context = baselines.former_hessian() if route == "baseline" else contextlib.nullcontext()
+            context = baselines.former_routes() if route == "baseline" else contextlib.nullcontext()
             with context:
                 t0 = time.perf_counter()
                 out = solvers.run(name, cert.problem, tol=spec["tol"], time_limit=limit, progress=False)
@@ -751,7 +752,8 @@ def _run_structured(opts, rep: Report) -> dict:
     rep.text(
         f"`solve [s]`: the registry solver alone (`unfalsify.solvers.run`), median of {repeats} repeat(s); `wall [s]`: "
         "the first, front-end call (problem set-up, solve, certificate). `baseline [s]`: the same solver on the same "
-        "problem with the former FFT Hessian (`unfalsify.solvers.baselines.former_hessian`), alternating with "
+        "problem by the former route (`unfalsify.solvers.baselines.former_routes`: FFT Hessian, and arx_barrier's "
+        "step algebra), alternating with "
         "today's route in the same child, median; `×` = baseline/solve; `|Δδ|/δ` between the two routes (blank: "
         "the route has no FFT Hessian, so no former route). `limit [s]` = the flops the method needs at its "
         "measured Newton steps and trial factorisations (module docstring) / the matmul rate `GF/s` timed in the "

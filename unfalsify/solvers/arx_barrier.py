@@ -43,7 +43,10 @@ barrier parameter ν = n(l + m) + 1.  One channel each runs the SISO code above 
 from __future__ import annotations
 
 import numpy as np
+import scipy.fft
 import scipy.linalg
+from scipy.linalg import blas as _blas
+from scipy.linalg import lapack as _lapack
 
 from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
@@ -53,6 +56,16 @@ from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_
                        certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix)
 
 __all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
+
+#: The dense algebra of a Newton step: ``"blas3"`` (K⁻¹ from the Cholesky factor by LAPACK's potri, the
+#: products with the triangular T(h) by trmm, the bounds only near the tolerance, FFTs on BLAS's threads) or
+#: ``"former"`` (K⁻¹ by two triangular solves against I, general products, the bounds at every centring), the
+#: benchmark's same-run reference (:func:`unfalsify.solvers.baselines.former_routes`).
+_STEP_ROUTE = {"route": "blas3"}
+
+#: The bounds (two dense SVDs at n ≤ 4000) are evaluated once the path's gap ν/t is within this factor of
+#: tol·δ, where the certified gap can close (:meth:`_ArxBarrier.bound_due`), and at the centring that ends a solve.
+_BOUND_FACTOR = 10.0
 
 
 class _Siso:
@@ -80,6 +93,14 @@ class _Siso:
 
     def gram(self, h, T):
         return toeplitz_gram(h)
+
+    def times_T(self, T, X):
+        """``T X``: T lower triangular (trmm on Tᵀ's Fortran view of T's rows: no copy of T)."""
+        return _blas.dtrmm(1.0, T.T, X, trans_a=1)
+
+    def times_Tt(self, A, T):
+        """``A Tᵀ`` (trmm from the right)."""
+        return _blas.dtrmm(1.0, T.T, A, side=1)
 
     def adjoint(self, X):
         return adjoint(X)
@@ -115,6 +136,12 @@ class _Channels(_Siso):
 
     def gram(self, h, T):
         return T.T @ T
+
+    def times_T(self, T, X):
+        return T @ X  # block lower triangular, not triangular: a general product
+
+    def times_Tt(self, A, T):
+        return A @ T.T
 
     def adjoint(self, X):
         return block_adjoint(X, self.n, self.l, self.m).reshape(-1)
@@ -215,17 +242,27 @@ class _ArxBarrier:
 
     # ---- one Newton step ---------------------------------------------------------------------
     def _inverse_blocks(self, s: _State):
-        """``K⁻¹`` and ``A = T K⁻¹`` (so ``S11 = δK⁻¹``, ``S21 = −A``, ``S22 = (I + A Tᵀ)/δ``)."""
-        Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
-        A = s.T @ Kinv
-        return Kinv, A
+        """``K⁻¹``, ``A = T K⁻¹`` and ``A Tᵀ`` (so ``S11 = δK⁻¹``, ``S21 = −A``, ``S22 = (I + A Tᵀ)/δ``).
+
+        potri forms K⁻¹ from the Cholesky factor in ⅔n³ flops (two solves against I: 2n³), and the products
+        with the triangular T(h) are trmm's n³ each (general products: 2n³)."""
+        if _STEP_ROUTE["route"] == "former":
+            Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
+            A = s.T @ Kinv
+            return Kinv, A, A @ s.T.T
+        Kinv, info = _lapack.dpotri(s.L, lower=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"potri failed (info = {info}): K is not positive definite")
+        Kinv = np.tril(Kinv)
+        Kinv += np.tril(Kinv, -1).T
+        A = self.ops.times_T(s.T, Kinv)
+        return Kinv, A, self.ops.times_Tt(A, s.T)
 
     def newton(self, t: float, s: _State):
         """Newton direction ``(dh, dδ)``, decrement λ², the central-path tangent and the blocks of F⁻¹."""
         d, ops = s.d, self.ops
-        Kinv, A = self._inverse_blocks(s)
+        Kinv, A, S22 = self._inverse_blocks(s)
         S11 = d * Kinv
-        S22 = A @ s.T.T
         S22[np.diag_indices_from(S22)] += 1.0
         S22 /= d
         g_noise = ops.apply_T(s.r)
@@ -285,6 +322,15 @@ class _ArxBarrier:
 
     def upper(self, s: _State) -> float:
         return self.ops.norm(s.h)
+
+    def bound_due(self, t, upper) -> bool:
+        """Whether the bounds (a dense SVD each) are worth evaluating at t: once the path's own gap ``ν/t`` is
+        within :data:`_BOUND_FACTOR` × ``tol`` of δ the certified gap can close (the former route: always)."""
+        return _STEP_ROUTE["route"] == "former" or self.nbar / t <= _BOUND_FACTOR * self.tol * upper
+
+    def upper_due(self, t, s: _State) -> bool:
+        """:meth:`bound_due` for the upper bound, with δ (> ‖T(h)‖₂ at a feasible point) as its scale."""
+        return self.bound_due(t, s.d)
 
     def impulses(self, s: _State) -> np.ndarray:
         return s.h[:, None].copy()
@@ -347,9 +393,20 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     if mu is None:
         mu = 8.0 if form.m <= 200 else 3.0
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
-    out = solver.run(np.asarray(h0, float).reshape(-1))
+    with scipy.fft.set_workers(_fft_threads()):
+        out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials
     return out
+
+
+def _fft_threads() -> int:
+    """The FFT threads of a solve: as many as BLAS has (so ``threadpool_limits(1)`` holds the FFTs to one too)."""
+    if _STEP_ROUTE["route"] == "former":
+        return 1
+    from threadpoolctl import threadpool_info
+
+    counts = [int(p.get("num_threads", 1)) for p in threadpool_info() if p.get("user_api") == "blas"]
+    return max(1, min(counts)) if counts else 1
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:

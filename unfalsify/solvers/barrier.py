@@ -117,21 +117,31 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     parameter ``t`` (None before the first centring).  A method with a ``record(t, point)`` method is shown
     every centred point (what a warm start of a related problem resumes from); one with ``bound_due(t, upper)``
     has the lower bound evaluated only where that is true (the rest of the loop sees the best bound so far;
-    a bound skipped at the last centring is evaluated when the loop ends, whatever ended it).
+    a bound skipped at the last centring is evaluated when the loop ends, whatever ended it); one with
+    ``upper_due(t, point)`` has the upper bound treated the same way.
     """
     best = dict(lower=0.0, upper=upper, H=method.impulses(point), V=None, W=None, newton=0, outer=0, last=None,
                 t=None)
-    status, bar, pending = "optimal", None, None
+    status, bar, pending, pending_upper = "optimal", None, None, None
     bound_due = getattr(method, "bound_due", lambda t, upper: True)
+    upper_due = getattr(method, "upper_due", lambda t, point: True)
+
+    def improve_upper(point):
+        upper = method.upper(point)
+        if upper < best["upper"]:
+            best.update(upper=upper, H=method.impulses(point))
+        return upper
+
     try:
         while True:
             point, step = method.centre(t, point, deadline)
             best.update(last=point, t=t)
             if hasattr(method, "record"):
                 method.record(t, point)
-            upper = method.upper(point)
-            if upper < best["upper"]:
-                best.update(upper=upper, H=method.impulses(point))
+            if upper_due(t, point):
+                upper, pending_upper = improve_upper(point), None
+            else:  # far from the tolerance: the norm (an SVD) can wait, as the lower bound below
+                upper, pending_upper = best["upper"], point
             V, W = method.dual(t, point, step)
             if bound_due(t, upper):
                 lower = form.lower_bound(V, W)
@@ -150,7 +160,12 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     finally:
         if bar is not None:
             bar.close()
-    if pending is not None:  # a stop before the bounds were due: the last centring's bound, as before
+    if pending_upper is not None:  # a stop before the bounds were due: the last centring's bounds
+        try:
+            improve_upper(pending_upper)
+        except (KeyboardInterrupt, *SOLVE_ERRORS):
+            pass
+    if pending is not None:
         try:
             lower = form.lower_bound(*pending)
             if lower > best["lower"]:

@@ -10,6 +10,9 @@ routes to use, and they may go with the benchmark that measures them.
 
    former_corr_hessian  -- the barrier Hessian by the former 2-D FFT route (zero-padded and flipped copies)
    former_hessian       -- context manager: every solve inside it uses ``former_corr_hessian``
+   former_routes        -- context manager: ``former_hessian`` and, in ``arx_barrier``, the former dense
+                           algebra of a Newton step (K⁻¹ by solves against I, general products, both bounds
+                           at every centring, one FFT thread): the ARX route before issue 27 in full
 
 >>> import numpy as np
 >>> from unfalsify.solvers import baselines
@@ -23,9 +26,9 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
-from . import toeplitz
+from . import arx_barrier, toeplitz
 
-__all__ = ["former_corr_hessian", "former_hessian"]
+__all__ = ["former_corr_hessian", "former_hessian", "former_routes"]
 
 
 def former_corr_hessian(S11, S21, S22, m):
@@ -83,3 +86,32 @@ def former_hessian():
         yield
     finally:
         toeplitz._HESSIAN_ROUTE["route"] = route
+
+
+@contextmanager
+def former_routes():
+    """Inside this context the structured solvers run their former routes: the Hessians of
+    :func:`former_hessian` and, in ``arx_barrier``, the former Newton-step algebra (``K⁻¹`` by two triangular
+    solves against I, general matrix products with the triangular T(h), the certificate's bounds at every
+    centring, one FFT thread).  The same iterates and δ to rounding; a process-wide switch, restored on leaving.
+
+    Examples
+    --------
+    >>> import numpy as np, unfalsify as uf
+    >>> from unfalsify.solvers import baselines
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(40)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:40] + 0.05 * rng.standard_normal(40)
+    >>> a = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
+    >>> with baselines.former_routes():
+    ...     b = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
+    >>> bool(abs(a.delta - b.delta) <= 1e-6 * a.delta)
+    True
+    """
+    route = arx_barrier._STEP_ROUTE["route"]
+    arx_barrier._STEP_ROUTE["route"] = "former"
+    try:
+        with former_hessian():
+            yield
+    finally:
+        arx_barrier._STEP_ROUTE["route"] = route

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.fft
 import scipy.linalg
 import scipy.signal
+from numpy.lib.stride_tricks import as_strided
 from scipy.sparse.linalg import LinearOperator, svds
 
 from synthesis import DataError
@@ -115,21 +116,32 @@ def _fft_operator(h: np.ndarray) -> LinearOperator:
 def toeplitz_gram(h: np.ndarray) -> np.ndarray:
     """``T(h)ᵀT(h)`` in O(n²) (no matrix product): along the k-th diagonal,
     ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h`` reversed
-    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``)."""
+    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``).
+
+    Row by row, ``G[i+1, i+1:] = G[i, i:−1] − a_i a[i:−1]``: contiguous vector operations (4 ms at n = 1000,
+    against 15–23 ms for the former loop over the n diagonals, whose writes stride through memory).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = np.array([1.0, -0.5, 0.25, 2.0])
+    >>> bool(np.allclose(toeplitz_gram(h), toeplitz_matrix(h).T @ toeplitz_matrix(h)))
+    True
+    """
+    h = np.asarray(h, dtype=float).reshape(-1)
     n = h.size
+    if n == 0:
+        return np.zeros((0, 0))
     nf = nfft(n)
     H = np.fft.rfft(h, nf)
-    r = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
-    a = h[::-1]
+    a = h[::-1].copy()
     G = np.empty((n, n))
-    flat = G.reshape(-1)
-    for k in range(n):
-        diag = np.empty(n - k)
-        diag[0] = r[k]
-        np.cumsum(a[: n - 1 - k] * a[k : n - 1], out=diag[1:])
-        diag[1:] = r[k] - diag[1:]
-        flat[k : (n - k) * (n + 1) : n + 1] = diag  # upper diagonal k
-        flat[k * n : n * n : n + 1] = diag  # lower diagonal k
+    G[0] = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
+    tmp = np.empty(n)
+    for i in range(n - 1):
+        prod = np.multiply(a[i : n - 1], a[i], out=tmp[: n - 1 - i])
+        np.subtract(G[i, i : n - 1], prod, out=G[i + 1, i + 1 :])
+        G[i + 1 :, i] = G[i, i + 1 :]
     return G
 
 
@@ -307,12 +319,29 @@ def conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def adjoint(W: np.ndarray) -> np.ndarray:
-    """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W (→ (m,)), or a stack ``(j, m, m)`` → ``(m, j)``."""
+    """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W (→ (m,)), or a stack ``(j, m, m)`` → ``(m, j)``.
+
+    Every subdiagonal sum at once: ``W[i+d, i]`` sits at ``dm + i(m + 1)`` of W's flat samples, so a view
+    with strides (m, m + 1) over the samples followed by zeros holds subdiagonal d in its row d.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> W = np.arange(9.0).reshape(3, 3)
+    >>> adjoint(W).tolist()
+    [12.0, 10.0, 6.0]
+    >>> adjoint(np.stack([W, 2 * W])).tolist()
+    [[12.0, 24.0], [10.0, 20.0], [6.0, 12.0]]
+    """
     W = np.asarray(W, float)
-    if W.ndim == 2:
-        return np.array([np.trace(W, offset=-d) for d in range(W.shape[0])])
     m = W.shape[-1]
-    return np.stack([np.trace(W, offset=-d, axis1=1, axis2=2) for d in range(m)])
+    lead = W.shape[:-2]
+    buf = np.zeros(lead + (2 * m * m + m,))
+    buf[..., : m * m] = W.reshape(lead + (m * m,))
+    step = buf.strides[-1]
+    D = as_strided(buf, shape=lead + (m, m), strides=buf.strides[:-1] + (m * step, (m + 1) * step), writeable=False)
+    out = D.sum(axis=-1)  # (…, m): row d of the view is subdiagonal d, then zeros
+    return out if W.ndim == 2 else np.moveaxis(out, -1, 0)
 
 
 def adjoint_lowrank(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -360,15 +389,16 @@ def _rfft2_padded(X: np.ndarray, N: int) -> np.ndarray:
 def _padded_spectrum(X: np.ndarray, N: int) -> np.ndarray:
     """``rfft2(X, (N, N))`` (half spectrum, shape (…, N, N/2 + 1)) of a stack of m × m matrices.
 
-    The row transforms write straight into the first m rows of one zeroed complex array and the column
-    transforms run in place on it (numpy's ``out=``): no zero-padded copy of X or of the row spectra.  scipy's
-    padding of a non-last axis (``_rfft2_padded``) was measured at 8.5 ms against 3.4 ms for this at a
-    (400, 20, 20) stack.
+    The row spectra are copied into the first m rows of one zeroed complex array and the column transforms
+    run in place on it: no zero-padded copy of X.  scipy's padding of a non-last axis (``_rfft2_padded``)
+    was measured at 8.5 ms against 3.4 ms for this at a (400, 20, 20) stack.  scipy.fft (not numpy.fft)
+    so that the transforms take the threads of :func:`scipy.fft.set_workers` (one by default; a solve sets
+    them to BLAS's thread count).
     """
     m = X.shape[-2]
     Z = np.zeros(X.shape[:-2] + (N, N // 2 + 1), complex)
-    np.fft.rfft(X, N, axis=-1, out=Z[..., :m, :])
-    return np.fft.fft(Z, axis=-2, out=Z)
+    Z[..., :m, :] = scipy.fft.rfft(X, N, axis=-1)
+    return scipy.fft.fft(Z, axis=-2, overwrite_x=True)
 
 
 #: The route of :func:`corr_hessian`: ``"pruned"``, or ``"former"`` inside
@@ -418,8 +448,8 @@ def corr_hessian(S11, S21, S22, m):
     np.conjugate(P, out=P)
     spec[..., 0, :] += P[..., 0, :]  # + conj P[−u, v]: rows −u mod N as a reversed view
     spec[..., 1:, :] += P[..., :0:-1, :]
-    np.fft.fft(spec, axis=-2, norm="forward", out=spec)  # = the inverse transform read at rows −a
-    return 2.0 * _tr(np.fft.irfft(spec[..., :m, :], N, axis=-1)[..., :m])
+    spec = scipy.fft.fft(spec, axis=-2, norm="forward", overwrite_x=True)  # = the inverse read at rows −a
+    return 2.0 * _tr(scipy.fft.irfft(spec[..., :m, :], N, axis=-1)[..., :m])
 
 
 def _former_corr_hessian(S11, S21, S22, m):
