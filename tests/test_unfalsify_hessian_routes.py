@@ -22,6 +22,22 @@ def test_corr_hessian_equals_former_route(j, m):
     assert np.max(np.abs(H - F)) <= 1e-12 * np.max(np.abs(F))
 
 
+@pytest.mark.parametrize("route", ["pruned", "former"])
+@pytest.mark.parametrize("j, m", [(1, 1), (1, 2), (2, 7), (1, 64), (3, 33)])
+def test_corr_hessian_cross_column_equals_the_dense_product(j, m, route):
+    """``cross=True``: ``T*(S21 S11)`` read off the spectra equals the adjoint of the dense product (S11 symmetric)."""
+    from unfalsify.solvers.toeplitz import adjoint
+
+    rng = np.random.default_rng(7 * m + j)
+    A = rng.standard_normal((j, m, m))
+    S11, S21, S22 = A + np.swapaxes(A, -1, -2), rng.standard_normal((j, m, m)), rng.standard_normal((j, m, m))
+    with baselines.former_hessian() if route == "former" else contextlib.nullcontext():
+        H, x = corr_hessian(S11, S21, S22, m, cross=True)
+    ref = adjoint(S21 @ S11).T
+    assert x.shape == (j, m) and np.max(np.abs(x - ref)) <= 1e-12 * np.max(np.abs(ref))
+    assert np.allclose(H, corr_hessian(S11, S21, S22, m), rtol=0, atol=1e-12 * np.max(np.abs(H)))
+
+
 def test_former_hessian_context_restores_the_route():
     with pytest.raises(RuntimeError):
         with baselines.former_hessian():

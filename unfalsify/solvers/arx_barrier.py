@@ -108,6 +108,15 @@ class _Siso:
     def hessian(self, S11, S21, S22):
         return corr_hessian(S11[None], S21[None], S22[None], S11.shape[0])[0]
 
+    def hessian_and_column(self, d, Kinv, A, S22):
+        """The h–h Hessian block of F⁻¹ = [δK⁻¹, −Aᵀ; −A, S22] and its h–δ column ``−4δ T*(A K⁻¹)``, which
+        equals ``4 T*(S21 S11)`` and is read off the FFT Hessian's spectra (the former route: the 2n³
+        product ``A K⁻¹``)."""
+        if _STEP_ROUTE["route"] == "former":
+            return self.hessian(d * Kinv, -A, S22), -4.0 * d * self.adjoint(A @ Kinv)
+        H, x = corr_hessian((d * Kinv)[None], -A[None], S22[None], Kinv.shape[0], cross=True)
+        return H[0], 4.0 * x[0]
+
     def norm(self, h):
         return certified_norm(h)  # the certificate's own route (dense SVD up to n = 4000)
 
@@ -148,6 +157,9 @@ class _Channels(_Siso):
 
     def hessian(self, S11, S21, S22):
         return block_corr_hessian(S11, S21, S22, self.n, self.l, self.m)
+
+    def hessian_and_column(self, d, Kinv, A, S22):
+        return self.hessian(d * Kinv, -A, S22), -4.0 * d * self.adjoint(A @ Kinv)
 
     def norm(self, h):
         return block_certified_norm(h.reshape(self.n, self.l, self.m))
@@ -269,12 +281,11 @@ class _ArxBarrier:
         psi = s.psi
         grad_h = 2.0 * ops.adjoint(A) - 2.0 * g_noise / psi
         grad_d = t - 2.0 * d * float(np.trace(Kinv))
-        c = -4.0 * d * ops.adjoint(A @ Kinv)
         dd = 2.0 * (d * d * float(np.sum(Kinv * Kinv)) + float(np.sum(A * A)))
         if ops.excess:  # the δ^{nl−nm} factor of det F (rectangular T(h))
             grad_d -= ops.excess / d
             dd += ops.excess / (d * d)
-        HF = ops.hessian(S11, -A, S22)
+        HF, c = ops.hessian_and_column(d, Kinv, A, S22)  # c: the h–δ column −4δ T*(T K⁻²)
         Hm = HF + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(g_noise, g_noise)
         cf = cholesky_retry(Hm)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)

@@ -406,7 +406,24 @@ def _padded_spectrum(X: np.ndarray, N: int) -> np.ndarray:
 _HESSIAN_ROUTE = {"route": "pruned"}
 
 
-def corr_hessian(S11, S21, S22, m):
+def _column_cross(FA: np.ndarray, FB: np.ndarray, N: int, m: int) -> np.ndarray:
+    """``x_d = Σ_{i,k} A[i+d, k] B[i, k]`` (d = 0 … m−1) from the half spectra ``rfft2((A, B), (N, N))``.
+
+    The 2-D cross-correlation of A and B read at column lag 0: its spectrum ``F(A)·conj F(B)`` summed over
+    every column frequency (the half spectrum's rows completed by conjugate symmetry), then one 1-D inverse
+    transform: O(N²) beyond the transforms, where the product ``A Bᵀ`` it replaces costs 2m³.
+    """
+    h = N // 2
+    Q = FA * np.conj(FB)
+    R = Q[..., :, 1:h].sum(axis=-1)
+    S = Q[..., :, 0] + Q[..., :, h]
+    S += R
+    S[..., 0] += np.conj(R[..., 0])
+    S[..., 1:] += np.conj(R[..., :0:-1])  # conj R[−u]
+    return scipy.fft.ifft(S, axis=-1)[..., :m].real / N
+
+
+def corr_hessian(S11, S21, S22, m, *, cross: bool = False):
     """``2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` for all (a, b), by 2-D FFT (batched).
 
     The Hessian ``tr(F⁻¹E_aF⁻¹E_b)`` of ``−log det F``, ``F = [δI T(h)ᵀ; T(h) δI]``, E_a its derivative
@@ -424,6 +441,10 @@ def corr_hessian(S11, S21, S22, m):
 
     Equal to the former route (:func:`unfalsify.solvers.baselines.former_corr_hessian`) to rounding.
 
+    ``cross=True`` also returns ``T*(S21 S11)`` (per stack entry, shape (…, m)), read off the spectra of
+    S21 and S11 already formed (:func:`_column_cross`): with ``S22 S21 = S21 S11`` (true of F⁻¹'s blocks)
+    ``4 T*(S21 S11)`` is the Hessian's h–δ column ``tr(F⁻¹E_aF⁻¹)``, without its 2m³ product.
+
     Examples
     --------
     >>> import numpy as np
@@ -438,18 +459,21 @@ def corr_hessian(S11, S21, S22, m):
     True
     """
     if _HESSIAN_ROUTE["route"] == "former":
-        return _former_corr_hessian(S11, S21, S22, m)
+        H = _former_corr_hessian(S11, S21, S22, m)
+        return (H, adjoint(S21 @ S11).T.reshape(H.shape[:-1])) if cross else H
     N = 2 * m
     F21 = _padded_spectrum(S21, N)
+    P = _padded_spectrum(S11, N)
+    x = _column_cross(F21, P, N, m) if cross else None
     spec = np.conj(F21)
     spec *= _tr(_spectrum_rows(F21, N))  # F(S21)[v, u]·conj F(S21)[u, v]: the S12 term
-    P = _padded_spectrum(S11, N)
     P *= np.conj(_padded_spectrum(S22, N))
     np.conjugate(P, out=P)
     spec[..., 0, :] += P[..., 0, :]  # + conj P[−u, v]: rows −u mod N as a reversed view
     spec[..., 1:, :] += P[..., :0:-1, :]
     spec = scipy.fft.fft(spec, axis=-2, norm="forward", overwrite_x=True)  # = the inverse read at rows −a
-    return 2.0 * _tr(scipy.fft.irfft(spec[..., :m, :], N, axis=-1)[..., :m])
+    H = 2.0 * _tr(scipy.fft.irfft(spec[..., :m, :], N, axis=-1)[..., :m])
+    return (H, x) if cross else H
 
 
 def _former_corr_hessian(S11, S21, S22, m):
