@@ -43,7 +43,6 @@ barrier parameter ν = n(l + m) + 1.  One channel each runs the SISO code above 
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 import scipy.linalg
 from scipy.linalg import blas as _blas
 from scipy.linalg import lapack as _lapack
@@ -58,9 +57,9 @@ from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_
 __all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
 
 #: The dense algebra of a Newton step: ``"blas3"`` (K⁻¹ from the Cholesky factor by LAPACK's potri, the
-#: products with the triangular T(h) by trmm, the bounds only near the tolerance, FFTs on BLAS's threads) or
-#: ``"former"`` (K⁻¹ by two triangular solves against I, general products, the bounds at every centring), the
-#: benchmark's same-run reference (:func:`unfalsify.solvers.baselines.former_routes`).
+#: products with the triangular T(h) by trmm, the h–δ column off the FFT Hessian's spectra, the bounds only
+#: near the tolerance) or ``"former"`` (K⁻¹ by two triangular solves against I, general products, the bounds
+#: at every centring), the benchmark's same-run reference (:func:`unfalsify.solvers.baselines.former_routes`).
 _STEP_ROUTE = {"route": "blas3"}
 
 #: The bounds (two dense SVDs at n ≤ 4000) are evaluated once the path's gap ν/t is within this factor of
@@ -404,20 +403,9 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     if mu is None:
         mu = 8.0 if form.m <= 200 else 3.0
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
-    with scipy.fft.set_workers(_fft_threads()):
-        out = solver.run(np.asarray(h0, float).reshape(-1))
+    out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials
     return out
-
-
-def _fft_threads() -> int:
-    """The FFT threads of a solve: as many as BLAS has (so ``threadpool_limits(1)`` holds the FFTs to one too)."""
-    if _STEP_ROUTE["route"] == "former":
-        return 1
-    from threadpoolctl import threadpool_info
-
-    counts = [int(p.get("num_threads", 1)) for p in threadpool_info() if p.get("user_api") == "blas"]
-    return max(1, min(counts)) if counts else 1
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:

@@ -12,7 +12,7 @@ routes to use, and they may go with the benchmark that measures them.
    former_hessian       -- context manager: every solve inside it uses ``former_corr_hessian``
    former_routes        -- context manager: ``former_hessian`` and, in ``arx_barrier``, the former dense
                            algebra of a Newton step (K⁻¹ by solves against I, general products, both bounds
-                           at every centring, one FFT thread): the ARX route before issue 27 in full
+                           at every centring): the ARX route before issue 27 in full
 
 >>> import numpy as np
 >>> from unfalsify.solvers import baselines
@@ -93,7 +93,7 @@ def former_routes():
     """Inside this context the structured solvers run their former routes: the Hessians of
     :func:`former_hessian` and, in ``arx_barrier``, the former Newton-step algebra (``K⁻¹`` by two triangular
     solves against I, general matrix products with the triangular T(h), the certificate's bounds at every
-    centring, one FFT thread).  The same iterates and δ to rounding; a process-wide switch, restored on leaving.
+    centring).  The same iterates and δ to rounding; a process-wide switch, restored on leaving.
 
     Examples
     --------
