@@ -7,7 +7,7 @@ import scipy.signal
 import unfalsify as uf
 from synthesis import fit_predictor
 from unfalsify.solvers import column_barrier as sc
-from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_matrix
+from unfalsify.solvers.toeplitz import adjoint, corr_hessian, toeplitz_matrix
 from unfalsify.subspace import SubspaceProblem
 
 from _servo_arx import servo_arx_data  # tests/ helper
@@ -138,7 +138,8 @@ def test_woodbury_pcg_solve_equals_dense_solve():
     i, j = 3, 20
     s, p = _barrier(False, i, j)
     S11, S21, S22 = p.blocks()
-    G = sc._chunked_hessian(S11, S21, S22)
+    G, cross = sc._chunked_hessian(S11, S21, S22)
+    np.testing.assert_allclose(cross, adjoint(S21 @ S11), rtol=0, atol=1e-12 * np.max(np.abs(cross)))
     g_noise = s.f.apply_T(p.r)
     rng = np.random.default_rng(0)
     R = rng.standard_normal((i, j, 2))

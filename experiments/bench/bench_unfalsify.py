@@ -53,11 +53,12 @@ end; the table notes the load before and after the series.
 Arithmetic limit: the flops the method needs at its measured counts, divided by the matmul rate measured in the
 same child (a numpy matmul of the row's size, timed: an n × n product for ARX, a (j, i, i) stack for the subspace
 rows, BLAS as in the solve).  Counted from the sizes (m = n for ARX, j = 1; m = i for the subspace rows), per
-column and Newton step: the blocks of F⁻¹ and the gradient's products (``K⁻¹``, ``T K⁻¹``, ``(T K⁻¹) Tᵀ``,
-``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian: 8m³), the FFT Hessian (four real 2-D transforms of
-2m × 2m, ``2.5 N² log₂ N²`` each) and for ARX the Cholesky of the Newton system (m³/3); per trial factorisation
-the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well ((10/3) m³ in
-all).  The CG of L optimised, the certificate and the set-up
+column and Newton step: the blocks of F⁻¹ and the gradient's products (ARX: ``K⁻¹`` from its Cholesky factor,
+⅔m³, and the two triangular products ``T K⁻¹``, ``(T K⁻¹) Tᵀ``, m³ each; subspace: ``K⁻¹``, ``T K⁻¹``,
+``(T K⁻¹) Tᵀ``, ``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian, 8m³), the FFT Hessian (four real 2-D
+transforms of 2m × 2m, ``2.5 N² log₂ N²`` each) and for ARX the Cholesky of the Newton system (m³/3); per trial
+factorisation the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well
+((10/3) m³ in all).  (Before the ARX step's BLAS-3 rewrite the ARX count was the subspace rows' 8m³.)  The CG of L optimised, the certificate and the set-up
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
 and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
 or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
@@ -283,8 +284,8 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     newton = int(newton)
     trials = newton if trials is None else int(trials)  # a solver without counts: one accepted point per step
     m3 = float(m) ** 3
-    if kind == "arx":  # j = 1, m = n
-        return newton * (8.0 * m3 + m3 / 3.0 + _fft_flops(m)) + trials * m3 / 3.0
+    if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3
+        return newton * (3.0 * m3 + _fft_flops(m)) + trials * m3 / 3.0
     return j * (newton * (8.0 * m3 + _fft_flops(m)) + trials * (10.0 / 3.0) * m3)
 
 

@@ -122,18 +122,20 @@ _SERIAL = _Chunks()
 
 
 def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL):
-    """:func:`~unfalsify.solvers.toeplitz.corr_hessian` over the column stack in chunks (bounded FFT workspace), on ``chunks``' threads."""
+    """:func:`~unfalsify.solvers.toeplitz.corr_hessian` over the column stack in chunks (bounded FFT workspace), on
+    ``chunks``' threads; with it ``T*(S21_k S11_k)`` per column (``cross=True``), shape (m, j), as :func:`adjoint`."""
     j, m = S11.shape[0], S11.shape[1]
     out = np.empty((j, m, m))
+    cross = np.empty((j, m))
     step = max(1, int(1e7 // (4 * m * m * chunks.workers)))
 
     def work(s):
         for k0 in range(s.start, s.stop, step):
             sl = slice(k0, min(k0 + step, s.stop))
-            out[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m)
+            out[sl], cross[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m, cross=True)
 
     chunks.map(work, j, S11.size)
-    return out
+    return out, cross.T
 
 
 def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
@@ -379,9 +381,10 @@ class _ColumnBarrier(PathAdvance):
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
         grad_h = -2.0 * adjoint(S21) - 2.0 * self.wn * g_noise / psi
         grad_d = t - p.trace_S()
-        c = 4.0 * adjoint(self.chunks.matmul(S21, S11))  # (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K)
         dd = float(np.sum(S11 * S11) + np.sum(S22 * S22) + 2.0 * np.sum(S21 * S21))
-        G = _chunked_hessian(S11, S21, S22, self.chunks)
+        # c: (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K), its adjoint off the Hessian's spectra
+        G, x = _chunked_hessian(S11, S21, S22, self.chunks)
+        c = 4.0 * x
         X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
         xg, xc = X[..., 0], X[..., 1]
         dd_eff = dd - float(np.sum(c * xc))
