@@ -106,19 +106,50 @@ def _routes(problem, tol=1e-6):
     return out["blas3"], out["former"]
 
 
+def _bracket(P, out):
+    upper, _ = P.evaluate_primal(out.impulses, out.params)
+    return P.evaluate_dual(out.dual_v, out.dual_W), upper
+
+
 @pytest.mark.parametrize("seed, n", [(0, 40), (1, 90), (2, 250)])
-def test_arx_step_algebra_equals_former_route(seed, n):
-    """potri/trmm, the bounds near the tolerance only and threaded FFTs: the same iterates as the former
-    algebra (Newton steps and δ), and a certified gap within tol checked from the data."""
+def test_arx_step_equals_former_route_to_the_certified_gap(seed, n):
+    """potri/trmm, the h–δ column off the spectra, the bounds near the tolerance only and the predictor in 1/t:
+    both routes certified to tol from the data, their brackets overlap, so their δ agree to tol."""
     u, y = _servo(n, 20 + seed)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
     P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
     new, old = _routes(P)
-    assert new.stats["newton"] == old.stats["newton"] and new.stats["outer"] == old.stats["outer"]
-    assert abs(new.delta - old.delta) <= 1e-9 * old.delta
-    upper, _ = P.evaluate_primal(new.impulses, new.params)
-    lower = P.evaluate_dual(new.dual_v, new.dual_W)
-    assert lower <= upper and upper - lower <= 1e-6 * upper * (1 + 1e-6)
+    (lo_n, up_n), (lo_o, up_o) = _bracket(P, new), _bracket(P, old)
+    for lo, up in ((lo_n, up_n), (lo_o, up_o)):
+        assert 0 < lo <= up and up - lo <= 1e-6 * up * (1 + 1e-6)
+    assert max(lo_n, lo_o) <= min(up_n, up_o) * (1 + 1e-12)
+    assert abs(new.delta - old.delta) <= 1e-6 * old.delta
+
+
+def test_arx_step_algebra_alone_gives_the_former_iterates(monkeypatch):
+    """With the former predictor and μ (the path unchanged), the new algebra reproduces the former route's
+    Newton steps and δ: the algebra changes rounding only."""
+    from unfalsify.solvers import arx_barrier
+
+    u, y = _servo(70, 31)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+    old = _routes(P)[1]
+    advance = arx_barrier._ArxBarrier.advance
+
+    def former_advance(self, t, s, step, bounds, deadline):  # the linear-in-t predictor of the former route
+        th, tdl = step[2]
+        return advance(self, t, s, (None, None, (self.mu * th, self.mu * tdl)), bounds, deadline)
+
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "advance", former_advance)
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "bound_due", lambda self, t, upper: True)
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "upper_due", lambda self, t, s: True)
+    f = P.column_form(scaled=True)
+    out = arx_barrier.solve_arx_barrier(f, arx_barrier.ridge_start(f, f.project(f.B)), tol=1e-6, progress=False,
+                                        mu=8.0)
+    assert out["newton"] == old.stats["newton"] and out["outer"] == old.stats["outer"]
+    su, sy = P.scale
+    assert abs(out["upper"] * sy / su - old.delta) <= 1e-9 * old.delta
 
 
 @pytest.mark.parametrize("l, m", [(2, 2), (1, 2), (2, 1)])
@@ -131,8 +162,9 @@ def test_arx_step_algebra_equals_former_route_with_channels(l, m):
     _, rms = uf.arx_least_squares(u, y, 1, 2)
     P = uf.ArxProblem.from_data(u, y, 1, 2, 0.5 * rms)
     new, old = _routes(P)
-    assert new.stats["newton"] == old.stats["newton"]
-    assert abs(new.delta - old.delta) <= 1e-9 * old.delta
+    (lo_n, up_n), (lo_o, up_o) = _bracket(P, new), _bracket(P, old)
+    assert max(lo_n, lo_o) <= min(up_n, up_o) * (1 + 1e-12) and 0 < lo_n
+    assert abs(new.delta - old.delta) <= 1e-6 * old.delta
 
 
 def test_bounds_deferred_to_the_tolerance_are_evaluated_when_a_time_limit_ends_the_solve(monkeypatch):

@@ -26,12 +26,16 @@ the former algebra, n = 1000 in 34.6 s against 47.0 s.  The FFT Hessian is now 5
 A trial point of the line search costs one Cholesky (n³/3 flops) instead of an SVD (~20 n³), so
 no step-to-the-boundary computation is needed: the line search starts from the full Newton step,
 backtracks (Armijo) where f_t does not decrease or the Cholesky factorisation fails, and, when the
-full step is accepted, tries 2, 4, … times it while f_t keeps decreasing.  The predictor (tangent
-of the central path to the next t) backtracks on feasibility.  t grows by μ = 3 per outer
-iteration above n = 200 (8 below): with μ = 8 a re-centring near the optimum zig-zags for 30–80
-Newton steps (most singular values of T(h) cluster at δ and the Newton step runs into the
-boundary); measured at n = 400: 47 Newton steps with μ = 3, 45 with μ = 2, 86 with μ = 8 (the SVD
-solver kept as the tests' reference, ``tests/_structured_reference.py``: 102).
+full step is accepted, tries 2, 4, … times it while f_t keeps decreasing.  The predictor follows the
+tangent of the central path linearly in 1/t, not in t: near the optimum ``x(t) − x* = O(1/t)``, so the
+point predicted for μt is ``x + (1 − 1/μ) t ẋ`` (the linear-in-t step ``(μ − 1) t ẋ`` overshoots x* for
+μ > 2 and was cut back by the feasibility backtracking to whatever halving first fit); it backtracks on
+feasibility.  t grows by μ = 3 per outer iteration: with larger μ a re-centring near the optimum zig-zags
+(most singular values of T(h) cluster at δ and the Newton step runs into the boundary).  Measured, Newton
+steps for the servo data of the benchmark, seeds 0/1/2: n = 40 (tol 1e-6) 29/25/28 against 35/27/31 by the
+former rule (linear in t, μ = 8 up to n = 200), n = 80 (tol 1e-7) 29/32/31 against 34/35/32, n = 200
+(tol 1e-4) 32/31/35 against 44/34/52, n = 400 (tol 1e-4) 44/44/45 against 47/42/58 (μ = 3 there already);
+trial factorisations fall by a quarter (n = 80: 40–47 against 53–58).
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
@@ -361,10 +365,12 @@ class _ArxBarrier:
         return v[:, None], W[None]
 
     def advance(self, t, s: _State, step, bounds, deadline):
-        """Step along the central-path tangent towards ``μt``, backtracking on feasibility."""
+        """Step along the central-path tangent towards ``μt``, linearly in 1/t (module docstring),
+        backtracking on feasibility."""
         t_new = t * self.mu
         th, tdl = step[2]
-        ph, pdl = (t_new - t) * th, (t_new - t) * tdl
+        k = (t_new - t) / self.mu if _STEP_ROUTE["route"] != "former" else t_new - t
+        ph, pdl = k * th, k * tdl
         a = 1.0
         for _ in range(8):
             sn = self._state(s.h + a * ph, s.d + a * pdl)
@@ -398,8 +404,8 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     progress : bool
         tqdm bar for solves longer than ~2 s.
     mu : float, optional
-        Factor of t per outer iteration; default 8 for n ≤ 200, 3 above (measured: n = 80, tol 1e-7:
-        33 Newton steps with μ = 8, 56 with μ = 3; n = 400, tol 1e-4: 86 with μ = 8, 47 with μ = 3).
+        Factor of t per outer iteration; default 3 (measured in the module docstring; the former route of
+        :func:`unfalsify.solvers.baselines.former_routes`: 8 for n ≤ 200, 3 above).
 
     Returns
     -------
@@ -410,7 +416,7 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
         ``W`` (1 × n × n), ``newton``, ``outer``, ``time``, and ``trials`` (Cholesky factorisations of K tried).
     """
     if mu is None:
-        mu = 8.0 if form.m <= 200 else 3.0
+        mu = 8.0 if _STEP_ROUTE["route"] == "former" and form.m <= 200 else 3.0
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
     out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials

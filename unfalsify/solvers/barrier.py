@@ -116,7 +116,7 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     side, ``status``, ``newton``, ``outer`` and ``time``; and the last centred point ``last`` with its path
     parameter ``t`` (None before the first centring).  A method with a ``record(t, point)`` method is shown
     every centred point (what a warm start of a related problem resumes from); one with ``bound_due(t, upper)``
-    has the lower bound evaluated only where that is true (the rest of the loop sees the best bound so far;
+    has its dual point formed and the lower bound evaluated only where that is true (the rest of the loop sees the best bound so far;
     a bound skipped at the last centring is evaluated when the loop ends, whatever ended it); one with
     ``upper_due(t, point)`` has the upper bound treated the same way.
     """
@@ -142,14 +142,14 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
                 upper, pending_upper = improve_upper(point), None
             else:  # far from the tolerance: the norm (an SVD) can wait, as the lower bound below
                 upper, pending_upper = best["upper"], point
-            V, W = method.dual(t, point, step)
             if bound_due(t, upper):
+                V, W = method.dual(t, point, step)
                 lower = form.lower_bound(V, W)
                 pending = None
                 if lower > best["lower"]:
                     best.update(lower=lower, V=V, W=W)
-            else:  # far from the tolerance: the bound (SVDs) can wait; evaluated if the loop ends here
-                lower, pending = best["lower"], (V, W)
+            else:  # far from the tolerance: the dual point and its bound (SVDs) wait; formed if the loop ends here
+                lower, pending = best["lower"], (t, point, step)
             best.update(newton=method.steps, outer=best["outer"] + 1)
             bar = tick_progress(bar, method.progress, deadline.elapsed(), method.desc, method.steps, best)
             if gap_closed(best, method.tol):
@@ -167,9 +167,10 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
             pass
     if pending is not None:
         try:
-            lower = form.lower_bound(*pending)
+            V, W = method.dual(*pending)
+            lower = form.lower_bound(V, W)
             if lower > best["lower"]:
-                best.update(lower=lower, V=pending[0], W=pending[1])
+                best.update(lower=lower, V=V, W=W)
         except (KeyboardInterrupt, *SOLVE_ERRORS):
             pass
     best.update(status=status, newton=method.steps, time=deadline.elapsed())
