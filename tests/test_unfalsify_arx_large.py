@@ -142,6 +142,21 @@ def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
     assert c.lower_bound > 0 and c.relative_gap <= (up - lo) / up * (1 + 1e-6)  # that bracket or a better one
 
 
+def test_time_limit_before_the_first_centring_keeps_the_trivial_lower_bound(monkeypatch):
+    """A limit that expires before the first dual point: the bracket is [0, ‖T(h0)‖₂], not [NaN, …]."""
+    u, y, sigma = _problem(60, 1)
+
+    def expired(self, t, s, deadline):
+        raise barrier.Stop("time_limit")
+
+    monkeypatch.setattr(ab._ArxBarrier, "centre", expired)
+    with pytest.warns(uf.SolverWarning, match="time_limit.*relative gap 1"):
+        r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-6, time_limit=1.0, progress=False)
+    c = r.certificate
+    assert r.status == "time_limit" and c.dual_v is None
+    assert c.lower_bound == 0.0 and np.isfinite(c.upper_bound) and c.relative_gap == 1.0 and c.verify()
+
+
 @pytest.mark.parametrize("where", ["lower", "upper"])
 def test_bracket_interrupted_keeps_the_work(monkeypatch, where):
     # Ctrl-C in the dual search keeps the upper side and the unoptimised circulant bound; Ctrl-C in the

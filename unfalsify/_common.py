@@ -119,7 +119,8 @@ class Certificate:
     upper_bound : float
         ``max_k ‖T(h_k)‖₂`` recomputed from ``impulses`` (alias ``delta_certified``).
     lower_bound : float
-        The dual bound above, recomputed from ``dual_v``, ``dual_G`` (NaN if no dual point).
+        The dual bound above, recomputed from ``dual_v``, ``dual_G``; without a dual point 0 (the trivial
+        bound δ_unf ≥ 0) for a structured solve stopped before its first one, NaN for a cvxpy solve.
     noise_norm, noise_bound : float
         ``‖ξ‖₂`` (or ``‖Ξ‖_F``) recomputed from the primal point, and ``σ√N``.
     sigma : float
@@ -227,7 +228,10 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     with a certified bracket, and any status but ``optimal`` warns with the certificate's gap.
     """
     up, nn = P.evaluate_primal(out.impulses, out.params)
-    lo = P.evaluate_dual(out.dual_v, out.dual_W) if out.dual_v is not None else float("nan")
+    if out.dual_v is not None:
+        lo = P.evaluate_dual(out.dual_v, out.dual_W)
+    else:  # a structured solve stopped before its first dual point still brackets δ_unf ≥ 0; cvxpy has none
+        lo = 0.0 if out.bracketed else float("nan")
     cert = Certificate(
         delta=float(out.delta),
         upper_bound=float(up),
