@@ -34,8 +34,9 @@ feasibility.  t grows by μ = 3 per outer iteration: with larger μ a re-centrin
 (most singular values of T(h) cluster at δ and the Newton step runs into the boundary).  Measured, Newton
 steps for the servo data of the benchmark, seeds 0/1/2: n = 40 (tol 1e-6) 29/25/28 against 35/27/31 by the
 former rule (linear in t, μ = 8 up to n = 200), n = 80 (tol 1e-7) 29/32/31 against 34/35/32, n = 200
-(tol 1e-4) 32/31/35 against 44/34/52, n = 400 (tol 1e-4) 44/44/45 against 47/42/58 (μ = 3 there already);
-trial factorisations fall by a quarter (n = 80: 40–47 against 53–58).
+(tol 1e-4) 32/31/35 against 44/34/52, n = 400 (tol 1e-4) 44/44/45 against 47/42/58 and n = 1000 (tol 1e-4)
+86/78/66 against 77/93/91 (μ = 3 there already; one seed worse, the sum 12 % lower); trial factorisations
+fall by up to a quarter (n = 80: 40–47 against 53–58).
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
