@@ -74,7 +74,6 @@ import numpy as np
 from synthesis import DataError
 from synthesis.results import result
 
-
 from ._common import COND_WARN, Certificate, certify, channel_pair, check_form, check_sigma, rms_or_one
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run

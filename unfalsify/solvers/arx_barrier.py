@@ -123,10 +123,8 @@ class _Siso:
 
     def hessian_and_column(self, d, Kinv, A, S22):
         """The h–h Hessian block of F⁻¹ = [δK⁻¹, −Aᵀ; −A, S22] and its h–δ column ``−4δ T*(A K⁻¹)``, which
-        equals ``4 T*(S21 S11)`` and is read off the FFT Hessian's spectra (the former route: the 2n³
-        product ``A K⁻¹``)."""
-        if _STEP_ROUTE["route"] == "former":
-            return self.hessian(d * Kinv, -A, S22), -4.0 * d * self.adjoint(A @ Kinv)
+        equals ``4 T*(S21 S11)`` and is read off the FFT Hessian's spectra (``corr_hessian``'s former route
+        forms the product instead)."""
         H, x = corr_hessian((d * Kinv)[None], -A[None], S22[None], Kinv.shape[0], cross=True)
         return H[0], 4.0 * x[0]
 
