@@ -67,7 +67,10 @@ COMMANDS: dict[str, tuple] = {
                                                    "against barrier table only")),
                          (("--sizes",), dict(dest="sizes", default=None, metavar="N,N,...",
                                              help="structured backend, arx-pd table: the ARX sizes "
-                                                  "(default 200,400,1000)")))),
+                                                  "(default 200,400,1000)")),
+                         (("--repeats",), dict(dest="repeats", type=int, default=None, metavar="R",
+                                               help="structured backend: timed repeats of each row's solves "
+                                                    "(default 3; --quick: 1)")))),
     "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",

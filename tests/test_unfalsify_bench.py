@@ -89,11 +89,21 @@ def test_cli_extra_arguments_are_per_command(tmp_path):
 @pytest.mark.slow
 def test_bench_unfalsify_primal_dual_table(tmp_path):
     # ``--series arx-pd``: arx_pd against arx_barrier on the same problems, both certified, brackets overlapping
+    # (--repeats 2: two timed solves of each, against the --quick default of one)
     assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "arx-pd", "--sizes", "30",
-                 "--out", str(tmp_path)]) == 0
+                 "--repeats", "2", "--out", str(tmp_path)]) == 0
     st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
     assert st["series"] == [] and st["comparison"] is None and st["warm"] is None
     (row,) = st["primal_dual"]["rows"]
     assert row["n"] == 30 and row["overlap"] is True and row["ratio"] > 0
+    assert row["repeats"] == 2 and len(row["arx_barrier"]["walls"]) == len(row["arx_pd"]["walls"]) == 2
     for name in ("arx_barrier", "arx_pd"):
         assert row[name]["status"] == "optimal" and row[name]["gap"] <= 1e-4
+
+
+def test_repeats_option_is_checked(tmp_path):
+    from synthesis import DataError
+
+    with pytest.raises(DataError, match="--repeats must be at least 1"):
+        main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "arx", "--repeats", "0",
+              "--out", str(tmp_path)])

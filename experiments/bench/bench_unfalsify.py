@@ -80,6 +80,8 @@ import warnings
 import numpy as np
 from tqdm import tqdm
 
+from synthesis import DataError
+
 from ..lab.report import LiveTable, Report, write_json
 
 __all__ = ["run"]
@@ -249,6 +251,16 @@ def _structured_label(spec: dict, size) -> str:
 STRUCTURED_REPEATS, QUICK_STRUCTURED_REPEATS = 3, 1
 
 
+def _structured_repeats(opts) -> int:
+    """``--repeats`` if given (at least 1), else :data:`STRUCTURED_REPEATS` (``--quick``: 1)."""
+    given = (getattr(opts, "extra", None) or {}).get("repeats")
+    if given is not None:
+        if int(given) < 1:
+            raise DataError(f"--repeats must be at least 1, got {given} (pass --repeats 1 or more, or omit it)")
+        return int(given)
+    return QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
+
+
 def _matmul_peak(shape: tuple, min_seconds: float = 0.05) -> float:
     """Flops per second of a timed numpy matmul of ``shape`` (a stack (j, m, m) or a matrix (n, n)): the best of
     3 timings (a peak: on the shared machine the median followed the load, 24 against 7 GF/s in one run), each
@@ -414,7 +426,7 @@ def _run_pd(opts) -> dict:
     """The primal–dual head-to-head: each size in its own child process (:func:`_solve_pd_pair`)."""
     sizes = (getattr(opts, "extra", None) or {}).get("sizes")
     sizes = [int(x) for x in sizes.split(",")] if sizes else list(QUICK_PD_SIZES if opts.quick else PD_SIZES)
-    repeats = QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
+    repeats = _structured_repeats(opts)
     spec = dict(tol=PD_TOL, limit=QUICK_STRUCTURED_LIMIT_S if opts.quick else PD_LIMIT_S, repeats=repeats)
     rows = []
     load_before = os.getloadavg()
@@ -713,7 +725,7 @@ def _run_structured(opts, rep: Report) -> dict:
     series = []
     only = (getattr(opts, "extra", None) or {}).get("series") or "all"
     load_before = os.getloadavg()
-    repeats = QUICK_STRUCTURED_REPEATS if opts.quick else STRUCTURED_REPEATS
+    repeats = _structured_repeats(opts)
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
             continue  # (--series warm / arx-pd: that table alone)
