@@ -251,6 +251,25 @@ def test_cholesky_norm_test_decides_both_ways():
     assert not _norm_below_by_cholesky(h, 0.5 * float(np.linalg.norm(h)))
 
 
+def test_cholesky_norm_proof_holds_one_n_by_n_array():
+    # the proof factorises TᵀT's shifted complement in place: one n × n array (no Fortran copy), which is all
+    # the memory above O(n) that the bracket route needs at n > 4000
+    import tracemalloc
+
+    from unfalsify.solvers.toeplitz import norm_below_by_cholesky
+
+    n = 1500
+    h = np.random.default_rng(4).standard_normal(n) / np.sqrt(n)
+    c = 1.01 * float(np.linalg.norm(uf.toeplitz_matrix(h), 2))
+    tracemalloc.start()
+    try:
+        assert norm_below_by_cholesky(h, c)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert 8 * n * n <= peak < 1.2 * 8 * n * n
+
+
 @pytest.mark.parametrize("progress", [True, False])
 def test_a_long_solve_shows_its_progress_on_stderr(monkeypatch, capsys, progress):
     # a fake clock (one second per reading): past 2 s the barrier opens a tqdm bar with the bracket so far

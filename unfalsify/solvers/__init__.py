@@ -11,7 +11,7 @@ name                what                                                        
 ``cvxpy``           the reference LMI models through cvxpy and a conic solver                  arx, subspace
 ``arx_barrier``     Cholesky barrier method, certified to a relative gap (O(n²) memory)        arx
 ``arx_pd``          primal–dual interior point (NT scaling, Mehrotra), same certificate        arx
-``bracket``         FFT-only certified bracket, gap reported (O(n) memory, n = 10⁴)             arx
+``bracket``         FFT-only certified bracket, gap reported (n = 10⁴; norm proof: one n × n)   arx
 ``column_barrier``  column barrier method with threads over the columns                        subspace
 ``block_barrier``   barrier method for several channels (l × m operators, dense block Hessians)  subspace
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace

@@ -38,6 +38,7 @@ import scipy.fft
 import scipy.linalg
 import scipy.signal
 from numpy.lib.stride_tricks import as_strided
+from scipy.linalg import lapack as _lapack
 from scipy.sparse.linalg import LinearOperator, svds
 
 from synthesis import DataError
@@ -562,11 +563,10 @@ def norm_below_by_cholesky(h: np.ndarray, c: float) -> bool:
     A = toeplitz_gram(h)
     A *= -1.0
     A.flat[:: n + 1] += c * c - tau
-    try:
-        scipy.linalg.cholesky(A, lower=False, overwrite_a=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        return False
-    return True
+    # factorised in place: A is symmetric, so its transpose (a Fortran view, which LAPACK takes without the
+    # copy scipy.linalg.cholesky makes of a C-ordered array) is the same matrix; one n × n array in all
+    _, info = _lapack.dpotrf(A.T, lower=1, overwrite_a=1, clean=0)
+    return info == 0
 
 
 def symbol_bound(h, oversample: int = 64) -> float:
