@@ -56,6 +56,8 @@ barrier parameter ν = n(l + m) + 1.  One channel each runs the SISO code above 
 """
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import scipy.linalg
 from scipy.linalg import blas as _blas
@@ -64,6 +66,7 @@ from scipy.linalg import lapack as _lapack
 from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
+from .displacement import displacement_hessian
 from .start import operator_svd, ridge_fit
 from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_hessian, block_toeplitz_matrix,
                        certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix)
@@ -71,10 +74,20 @@ from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_
 __all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
 
 #: The dense algebra of a Newton step: ``"blas3"`` (K⁻¹ from the Cholesky factor by LAPACK's potri, the
-#: products with the triangular T(h) by trmm, the h–δ column off the FFT Hessian's spectra, the bounds only
+#: products with the triangular T(h) by trmm, the h–δ column with the Hessian, the bounds only
 #: near the tolerance) or ``"former"`` (K⁻¹ by two triangular solves against I, general products, the bounds
 #: at every centring), the benchmark's same-run reference (:func:`unfalsify.solvers.baselines.former_routes`).
-_STEP_ROUTE = {"route": "blas3"}
+#: ``"hessian"``: the one-channel Hessian from displacement generators (``"displacement"``) or by the 2-D FFT
+#: (``"fft"``, :func:`unfalsify.solvers.baselines.fft_barrier_hessian`); the former route always uses the FFT.
+_STEP_ROUTE = {"route": "blas3", "hessian": "displacement"}
+
+#: Below this relative gap of the path (ν/t < _PRECISE_GAP·δ) the one-channel Hessian is the FFT's: the
+#: displacement route loses digits to cancellation (about 1e-13 of the largest entry at n = 1000 against
+#: 1e-16), which stalled a solve to tol 1e-9 near its end (status "failed").
+_PRECISE_GAP = 1e-7
+
+#: Up to this n (one channel) a solve holds BLAS to one thread (:func:`_blas_policy`).
+_ONE_BLAS_THREAD_UP_TO = 1000
 
 #: The bounds (two dense SVDs at n ≤ 4000) are evaluated once the path's gap ν/t is within this factor of
 #: tol·δ, where the certified gap can close (:meth:`_ArxBarrier.bound_due`), and at the centring that ends a solve.
@@ -121,10 +134,15 @@ class _Siso:
     def hessian(self, S11, S21, S22):
         return corr_hessian(S11[None], S21[None], S22[None], S11.shape[0])[0]
 
-    def hessian_and_column(self, d, Kinv, A, S22):
+    def hessian_and_column(self, d, Kinv, A, S22, precise=False):
         """The h–h Hessian block of F⁻¹ = [δK⁻¹, −Aᵀ; −A, S22] and its h–δ column ``−4δ T*(A K⁻¹)``, which
-        equals ``4 T*(S21 S11)`` and is read off the FFT Hessian's spectra (``corr_hessian``'s former route
-        forms the product instead)."""
+        equals ``4 T*(S21 S11)``: from the displacement generators of F⁻¹'s blocks
+        (:func:`~unfalsify.solvers.displacement.displacement_hessian`, O(n²)), or with ``_STEP_ROUTE["hessian"]
+        == "fft"`` (and in the former route) off the FFT Hessian's spectra (``corr_hessian``'s former route forms
+        the product instead)."""
+        if _STEP_ROUTE["route"] == "blas3" and _STEP_ROUTE["hessian"] == "displacement" and not precise:
+            H, x = displacement_hessian(d * Kinv, -A, S22, cross=True)
+            return H, 4.0 * x
         H, x = corr_hessian((d * Kinv)[None], -A[None], S22[None], Kinv.shape[0], cross=True)
         return H[0], 4.0 * x[0]
 
@@ -169,7 +187,7 @@ class _Channels(_Siso):
     def hessian(self, S11, S21, S22):
         return block_corr_hessian(S11, S21, S22, self.n, self.l, self.m)
 
-    def hessian_and_column(self, d, Kinv, A, S22):
+    def hessian_and_column(self, d, Kinv, A, S22, precise=False):
         return self.hessian(d * Kinv, -A, S22), -4.0 * d * self.adjoint(A @ Kinv)
 
     def norm(self, h):
@@ -296,7 +314,8 @@ class _ArxBarrier:
         if ops.excess:  # the δ^{nl−nm} factor of det F (rectangular T(h))
             grad_d -= ops.excess / d
             dd += ops.excess / (d * d)
-        HF, c = ops.hessian_and_column(d, Kinv, A, S22)  # c: the h–δ column −4δ T*(T K⁻²)
+        # c: the h–δ column −4δ T*(T K⁻²); the FFT Hessian once the path's gap is below _PRECISE_GAP·δ
+        HF, c = ops.hessian_and_column(d, Kinv, A, S22, precise=self.nbar / t < _PRECISE_GAP * d)
         Hm = HF + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(g_noise, g_noise)
         cf = cholesky_retry(Hm)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
@@ -417,9 +436,26 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     if mu is None:
         mu = 8.0 if _STEP_ROUTE["route"] == "former" and form.m <= 200 else 3.0
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
-    out = solver.run(np.asarray(h0, float).reshape(-1))
+    with _blas_policy(form):
+        out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials
     return out
+
+
+def _blas_policy(form):
+    """One BLAS thread for one channel up to n = :data:`_ONE_BLAS_THREAD_UP_TO`, else BLAS as configured.
+
+    A step's BLAS calls at these sizes are short, and between them the solve runs FFTs and numpy code on the
+    main thread; OpenBLAS's second thread spins between calls and takes the core that work needs.  Measured
+    on 2 cores, same process, alternating (module docstring): n = 400 1.6 s against 3.9 s with two threads,
+    n = 1000 21–22 s against 25–27 s.  Larger n and several channels (dense n³ work dominates) are not measured
+    and keep the configured threads.
+    """
+    if isinstance(form, BlockColumnForm) or form.m > _ONE_BLAS_THREAD_UP_TO:
+        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:

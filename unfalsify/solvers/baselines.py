@@ -13,6 +13,8 @@ routes to use, and they may go with the benchmark that measures them.
    former_routes        -- context manager: ``former_hessian`` and, in ``arx_barrier``, the former dense
                            algebra of a Newton step (K⁻¹ by solves against I, general products, both bounds
                            at every centring): the ARX route before issue 27 in full
+   fft_barrier_hessian  -- context manager: ``arx_barrier``'s one-channel Hessian by the 2-D FFT instead of
+                           the displacement generators (the route before ``displacement_hessian``)
 
 >>> import numpy as np
 >>> from unfalsify.solvers import baselines
@@ -28,7 +30,7 @@ from contextlib import contextmanager
 
 from . import arx_barrier, toeplitz
 
-__all__ = ["former_corr_hessian", "former_hessian", "former_routes"]
+__all__ = ["former_corr_hessian", "former_hessian", "former_routes", "fft_barrier_hessian"]
 
 
 def former_corr_hessian(S11, S21, S22, m):
@@ -115,3 +117,31 @@ def former_routes():
             yield
     finally:
         arx_barrier._STEP_ROUTE["route"] = route
+
+
+@contextmanager
+def fft_barrier_hessian():
+    """Inside this context ``arx_barrier`` forms its one-channel Hessian (and the h–δ column) by the 2-D FFT of
+    :func:`unfalsify.solvers.toeplitz.corr_hessian`, the route before
+    :func:`unfalsify.solvers.displacement.displacement_hessian`; everything else as today.  The same δ to the
+    certified gap; a process-wide switch, restored on leaving.
+
+    Examples
+    --------
+    >>> import numpy as np, unfalsify as uf
+    >>> from unfalsify.solvers import baselines
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(40)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:40] + 0.05 * rng.standard_normal(40)
+    >>> a = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
+    >>> with baselines.fft_barrier_hessian():
+    ...     b = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
+    >>> bool(abs(a.delta - b.delta) <= 1e-6 * a.delta)
+    True
+    """
+    route = arx_barrier._STEP_ROUTE["hessian"]
+    arx_barrier._STEP_ROUTE["hessian"] = "fft"
+    try:
+        yield
+    finally:
+        arx_barrier._STEP_ROUTE["hessian"] = route

@@ -1,0 +1,91 @@
+"""The barrier Hessian from displacement generators against the trace formula and the 2-D FFT route."""
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import unfalsify as uf
+from unfalsify.solvers import arx_barrier, baselines
+from unfalsify.solvers.displacement import displacement_hessian
+from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_matrix
+
+
+def _blocks(h, margin):
+    """The blocks of F⁻¹, F = [δI T(h)ᵀ; T(h) δI], δ = (1 + margin)‖T(h)‖₂ (+ a floor for h = 0)."""
+    m = h.size
+    T = toeplitz_matrix(h)
+    d = (1.0 + margin) * np.linalg.norm(T, 2) + 1e-3
+    S = np.linalg.inv(np.block([[d * np.eye(m), T.T], [T, d * np.eye(m)]]))
+    return S[:m, :m], S[m:, :m], S[m:, m:]
+
+
+def _trace_formula(S11, S21, S22):
+    """``tr(F⁻¹E_aF⁻¹E_b)`` and ``T*(S21 S11)`` summed entry by entry (the definition)."""
+    m = S11.shape[0]
+    S = np.block([[S11, S21.T], [S21, S22]])
+    E = [np.block([[np.zeros((m, m)), toeplitz_matrix(e).T], [toeplitz_matrix(e), np.zeros((m, m))]])
+         for e in np.eye(m)]
+    H = np.array([[np.trace(S @ Ea @ S @ Eb) for Eb in E] for Ea in E])
+    P = S21 @ S11
+    x = np.array([np.trace(P, offset=-a) for a in range(m)])
+    return H, x
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 5, 12, 30])
+@pytest.mark.parametrize("margin", [1.0, 1e-2, 1e-5])
+def test_equals_the_trace_formula(m, margin):
+    h = np.random.default_rng(m).standard_normal(m) / np.sqrt(m)
+    blocks = _blocks(h, margin)
+    H, x = displacement_hessian(*blocks, cross=True)
+    H_ref, x_ref = _trace_formula(*blocks)
+    assert np.abs(H - H_ref).max() <= 1e-12 * np.abs(H_ref).max()
+    assert np.abs(x - x_ref).max() <= 1e-12 * np.abs(x_ref).max()
+
+
+def test_a_stack_equals_the_fft_route_entry_by_entry():
+    rng = np.random.default_rng(7)
+    m, j = 25, 6
+    stacks = [_blocks(rng.standard_normal(m) * np.exp(-0.1 * np.arange(m)), 10.0 ** -k) for k in range(j)]
+    S11, S21, S22 = (np.stack([s[i] for s in stacks]) for i in range(3))
+    H, x = displacement_hessian(S11, S21, S22, cross=True)
+    H_fft, x_fft = corr_hessian(S11, S21, S22, m, cross=True)
+    assert H.shape == (j, m, m) and x.shape == (j, m)
+    for k in range(j):
+        assert np.abs(H[k] - H_fft[k]).max() <= 1e-11 * np.abs(H_fft[k]).max()
+        assert np.abs(x[k] - x_fft[k]).max() <= 1e-11 * np.abs(x_fft[k]).max()
+
+
+@settings(max_examples=30, deadline=None)
+@given(m=st.integers(1, 40), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-6.0, 1.0),
+       decay=st.floats(0.0, 0.5))
+def test_random_blocks_agree_with_the_fft_route(m, seed, log_margin, decay):
+    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
+    blocks = _blocks(h, 10.0**log_margin)
+    H, x = displacement_hessian(*blocks, cross=True)
+    H_fft, x_fft = corr_hessian(*(b[None] for b in blocks), m, cross=True)
+    # relative to the largest entry: the generators' cumulative sums lose digits to cancellation near the
+    # boundary of the LMI (measured 2e-12 of the largest entry at m = 1000, margin 1e-4), the FFT's fewer
+    assert np.abs(H - H_fft[0]).max() <= 1e-10 * np.abs(H_fft).max()
+    assert np.abs(x - x_fft[0]).max() <= 1e-10 * max(np.abs(x_fft).max(), 1e-300)
+
+
+def test_arx_barrier_gives_the_same_certified_delta_by_either_hessian():
+    from experiments.bench.bench_unfalsify import _data
+
+    u, y = _data(160, 3)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+
+    def solve():
+        return uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False)
+
+    assert arx_barrier._STEP_ROUTE["hessian"] == "displacement"
+    a = solve()
+    with baselines.fft_barrier_hessian():
+        assert arx_barrier._STEP_ROUTE["hessian"] == "fft"
+        b = solve()
+    assert arx_barrier._STEP_ROUTE["hessian"] == "displacement"  # restored
+    for r in (a, b):
+        c = r.certificate
+        assert r.status == "optimal" and c.verify() and c.upper_bound - c.lower_bound <= 1e-6 * c.upper_bound
+    ca, cb = a.certificate, b.certificate
+    assert max(ca.lower_bound, cb.lower_bound) <= min(ca.upper_bound, cb.upper_bound) * (1 + 1e-12)  # overlap
