@@ -10,18 +10,23 @@ but every quantity is read off one Cholesky factorisation instead of an SVD of T
 * ``det F = det(δ²I − TᵀT)`` (Schur complement), so with ``K = δ²I − T(h)ᵀT(h) = L Lᵀ``,
   ``log det F = 2 Σ log L_ii`` and F ≻ 0 ⟺ (δ > 0 and the Cholesky factorisation succeeds);
 * ``F⁻¹ = [S11 S12; S21 S22]`` with ``S11 = δK⁻¹``, ``S21 = −T K⁻¹``, ``S22 = (I + T K⁻¹ Tᵀ)/δ``;
-* the gradient ``∂/∂h_a = 2 T*(T K⁻¹)_a``, ``∂/∂δ = t − 2δ tr K⁻¹``; the Hessian's h–h block is the
-  2-D-FFT correlation of :func:`unfalsify.solvers.toeplitz.corr_hessian`, its δ–δ entry
-  ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)`` and its h–δ column ``−4δ T*(T K⁻²)``.
+* the gradient ``∂/∂h_a = 2 T*(T K⁻¹)_a``, ``∂/∂δ = t − 2δ tr K⁻¹``; the Hessian's h–h block and its h–δ
+  column ``−4δ T*(T K⁻²)`` come from the displacement generators of F⁻¹'s blocks in O(n²)
+  (:func:`unfalsify.solvers.displacement.displacement_hessian`; once the path's gap ν/t is below 1e-7·δ, from
+  the 2-D-FFT correlation of :func:`unfalsify.solvers.toeplitz.corr_hessian`, which keeps three more digits),
+  its δ–δ entry ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)``.
 
 A Newton step's dense algebra is 3n³ flops: ``K⁻¹`` from the Cholesky factor by LAPACK's potri (⅔n³), the
 products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each), the Cholesky factor of the
-Newton system (n³/3); the h–δ column ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` is read off the spectra the FFT Hessian
-forms anyway (``corr_hessian(..., cross=True)``), and ``T(h)ᵀT(h)`` costs O(n²) (:func:`toeplitz_gram`).  The
-certificate's two dense SVDs are evaluated only once the path's gap ν/t is within 10·tol of δ (and at the
-centring that ends a solve, whatever ended it).  Measured on 2 cores with the default BLAS threads (the
-whole process, start-up and set-up included; medians of alternating runs): n = 400 in 7.3 s against 10.3 s by
-the former algebra, n = 1000 in 34.6 s against 47.0 s.  The FFT Hessian is now 58 % of a solve at n = 1000.
+Newton system (n³/3); the h–δ column ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian, and
+``T(h)ᵀT(h)`` costs O(n²) (:func:`toeplitz_gram`).  The certificate's two dense SVDs are evaluated only once
+the path's gap ν/t is within 10·tol of δ (and at the centring that ends a solve, whatever ended it).  Up to
+n = 1000 a solve holds BLAS to one thread (:func:`_blas_policy`).  Measured on 2 cores, the same solves in
+one process, alternating (the servo data of the benchmark, seed 0, tol 1e-4, same Newton steps and δ both
+ways): the Hessian 12 ms against 39–48 ms by the FFT at n = 400 and 57 ms against 220–230 ms at n = 1000;
+whole solves n = 400 1.6 s (displacement, one BLAS thread) against 2.9–3.4 s (FFT, one thread) and 3.7–3.8 s
+(FFT, two threads, the route before), n = 1000 21–22 s against 36–37 s and 33–34 s.  The FFT Hessian had
+been 58 % of a solve at n = 1000; the displacement one is about a quarter.
 
 A trial point of the line search costs one Cholesky (n³/3 flops) instead of an SVD (~20 n³), so
 no step-to-the-boundary computation is needed: the line search starts from the full Newton step,
