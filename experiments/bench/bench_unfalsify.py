@@ -55,8 +55,9 @@ same child (a numpy matmul of the row's size, timed: an n × n product for ARX, 
 rows, BLAS as in the solve).  Counted from the sizes (m = n for ARX, j = 1; m = i for the subspace rows), per
 column and Newton step: the blocks of F⁻¹ and the gradient's products (ARX: ``K⁻¹`` from its Cholesky factor,
 ⅔m³, and the two triangular products ``T K⁻¹``, ``(T K⁻¹) Tᵀ``, m³ each; subspace: ``K⁻¹``, ``T K⁻¹``,
-``(T K⁻¹) Tᵀ``, ``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian, 8m³), the FFT Hessian (four real 2-D
-transforms of 2m × 2m, ``2.5 N² log₂ N²`` each) and for ARX the Cholesky of the Newton system (m³/3); per trial
+``(T K⁻¹) Tᵀ``, ``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian, 8m³), the Hessian (subspace: the FFT's four
+real 2-D transforms of 2m × 2m, ``2.5 N² log₂ N²`` each; ARX: the displacement route's ~60m²) and for ARX the
+Cholesky of the Newton system (m³/3); per trial
 factorisation the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well
 ((10/3) m³ in all).  (Before the ARX step's BLAS-3 rewrite the ARX count was the subspace rows' 8m³.)  The CG of L optimised, the certificate and the set-up
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
@@ -296,8 +297,9 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     newton = int(newton)
     trials = newton if trials is None else int(trials)  # a solver without counts: one accepted point per step
     m3 = float(m) ** 3
-    if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3
-        return newton * (3.0 * m3 + _fft_flops(m)) + trials * m3 / 3.0
+    if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3,
+        # the displacement Hessian ~60m² (unfalsify.solvers.displacement)
+        return newton * (3.0 * m3 + 60.0 * m * m) + trials * m3 / 3.0
     return j * (newton * (8.0 * m3 + _fft_flops(m)) + trials * (10.0 / 3.0) * m3)
 
 
@@ -342,7 +344,7 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         block, peak_shape = (i, j), (j, i * channels, i * channels)
     cert = res.certificate
     # no arithmetic limit for the bracket row (no Newton steps), so no matmul probe: at n = 10⁴ its three
-    # n × n arrays (2.4 GB) raised the row's peak RSS to 2.5 GB, above the front end's own 1.7 GB
+    # n × n arrays (2.4 GB) raised the row's peak RSS to 2.5 GB, above the front end's own 0.96 GB
     peak = None if name == "bracket" else _matmul_peak(peak_shape, 0.01 if spec.get("repeats", 1) == 1 else 0.05)
     # the former route differs only where the solver forms FFT Hessians (corr_hessian): arx_barrier (one
     # channel) and column_barrier; the bracket route has no Hessian, block_barrier forms its own dense blocks
