@@ -82,12 +82,8 @@ def former_hessian():
     >>> bool(np.allclose(H, corr_hessian(S, 0 * S, S, 3)))
     True
     """
-    route = toeplitz._HESSIAN_ROUTE["route"]
-    toeplitz._HESSIAN_ROUTE["route"] = "former"
-    try:
+    with _switched(toeplitz._HESSIAN_ROUTE, "route", "former"):
         yield
-    finally:
-        toeplitz._HESSIAN_ROUTE["route"] = route
 
 
 @contextmanager
@@ -110,13 +106,8 @@ def former_routes():
     >>> bool(abs(a.delta - b.delta) <= 1e-6 * a.delta)
     True
     """
-    route = arx_barrier._STEP_ROUTE["route"]
-    arx_barrier._STEP_ROUTE["route"] = "former"
-    try:
-        with former_hessian():
-            yield
-    finally:
-        arx_barrier._STEP_ROUTE["route"] = route
+    with _switched(arx_barrier._STEP_ROUTE, "route", "former"), former_hessian():
+        yield
 
 
 @contextmanager
@@ -124,24 +115,26 @@ def fft_barrier_hessian():
     """Inside this context ``arx_barrier`` forms its one-channel Hessian (and the h–δ column) by the 2-D FFT of
     :func:`unfalsify.solvers.toeplitz.corr_hessian`, the route before
     :func:`unfalsify.solvers.displacement.displacement_hessian`; everything else as today.  The same δ to the
-    certified gap; a process-wide switch, restored on leaving.
+    certified gap (``tests/test_unfalsify_displacement.py``); a process-wide switch, restored on leaving.
 
     Examples
     --------
-    >>> import numpy as np, unfalsify as uf
-    >>> from unfalsify.solvers import baselines
-    >>> rng = np.random.default_rng(0)
-    >>> u = rng.standard_normal(40)
-    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:40] + 0.05 * rng.standard_normal(40)
-    >>> a = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
+    >>> from unfalsify.solvers import arx_barrier, baselines
     >>> with baselines.fft_barrier_hessian():
-    ...     b = uf.arx_unfalsify(u, y, 1, 2, 0.02, backend="structured", progress=False)
-    >>> bool(abs(a.delta - b.delta) <= 1e-6 * a.delta)
-    True
+    ...     inside = arx_barrier._STEP_ROUTE["hessian"]
+    >>> inside, arx_barrier._STEP_ROUTE["hessian"]
+    ('fft', 'displacement')
     """
-    route = arx_barrier._STEP_ROUTE["hessian"]
-    arx_barrier._STEP_ROUTE["hessian"] = "fft"
+    with _switched(arx_barrier._STEP_ROUTE, "hessian", "fft"):
+        yield
+
+
+@contextmanager
+def _switched(table: dict, key: str, value: str):
+    """``table[key] = value`` inside the context, the former value restored on leaving (also after an error)."""
+    former = table[key]
+    table[key] = value
     try:
         yield
     finally:
-        arx_barrier._STEP_ROUTE["hessian"] = route
+        table[key] = former
