@@ -24,8 +24,9 @@ Several channels (u: (n, m), y: (n, l), issue 28): ``cvxpy``, ``arx_barrier``, `
 Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`SolverOutput`),
 :mod:`~unfalsify.solvers.columns` (the column form every structured solver takes and its dual bound),
 :mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG),
-:mod:`~unfalsify.solvers.start` (the barrier solvers' ridge starting point) and
-:mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms).
+:mod:`~unfalsify.solvers.start` (the barrier solvers' ridge starting point),
+:mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms, the FFT Hessian) and
+:mod:`~unfalsify.solvers.displacement` (the barrier Hessian from displacement generators, O(m²)).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
 ``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``)
