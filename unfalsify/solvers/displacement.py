@@ -29,7 +29,7 @@ with a displacement in place of a block:
   (:func:`_superdiagonal_sums`) without forming S12².
 
 The h–δ column ``T*(S21 S11)`` (``cross=True``) comes the same way from the generators of
-``S21 S11 − Z S21 S11 Zᵀ`` (:func:`_subdiagonal_sums`).
+``S21 S11 − Z S21 S11 Zᵀ`` (:func:`_cross_column`).
 
 The generators are read off the dense displacement matrices by a rank-4 range finder (:func:`_generators`;
 every displacement above has rank 2, so the range is exact up to rounding).  What a Hessian costs: eight
@@ -108,10 +108,9 @@ def _a_term(S12, m):
     level2 = np.empty(S12.shape)
     # column 0: Σ_r y_rᵀ Zᵃ S12 x_r; columns c ≥ 1: −Σ_{r,s} c(y_r, x_s)_a c(y_s, x_r)_{c−1}
     level2[..., :, 0] = np.sum(_corr(np.swapaxes(gy, -1, -2), np.swapaxes(S12 @ gx, -1, -2), m), axis=-2)
-    pairs = _corr(np.swapaxes(gy, -1, -2)[..., :, None, :], np.swapaxes(gx, -1, -2)[..., None, :, :], m)
     k = gx.shape[-1]
-    left = pairs.reshape(pairs.shape[:-3] + (k * k, m))
-    right = np.swapaxes(pairs, -2, -3).reshape(left.shape)
+    left = _pair_corr(gy, gx, m)  # row (r, s): c(y_r, x_s)
+    right = np.swapaxes(left.reshape(left.shape[:-2] + (k, k, m)), -2, -3).reshape(left.shape)  # c(y_s, x_r)
     level2[..., :, 1:] = -(np.swapaxes(left, -1, -2) @ right)[..., :, :-1]
     level1 = np.empty(S12.shape)
     level1[..., :, 0] = _superdiagonal_sums(S12, m)  # A_a0 = tr(Zᵃ S12²)
