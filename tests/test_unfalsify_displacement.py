@@ -1,4 +1,5 @@
-"""The barrier Hessian from displacement generators against the trace formula and the 2-D FFT route."""
+"""The barrier Hessian and the blocks of F⁻¹ from displacement generators against the definitions and the
+dense routes."""
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -6,8 +7,8 @@ from hypothesis import strategies as st
 
 import unfalsify as uf
 from unfalsify.solvers import arx_barrier, baselines
-from unfalsify.solvers.displacement import displacement_hessian
-from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_matrix
+from unfalsify.solvers.displacement import displacement_hessian, inverse_blocks
+from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_gram, toeplitz_matrix
 
 
 def _blocks(h, margin):
@@ -84,6 +85,67 @@ def test_arx_barrier_gives_the_same_certified_delta_by_either_hessian():
         assert arx_barrier._STEP_ROUTE["hessian"] == "fft"
         b = solve()
     assert arx_barrier._STEP_ROUTE["hessian"] == "displacement"  # restored
+    for r in (a, b):
+        c = r.certificate
+        assert r.status == "optimal" and c.verify() and c.upper_bound - c.lower_bound <= 1e-6 * c.upper_bound
+    ca, cb = a.certificate, b.certificate
+    assert max(ca.lower_bound, cb.lower_bound) <= min(ca.upper_bound, cb.upper_bound) * (1 + 1e-12)  # overlap
+
+
+def _factor(h, margin):
+    """δ = (1 + margin)‖T(h)‖₂ (+ a floor), T(h) and the lower Cholesky factor of K = δ²I − TᵀT."""
+    T = toeplitz_matrix(h)
+    d = (1.0 + margin) * np.linalg.norm(T, 2) + 1e-3
+    K = d * d * np.eye(h.size) - T.T @ T
+    return d, T, np.linalg.cholesky(K), K
+
+
+@settings(max_examples=40, deadline=None)
+@given(m=st.integers(1, 80), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-7.0, 1.0),
+       decay=st.floats(0.0, 0.5))
+def test_inverse_blocks_equal_the_dense_inverse(m, seed, log_margin, decay):
+    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
+    d, T, L, K = _factor(h, 10.0**log_margin)
+    S = np.linalg.inv(np.block([[d * np.eye(m), T.T], [T, d * np.eye(m)]]))  # F⁻¹ by the generic route
+    Kinv, A, S22 = inverse_blocks(L, h, d)
+    for got, want in ((d * Kinv, S[:m, :m]), (-A, S[m:, :m]), (S22, S[m:, m:])):
+        assert np.abs(got - want).max() <= 1e-9 * np.abs(want).max()
+
+
+def test_inverse_blocks_near_the_boundary_at_a_solver_size():
+    """m = 600 (the solver uses the route from m = 300), K within 1e-7 of singular: the blocks agree with the
+    dense route (solves against I) to 1e-11 of their largest entry; measured about 1e-13."""
+    rng = np.random.default_rng(11)
+    m = 600
+    h = rng.standard_normal(m) / np.sqrt(m) * np.exp(-3.0 * np.arange(m) / m)
+    d, T, L, K = _factor(h, 1e-7)
+    assert np.allclose(toeplitz_gram(h), T.T @ T)
+    Kinv_ref = np.linalg.solve(K, np.eye(m))
+    refs = (Kinv_ref, T @ Kinv_ref, (np.eye(m) + T @ Kinv_ref @ T.T) / d)
+    for got, want in zip(inverse_blocks(L, h, d), refs):
+        assert np.abs(got - want).max() <= 1e-11 * np.abs(want).max()
+
+
+def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkeypatch):
+    from experiments.bench.bench_unfalsify import _data
+
+    calls = []
+    monkeypatch.setattr(arx_barrier, "inverse_blocks", lambda *a: calls.append(1) or inverse_blocks(*a))
+
+    n = arx_barrier._GENERATOR_BLOCKS_FROM + 20  # the generator route applies
+    u, y = _data(n, 5)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+
+    def solve():
+        return uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False)
+
+    a = solve()
+    used = len(calls)
+    with baselines.dense_inverse_blocks():
+        assert arx_barrier._STEP_ROUTE["blocks"] == "dense"
+        b = solve()
+    assert used == a.solver_stats["newton"] and len(calls) == used  # every step of a, none of b
+    assert arx_barrier._STEP_ROUTE["blocks"] == "generators"  # restored
     for r in (a, b):
         c = r.certificate
         assert r.status == "optimal" and c.verify() and c.upper_bound - c.lower_bound <= 1e-6 * c.upper_bound

@@ -15,6 +15,8 @@ routes to use, and they may go with the benchmark that measures them.
                            at every centring): the ARX route before issue 27 in full
    fft_barrier_hessian  -- context manager: ``arx_barrier``'s one-channel Hessian by the 2-D FFT instead of
                            the displacement generators (the route before ``displacement_hessian``)
+   dense_inverse_blocks -- context manager: ``arx_barrier``'s blocks of F⁻¹ by potri and trmm (2⅔n³) instead
+                           of displacement generators (the route before ``inverse_blocks``)
 
 >>> import numpy as np
 >>> from unfalsify.solvers import baselines
@@ -30,7 +32,7 @@ from contextlib import contextmanager
 
 from . import arx_barrier, toeplitz
 
-__all__ = ["former_corr_hessian", "former_hessian", "former_routes", "fft_barrier_hessian"]
+__all__ = ["former_corr_hessian", "former_hessian", "former_routes", "fft_barrier_hessian", "dense_inverse_blocks"]
 
 
 def former_corr_hessian(S11, S21, S22, m):
@@ -126,6 +128,25 @@ def fft_barrier_hessian():
     ('fft', 'displacement')
     """
     with _switched(arx_barrier._STEP_ROUTE, "hessian", "fft"):
+        yield
+
+
+@contextmanager
+def dense_inverse_blocks():
+    """Inside this context ``arx_barrier`` forms the blocks of F⁻¹ densely from the Cholesky factor of K (LAPACK
+    potri for K⁻¹, trmm for the products with T(h)), the route before
+    :func:`unfalsify.solvers.displacement.inverse_blocks`; everything else as today.  A process-wide switch,
+    restored on leaving.
+
+    Examples
+    --------
+    >>> from unfalsify.solvers import arx_barrier, baselines
+    >>> with baselines.dense_inverse_blocks():
+    ...     inside = arx_barrier._STEP_ROUTE["blocks"]
+    >>> inside, arx_barrier._STEP_ROUTE["blocks"]
+    ('dense', 'generators')
+    """
+    with _switched(arx_barrier._STEP_ROUTE, "blocks", "dense"):
         yield
 
 
