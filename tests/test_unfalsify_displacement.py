@@ -107,9 +107,19 @@ def test_inverse_blocks_equal_the_dense_inverse(m, seed, log_margin, decay):
     h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
     d, T, L, K = _factor(h, 10.0**log_margin)
     S = np.linalg.inv(np.block([[d * np.eye(m), T.T], [T, d * np.eye(m)]]))  # F⁻¹ by the generic route
-    Kinv, A, S22 = inverse_blocks(L, h, d)
+    Kinv, A, S22, gens = inverse_blocks(L, h, d, generators=True)
     for got, want in ((d * Kinv, S[:m, :m]), (-A, S[m:, :m]), (S22, S[m:, m:])):
         assert np.abs(got - want).max() <= 1e-9 * np.abs(want).max()
+    # the generators are those of the displacements ...
+    for (X, G), block, shifted in ((gens.s11, S[:m, :m], lambda M: np.pad(M[:-1, :-1], ((1, 0), (1, 0)))),
+                                   (gens.s22, S[m:, m:], lambda M: np.pad(M[1:, 1:], ((0, 1), (0, 1)))),
+                                   (gens.s21, S[m:, :m], lambda M: np.pad(M[:-1, :-1], ((1, 0), (1, 0))))):
+        assert np.abs(X @ G.T - (block - shifted(block))).max() <= 1e-9 * np.abs(block).max()
+    # ... and the Hessian from them equals the 2-D FFT route on the dense blocks
+    H, x = displacement_hessian(d * Kinv, -A, S22, cross=True, generators=gens)
+    H_fft, x_fft = corr_hessian(S[None, :m, :m], S[None, m:, :m], S[None, m:, m:], m, cross=True)
+    assert np.abs(H - H_fft[0]).max() <= 1e-9 * np.abs(H_fft).max()
+    assert np.abs(x - x_fft[0]).max() <= 1e-9 * max(np.abs(x_fft).max(), 1e-300)
 
 
 def test_inverse_blocks_near_the_boundary_at_a_solver_size():
@@ -130,7 +140,7 @@ def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkey
     from experiments.bench.bench_unfalsify import _data
 
     calls = []
-    monkeypatch.setattr(arx_barrier, "inverse_blocks", lambda *a: calls.append(1) or inverse_blocks(*a))
+    monkeypatch.setattr(arx_barrier, "inverse_blocks", lambda *a, **k: calls.append(1) or inverse_blocks(*a, **k))
 
     n = arx_barrier._GENERATOR_BLOCKS_FROM + 20  # the generator route applies
     u, y = _data(n, 5)

@@ -16,10 +16,14 @@ but every quantity is read off one Cholesky factorisation instead of an SVD of T
   the 2-D-FFT correlation of :func:`unfalsify.solvers.toeplitz.corr_hessian`, which keeps three more digits),
   its δ–δ entry ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)``.
 
-A Newton step's dense algebra is 3n³ flops: ``K⁻¹`` from the Cholesky factor by LAPACK's potri (⅔n³), the
-products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each), the Cholesky factor of the
-Newton system (n³/3); the h–δ column ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian, and
-``T(h)ᵀT(h)`` costs O(n²) (:func:`toeplitz_gram`).  The certificate's two dense SVDs are evaluated only once
+A Newton step's dense algebra is the Cholesky factor of the Newton system (n³/3 flops) and that of K at the
+accepted point (n³/3, formed by the line search).  The blocks of F⁻¹ come from the displacement generators of
+their displacements, read off four solves with K's factor (:func:`~unfalsify.solvers.displacement.inverse_blocks`,
+O(n²)), from n = 300 for one channel; below that (where it is measured faster) and for several channels, and
+once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the factor by LAPACK's potri (⅔n³) and the products
+``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column
+``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian (which reuses the generators), ``T(h)ᵀT(h)`` costs O(n²)
+(:func:`toeplitz_gram`), and a trial point of the line search never forms the dense T(h).  The certificate's two dense SVDs are evaluated only once
 the path's gap ν/t is within 10·tol of δ (and at the centring that ends a solve, whatever ended it).  Up to
 n = 1000 a solve holds BLAS to one thread (:func:`_blas_policy`).  Measured on 2 cores, the same solves in
 one process, alternating (the servo data of the benchmark, seed 0, tol 1e-4, same Newton steps and δ both
@@ -111,6 +115,7 @@ class _Siso:
 
     excess = 0  # nl − nm: det F = δ^{nl−nm} det K
     generators = True  # the blocks of F⁻¹ may come from displacement generators (inverse_blocks)
+    gram_needs_T = False  # the Gram TᵀT in O(n²) from h alone
 
     def __init__(self, form: ColumnForm):
         self.form = form
@@ -130,7 +135,7 @@ class _Siso:
     def toeplitz(self, h):
         return toeplitz_matrix(h)
 
-    def gram(self, h, T):
+    def gram(self, h, T=None):
         return toeplitz_gram(h)
 
     def times_T(self, T, X):
@@ -147,14 +152,15 @@ class _Siso:
     def hessian(self, S11, S21, S22):
         return corr_hessian(S11[None], S21[None], S22[None], S11.shape[0])[0]
 
-    def hessian_and_column(self, d, Kinv, A, S22, precise=False):
+    def hessian_and_column(self, d, Kinv, A, S22, precise=False, generators=None):
         """The h–h Hessian block of F⁻¹ = [δK⁻¹, −Aᵀ; −A, S22] and its h–δ column ``−4δ T*(A K⁻¹)``, which
         equals ``4 T*(S21 S11)``: from the displacement generators of F⁻¹'s blocks
-        (:func:`~unfalsify.solvers.displacement.displacement_hessian`, O(n²)), or with ``_STEP_ROUTE["hessian"]
-        == "fft"`` (and in the former route) off the FFT Hessian's spectra (``corr_hessian``'s former route forms
-        the product instead)."""
+        (:func:`~unfalsify.solvers.displacement.displacement_hessian`, O(n²); ``generators`` those
+        :func:`~unfalsify.solvers.displacement.inverse_blocks` returned, if it formed the blocks), or with
+        ``_STEP_ROUTE["hessian"] == "fft"`` (and in the former route) off the FFT Hessian's spectra
+        (``corr_hessian``'s former route forms the product instead)."""
         if _STEP_ROUTE["route"] == "blas3" and _STEP_ROUTE["hessian"] == "displacement" and not precise:
-            H, x = displacement_hessian(d * Kinv, -A, S22, cross=True)
+            H, x = displacement_hessian(d * Kinv, -A, S22, cross=True, generators=generators)
             return H, 4.0 * x
         H, x = corr_hessian((d * Kinv)[None], -A[None], S22[None], Kinv.shape[0], cross=True)
         return H[0], 4.0 * x[0]
@@ -167,6 +173,7 @@ class _Channels(_Siso):
     """The block-Toeplitz structure of l × m Markov parameters (module docstring, several channels)."""
 
     generators = False
+    gram_needs_T = True
 
     def __init__(self, form: "ArxBlockForm"):
         self.form = form
@@ -202,7 +209,7 @@ class _Channels(_Siso):
     def hessian(self, S11, S21, S22):
         return block_corr_hessian(S11, S21, S22, self.n, self.l, self.m)
 
-    def hessian_and_column(self, d, Kinv, A, S22, precise=False):
+    def hessian_and_column(self, d, Kinv, A, S22, precise=False, generators=None):
         return self.hessian(d * Kinv, -A, S22), -4.0 * d * self.adjoint(A @ Kinv)
 
     def norm(self, h):
@@ -230,20 +237,20 @@ class _State:
     """Everything the method needs at one strictly feasible point (h, δ): T(h), the Cholesky factor
     of ``K = δ²I − TᵀT``, the projected residual and the barrier value (``phi`` = inf if infeasible)."""
 
-    __slots__ = ("h", "d", "T", "L", "logdet", "r", "psi", "ok")
+    __slots__ = ("h", "d", "_T", "_ops", "L", "logdet", "r", "psi", "ok")
 
     def __init__(self, h, d, form: ColumnForm, ops: _Siso | None = None):
         ops = _Siso(form) if ops is None else ops
         self.h, self.d = h, float(d)
         self.r = ops.residual(h)
         self.psi = form.rho**2 - float(self.r @ self.r)
-        self.T = ops.toeplitz(h)
+        self._T, self._ops = None, ops
         self.ok = False
         self.L = None
         self.logdet = -np.inf
         if not (self.d > 0.0 and self.psi > 0.0):
             return
-        K = ops.gram(h, self.T)
+        K = ops.gram(h, self.T if ops.gram_needs_T else None)
         K *= -1.0
         K[np.diag_indices_from(K)] += self.d * self.d
         try:
@@ -257,6 +264,14 @@ class _State:
         if ops.excess:  # det F = δ^{nl−nm} det K for a rectangular T(h)
             self.logdet += ops.excess * np.log(self.d)
         self.ok = True
+
+    @property
+    def T(self):
+        """The dense T(h), formed on first use: a trial point of the line search needs only K, whose Gram
+        ``T(h)ᵀT(h)`` one channel forms in O(n²) without it."""
+        if self._T is None:
+            self._T = self._ops.toeplitz(self.h)
+        return self._T
 
     def phi(self, t: float) -> float:
         """``f_t`` at this point (inf outside the domain)."""
@@ -298,7 +313,8 @@ class _ArxBarrier:
 
     # ---- one Newton step ---------------------------------------------------------------------
     def _inverse_blocks(self, s: _State, precise: bool):
-        """``K⁻¹``, ``A = T K⁻¹`` and ``S22 = (I + A Tᵀ)/δ`` (so ``S11 = δK⁻¹`` and ``S21 = −A``).
+        """``K⁻¹``, ``A = T K⁻¹``, ``S22 = (I + A Tᵀ)/δ`` (so ``S11 = δK⁻¹`` and ``S21 = −A``) and the generators
+        of their displacements where they came from them (else None).
 
         One channel from n = :data:`_GENERATOR_BLOCKS_FROM` on (unless ``precise``): from displacement
         generators in O(n²) (:func:`~unfalsify.solvers.displacement.inverse_blocks`).  Otherwise potri forms
@@ -307,17 +323,17 @@ class _ArxBarrier:
         if _STEP_ROUTE["route"] == "former":
             Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
             A = s.T @ Kinv
-            return Kinv, A, self._finish_s22(A @ s.T.T, s.d)
+            return Kinv, A, self._finish_s22(A @ s.T.T, s.d), None
         if (self.ops.generators and self.nK >= _GENERATOR_BLOCKS_FROM and _STEP_ROUTE["blocks"] == "generators"
                 and not precise):
-            return inverse_blocks(s.L, s.h, s.d)
+            return inverse_blocks(s.L, s.h, s.d, generators=True)
         Kinv, info = _lapack.dpotri(s.L, lower=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"potri failed (info = {info}): K is not positive definite")
         Kinv = np.tril(Kinv)
         Kinv += np.tril(Kinv, -1).T
         A = self.ops.times_T(s.T, Kinv)
-        return Kinv, A, self._finish_s22(self.ops.times_Tt(A, s.T), s.d)
+        return Kinv, A, self._finish_s22(self.ops.times_Tt(A, s.T), s.d), None
 
     @staticmethod
     def _finish_s22(ATt, d):
@@ -330,7 +346,7 @@ class _ArxBarrier:
         """Newton direction ``(dh, dδ)``, decrement λ², the central-path tangent and the blocks of F⁻¹."""
         d, ops = s.d, self.ops
         precise = self.nbar / t < _PRECISE_GAP * d
-        Kinv, A, S22 = self._inverse_blocks(s, precise)
+        Kinv, A, S22, gens = self._inverse_blocks(s, precise)
         S11 = d * Kinv
         g_noise = ops.apply_T(s.r)
         psi = s.psi
@@ -341,7 +357,7 @@ class _ArxBarrier:
             grad_d -= ops.excess / d
             dd += ops.excess / (d * d)
         # c: the h–δ column −4δ T*(T K⁻²); the FFT Hessian once the path's gap is below _PRECISE_GAP·δ
-        HF, c = ops.hessian_and_column(d, Kinv, A, S22, precise=precise)
+        HF, c = ops.hessian_and_column(d, Kinv, A, S22, precise=precise, generators=gens)
         Hm = HF + (2.0 / psi) * self.MtPM + (4.0 / psi**2) * np.outer(g_noise, g_noise)
         cf = cholesky_retry(Hm)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)

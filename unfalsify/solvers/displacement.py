@@ -32,7 +32,10 @@ The h–δ column ``T*(S21 S11)`` (``cross=True``) comes the same way from the g
 ``S21 S11 − Z S21 S11 Zᵀ`` (:func:`_cross_column`).
 
 The generators are read off the dense displacement matrices by a rank-4 range finder (:func:`_generators`;
-every displacement above has rank 2, so the range is exact up to rounding).  What a Hessian costs: eight
+every displacement above has rank 2, so the range is exact up to rounding), or come with the blocks:
+:func:`inverse_blocks` builds the blocks themselves from K's Cholesky factor through those same generators
+(four solves, O(m²)) instead of forming ``K⁻¹`` densely (potri, ⅔m³) and multiplying it by T(h) (2m³), and
+hands them on (:class:`Generators`).  What a Hessian costs: eight
 products of an m × m block with m × 4 generators, 4 × 4 batched FFT correlations of length 2m, two outer
 products of rank 16 and four cumulative-sum passes — about 60 m² flops, against the transforms' ~40 m² log₂ m
 of :func:`~unfalsify.solvers.toeplitz.corr_hessian` run at FFT speed.  It applies to the blocks of F⁻¹ only
@@ -42,6 +45,7 @@ stays.
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import numpy as np
 import scipy.fft
@@ -49,13 +53,13 @@ import scipy.linalg
 
 from .toeplitz import conv_cols, conv_cols_T
 
-__all__ = ["displacement_hessian", "inverse_blocks"]
+__all__ = ["displacement_hessian", "inverse_blocks", "Generators"]
 
 #: Columns of the range finder (:func:`_generators`): the displacement ranks are 2, so two to spare.
 _RANK = 4
 
 
-def displacement_hessian(S11, S21, S22, *, cross: bool = False):
+def displacement_hessian(S11, S21, S22, *, cross: bool = False, generators: "Generators | None" = None):
     """``tr(F⁻¹E_aF⁻¹E_b)`` for all (a, b) from the displacement structure of F⁻¹'s blocks (module docstring).
 
     Parameters
@@ -65,6 +69,9 @@ def displacement_hessian(S11, S21, S22, *, cross: bool = False):
         those blocks (up to rounding): the route uses their structure, and other matrices give wrong numbers.
     cross : bool
         Also return ``T*(S21 S11)`` (shape (..., m)): ``4 T*(S21 S11)`` is the h–δ column of the Hessian.
+    generators : Generators, optional
+        Generators of the blocks' displacements already at hand (:func:`inverse_blocks` returns them); without
+        them they are read off the blocks by a range finder (two products of a block with m × 4 matrices each).
 
     Returns
     -------
@@ -87,16 +94,29 @@ def displacement_hessian(S11, S21, S22, *, cross: bool = False):
     S11, S21, S22 = (np.asarray(X, float) for X in (S11, S21, S22))
     m = S11.shape[-1]
     S12 = np.swapaxes(S21, -1, -2)
-    u, v = _generators(S11 - _shift_down(S11))  # S11 − Z S11 Zᵀ = u vᵀ
-    C = _c_term(S22, u, v, m)
-    A = _a_term(S12, m)
+    if generators is None:
+        generators = Generators(_generators(S11 - _shift_down(S11)), _generators(S22 - _shift_up(S22)),
+                                _generators(S21 - _shift_down(S21)))
+    u, v = generators.s11
+    C = _c_term(generators.s22, u, v, m)
+    ga, ha = generators.s21
+    A = _a_term(S12, (ha, ga), m)  # S12 − Z S12 Zᵀ = (S21 − Z S21 Zᵀ)ᵀ = ha gaᵀ
     H = 2.0 * A + C + np.swapaxes(C, -1, -2)
     if not cross:
         return H
-    return H, _cross_column(S21, S11, u, v, m)
+    return H, _cross_column(S21, S11, (ga, ha), u, v, m)
 
 
-def inverse_blocks(L, h, d):
+class Generators(NamedTuple):
+    """Generator pairs (X, G), ``X Gᵀ`` equal to a displacement of a block of F⁻¹ (m × k each, k ≥ 2):
+    ``s11`` of ``S11 − Z S11 Zᵀ``, ``s22`` of ``S22 − Zᵀ S22 Z`` and ``s21`` of ``S21 − Z S21 Zᵀ``."""
+
+    s11: tuple
+    s22: tuple
+    s21: tuple
+
+
+def inverse_blocks(L, h, d, *, generators: bool = False):
     """``K⁻¹``, ``T(h)K⁻¹`` and ``S22 = (I + T(h)K⁻¹T(h)ᵀ)/δ`` from the Cholesky factor L of ``K = δ²I − TᵀT`` in O(m²).
 
     The dense route forms ``K⁻¹`` from L (LAPACK potri, ⅔m³ flops) and multiplies it by T(h) twice (m³ each).
@@ -121,12 +141,16 @@ def inverse_blocks(L, h, d):
         First column of the lower-triangular Toeplitz T(h).
     d : float
         δ.
+    generators : bool
+        Also return the :class:`Generators` of the blocks' displacements (for :func:`displacement_hessian`).
 
     Returns
     -------
     Kinv, A, S22 : ndarray, shape (m, m)
         ``K⁻¹``, ``T(h)K⁻¹`` and ``(I + T(h)K⁻¹T(h)ᵀ)/δ``: the blocks ``S11 = δK⁻¹``, ``S21 = −A`` and ``S22`` of
         ``F⁻¹``, ``F = [δI T(h)ᵀ; T(h) δI]``.
+    gens : Generators
+        Only with ``generators=True``.
 
     Examples
     --------
@@ -161,25 +185,28 @@ def inverse_blocks(L, h, d):
 
     Q1, Q2 = (np.linalg.qr(D)[0] for D in images(probe, probe))
     G1, G2 = images(Q1, Q2)  # both displacements are symmetric: D Q = Dᵀ Q
+    TQ1 = conv_cols(h, Q1)
     Kinv = _forward_diag_cumsum(Q1 @ G1.T)
-    A = _forward_diag_cumsum(conv_cols(h, Q1) @ G1.T)
+    A = _forward_diag_cumsum(TQ1 @ G1.T)
     S22 = _diag_cumsum(Q2 @ G2.T)
     S22 /= d
-    return Kinv, A, S22
+    if not generators:
+        return Kinv, A, S22
+    return Kinv, A, S22, Generators((d * Q1, G1), (Q2, G2 / d), (-TQ1, G1))
 
 
 # ---- the two terms ------------------------------------------------------------------------------------------
-def _c_term(S22, u, v, m):
-    """``C_ab = tr(S22 Zᵃ S11 Zᵇᵀ)``; ``S11 − Z S11 Zᵀ = u vᵀ``."""
-    x, y = _generators(S22 - _shift_up(S22))  # S22 − ZᵀS22Z = x yᵀ
+def _c_term(s22, u, v, m):
+    """``C_ab = tr(S22 Zᵃ S11 Zᵇᵀ)``; ``S11 − Z S11 Zᵀ = u vᵀ``, ``S22 − ZᵀS22Z = x yᵀ`` (``s22 = (x, y)``)."""
+    x, y = s22
     left = _pair_corr(y, u, m)  # (..., k·k, m): c(y_r, u_s)
     right = _pair_corr(x, v, m)  # c(x_r, v_s)
     return _diag_cumsum(_diag_cumsum(np.swapaxes(left, -1, -2) @ right))
 
 
-def _a_term(S12, m):
+def _a_term(S12, s12, m):
     """``A_ab = tr(S12 Zᵃ S12 Zᵇ)``."""
-    gx, gy = _generators(_shift_rows(S12) - _shift_cols(S12))  # Z S12 − S12 Z = gx gyᵀ
+    gx, gy = _commutator_generators(S12)  # Z S12 − S12 Z = gx gyᵀ
     level2 = np.empty(S12.shape)
     # column 0: Σ_r y_rᵀ Zᵃ S12 x_r; columns c ≥ 1: −Σ_{r,s} c(y_r, x_s)_a c(y_s, x_r)_{c−1}
     level2[..., :, 0] = np.sum(_corr(np.swapaxes(gy, -1, -2), np.swapaxes(S12 @ gx, -1, -2), m), axis=-2)
@@ -188,15 +215,15 @@ def _a_term(S12, m):
     right = np.swapaxes(left.reshape(left.shape[:-2] + (k, k, m)), -2, -3).reshape(left.shape)  # c(y_s, x_r)
     level2[..., :, 1:] = -(np.swapaxes(left, -1, -2) @ right)[..., :, :-1]
     level1 = np.empty(S12.shape)
-    level1[..., :, 0] = _superdiagonal_sums(S12, m)  # A_a0 = tr(Zᵃ S12²)
+    level1[..., :, 0] = _superdiagonal_sums(S12, s12, m)  # A_a0 = tr(Zᵃ S12²)
     level1[..., :, 1:] = _antidiag_cumsum(level2)[..., :, :-1]
     return _antidiag_cumsum(level1)
 
 
-def _superdiagonal_sums(P, m):
+def _superdiagonal_sums(P, gk, m):
     """``Σ_i (P²)_{i, i+a}`` for a = 0 … m−1, from ``P² − Z P² Zᵀ = P G + G P − G² − (ZPe)(ZPᵀe)ᵀ``
-    (``G = P − Z P Zᵀ = g kᵀ``, e the last unit vector), never forming P²."""
-    g, k = _generators(P - _shift_down(P))
+    (``G = P − Z P Zᵀ = g kᵀ``, ``gk = (g, k)``, e the last unit vector), never forming P²."""
+    g, k = gk
     kg = np.swapaxes(k, -1, -2) @ g  # kᵀg
     last_col = _shift_vec(P[..., :, -1])  # Z P e
     last_row = _shift_vec(P[..., -1, :])  # Z Pᵀ e
@@ -205,10 +232,10 @@ def _superdiagonal_sums(P, m):
     return _weighted_diag_sums(beta, alpha, m)
 
 
-def _cross_column(S21, S11, u, v, m):
+def _cross_column(S21, S11, s21, u, v, m):
     """``T*(S21 S11)_a = Σ_i (S21 S11)_{i+a, i}`` from ``AB − Z AB Zᵀ = A G_B + G_A B − G_A G_B − (ZAe)(ZBᵀe)ᵀ``
-    (A = S21, B = S11, ``G_B = u vᵀ``, ``G_A = A − Z A Zᵀ``)."""
-    ga, ha = _generators(S21 - _shift_down(S21))
+    (A = S21, B = S11, ``G_B = u vᵀ``, ``G_A = A − Z A Zᵀ = ga haᵀ``, ``s21 = (ga, ha)``)."""
+    ga, ha = s21
     hu = np.swapaxes(ha, -1, -2) @ u
     alpha = np.concatenate([S21 @ u, ga, -(ga @ hu), -_shift_vec(S21[..., :, -1])[..., None]], axis=-1)
     beta = np.concatenate([v, np.swapaxes(S11, -1, -2) @ ha, v, _shift_vec(S11[..., -1, :])[..., None]], axis=-1)
@@ -221,6 +248,18 @@ def _generators(Y):
     Gaussian) and ``G = Yᵀ Q`` — exact up to rounding for Y of rank ≤ :data:`_RANK`."""
     Q = np.linalg.qr(Y @ _probe(Y.shape[-1]))[0]
     return Q, np.swapaxes(Y, -1, -2) @ Q
+
+
+def _commutator_generators(P):
+    """:func:`_generators` of ``Z P − P Z`` from products of P with m × 2k matrices, never forming the difference
+    (``(ZP − PZ)Ω = Z(PΩ) − P(ZΩ)`` and ``(ZP − PZ)ᵀQ = Pᵀ(ZᵀQ) − Zᵀ(PᵀQ)``)."""
+    probe = _probe(P.shape[-1])
+    k = probe.shape[-1]
+    Y = P @ np.concatenate([probe, _shift_rows(probe)], axis=-1)
+    Q = np.linalg.qr(_shift_rows(Y[..., :k]) - Y[..., k:])[0]
+    G = np.swapaxes(P, -1, -2) @ np.concatenate([_shift_rows_up(Q), Q], axis=-1)
+    k = Q.shape[-1]  # min(m, k): QR of an m × k matrix with m < k
+    return Q, G[..., :k] - _shift_rows_up(G[..., k:])
 
 
 @functools.lru_cache(maxsize=8)
@@ -300,11 +339,6 @@ def _shift_rows_up(M):
     return out
 
 
-def _shift_cols(M):
-    """``M Z``: column j is column j + 1 of M."""
-    out = np.zeros_like(M)
-    out[..., :, :-1] = M[..., :, 1:]
-    return out
 
 
 def _shift_vec(x):
