@@ -161,3 +161,26 @@ def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkey
         assert r.status == "optimal" and c.verify() and c.upper_bound - c.lower_bound <= 1e-6 * c.upper_bound
     ca, cb = a.certificate, b.certificate
     assert max(ca.lower_bound, cb.lower_bound) <= min(ca.upper_bound, cb.upper_bound) * (1 + 1e-12)  # overlap
+
+
+@pytest.mark.parametrize("large_nu, expected", [(None, 3.0), (100, 2.0)])
+def test_arx_barrier_grows_t_by_two_above_the_barrier_parameter_threshold(monkeypatch, large_nu, expected):
+    """μ = 3 up to ν = _LARGE_NU, μ = 2 above it (ν = 2n + 1 = 121 here; the threshold moved below it)."""
+    from experiments.bench.bench_unfalsify import _data
+
+    if large_nu is not None:
+        monkeypatch.setattr(arx_barrier, "_LARGE_NU", large_nu)
+    seen = set()
+    advance = arx_barrier._ArxBarrier.advance
+
+    def spy(self, *args):
+        seen.add(self.mu)
+        return advance(self, *args)
+
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "advance", spy)
+    u, y = _data(60, 2)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False)
+    assert seen == {expected} and r.status == "optimal" and r.certificate.verify()
+    assert arx_barrier._default_mu(arx_barrier._LARGE_NU + 1, None) == 2.0
+    assert arx_barrier._default_mu(arx_barrier._LARGE_NU, None) == 3.0

@@ -45,7 +45,13 @@ steps for the servo data of the benchmark, seeds 0/1/2: n = 40 (tol 1e-6) 29/25/
 former rule (linear in t, μ = 8 up to n = 200), n = 80 (tol 1e-7) 29/32/31 against 34/35/32, n = 200
 (tol 1e-4) 32/31/35 against 44/34/52, n = 400 (tol 1e-4) 44/44/45 against 47/42/58 and n = 1000 (tol 1e-4)
 86/78/66 against 77/93/91 (μ = 3 there already; one seed worse, the sum 12 % lower); trial factorisations
-fall by up to a quarter (n = 80: 40–47 against 53–58).
+fall by up to a quarter (n = 80: 40–47 against 53–58).  Above the barrier parameter ν = 1600 (one channel: n > 800) t grows
+by μ = 2 instead (:func:`_default_mu`).  After t grows the predicted point's excess ``f_{μt} − min f_{μt}`` can be
+as large as ν(μ − 1 − log μ), and some centrings work it off at a roughly constant decrement (λ² ≈ 2, full and
+doubled steps accepted, quadrupled ones infeasible): at n = 3000 three centrings took 50–90 Newton steps each
+with μ = 3.  Measured, Newton steps (servo data, tol 1e-4, seeds 0/1/2): n = 1000 65/63/52 with μ = 2 against
+86/78/66 with μ = 3; n = 3000 (seed 0) 142 against 269 (395 s against 590 s); n = 600 55/57/50 against
+54/53/48 and n ≤ 400 up to a quarter more with μ = 2, hence the threshold.
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
@@ -101,6 +107,11 @@ _GENERATOR_BLOCKS_FROM = 300
 #: displacement route loses digits to cancellation (about 1e-13 of the largest entry at n = 1000 against
 #: 1e-16), which stalled a solve to tol 1e-9 near its end (status "failed").
 _PRECISE_GAP = 1e-7
+
+#: The factor μ of t per outer iteration: :data:`_MU` up to the barrier parameter ν = :data:`_LARGE_NU`, then
+#: :data:`_MU_LARGE` (module docstring: after t grows by μ a centring can crawl through steps whose number grows
+#: like ν(μ − 1 − log μ), the bound on the barrier's excess at the predicted point).
+_MU, _MU_LARGE, _LARGE_NU = 3.0, 2.0, 1600
 
 #: Up to this n (one channel) a solve holds BLAS to one thread (:func:`_blas_policy`).
 _ONE_BLAS_THREAD_UP_TO = 1000
@@ -283,12 +294,12 @@ class _State:
 class _ArxBarrier:
     """The barrier method of the module docstring, plugged into :func:`run_barrier`."""
 
-    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=3.0, center_tol=0.1, max_newton=3000):
+    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=None, center_tol=0.1, max_newton=3000):
         if form.j != 1:
             raise ValueError("the Cholesky barrier solver is for the ARX program (j = 1)")
         self.f = form
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
-        self.mu, self.center_tol, self.max_newton = mu, center_tol, max_newton
+        self.center_tol, self.max_newton = center_tol, max_newton
         self.steps = 0
         self.trials = 0  # Cholesky factorisations of K tried (line searches and path steps included)
         if isinstance(form, BlockColumnForm):
@@ -305,6 +316,7 @@ class _ArxBarrier:
             PM = form.project(toeplitz_matrix(form.U[:, 0]))
             self.nbar = 2 * self.n + 1
         self.MtPM = PM.T @ PM
+        self.mu = _default_mu(self.nbar, form) if mu is None else float(mu)
 
     def _state(self, h, d) -> _State:
         s = _State(h, d, self.f, self.ops)
@@ -464,7 +476,8 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     progress : bool
         tqdm bar for solves longer than ~2 s.
     mu : float, optional
-        Factor of t per outer iteration; default 3 (measured in the module docstring; the former route of
+        Factor of t per outer iteration; default 3, and 2 above the barrier parameter ν = 1600 (one channel:
+        n > 800; measured in the module docstring; the former route of
         :func:`unfalsify.solvers.baselines.former_routes`: 8 for n ≤ 200, 3 above).
 
     Returns
@@ -475,13 +488,19 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
         ``upper`` and its impulses ``H`` (n × 1), the best ``lower`` and its dual point ``V`` (n × 1),
         ``W`` (1 × n × n), ``newton``, ``outer``, ``time``, and ``trials`` (Cholesky factorisations of K tried).
     """
-    if mu is None:
-        mu = 8.0 if _STEP_ROUTE["route"] == "former" and form.m <= 200 else 3.0
-    solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=float(mu))
+    solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu)
     with _blas_policy(form):
         out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials
     return out
+
+
+def _default_mu(nbar: int, form: ColumnForm) -> float:
+    """μ for barrier parameter ν = ``nbar``: :data:`_MU`, or :data:`_MU_LARGE` above ν = :data:`_LARGE_NU`
+    (the former route of :func:`~unfalsify.solvers.baselines.former_routes`: 8 up to n = 200, else 3)."""
+    if _STEP_ROUTE["route"] == "former":
+        return 8.0 if form.m <= 200 else 3.0
+    return _MU_LARGE if nbar > _LARGE_NU else _MU
 
 
 def _blas_policy(form):

@@ -172,16 +172,12 @@ def inverse_blocks(L, h, d, *, generators: bool = False):
     def solve(*blocks):
         return np.split(scipy.linalg.cho_solve((L, True), np.hstack(blocks), check_finite=False), len(blocks), axis=1)
 
-    def displacements(X1, X2, W1, W2):
-        """``(K⁻¹ − Z K⁻¹ Zᵀ) X`` and ``δ(S22 − Zᵀ S22 Z) Y`` from ``W = K⁻¹[X, ZᵀX, TᵀY, TᵀZY]``."""
-        D2 = conv_cols(h, W1) - _shift_rows_up(conv_cols(h, W2))
-        return X1 - _shift_rows(X2), D2
-
     def images(X, Y):
+        """``(K⁻¹ − Z K⁻¹ Zᵀ) X`` and ``δ(S22 − Zᵀ S22 Z) Y = (e eᵀ + T K⁻¹ Tᵀ − Zᵀ T K⁻¹ Tᵀ Z) Y``."""
         Kx, Kzx, Ky, Kzy = solve(X, _shift_rows_up(X), conv_cols_T(h, Y), conv_cols_T(h, _shift_rows(Y)))
-        D1, D2 = displacements(Kx, Kzx, Ky, Kzy)
-        D2[-1] += Y[-1]  # the e eᵀ term
-        return D1, D2
+        D2 = conv_cols(h, Ky) - _shift_rows_up(conv_cols(h, Kzy))
+        D2[-1] += Y[-1]
+        return Kx - _shift_rows(Kzx), D2
 
     Q1, Q2 = (np.linalg.qr(D)[0] for D in images(probe, probe))
     G1, G2 = images(Q1, Q2)  # both displacements are symmetric: D Q = Dᵀ Q
