@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 import unfalsify as uf
 from unfalsify.solvers import arx_barrier, baselines
-from unfalsify.solvers.displacement import displacement_hessian, inverse_blocks
+from unfalsify.solvers.displacement import displacement_hessian, inverse_blocks, schur_cholesky
 from unfalsify.solvers.toeplitz import corr_hessian, toeplitz_gram, toeplitz_matrix
 
 
@@ -127,6 +127,35 @@ def test_inverse_blocks_equal_the_dense_inverse(m, seed, log_margin, decay):
     assert np.abs(x - x_fft[0]).max() <= 1e-9 * max(np.abs(x_fft).max(), 1e-300)
 
 
+@settings(max_examples=40, deadline=None)
+@given(m=st.integers(1, 80), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-7.0, 1.0),
+       decay=st.floats(0.0, 0.5))
+def test_schur_factor_equals_lapack_and_serves_inverse_blocks(m, seed, log_margin, decay):
+    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
+    d, T, L, K = _factor(h, 10.0**log_margin)
+    R = d * d * np.eye(m) - T @ T.T  # = J K J
+    Ls = schur_cholesky(h, d)
+    assert Ls is not None
+    assert np.abs(np.triu(Ls, 1)).max(initial=0.0) == 0.0 and np.all(np.diag(Ls) > 0)
+    # backward error, relative to the generators' size δ² + ‖h‖² (R's entries cancel near the boundary)
+    assert np.abs(Ls @ Ls.T - R).max() <= 1e-14 * m * (d * d + h @ h)
+    assert np.isclose(2 * np.sum(np.log(np.diag(Ls))), 2 * np.sum(np.log(np.diag(L))), rtol=1e-9, atol=1e-9)
+    got = inverse_blocks(Ls, h, d, flipped=True)
+    for a, b in zip(got, inverse_blocks(L, h, d)):
+        assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max()
+
+
+@pytest.mark.parametrize("m", [1, 2, 7, 60])
+@pytest.mark.parametrize("shrink", [0.999, 0.5])
+def test_schur_factor_refuses_where_the_matrix_is_not_positive_definite(m, shrink):
+    h = np.random.default_rng(m).standard_normal(m)
+    d = shrink * np.linalg.norm(toeplitz_matrix(h), 2)
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(d * d * np.eye(m) - toeplitz_matrix(h) @ toeplitz_matrix(h).T)
+    assert schur_cholesky(h, d) is None
+    assert schur_cholesky(np.array([np.nan] * m), 1.0) is None
+
+
 def test_inverse_blocks_near_the_boundary_at_a_solver_size():
     """m = 600 (the solver uses the route from m = 300), K within 1e-7 of singular: the blocks agree with the
     dense route (solves against I) to 1e-11 of their largest entry; measured about 1e-13."""
@@ -144,10 +173,11 @@ def test_inverse_blocks_near_the_boundary_at_a_solver_size():
 def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkeypatch):
     from experiments.bench.bench_unfalsify import _data
 
-    calls = []
+    calls, factors = [], []
     monkeypatch.setattr(arx_barrier, "inverse_blocks", lambda *a, **k: calls.append(1) or inverse_blocks(*a, **k))
+    monkeypatch.setattr(arx_barrier, "schur_cholesky", lambda *a: factors.append(1) or schur_cholesky(*a))
 
-    n = arx_barrier._GENERATOR_BLOCKS_FROM + 20  # the generator route applies
+    n = arx_barrier._STRUCTURED_FROM + 20  # the structured routes apply
     u, y = _data(n, 5)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
 
@@ -160,6 +190,7 @@ def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkey
         assert arx_barrier._STEP_ROUTE["blocks"] == "dense"
         b = solve()
     assert used == a.solver_stats["newton"] and len(calls) == used  # every step of a, none of b
+    assert len(factors) == a.solver_stats["trials"] + b.solver_stats["trials"]  # every K of both solves
     assert arx_barrier._STEP_ROUTE["blocks"] == "generators"  # restored
     _assert_both_certified_and_overlapping(a, b)
 

@@ -81,7 +81,7 @@ from scipy.linalg import lapack as _lapack
 from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
-from .displacement import displacement_hessian, inverse_blocks
+from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
 from .start import operator_svd, ridge_fit
 from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_hessian, block_toeplitz_matrix,
                        certified_norm, corr_hessian, toeplitz_gram, toeplitz_matrix)
@@ -94,14 +94,16 @@ __all__ = ["solve", "solve_arx_barrier", "ridge_start", "ArxBlockForm"]
 #: at every centring), the benchmark's same-run reference (:func:`unfalsify.solvers.baselines.former_routes`).
 #: ``"hessian"``: the one-channel Hessian from displacement generators (``"displacement"``) or by the 2-D FFT
 #: (``"fft"``, :func:`unfalsify.solvers.baselines.fft_barrier_hessian`); the former route always uses the FFT.
-#: ``"blocks"``: for one channel with n ≥ :data:`_GENERATOR_BLOCKS_FROM`, the blocks of F⁻¹ from displacement
+#: ``"blocks"``: for one channel with n ≥ :data:`_STRUCTURED_FROM`, the blocks of F⁻¹ from displacement
 #: generators (``"generators"``, :func:`unfalsify.solvers.displacement.inverse_blocks`, O(n²)) or densely by
 #: potri and trmm (``"dense"``, 2⅔n³; :func:`unfalsify.solvers.baselines.dense_inverse_blocks`).
 _STEP_ROUTE = {"route": "blas3", "hessian": "displacement", "blocks": "generators"}
 
-#: From this n (one channel) the blocks of F⁻¹ come from displacement generators: measured on one core, 4 ms
-#: against 8–15 ms by potri and trmm at n = 400, 2 ms against 1.3 ms at n = 200.
-_GENERATOR_BLOCKS_FROM = 300
+#: From this n (one channel) K's factor comes from the generalised Schur algorithm and the blocks of F⁻¹ from
+#: displacement generators.  Measured on one core at n = 400: the factor 2.7 ms against 3.4 ms (Gram and potrf),
+#: the blocks 4 ms against 8–15 ms (potri and trmm); at n = 200 both are slower (1.3 against 0.9 ms, 2.0 against
+#: 1.3 ms).
+_STRUCTURED_FROM = 400
 
 #: Below this relative gap of the path (ν/t < _PRECISE_GAP·δ) the one-channel Hessian is the FFT's: the
 #: displacement route loses digits to cancellation (about 1e-13 of the largest entry at n = 1000 against
@@ -246,9 +248,13 @@ class ArxBlockForm(BlockColumnForm):
 
 class _State:
     """Everything the method needs at one strictly feasible point (h, δ): T(h), the Cholesky factor
-    of ``K = δ²I − TᵀT``, the projected residual and the barrier value (``phi`` = inf if infeasible)."""
+    of ``K = δ²I − TᵀT``, the projected residual and the barrier value (``phi`` = inf if infeasible).
 
-    __slots__ = ("h", "d", "_T", "_ops", "L", "logdet", "r", "psi", "ok")
+    One channel from n = :data:`_STRUCTURED_FROM` on, ``L`` is the factor of ``J K J = δ²I − TTᵀ`` by the
+    generalised Schur algorithm (:func:`~unfalsify.solvers.displacement.schur_cholesky`, O(n²), no Gram), and
+    ``flipped`` is True; ``det(J K J) = det K``."""
+
+    __slots__ = ("h", "d", "_T", "_ops", "L", "flipped", "logdet", "r", "psi", "ok")
 
     def __init__(self, h, d, form: ColumnForm, ops: _Siso | None = None):
         ops = _Siso(form) if ops is None else ops
@@ -259,14 +265,11 @@ class _State:
         self.ok = False
         self.L = None
         self.logdet = -np.inf
+        self.flipped = ops.generators and h.size >= _STRUCTURED_FROM and _STEP_ROUTE["route"] != "former"
         if not (self.d > 0.0 and self.psi > 0.0):
             return
-        K = ops.gram(h, self.T if ops.gram_needs_T else None)
-        K *= -1.0
-        K[np.diag_indices_from(K)] += self.d * self.d
-        try:
-            self.L = scipy.linalg.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
-        except np.linalg.LinAlgError:
+        self.L = schur_cholesky(h, self.d) if self.flipped else self._cholesky(ops, h)
+        if self.L is None:
             return
         diag = np.diag(self.L)
         if not np.all(diag > 0):
@@ -275,6 +278,16 @@ class _State:
         if ops.excess:  # det F = δ^{nl−nm} det K for a rectangular T(h)
             self.logdet += ops.excess * np.log(self.d)
         self.ok = True
+
+    def _cholesky(self, ops, h):
+        """LAPACK's Cholesky factor of K (None if it fails)."""
+        K = ops.gram(h, self.T if ops.gram_needs_T else None)
+        K *= -1.0
+        K[np.diag_indices_from(K)] += self.d * self.d
+        try:
+            return scipy.linalg.cholesky(K, lower=True, overwrite_a=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            return None
 
     @property
     def T(self):
@@ -328,7 +341,7 @@ class _ArxBarrier:
         """``K⁻¹``, ``A = T K⁻¹``, ``S22 = (I + A Tᵀ)/δ`` (so ``S11 = δK⁻¹`` and ``S21 = −A``) and the generators
         of their displacements where they came from them (else None).
 
-        One channel from n = :data:`_GENERATOR_BLOCKS_FROM` on (unless ``precise``): from displacement
+        One channel from n = :data:`_STRUCTURED_FROM` on (unless ``precise``): from displacement
         generators in O(n²) (:func:`~unfalsify.solvers.displacement.inverse_blocks`).  Otherwise potri forms
         K⁻¹ from the Cholesky factor in ⅔n³ flops (two solves against I: 2n³), and the products with the
         triangular T(h) are trmm's n³ each (general products: 2n³)."""
@@ -336,14 +349,16 @@ class _ArxBarrier:
             Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
             A = s.T @ Kinv
             return Kinv, A, self._finish_s22(A @ s.T.T, s.d), None
-        if (self.ops.generators and self.nK >= _GENERATOR_BLOCKS_FROM and _STEP_ROUTE["blocks"] == "generators"
+        if (self.ops.generators and self.nK >= _STRUCTURED_FROM and _STEP_ROUTE["blocks"] == "generators"
                 and not precise):
-            return inverse_blocks(s.L, s.h, s.d, generators=True)
+            return inverse_blocks(s.L, s.h, s.d, generators=True, flipped=s.flipped)
         Kinv, info = _lapack.dpotri(s.L, lower=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"potri failed (info = {info}): K is not positive definite")
         Kinv = np.tril(Kinv)
         Kinv += np.tril(Kinv, -1).T
+        if s.flipped:  # (J K J)⁻¹ = J K⁻¹ J
+            Kinv = np.ascontiguousarray(Kinv[::-1, ::-1])
         A = self.ops.times_T(s.T, Kinv)
         return Kinv, A, self._finish_s22(self.ops.times_Tt(A, s.T), s.d), None
 

@@ -53,7 +53,7 @@ import scipy.linalg
 
 from .toeplitz import conv_cols, conv_cols_T
 
-__all__ = ["displacement_hessian", "inverse_blocks", "Generators"]
+__all__ = ["displacement_hessian", "inverse_blocks", "Generators", "schur_cholesky"]
 
 #: Columns of the range finder (:func:`_generators`): the displacement ranks are 2, so two to spare.
 _RANK = 4
@@ -116,7 +116,7 @@ class Generators(NamedTuple):
     s21: tuple
 
 
-def inverse_blocks(L, h, d, *, generators: bool = False):
+def inverse_blocks(L, h, d, *, generators: bool = False, flipped: bool = False):
     """``K⁻¹``, ``T(h)K⁻¹`` and ``S22 = (I + T(h)K⁻¹T(h)ᵀ)/δ`` from the Cholesky factor L of ``K = δ²I − TᵀT`` in O(m²).
 
     The dense route forms ``K⁻¹`` from L (LAPACK potri, ⅔m³ flops) and multiplies it by T(h) twice (m³ each).
@@ -143,6 +143,9 @@ def inverse_blocks(L, h, d, *, generators: bool = False):
         δ.
     generators : bool
         Also return the :class:`Generators` of the blocks' displacements (for :func:`displacement_hessian`).
+    flipped : bool
+        L is instead the lower Cholesky factor of ``J K J = δ²I − T(h)T(h)ᵀ`` (J the exchange matrix), as
+        :func:`schur_cholesky` returns it.
 
     Returns
     -------
@@ -170,7 +173,10 @@ def inverse_blocks(L, h, d, *, generators: bool = False):
     probe = _probe(m)
 
     def solve(*blocks):
-        return np.split(scipy.linalg.cho_solve((L, True), np.hstack(blocks), check_finite=False), len(blocks), axis=1)
+        B = np.hstack(blocks)
+        X = (scipy.linalg.cho_solve((L, True), B[::-1], check_finite=False)[::-1] if flipped  # K⁻¹ = J(JKJ)⁻¹J
+             else scipy.linalg.cho_solve((L, True), B, check_finite=False))
+        return np.split(X, len(blocks), axis=1)
 
     def images(X, Y):
         """``(K⁻¹ − Z K⁻¹ Zᵀ) X`` and ``δ(S22 − Zᵀ S22 Z) Y = (e eᵀ + T K⁻¹ Tᵀ − Zᵀ T K⁻¹ Tᵀ Z) Y``."""
@@ -189,6 +195,67 @@ def inverse_blocks(L, h, d, *, generators: bool = False):
     if not generators:
         return Kinv, A, S22
     return Kinv, A, S22, Generators((d * Q1, G1), (Q2, G2 / d), (-TQ1, G1))
+
+
+def schur_cholesky(h, d):
+    """The lower Cholesky factor of ``J K J = δ²I − T(h)T(h)ᵀ`` by the generalised Schur algorithm, O(m²) flops.
+
+    ``K = δ²I − T(h)ᵀT(h)`` (J the exchange matrix; ``J T(h)ᵀ J = T(h)`` for a lower-triangular Toeplitz T(h)).
+    ``R = δ²I − TTᵀ`` has the displacement ``R − Z R Zᵀ = g₀g₀ᵀ − g₁g₁ᵀ`` with ``g₀ = δe₀`` and ``g₁ = h``, and the
+    algorithm (Kailath–Sayed) peels one column of the factor per step: a hyperbolic rotation zeroes the negative
+    generator's leading entry, the positive generator is then the factor's column, and shifting it down gives
+    the generators of the Schur complement.  The rotations are applied in the mixed form (Bojanczyk, Brent,
+    de Hoog and Sweet, 1995), which keeps the factorisation backward stable for a positive definite R: measured
+    ``‖LLᵀ − R‖ ≈ 3e-15‖R‖`` at m = 1000 with R within 1e-7 of singular, as LAPACK's potrf.  R is positive
+    definite exactly when every rotation exists (``|g₁ₖ| < g₀ₖ``).  Measured on one core, with the O(m²) Gram
+    that potrf needs counted: m = 400 2.7 ms against 3.4 ms, m = 1000 14 against 22 ms; m = 3000 64 ms against
+    0.6 s (potrf on both cores); m = 200 1.3 against 0.9 ms.
+
+    Parameters
+    ----------
+    h : ndarray, shape (m,)
+        First column of T(h).
+    d : float
+        δ.
+
+    Returns
+    -------
+    ndarray, shape (m, m), or None
+        L lower triangular with ``L Lᵀ = δ²I − T(h)T(h)ᵀ`` (a Fortran-ordered view), or None where that matrix is
+        not positive definite (in floating point).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from unfalsify.solvers.toeplitz import toeplitz_matrix
+    >>> h, d = np.array([0.9, -0.4, 0.3, 0.2]), 2.0
+    >>> T = toeplitz_matrix(h)
+    >>> L = schur_cholesky(h, d)
+    >>> bool(np.allclose(L, np.linalg.cholesky(d * d * np.eye(4) - T @ T.T)))
+    True
+    >>> print(schur_cholesky(h, 0.5))  # δ below ‖T(h)‖₂
+    None
+    """
+    g1 = np.array(h, dtype=float).reshape(-1)
+    m = g1.size
+    g0 = np.zeros(m)
+    g0[0] = d
+    Lt = np.zeros((m, m))  # Lᵀ by rows: each step writes a contiguous row
+    for k in range(m):
+        a, b = g0[k], g1[k]
+        if not abs(b) < a:  # also NaN
+            return None
+        rho = b / a
+        c = np.sqrt((1.0 - rho) * (1.0 + rho))
+        x0, x1 = g0[k:], g1[k:]
+        x0 -= rho * x1
+        x0 /= c
+        x1 *= c
+        x1 -= rho * x0  # mixed form: the rotated positive generator enters the negative one
+        Lt[k, k:] = x0
+        g0[k + 1:] = x0[:-1]  # Z g₀ (numpy buffers the overlapping copy)
+        g1[k] = 0.0
+    return Lt.T
 
 
 # ---- the two terms ------------------------------------------------------------------------------------------
