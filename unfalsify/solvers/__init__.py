@@ -26,8 +26,8 @@ Shared parts: :mod:`~unfalsify.solvers.base` (:class:`SolverStatus`, :class:`Sol
 :mod:`~unfalsify.solvers.barrier` (the one barrier skeleton, time limit, progress, CG),
 :mod:`~unfalsify.solvers.start` (the barrier solvers' ridge starting point),
 :mod:`~unfalsify.solvers.toeplitz` (products, adjoint, stacks, Gram, norms, the FFT Hessian) and
-:mod:`~unfalsify.solvers.displacement` (the barrier Hessian and the blocks of F⁻¹ from displacement generators,
-O(m²)).
+:mod:`~unfalsify.solvers.displacement` (the barrier Hessian, the blocks of F⁻¹ and K's Cholesky factor from
+displacement generators, O(m²)).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
 ``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``)

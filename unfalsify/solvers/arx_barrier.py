@@ -16,12 +16,14 @@ but every quantity is read off one Cholesky factorisation instead of an SVD of T
   the 2-D-FFT correlation of :func:`unfalsify.solvers.toeplitz.corr_hessian`, which keeps three more digits),
   its δ–δ entry ``2(δ²‖K⁻¹‖²_F + ‖T K⁻¹‖²_F)``.
 
-A Newton step's dense algebra is the Cholesky factor of the Newton system (n³/3 flops) and that of K at the
-accepted point (n³/3, formed by the line search).  The blocks of F⁻¹ come from the displacement generators of
-their displacements, read off four solves with K's factor (:func:`~unfalsify.solvers.displacement.inverse_blocks`,
-O(n²)), from n = 300 for one channel; below that (where it is measured faster) and for several channels, and
-once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the factor by LAPACK's potri (⅔n³) and the products
-``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column
+For one channel from n = 400 a Newton step's only n³ work is the Cholesky factor of the Newton system
+(n³/3 flops).  K's factor (of ``J K J = δ²I − TTᵀ``, J the exchange matrix) comes from the generalised Schur
+algorithm on the rank-2 displacement generators of that matrix in O(n²)
+(:func:`~unfalsify.solvers.displacement.schur_cholesky`), and the blocks of F⁻¹ from the generators of their
+own displacements, read off four solves with that factor (:func:`~unfalsify.solvers.displacement.inverse_blocks`,
+O(n²)).  Below n = 400 (where both are measured slower) and for several channels, K is factorised by LAPACK
+and, as also once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the factor by potri (⅔n³) and the
+products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column
 ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian (which reuses the generators), ``T(h)ᵀT(h)`` costs O(n²)
 (:func:`toeplitz_gram`), and a trial point of the line search never forms the dense T(h).  The certificate's two dense SVDs are evaluated only once
 the path's gap ν/t is within 10·tol of δ (and at the centring that ends a solve, whatever ended it).  Up to
@@ -32,7 +34,8 @@ whole solves n = 400 1.6 s (displacement, one BLAS thread) against 2.9–3.4 s (
 (FFT, two threads, the route before), n = 1000 21–22 s against 36–37 s and 33–34 s.  The FFT Hessian had
 been 58 % of a solve at n = 1000; the displacement one is about a quarter.
 
-A trial point of the line search costs one Cholesky (n³/3 flops) instead of an SVD (~20 n³), so
+A trial point of the line search costs one factorisation of K (n³/3 flops, O(n²) from n = 400) instead of an
+SVD (~20 n³), so
 no step-to-the-boundary computation is needed: the line search starts from the full Newton step,
 backtracks (Armijo) where f_t does not decrease or the Cholesky factorisation fails, and, when the
 full step is accepted, tries 2, 4, … times it while f_t keeps decreasing.  The predictor follows the

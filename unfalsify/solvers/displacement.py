@@ -35,7 +35,8 @@ The generators are read off the dense displacement matrices by a rank-4 range fi
 every displacement above has rank 2, so the range is exact up to rounding), or come with the blocks:
 :func:`inverse_blocks` builds the blocks themselves from K's Cholesky factor through those same generators
 (four solves, O(m²)) instead of forming ``K⁻¹`` densely (potri, ⅔m³) and multiplying it by T(h) (2m³), and
-hands them on (:class:`Generators`).  What a Hessian costs: eight
+hands them on (:class:`Generators`); and K's factor itself comes from the generators of ``J K J − Z(J K J)Zᵀ``
+by the generalised Schur algorithm (:func:`schur_cholesky`, O(m²)).  What a Hessian costs: eight
 products of an m × m block with m × 4 generators, 4 × 4 batched FFT correlations of length 2m, two outer
 products of rank 16 and four cumulative-sum passes — about 60 m² flops, against the transforms' ~40 m² log₂ m
 of :func:`~unfalsify.solvers.toeplitz.corr_hessian` run at FFT speed.  It applies to the blocks of F⁻¹ only
