@@ -97,6 +97,19 @@ def _assert_both_certified_and_overlapping(a, b, tol=1e-6):
     assert max(ca.lower_bound, cb.lower_bound) <= min(ca.upper_bound, cb.upper_bound) * (1 + 1e-12)
 
 
+def _random_factors(test):
+    """Hypothesis over K = δ²I − T(h)ᵀT(h): order 1–80, δ from 1e-7 to 10 above ‖T(h)‖₂, impulses decaying or not."""
+    cases = given(m=st.integers(1, 80), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-7.0, 1.0),
+                  decay=st.floats(0.0, 0.5))
+    return settings(max_examples=40, deadline=None)(cases(test))
+
+
+def _random_factor(m, seed, log_margin, decay):
+    """Random impulses h and :func:`_factor` at margin 10^log_margin."""
+    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
+    return (h,) + _factor(h, 10.0**log_margin)
+
+
 def _factor(h, margin):
     """δ = (1 + margin)‖T(h)‖₂ (+ a floor), T(h) and the lower Cholesky factor of K = δ²I − TᵀT."""
     T = toeplitz_matrix(h)
@@ -105,12 +118,9 @@ def _factor(h, margin):
     return d, T, np.linalg.cholesky(K), K
 
 
-@settings(max_examples=40, deadline=None)
-@given(m=st.integers(1, 80), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-7.0, 1.0),
-       decay=st.floats(0.0, 0.5))
+@_random_factors
 def test_inverse_blocks_equal_the_dense_inverse(m, seed, log_margin, decay):
-    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
-    d, T, L, K = _factor(h, 10.0**log_margin)
+    h, d, T, L, K = _random_factor(m, seed, log_margin, decay)
     S = np.linalg.inv(np.block([[d * np.eye(m), T.T], [T, d * np.eye(m)]]))  # F⁻¹ by the generic route
     Kinv, A, S22, gens = inverse_blocks(L, h, d, generators=True)
     for got, want in ((d * Kinv, S[:m, :m]), (-A, S[m:, :m]), (S22, S[m:, m:])):
@@ -127,12 +137,9 @@ def test_inverse_blocks_equal_the_dense_inverse(m, seed, log_margin, decay):
     assert np.abs(x - x_fft[0]).max() <= 1e-9 * max(np.abs(x_fft).max(), 1e-300)
 
 
-@settings(max_examples=40, deadline=None)
-@given(m=st.integers(1, 80), seed=st.integers(0, 2**31 - 1), log_margin=st.floats(-7.0, 1.0),
-       decay=st.floats(0.0, 0.5))
+@_random_factors
 def test_schur_factor_equals_lapack_and_serves_inverse_blocks(m, seed, log_margin, decay):
-    h = np.random.default_rng(seed).standard_normal(m) * np.exp(-decay * np.arange(m))
-    d, T, L, K = _factor(h, 10.0**log_margin)
+    h, d, T, L, K = _random_factor(m, seed, log_margin, decay)
     R = d * d * np.eye(m) - T @ T.T  # = J K J
     Ls = schur_cholesky(h, d)
     assert Ls is not None
