@@ -223,3 +223,15 @@ def test_arx_barrier_grows_t_by_two_above_the_barrier_parameter_threshold(monkey
     assert seen == {expected} and r.status == "optimal" and r.certificate.verify()
     assert arx_barrier._default_mu(arx_barrier._LARGE_NU + 1, None) == 2.0
     assert arx_barrier._default_mu(arx_barrier._LARGE_NU, None) == 3.0
+
+
+def test_a_tight_tolerance_is_reached_through_the_structured_routes():
+    """From n = _STRUCTURED_FROM the factor of K comes from the Schur algorithm at every step; near the end the
+    blocks and the Hessian switch to the dense routes (their rounding would stall the path). Certified to 1e-9."""
+    from experiments.bench.bench_unfalsify import _data
+
+    u, y = _data(arx_barrier._STRUCTURED_FROM + 20, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-9, progress=False)
+    c = r.certificate
+    assert r.status == "optimal" and c.verify() and c.upper_bound - c.lower_bound <= 1e-9 * c.upper_bound
