@@ -59,7 +59,8 @@ column and Newton step: the blocks of F⁻¹ and the gradient's products (ARX: `
 real 2-D transforms of 2m × 2m, ``2.5 N² log₂ N²`` each; ARX: the displacement route's ~60m²) and for ARX the
 Cholesky of the Newton system (m³/3); per trial
 factorisation the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well
-((10/3) m³ in all).  (Before the ARX step's BLAS-3 rewrite the ARX count was the subspace rows' 8m³.)  The CG of L optimised, the certificate and the set-up
+((10/3) m³ in all).  ARX from n = 400 (:data:`ARX_STRUCTURED_FROM`): per step the Newton system's m³/3, the
+Hessian's ~60m² and the blocks of F⁻¹ from generators ~90m²; per trial the Schur algorithm's ~3m².  (Before the ARX step's BLAS-3 rewrite the ARX count was the subspace rows' 8m³.)  The CG of L optimised, the certificate and the set-up
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
 and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
 or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
@@ -103,6 +104,9 @@ ARX_BRACKET_LIMIT_S = 3000.0
 ARX_CLARABEL_BUDGET_S = 900.0
 #: subspace (7.5) rows, up to the thesis's (100, 1000), the target being a certified δ within 10 minutes
 SUBSPACE_LIMIT_S = 600.0
+#: From this n ``arx_barrier`` (one channel) factorises K by the generalised Schur algorithm and builds the blocks of
+#: F⁻¹ from displacement generators, both O(n²) (its ``_STRUCTURED_FROM``): the arithmetic limit counts those.
+ARX_STRUCTURED_FROM = 400
 
 
 def _structured_series(quick: bool) -> list[dict]:
@@ -297,8 +301,12 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     newton = int(newton)
     trials = newton if trials is None else int(trials)  # a solver without counts: one accepted point per step
     m3 = float(m) ** 3
+    if kind == "arx" and m >= ARX_STRUCTURED_FROM:  # the Newton system's Cholesky m³/3, the displacement
+        # Hessian ~60m², the blocks from generators ~90m² (four solves against m × 16, three rank-4 outer products,
+        # three cumulative sums); per trial the generalised Schur algorithm ~3m² (unfalsify.solvers.displacement)
+        return newton * (m3 / 3.0 + 150.0 * m * m) + trials * 3.0 * m * m
     if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3,
-        # the displacement Hessian ~60m² (unfalsify.solvers.displacement)
+        # the displacement Hessian ~60m²; per trial the Gram and LAPACK's Cholesky of K
         return newton * (3.0 * m3 + 60.0 * m * m) + trials * m3 / 3.0
     return j * (newton * (8.0 * m3 + _fft_flops(m)) + trials * (10.0 / 3.0) * m3)
 
