@@ -294,8 +294,8 @@ class _State:
 
     @property
     def T(self):
-        """The dense T(h), formed on first use: a trial point of the line search needs only K, whose Gram
-        ``T(h)ᵀT(h)`` one channel forms in O(n²) without it."""
+        """The dense T(h), formed on first use: a trial point of the line search needs only K's factor, which
+        one channel forms from h alone (the Schur algorithm, or LAPACK on the O(n²) Gram)."""
         if self._T is None:
             self._T = self._ops.toeplitz(self.h)
         return self._T
