@@ -302,7 +302,7 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     trials = newton if trials is None else int(trials)  # a solver without counts: one accepted point per step
     m3 = float(m) ** 3
     if kind == "arx" and m >= ARX_STRUCTURED_FROM:  # the Newton system's Cholesky m³/3, the displacement
-        # Hessian ~60m², the blocks from generators ~90m² (four solves against m × 16, three rank-4 outer products,
+        # Hessian ~60m², the blocks from generators ~90m² (two solves against m × 16, three rank-4 outer products,
         # three cumulative sums); per trial the generalised Schur algorithm ~3m² (unfalsify.solvers.displacement)
         return newton * (m3 / 3.0 + 150.0 * m * m) + trials * 3.0 * m * m
     if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3,

@@ -20,7 +20,7 @@ For one channel from n = 400 a Newton step's only n³ work is the Cholesky facto
 (n³/3 flops).  K's factor (of ``J K J = δ²I − TTᵀ``, J the exchange matrix) comes from the generalised Schur
 algorithm on the rank-2 displacement generators of that matrix in O(n²)
 (:func:`~unfalsify.solvers.displacement.schur_cholesky`), and the blocks of F⁻¹ from the generators of their
-own displacements, read off four solves with that factor (:func:`~unfalsify.solvers.displacement.inverse_blocks`,
+own displacements, read off two block solves with that factor (:func:`~unfalsify.solvers.displacement.inverse_blocks`,
 O(n²)).  Below n = 400 (where both are measured slower) and for several channels, K is factorised by LAPACK
 and, as also once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the factor by potri (⅔n³) and the
 products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column

@@ -34,7 +34,7 @@ The h–δ column ``T*(S21 S11)`` (``cross=True``) comes the same way from the g
 The generators are read off the dense displacement matrices by a rank-4 range finder (:func:`_generators`;
 every displacement above has rank 2, so the range is exact up to rounding), or come with the blocks:
 :func:`inverse_blocks` builds the blocks themselves from K's Cholesky factor through those same generators
-(four solves, O(m²)) instead of forming ``K⁻¹`` densely (potri, ⅔m³) and multiplying it by T(h) (2m³), and
+(two block solves, O(m²)) instead of forming ``K⁻¹`` densely (potri, ⅔m³) and multiplying it by T(h) (2m³), and
 hands them on (:class:`Generators`); and K's factor itself comes from the generators of ``J K J − Z(J K J)Zᵀ``
 by the generalised Schur algorithm (:func:`schur_cholesky`, O(m²)).  What a Hessian costs: eight
 products of an m × m block with m × 4 generators, 4 × 4 batched FFT correlations of length 2m, two outer
@@ -129,7 +129,7 @@ def inverse_blocks(L, h, d, *, generators: bool = False, flipped: bool = False):
     * ``δS22 − Zᵀ δS22 Z = e eᵀ + T K⁻¹ Tᵀ − Zᵀ T K⁻¹ Tᵀ Z = Q₂ G₂ᵀ`` (e the last unit vector), the same way;
 
     and a block follows from its displacement by one cumulative sum along the diagonals
-    (``M = Σ_k Zᵏ D Zᵏᵀ``).  The work is four solves with L against m × 16 right-hand sides, FFT products with
+    (``M = Σ_k Zᵏ D Zᵏᵀ``).  The work is two solves with L, each against m × 16 right-hand sides, FFT products with
     T(h), three outer products of rank 4 and three cumulative-sum passes: O(m²), against 2⅔m³.  Accurate to
     about 1e-13 of the largest entry at m = 1000–3000 with K within 1e-7 of singular (the cumulative sums add
     the rounding of m terms), where potri keeps about 1e-15.
