@@ -113,7 +113,9 @@ def test_arx_arithmetic_limit_counts_the_structured_step_from_its_threshold():
     """From n = ARX_STRUCTURED_FROM a Newton step's only n³ work is the Newton system's Cholesky (n³/3) and a
     trial factorisation is O(n²); below it the dense step's 3n³ and LAPACK's n³/3 per trial."""
     from experiments.bench.bench_unfalsify import ARX_STRUCTURED_FROM, _needed_flops
+    from unfalsify.solvers import arx_barrier
 
+    assert ARX_STRUCTURED_FROM == arx_barrier._STRUCTURED_FROM  # the bench's copy of the solver's threshold
     n = ARX_STRUCTURED_FROM
     step, trial = _needed_flops("arx", n, 1, 1, 0), _needed_flops("arx", n, 1, 0, 1)
     assert n**3 / 3 < step < n**3 / 3 + 200 * n * n and 0 < trial < 10 * n * n

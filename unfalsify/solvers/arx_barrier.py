@@ -352,9 +352,8 @@ class _ArxBarrier:
             Kinv = scipy.linalg.cho_solve((s.L, True), np.eye(self.nK), check_finite=False)
             A = s.T @ Kinv
             return Kinv, A, self._finish_s22(A @ s.T.T, s.d), None
-        if (self.ops.generators and self.nK >= _STRUCTURED_FROM and _STEP_ROUTE["blocks"] == "generators"
-                and not precise):
-            return inverse_blocks(s.L, s.h, s.d, generators=True, flipped=s.flipped)
+        if s.flipped and _STEP_ROUTE["blocks"] == "generators" and not precise:  # the structured route (_State)
+            return inverse_blocks(s.L, s.h, s.d, generators=True, flipped=True)
         Kinv, info = _lapack.dpotri(s.L, lower=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"potri failed (info = {info}): K is not positive definite")
