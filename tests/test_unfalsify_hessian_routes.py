@@ -135,11 +135,9 @@ def test_arx_step_algebra_alone_gives_the_former_iterates(monkeypatch):
     _, rms = uf.arx_least_squares(u, y, 2, 2)
     P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
     old = _routes(P)[1]
-    advance = arx_barrier._ArxBarrier.advance
 
     def former_advance(self, t, s, step, bounds, deadline):  # the linear-in-t predictor of the former route
-        th, tdl = step[2]
-        return advance(self, t, s, (None, None, (self.mu * th, self.mu * tdl)), bounds, deadline)
+        return self.mu * t, self._feasible_along(s, (self.mu - 1.0) * t * np.append(*step[2]), self.mu * t)
 
     monkeypatch.setattr(arx_barrier._ArxBarrier, "advance", former_advance)
     monkeypatch.setattr(arx_barrier._ArxBarrier, "bound_due", lambda self, t, upper: True)

@@ -26,8 +26,9 @@ and, as also once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the fa
 products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column
 ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian (which reuses the generators), ``T(h)ᵀT(h)`` costs O(n²)
 (:func:`toeplitz_gram`), and a trial point of the line search never forms the dense T(h).  The certificate's two dense SVDs are evaluated only once
-the path's gap ν/t is within 10·tol of δ (and at the centring that ends a solve, whatever ended it).  Up to
-n = 1000 a solve holds BLAS to one thread (:func:`_blas_policy`).  Measured on 2 cores, the same solves in
+the path's gap ν/t is within 10·tol of δ, then only where the last certified gap, shrunk like 1/t, would be
+within tol (:meth:`_ArxBarrier.bound_due`), and at the centring that ends a solve, whatever ended it.  Up to
+n = 1000 a solve holds BLAS to one thread (:func:`_blas_policy`), except in the bounds.  Measured on 2 cores, the same solves in
 one process, alternating (the servo data of the benchmark, seed 0, tol 1e-4, same Newton steps and δ both
 ways): the Hessian 12 ms against 39–48 ms by the FFT at n = 400 and 57 ms against 220–230 ms at n = 1000;
 whole solves n = 400 1.6 s (displacement, one BLAS thread) against 2.9–3.4 s (FFT, one thread) and 3.7–3.8 s
@@ -38,23 +39,26 @@ A trial point of the line search costs one factorisation of K (n³/3 flops, O(n�
 SVD (~20 n³), so
 no step-to-the-boundary computation is needed: the line search starts from the full Newton step,
 backtracks (Armijo) where f_t does not decrease or the Cholesky factorisation fails, and, when the
-full step is accepted, tries 2, 4, … times it while f_t keeps decreasing.  The predictor follows the
-tangent of the central path linearly in 1/t, not in t: near the optimum ``x(t) − x* = O(1/t)``, so the
-point predicted for μt is ``x + (1 − 1/μ) t ẋ`` (the linear-in-t step ``(μ − 1) t ẋ`` overshoots x* for
-μ > 2 and was cut back by the feasibility backtracking to whatever halving first fit); it backtracks on
-feasibility.  t grows by μ = 3 per outer iteration: with larger μ a re-centring near the optimum zig-zags
-(most singular values of T(h) cluster at δ and the Newton step runs into the boundary).  Measured, Newton
-steps for the servo data of the benchmark, seeds 0/1/2: n = 40 (tol 1e-6) 29/25/28 against 35/27/31 by the
-former rule (linear in t, μ = 8 up to n = 200), n = 80 (tol 1e-7) 29/32/31 against 34/35/32, n = 200
-(tol 1e-4) 32/31/35 against 44/34/52, n = 400 (tol 1e-4) 44/44/45 against 47/42/58 and n = 1000 (tol 1e-4)
-86/78/66 against 77/93/91 (μ = 3 there already; one seed worse, the sum 12 % lower); trial factorisations
-fall by up to a quarter (n = 80: 40–47 against 53–58).  Above the barrier parameter ν = 1600 (one channel: n > 800) t grows
-by μ = 2 instead (:func:`_default_mu`).  After t grows the predicted point's excess ``f_{μt} − min f_{μt}`` can be
-as large as ν(μ − 1 − log μ), and some centrings work it off at a roughly constant decrement (λ² ≈ 2, full and
-doubled steps accepted, quadrupled ones infeasible): at n = 3000 three centrings took 50–90 Newton steps each
-with μ = 3.  Measured, Newton steps (servo data, tol 1e-4, seeds 0/1/2): n = 1000 65/63/52 with μ = 2 against
-86/78/66 with μ = 3; n = 3000 (seed 0) 142 against 269 (395 s against 590 s); n = 600 55/57/50 against
-54/53/48 and n ≤ 400 up to a quarter more with μ = 2, hence the threshold.
+full step is accepted, tries 2, 4, … times it while f_t keeps decreasing.
+
+Path steps.  From a centred point the next one, at μt, is predicted two ways
+(:func:`~unfalsify.solvers.barrier.path_predictor`), each backtracked on feasibility, and the point with the
+lower ``f_{μt}`` is taken (one or two trial factorisations): the tangent linearly in 1/t
+(``x + (1 − 1/μ) t ẋ``: near the optimum ``x(t) − x* = O(1/t)``), and the Hermite cubic in 1/t through this
+centred point and the one before, with both tangents.  The path curves: at n = 1000 the tangent's step was
+feasible only when halved or quartered at 10 of 13 path steps, and the first Newton step after it had
+λ² ≈ 50–450; the cubic's full step was taken at 10 of 13.  Measured, Newton steps (servo data of the benchmark,
+seeds 0/1/2, default μ; tangent alone → both): n = 40 (tol 1e-6) 29/25/28 → 26/28/27, n = 80 (tol 1e-7)
+29/32/31 → 29/34/31, n = 200 (tol 1e-4) 32/31/35 → 30/27/30, n = 400 44/44/45 → 38/34/39, n = 600 54/53/48 →
+41/41/39, n = 1000 65/63/52 → 46/49/46, n = 3000 (seed 0) 142 → 68.  The cubic alone was worse at small n and
+tight tolerances (n = 80: 46/44/42), hence the choice by ``f_{μt}``.
+
+t grows by μ = 3 per outer iteration up to the barrier parameter ν = 1600 (one channel: n ≤ 800), by μ = 2 above
+(:func:`_default_mu`).  After t grows the predicted point's excess ``f_{μt} − min f_{μt}`` can be as large as
+ν(μ − 1 − log μ), and with the tangent alone some centrings worked it off at a roughly constant decrement
+(λ² ≈ 2, full and doubled steps accepted, quadrupled ones infeasible): at n = 3000 three centrings took 50–90
+Newton steps each with μ = 3 (269 steps against 142 with μ = 2).  With both predictions, μ = 3 at n = 1000
+took 51 steps against 46.
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
@@ -81,7 +85,7 @@ import scipy.linalg
 from scipy.linalg import blas as _blas
 from scipy.linalg import lapack as _lapack
 
-from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, run_barrier
+from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, path_predictor, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
 from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
@@ -123,7 +127,7 @@ _ONE_BLAS_THREAD_UP_TO = 1000
 
 #: The bounds (two dense SVDs at n ≤ 4000) are evaluated once the path's gap ν/t is within this factor of
 #: tol·δ, where the certified gap can close (:meth:`_ArxBarrier.bound_due`), and at the centring that ends a solve.
-_BOUND_FACTOR = 10.0
+_BOUND_FACTOR = 4.0
 
 
 class _Siso:
@@ -333,6 +337,11 @@ class _ArxBarrier:
             self.nbar = 2 * self.n + 1
         self.MtPM = PM.T @ PM
         self.mu = _default_mu(self.nbar, form) if mu is None else float(mu)
+        self._centred = None  # (t, (h, δ), its tangent) of the last centred point the path stepped from
+        self._delta = None  # δ of the last centred point (bound_due's scale)
+        self._precise = False  # the precise routes for every Newton step from here on (newton)
+        self._seen = None  # (t, certified relative gap) where both bounds were last evaluated (bound_due)
+        self.bound_threads = contextlib.nullcontext  # the context of the bounds' BLAS calls (solve_arx_barrier)
 
     def _state(self, h, d) -> _State:
         s = _State(h, d, self.f, self.ops)
@@ -372,9 +381,23 @@ class _ArxBarrier:
         return ATt
 
     def newton(self, t: float, s: _State):
-        """Newton direction ``(dh, dδ)``, decrement λ², the central-path tangent and the blocks of F⁻¹."""
+        """Newton direction ``(dh, dδ)``, decrement λ², the central-path tangent and the blocks of F⁻¹.
+
+        By the precise routes (dense blocks, FFT Hessian) once the path's gap is below :data:`_PRECISE_GAP`·δ,
+        and from the first step whose Newton system the structured routes' rounding left indefinite (measured:
+        n = 200, tol 1e-8, at a path gap of 1.7e-7·δ, where the solve had stopped with status "failed")."""
+        if not self._precise and self.nbar / t < _PRECISE_GAP * s.d:
+            self._precise = True
+        if self._precise:
+            return self._newton(t, s, precise=True)
+        try:
+            return self._newton(t, s, precise=False)
+        except np.linalg.LinAlgError:
+            self._precise = True
+            return self._newton(t, s, precise=True)
+
+    def _newton(self, t: float, s: _State, precise: bool):
         d, ops = s.d, self.ops
-        precise = self.nbar / t < _PRECISE_GAP * d
         Kinv, A, S22, gens = self._inverse_blocks(s, precise)
         S11 = d * Kinv
         g_noise = ops.apply_T(s.r)
@@ -412,6 +435,7 @@ class _ArxBarrier:
             if self.steps > self.max_newton:
                 raise Stop("max_iter")
             if lam2 <= self.center_tol:
+                self._delta = s.d
                 return s, (dh, dlt, tangent, blocks)
             phi0 = s.phi(t)
             a = 1.0  # Armijo backtracking; a trial outside the domain fails its Cholesky factorisation
@@ -436,13 +460,27 @@ class _ArxBarrier:
         return self.ops.norm(s.h)
 
     def bound_due(self, t, upper) -> bool:
-        """Whether the bounds (a dense SVD each) are worth evaluating at t: once the path's own gap ``ν/t`` is
-        within :data:`_BOUND_FACTOR` × ``tol`` of δ the certified gap can close (the former route: always)."""
-        return _STEP_ROUTE["route"] == "former" or self.nbar / t <= _BOUND_FACTOR * self.tol * upper
+        """Whether the bounds (a dense SVD each) are worth evaluating at t (the former route: always).
+
+        Not before the path's own gap ``ν/t`` is within :data:`_BOUND_FACTOR` × ``tol`` of δ (the smaller of
+        ``upper`` and the centred point's δ, which bounds ‖T(h)‖₂ and is current where the best upper bound may
+        be stale); after the bounds were evaluated once, only where the certified gap then, shrunk like 1/t,
+        would be within ``tol``: measured, the certified gap at the centred points is a constant fraction of
+        ``ν/(tδ)`` (1/3.4 at n = 400), so the bounds of the centrings in between could not close it."""
+        if _STEP_ROUTE["route"] == "former":
+            return True
+        scale = upper if self._delta is None else min(upper, self._delta)
+        if self.nbar / t > _BOUND_FACTOR * self.tol * scale:
+            return False
+        return self._seen is None or self._seen[1] * self._seen[0] / t <= self.tol
 
     def upper_due(self, t, s: _State) -> bool:
-        """:meth:`bound_due` for the upper bound, with δ (> ‖T(h)‖₂ at a feasible point) as its scale."""
+        """:meth:`bound_due` for the upper bound."""
         return self.bound_due(t, s.d)
+
+    def evaluated(self, t, upper, lower) -> None:
+        """Keep the certified relative gap at t (both bounds were evaluated there) for :meth:`bound_due`."""
+        self._seen = (t, (upper - lower) / upper)
 
     def impulses(self, s: _State) -> np.ndarray:
         return s.h[:, None].copy()
@@ -454,23 +492,40 @@ class _ArxBarrier:
         return v[:, None], W[None]
 
     def advance(self, t, s: _State, step, bounds, deadline):
-        """Step along the central-path tangent towards ``μt``, linearly in 1/t (module docstring),
-        backtracking on feasibility."""
+        """Step towards the centre at ``μt``: of the predictions of
+        :func:`~unfalsify.solvers.barrier.path_predictor` (linear in 1/t from this centred point, and the Hermite
+        cubic in 1/t through it and the one before), the point with the lower ``f_{μt}``, each backtracked on
+        feasibility (the former route: linear in t)."""
         t_new = t * self.mu
-        th, tdl = step[2]
-        k = (t_new - t) / self.mu if _STEP_ROUTE["route"] != "former" else t_new - t
-        ph, pdl = k * th, k * tdl
+        centre = (t, np.append(s.h, s.d), np.append(*step[2]))
+        if _STEP_ROUTE["route"] == "former":
+            steps = [(t_new - t) * centre[2]]
+        else:
+            steps = [path_predictor(t_new, centre)]
+            if self._centred is not None:
+                steps.append(path_predictor(t_new, centre, self._centred))
+        self._centred = centre
+        best = s
+        for p in steps:
+            sn = self._feasible_along(s, p, t_new)
+            if sn.phi(t_new) < best.phi(t_new):
+                best = sn
+        return t_new, best
+
+    def _feasible_along(self, s: _State, p, t):
+        """The first strictly feasible point of ``s + a p``, ``a = 1, ½, …, 2⁻⁷`` (else ``s``)."""
         a = 1.0
         for _ in range(8):
-            sn = self._state(s.h + a * ph, s.d + a * pdl)
-            if np.isfinite(sn.phi(t_new)):
-                return t_new, sn
+            sn = self._state(s.h + a * p[:-1], s.d + a * p[-1])
+            if np.isfinite(sn.phi(t)):
+                return sn
             a *= 0.5
-        return t_new, s
+        return s
 
     def run(self, h0):
         deadline = Deadline(self.time_limit)
-        up0 = self.ops.norm(h0)
+        with self.bound_threads():
+            up0 = self.ops.norm(h0)
         d0 = 1.2 * up0 + 1e-3 * (1.0 + up0)
         return run_barrier(self, self.f, self._state(h0, d0), self.nbar / d0, deadline, up0)
 
@@ -506,6 +561,7 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
         ``W`` (1 × n × n), ``newton``, ``outer``, ``time``, and ``trials`` (Cholesky factorisations of K tried).
     """
     solver = _ArxBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu)
+    solver.bound_threads = _configured_blas()
     with _blas_policy(form):
         out = solver.run(np.asarray(h0, float).reshape(-1))
     out["trials"] = solver.trials
@@ -527,13 +583,27 @@ def _blas_policy(form):
     main thread; OpenBLAS's second thread spins between calls and takes the core that work needs.  Measured
     on 2 cores, same process, alternating (module docstring): n = 400 1.6 s against 3.9 s with two threads,
     n = 1000 21–22 s against 25–27 s.  Larger n and several channels (dense n³ work dominates) are not measured
-    and keep the configured threads.
+    and keep the configured threads.  The bounds (dense SVDs and products) get the configured threads back
+    (:func:`_configured_blas`).
     """
     if isinstance(form, BlockColumnForm) or form.m > _ONE_BLAS_THREAD_UP_TO:
         return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(limits=1, user_api="blas")
+
+
+def _configured_blas():
+    """A context that restores BLAS's threads as they are now (inside :func:`_blas_policy`: as configured).
+
+    For the bounds, whose dense SVDs and products are long BLAS calls: at n = 1000 an SVD (values only) takes
+    0.13 s on two threads against 0.20 s on one, a product 0.023 s against 0.049 s; a context costs under 1 ms.
+    A user's or ``workers=1``'s limit of one thread is what is restored, so it stays one.
+    """
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    threads = max((lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"), default=None)
+    return lambda: threadpool_limits(limits=threads, user_api="blas")
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:

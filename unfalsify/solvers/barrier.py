@@ -22,6 +22,7 @@ same way.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -38,6 +39,7 @@ __all__ = [
     "linearised_dual",
     "pcg",
     "cholesky_retry",
+    "path_predictor",
     "PathAdvance",
 ]
 
@@ -118,19 +120,31 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     every centred point (what a warm start of a related problem resumes from); one with ``bound_due(t, upper)``
     has its dual point formed and the lower bound evaluated only where that is true (the rest of the loop sees the best bound so far;
     a bound skipped at the last centring is evaluated when the loop ends, whatever ended it); one with
-    ``upper_due(t, point)`` has the upper bound treated the same way.
+    ``upper_due(t, point)`` has the upper bound treated the same way; one with ``evaluated(t, upper, lower)`` is
+    shown the best bracket after every centring at which both bounds were evaluated; one with ``bound_threads()``
+    (a context manager) has the bounds evaluated inside it.
     """
     best = dict(lower=0.0, upper=upper, H=method.impulses(point), V=None, W=None, newton=0, outer=0, last=None,
                 t=None)
     status, bar, pending, pending_upper = "optimal", None, None, None
     bound_due = getattr(method, "bound_due", lambda t, upper: True)
     upper_due = getattr(method, "upper_due", lambda t, point: True)
+    bound_threads = getattr(method, "bound_threads", contextlib.nullcontext)
 
     def improve_upper(point):
-        upper = method.upper(point)
+        with bound_threads():
+            upper = method.upper(point)
         if upper < best["upper"]:
             best.update(upper=upper, H=method.impulses(point))
         return upper
+
+    def improve_lower(t, point, step):
+        with bound_threads():
+            V, W = method.dual(t, point, step)
+            lower = form.lower_bound(V, W)
+        if lower > best["lower"]:
+            best.update(lower=lower, V=V, W=W)
+        return lower
 
     try:
         while True:
@@ -143,13 +157,11 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
             else:  # far from the tolerance: the norm (an SVD) can wait, as the lower bound below
                 upper, pending_upper = best["upper"], point
             if bound_due(t, upper):
-                V, W = method.dual(t, point, step)
-                lower = form.lower_bound(V, W)
-                pending = None
-                if lower > best["lower"]:
-                    best.update(lower=lower, V=V, W=W)
+                lower, pending = improve_lower(t, point, step), None
             else:  # far from the tolerance: the dual point and its bound (SVDs) wait; formed if the loop ends here
                 lower, pending = best["lower"], (t, point, step)
+            if pending is None and pending_upper is None and hasattr(method, "evaluated"):
+                method.evaluated(t, best["upper"], best["lower"])
             best.update(newton=method.steps, outer=best["outer"] + 1)
             bar = tick_progress(bar, method.progress, deadline.elapsed(), method.desc, method.steps, best)
             if gap_closed(best, method.tol):
@@ -167,10 +179,7 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
             pass
     if pending is not None:
         try:
-            V, W = method.dual(*pending)
-            lower = form.lower_bound(V, W)
-            if lower > best["lower"]:
-                best.update(lower=lower, V=V, W=W)
+            improve_lower(*pending)
         except (KeyboardInterrupt, *SOLVE_ERRORS):
             pass
     best.update(status=status, newton=method.steps, time=deadline.elapsed())
@@ -241,6 +250,39 @@ def cholesky_retry(Hm):
             except np.linalg.LinAlgError:
                 pass
         raise
+
+
+def path_predictor(t_new: float, centre, previous=None) -> np.ndarray:
+    """The step from a centred point towards the centre at ``t_new``: a cubic in ``s = 1/t``.
+
+    ``centre`` and ``previous`` are ``(t, x, ẋ)`` of the last two centred points (``ẋ = dx/dt``, the path's
+    tangent).  Without ``previous`` the step is the tangent's, linear in 1/t:
+    ``x(1/t_new) − x ≈ (1 − t/t_new) t ẋ`` (near the optimum ``x(t) − x* = O(1/t)``).  With it, the Hermite cubic
+    through both points with both tangents (``dx/ds = −t² ẋ``) is extrapolated to ``1/t_new``: it follows the
+    path's curvature, where the tangent alone overshoots (measured for ARX (7.4) at n = 1000: the largest
+    feasible fraction of the tangent's step was ½ or ¼ at 10 of 13 path steps).
+
+    Examples
+    --------
+    A path that is a cubic in 1/t is predicted exactly:
+
+    >>> import numpy as np
+    >>> x = lambda t: np.array([1 + 2 / t - 3 / t**3]); dx = lambda t: np.array([-2 / t**2 + 9 / t**4])
+    >>> step = path_predictor(8.0, (4.0, x(4.0), dx(4.0)), (2.0, x(2.0), dx(2.0)))
+    >>> bool(np.allclose(x(4.0) + step, x(8.0)))
+    True
+    """
+    t0, x0, xdot0 = centre
+    q1 = 1.0 / t_new - 1.0 / t0
+    d0 = -t0 * t0 * xdot0  # dx/ds at the centre
+    if previous is None:
+        return d0 * q1
+    tp, xp, xdotp = previous
+    span = 1.0 / tp - 1.0 / t0  # the previous centre at q = span
+    tau = q1 / span
+    r1 = xp - x0 - d0 * span  # what the tangent misses at the previous centre
+    r2 = (-tp * tp * xdotp - d0) * span  # and the change of dx/ds (times the span)
+    return d0 * span * tau + (3.0 * r1 - r2) * tau**2 + (r2 - 2.0 * r1) * tau**3
 
 
 class PathAdvance:
