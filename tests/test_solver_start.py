@@ -19,7 +19,7 @@ import synthesis as sy
 import unfalsify as uf
 from unfalsify.solvers import arx_barrier, block_barrier, column_barrier
 from unfalsify.solvers.columns import BlockColumnForm
-from unfalsify.solvers.start import coordinates, impulses, operator_svd, ridge_fit
+from unfalsify.solvers.start import coordinates, impulses, operator_svd, ridge_fit, ridge_fit_gram
 
 
 # ---- the reference ----------------------------------------------------------------------------------------
@@ -199,3 +199,38 @@ def test_ridge_fit_meets_the_target_from_below():
     assert float(np.sum(r * r)) <= target * (1.0 + 1e-12)  # below, up to the rounding of r
     assert float(np.sum(r * r)) == pytest.approx(target, rel=1e-9)
     _close(H, _reference_start(M, B0, target))
+
+
+# ---- the ridge fit from the Gram (no SVD) -----------------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_ridge_fit_from_the_gram_equals_the_svd_route(seed):
+    rng = np.random.default_rng(seed)
+    # square with graded columns (a wide range of λ matters); b in its range, as for the ARX operator P T(u) and
+    # B0 = P B (the SVD route's residual counts only the part of b in the operator's range)
+    M = rng.standard_normal((25, 25)) * np.logspace(0, -4, 25)
+    b = rng.standard_normal(25)
+    target = 0.3 * float(b @ b)
+
+    def residual(h):
+        return float(np.sum((b - M @ h) ** 2))
+
+    h = ridge_fit_gram(M.T @ M, M.T @ b, residual, target, rel=1e-12)
+    assert residual(h) == pytest.approx(target, rel=1e-12)
+    _close(h, ridge_fit(operator_svd(M), b, target), rtol=1e-6)
+    assert np.all(ridge_fit_gram(M.T @ M, M.T @ b, residual, 1.01 * float(b @ b)) == 0.0)  # h = 0 is inside
+
+
+def test_the_arx_start_from_the_structured_size_on_comes_from_the_gram(monkeypatch):
+    from experiments.bench.bench_unfalsify import _data
+
+    u, y = _data(arx_barrier._STRUCTURED_FROM + 20, 0)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    f = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms).column_form(scaled=True)
+    B0 = f.project(f.B)
+    P = np.eye(B0.shape[0]) - f.Ql @ f.Ql.T
+    ref = _reference_start(_dense_operators(f), B0, (0.9 * f.rho) ** 2, P)[:, 0]
+    monkeypatch.setattr(arx_barrier, "operator_svd", lambda *a, **k: pytest.fail("no SVD from this size on"))
+    h = arx_barrier.ridge_start(f, B0)
+    r = B0[:, 0] - P @ f.apply(h.reshape(-1, 1))[:, 0]
+    assert float(r @ r) == pytest.approx((0.9 * f.rho) ** 2, rel=0.05) and float(r @ r) < f.rho**2
+    assert np.linalg.norm(h - ref) <= 0.1 * np.linalg.norm(ref)  # a ridge fit at a nearby λ

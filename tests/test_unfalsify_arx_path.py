@@ -139,10 +139,10 @@ def test_an_indefinite_newton_system_moves_the_solve_to_the_precise_routes(monke
         routes.append(precise)
         return hessian(self, *args, precise=precise, generators=generators)
 
-    def failing_cholesky(Hm):  # the sixth structured system fails, as rounding made it indefinite
+    def failing_cholesky(Hm, **options):  # the sixth structured system fails, as rounding made it indefinite
         if routes.count(False) == 6 and not routes[-1]:
             raise np.linalg.LinAlgError("not positive definite")
-        return cholesky(Hm)
+        return cholesky(Hm, **options)
 
     monkeypatch.setattr(arx_barrier._Siso, "hessian_and_column", spy_hessian)
     monkeypatch.setattr(arx_barrier, "cholesky_retry", failing_cholesky)
@@ -150,3 +150,38 @@ def test_an_indefinite_newton_system_moves_the_solve_to_the_precise_routes(monke
     r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-7, progress=False)
     assert r.status == "optimal" and r.certificate.verify()
     assert routes[:7] == [False] * 6 + [True] and all(routes[6:])
+
+
+def test_the_in_place_cholesky_equals_the_copying_one_and_restores_before_a_retry():
+    import scipy.linalg
+
+    from unfalsify.solvers.barrier import cholesky_retry
+
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((60, 60))
+    H, b = X @ X.T + np.eye(60), rng.standard_normal(60)
+    x = scipy.linalg.cho_solve(cholesky_retry(H.copy(), overwrite=True), b)
+    assert np.allclose(H @ x, b, rtol=1e-12, atol=1e-10)
+    # singular to rounding: the first attempt fails, the retry factorises the restored matrix plus a shift
+    w, V = np.linalg.eigh(H)
+    w[0] = -1e-14 * w[-1]
+    A = (V * w) @ V.T
+    A = 0.5 * (A + A.T)
+    c, lower = cholesky_retry(A.copy(), overwrite=True)
+    L = np.tril(c)
+    shift = np.diag(L @ L.T - A)
+    assert lower and np.allclose(L @ L.T - np.diag(shift), A, rtol=0, atol=1e-12 * w[-1])
+    assert np.all(shift > 0) and np.allclose(shift, shift[0]) and shift[0] <= 1e-8 * np.abs(np.diag(A)).max() * 1.01
+    with pytest.raises(np.linalg.LinAlgError):
+        cholesky_retry(-H, overwrite=True)
+
+
+def test_the_adjoint_row_by_row_equals_the_strided_route(monkeypatch):
+    from unfalsify.solvers import toeplitz
+
+    W = np.random.default_rng(1).standard_normal((40, 40))
+    strided = toeplitz.adjoint(W)
+    monkeypatch.setattr(toeplitz, "_ADJOINT_BY_ROWS", 10)
+    by_rows = toeplitz.adjoint(W)
+    assert np.allclose(by_rows, strided, rtol=1e-13, atol=1e-13)
+    assert np.allclose(by_rows, [np.trace(W, offset=-d) for d in range(40)], rtol=1e-13, atol=1e-13)

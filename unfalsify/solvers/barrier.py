@@ -238,8 +238,15 @@ def pcg(A, Minv, B, *, tol: float, maxiter: int, start=None, project=None, dot=N
     return X, iterations
 
 
-def cholesky_retry(Hm):
-    """Cholesky factor (``cho_factor``); on a (rounding-level) failure, retry with a growing diagonal shift."""
+def cholesky_retry(Hm, *, overwrite: bool = False):
+    """Cholesky factor (``cho_factor``); on a (rounding-level) failure, retry with a growing diagonal shift.
+
+    ``overwrite=True`` factorises Hm (symmetric, C- or Fortran-ordered) in place: no copy of it, which at
+    n = 10⁴ is an 800 MB array, whose fresh pages cost up to a second on this machine's virtual memory.  The
+    factor then lives in one triangle; the other, which LAPACK does not touch, restores Hm before a retry.
+    """
+    if overwrite:
+        return _cholesky_in_place(Hm)
     try:
         return scipy.linalg.cho_factor(Hm)
     except np.linalg.LinAlgError:
@@ -250,6 +257,22 @@ def cholesky_retry(Hm):
             except np.linalg.LinAlgError:
                 pass
         raise
+
+
+def _cholesky_in_place(Hm):
+    """:func:`cholesky_retry` in place (``overwrite=True``)."""
+    F = Hm if Hm.flags.f_contiguous else Hm.T  # the same symmetric matrix, in LAPACK's order
+    diag = np.diag(F).copy()
+    scale = float(np.max(np.abs(diag))) if diag.size else 0.0
+    for e in (0.0, 1e-14, 1e-12, 1e-10, 1e-8):
+        if e:  # the failed attempt overwrote the lower triangle: restore it from the upper one, shifted
+            for j in range(F.shape[0] - 1):
+                F[j + 1:, j] = F[j, j + 1:]
+            np.fill_diagonal(F, diag + e * scale)
+        c, info = scipy.linalg.lapack.dpotrf(F, lower=1, overwrite_a=1, clean=0)
+        if info == 0:
+            return c, True
+    raise np.linalg.LinAlgError("the Newton system is not positive definite")
 
 
 def path_predictor(t_new: float, centre, previous=None) -> np.ndarray:

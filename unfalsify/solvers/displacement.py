@@ -99,10 +99,10 @@ def displacement_hessian(S11, S21, S22, *, cross: bool = False, generators: "Gen
         generators = Generators(_generators(S11 - _shift_down(S11)), _generators(S22 - _shift_up(S22)),
                                 _generators(S21 - _shift_down(S21)))
     u, v = generators.s11
-    C = _c_term(generators.s22, u, v, m)
     ga, ha = generators.s21
-    A = _a_term(S12, (ha, ga), m)  # S12 − Z S12 Zᵀ = (S21 − Z S21 Zᵀ)ᵀ = ha gaᵀ
-    H = 2.0 * A + C + np.swapaxes(C, -1, -2)
+    H = _a_term(S12, (ha, ga), m)  # S12 − Z S12 Zᵀ = (S21 − Z S21 Zᵀ)ᵀ = ha gaᵀ
+    H *= 2.0  # H = 2A + (C + Cᵀ), in place: A is this call's own array
+    H += _c_term(generators.s22, u, v, m)
     if not cross:
         return H
     return H, _cross_column(S21, S11, (ga, ha), u, v, m)
@@ -261,27 +261,41 @@ def schur_cholesky(h, d):
 
 # ---- the two terms ------------------------------------------------------------------------------------------
 def _c_term(s22, u, v, m):
-    """``C_ab = tr(S22 Zᵃ S11 Zᵇᵀ)``; ``S11 − Z S11 Zᵀ = u vᵀ``, ``S22 − ZᵀS22Z = x yᵀ`` (``s22 = (x, y)``)."""
+    """``C + Cᵀ`` with ``C_ab = tr(S22 Zᵃ S11 Zᵇᵀ)``; ``S11 − Z S11 Zᵀ = u vᵀ``, ``S22 − ZᵀS22Z = x yᵀ``
+    (``s22 = (x, y)``).  C is a double diagonal cumulative sum of ``leftᵀ right``, which commutes with the
+    transpose, so ``C + Cᵀ`` is that of ``leftᵀ right + rightᵀ left``: one product with twice the inner
+    dimension, no transposed n × n addition."""
     x, y = s22
     left = _pair_corr(y, u, m)  # (..., k·k, m): c(y_r, u_s)
     right = _pair_corr(x, v, m)  # c(x_r, v_s)
-    return _diag_cumsum(_diag_cumsum(np.swapaxes(left, -1, -2) @ right))
+    both = np.concatenate([left, right], axis=-2)
+    swapped = np.concatenate([right, left], axis=-2)
+    return _diag_cumsum(_diag_cumsum(np.swapaxes(both, -1, -2) @ swapped))
 
 
 def _a_term(S12, s12, m):
     """``A_ab = tr(S12 Zᵃ S12 Zᵇ)``."""
     gx, gy = _commutator_generators(S12)  # Z S12 − S12 Z = gx gyᵀ
-    level2 = np.empty(S12.shape)
+    level = np.empty(S12.shape)  # level 2, then in place level 1 and the result: one n × n array in all
     # column 0: Σ_r y_rᵀ Zᵃ S12 x_r; columns c ≥ 1: −Σ_{r,s} c(y_r, x_s)_a c(y_s, x_r)_{c−1}
-    level2[..., :, 0] = np.sum(_corr(np.swapaxes(gy, -1, -2), np.swapaxes(S12 @ gx, -1, -2), m), axis=-2)
+    level[..., :, 0] = np.sum(_corr(np.swapaxes(gy, -1, -2), np.swapaxes(S12 @ gx, -1, -2), m), axis=-2)
     k = gx.shape[-1]
     left = _pair_corr(gy, gx, m)  # row (r, s): c(y_r, x_s)
     right = np.swapaxes(left.reshape(left.shape[:-2] + (k, k, m)), -2, -3).reshape(left.shape)  # c(y_s, x_r)
-    level2[..., :, 1:] = -(np.swapaxes(left, -1, -2) @ right)[..., :, :-1]
-    level1 = np.empty(S12.shape)
-    level1[..., :, 0] = _superdiagonal_sums(S12, s12, m)  # A_a0 = tr(Zᵃ S12²)
-    level1[..., :, 1:] = _antidiag_cumsum(level2)[..., :, :-1]
-    return _antidiag_cumsum(level1)
+    np.matmul(np.swapaxes(left, -1, -2), -right[..., :, :-1], out=level[..., :, 1:])
+    _antidiag_cumsum(level)
+    _shift_columns_right(level)  # level 1: columns c ≥ 1 are those of level 2's cumulative sum, c − 1
+    level[..., :, 0] = _superdiagonal_sums(S12, s12, m)  # A_a0 = tr(Zᵃ S12²)
+    return _antidiag_cumsum(level)
+
+
+def _shift_columns_right(M):
+    """``M[..., :, 1:] = M[..., :, :-1]`` in place, row by row (a whole-array overlapping copy would buffer an
+    n × n temporary)."""
+    rows = M.reshape(-1, M.shape[-1])
+    for r in rows:
+        r[1:] = r[:-1].copy()
+    return M
 
 
 def _superdiagonal_sums(P, gk, m):
