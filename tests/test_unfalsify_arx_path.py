@@ -91,7 +91,7 @@ def test_a_solve_evaluates_the_bounds_only_where_they_are_due(monkeypatch):
     monkeypatch.setattr(arx_barrier._ArxBarrier, "dual", lambda self, t, *a: log.append(("dual", t)) or dual(self, t, *a))
     monkeypatch.setattr(arx_barrier._ArxBarrier, "evaluated",
                         lambda self, t, up, lo: log.append(("seen", t, (up - lo) / up)) or evaluated(self, t, up, lo))
-    monkeypatch.setattr(arx_barrier, "_LARGE_NU", 100)  # μ = 2: several centrings near the tolerance
+    monkeypatch.setattr(arx_barrier, "_MU", 2.0)  # several centrings near the tolerance
     monkeypatch.setattr(arx_barrier, "_BOUND_FACTOR", 100.0)
     u, y, sigma = _problem(arx_barrier._STRUCTURED_FROM + 20, 0)
     tol = 1e-4

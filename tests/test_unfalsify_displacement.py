@@ -202,27 +202,20 @@ def test_arx_barrier_gives_the_same_certified_delta_by_either_block_route(monkey
     _assert_both_certified_and_overlapping(a, b)
 
 
-@pytest.mark.parametrize("large_nu, expected", [(None, 3.0), (100, 2.0)])
-def test_arx_barrier_grows_t_by_two_above_the_barrier_parameter_threshold(monkeypatch, large_nu, expected):
-    """μ = 3 up to ν = _LARGE_NU, μ = 2 above it (ν = 2n + 1 = 121 here; the threshold moved below it)."""
+def test_arx_barrier_weights_the_noise_barrier_by_the_root_of_the_lmi_order():
+    """w = √(2n) for one channel, ν = 2n + w, and the solve certified (the weight also enters the dual point)."""
     from experiments.bench.bench_unfalsify import _data
 
-    if large_nu is not None:
-        monkeypatch.setattr(arx_barrier, "_LARGE_NU", large_nu)
-    seen = set()
-    advance = arx_barrier._ArxBarrier.advance
-
-    def spy(self, *args):
-        seen.add(self.mu)
-        return advance(self, *args)
-
-    monkeypatch.setattr(arx_barrier._ArxBarrier, "advance", spy)
     u, y = _data(60, 2)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
+    form = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms).column_form(scaled=True)
+    solver = arx_barrier._ArxBarrier(form, tol=1e-6, time_limit=None, progress=False)
+    assert solver.w == pytest.approx(np.sqrt(120)) and solver.nbar == pytest.approx(120 + np.sqrt(120))
+    assert solver.mu == 3.0
+    with baselines.former_routes():
+        assert arx_barrier._ArxBarrier(form, tol=1e-6, time_limit=None, progress=False).w == 1.0
     r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False)
-    assert seen == {expected} and r.status == "optimal" and r.certificate.verify()
-    assert arx_barrier._default_mu(arx_barrier._LARGE_NU + 1, None) == 2.0
-    assert arx_barrier._default_mu(arx_barrier._LARGE_NU, None) == 3.0
+    assert r.status == "optimal" and r.certificate.verify()
 
 
 def test_a_tight_tolerance_is_reached_through_the_structured_routes():

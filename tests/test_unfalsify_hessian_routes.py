@@ -127,8 +127,8 @@ def test_arx_step_equals_former_route_to_the_certified_gap(seed, n):
 
 
 def test_arx_step_algebra_alone_gives_the_former_iterates(monkeypatch):
-    """With the former predictor and μ (the path unchanged), the new algebra reproduces the former route's
-    Newton steps and δ: the algebra changes rounding only."""
+    """With the former predictor, μ and noise weight (the path unchanged), the new algebra reproduces the former
+    route's Newton steps and δ: the algebra changes rounding only."""
     from unfalsify.solvers import arx_barrier
 
     u, y = _servo(70, 31)
@@ -140,6 +140,13 @@ def test_arx_step_algebra_alone_gives_the_former_iterates(monkeypatch):
         return self.mu * t, self._feasible_along(s, (self.mu - 1.0) * t * np.append(*step[2]), self.mu * t)
 
     monkeypatch.setattr(arx_barrier._ArxBarrier, "advance", former_advance)
+    init = arx_barrier._ArxBarrier.__init__
+
+    def former_weight(self, *args, **kwargs):  # the noise barrier's former weight 1
+        init(self, *args, **kwargs)
+        self.nbar, self.w = self.nbar - self.w + 1.0, 1.0
+
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "__init__", former_weight)
     monkeypatch.setattr(arx_barrier._ArxBarrier, "bound_due", lambda self, t, upper: True)
     monkeypatch.setattr(arx_barrier._ArxBarrier, "upper_due", lambda self, t, s: True)
     f = P.column_form(scaled=True)

@@ -3,7 +3,7 @@
 The barrier method of :mod:`unfalsify.solvers.barrier` (Boyd & Vandenberghe §11.3) on the n + 1
 variables (h, δ) of (C) with ``𝓛 = range Φ`` projected out,
 
-    f_t(h, δ) = t δ − log det F(h, δ) − log(ρ² − ‖P(B − T(u)h)‖²),   F = [δI T(h)ᵀ; T(h) δI],
+    f_t(h, δ) = t δ − log det F(h, δ) − w log(ρ² − ‖P(B − T(u)h)‖²),   F = [δI T(h)ᵀ; T(h) δI],
 
 but every quantity is read off one Cholesky factorisation instead of an SVD of T(h):
 
@@ -48,17 +48,24 @@ lower ``f_{μt}`` is taken (one or two trial factorisations): the tangent linear
 centred point and the one before, with both tangents.  The path curves: at n = 1000 the tangent's step was
 feasible only when halved or quartered at 10 of 13 path steps, and the first Newton step after it had
 λ² ≈ 50–450; the cubic's full step was taken at 10 of 13.  Measured, Newton steps (servo data of the benchmark,
-seeds 0/1/2, default μ; tangent alone → both): n = 40 (tol 1e-6) 29/25/28 → 26/28/27, n = 80 (tol 1e-7)
+seeds 0/1/2, with the noise weight 1 and μ = 2 above n = 800, the rules before the next paragraph's; tangent alone
+→ both): n = 40 (tol 1e-6) 29/25/28 → 26/28/27, n = 80 (tol 1e-7)
 29/32/31 → 29/34/31, n = 200 (tol 1e-4) 32/31/35 → 30/27/30, n = 400 44/44/45 → 38/34/39, n = 600 54/53/48 →
 41/41/39, n = 1000 65/63/52 → 46/49/46, n = 3000 (seed 0) 142 → 68.  The cubic alone was worse at small n and
 tight tolerances (n = 80: 46/44/42), hence the choice by ``f_{μt}``.
 
-t grows by μ = 3 per outer iteration up to the barrier parameter ν = 1600 (one channel: n ≤ 800), by μ = 2 above
-(:func:`_default_mu`).  After t grows the predicted point's excess ``f_{μt} − min f_{μt}`` can be as large as
-ν(μ − 1 − log μ), and with the tangent alone some centrings worked it off at a roughly constant decrement
-(λ² ≈ 2, full and doubled steps accepted, quadrupled ones infeasible): at n = 3000 three centrings took 50–90
-Newton steps each with μ = 3 (269 steps against 142 with μ = 2).  With both predictions, μ = 3 at n = 1000
-took 51 steps against 46.
+The noise barrier carries the weight ``w = √(order of the LMI)`` (2n for one channel; ν = 2n + w), as in
+:mod:`~unfalsify.solvers.column_barrier`: with w = 1 the one noise constraint is swamped by the 2n LMI terms.
+The steps then spend the noise slack ψ: logged at n = 3000 (μ = 3), ψ/ρ² fell from 2.7e-4 to 2.7e-8 in 13
+Newton steps after t grew, far below its value at the next centre (about 1e-4), and the iterates crawled back
+at λ² ≈ 2.9 for 75 steps; at n = 10⁴ the third centring crawled the same way (λ² ≈ 2 for 25+ steps, when the
+run was stopped).  Capping each step to keep half of ψ did not help (ψ then halved at each of 12 consecutive
+steps).  Measured, Newton steps with w = √(2n) against w = 1 (servo data, seeds 0/1/2, tol 1e-4 unless
+stated): n = 40 (tol 1e-6) 24/25/25 against 26/28/27, n = 80 (tol 1e-7) 30/27/28 against 29/34/31, n = 200
+25/25/26 against 30/27/30, n = 600 31/30/25 against 41/41/39, n = 1000 28/29/27 against 46/49/46 (μ = 3
+against μ = 2), n = 3000 (seed 0) 33 (35 s) against 68.  t grows by μ = 3 per outer iteration at every n: with
+w = 1, μ = 2 had been needed above n = 800 (n = 3000: 142 steps against 269 with μ = 3); with the weight μ = 3
+is the better at n = 1000 (28/29/27 against 34/31/31) and n = 3000 (33 against 37).
 
 The dual point read off each centred iterate (the Newton-linearised ``G = (S − S ΔF S)/t`` and noise
 multiplier, :func:`unfalsify.solvers.barrier.linearised_dual`) is bounded by :meth:`ColumnForm.lower_bound`; the upper
@@ -117,10 +124,8 @@ _STRUCTURED_FROM = 400
 #: 1e-16), which stalled a solve to tol 1e-9 near its end (status "failed").
 _PRECISE_GAP = 1e-7
 
-#: The factor μ of t per outer iteration: :data:`_MU` up to the barrier parameter ν = :data:`_LARGE_NU`, then
-#: :data:`_MU_LARGE` (module docstring: after t grows by μ a centring can crawl through steps whose number grows
-#: like ν(μ − 1 − log μ), the bound on the barrier's excess at the predicted point).
-_MU, _MU_LARGE, _LARGE_NU = 3.0, 2.0, 1600
+#: The factor μ of t per outer iteration (module docstring: path steps).
+_MU = 3.0
 
 #: Up to this n (one channel) a solve holds BLAS to one thread (:func:`_blas_policy`).
 _ONE_BLAS_THREAD_UP_TO = 1000
@@ -263,11 +268,11 @@ class _State:
     generalised Schur algorithm (:func:`~unfalsify.solvers.displacement.schur_cholesky`, O(n²), no Gram), and
     ``flipped`` is True; ``det(J K J) = det K``."""
 
-    __slots__ = ("h", "d", "_T", "_ops", "L", "flipped", "logdet", "r", "psi", "ok")
+    __slots__ = ("h", "d", "_T", "_ops", "L", "flipped", "logdet", "r", "psi", "ok", "w")
 
-    def __init__(self, h, d, form: ColumnForm, ops: _Siso | None = None):
+    def __init__(self, h, d, form: ColumnForm, ops: _Siso | None = None, w: float = 1.0):
         ops = _Siso(form) if ops is None else ops
-        self.h, self.d = h, float(d)
+        self.h, self.d, self.w = h, float(d), float(w)
         self.r = ops.residual(h)
         self.psi = form.rho**2 - float(self.r @ self.r)
         self._T, self._ops = None, ops
@@ -307,10 +312,10 @@ class _State:
         return self._T
 
     def phi(self, t: float) -> float:
-        """``f_t`` at this point (inf outside the domain)."""
+        """``f_t`` at this point (inf outside the domain); ``w`` is the noise barrier's weight."""
         if not self.ok:
             return np.inf
-        return t * self.d - self.logdet - np.log(self.psi)
+        return t * self.d - self.logdet - self.w * np.log(self.psi)
 
 
 class _ArxBarrier:
@@ -330,15 +335,18 @@ class _ArxBarrier:
             self.n, self.nK = n, n * m  # K = δ²I − TᵀT is nm × nm
             self.desc = f"structured ARX unfalsification ({l}×{m}, n={n})"
             PM = form.project(_channel_operator(form))
-            self.nbar = n * (l + m) + 1
+            lmi = n * (l + m)
         else:
             self.ops = _Siso(form)
             self.n = self.nK = form.m
             self.desc = f"structured ARX unfalsification (n={self.n})"
             PM = form.project(toeplitz_matrix(form.U[:, 0]))
-            self.nbar = 2 * self.n + 1
+            lmi = 2 * self.n
+        # the noise barrier's weight w (module docstring) and the barrier parameter ν = (order of the LMI) + w
+        self.w = 1.0 if _STEP_ROUTE["route"] == "former" else float(np.sqrt(lmi))
+        self.nbar = lmi + self.w
         self.MtPM = PM.T @ PM
-        self.mu = _default_mu(self.nbar, form) if mu is None else float(mu)
+        self.mu = _default_mu(form) if mu is None else float(mu)
         self._centred = None  # (t, (h, δ), its tangent) of the last centred point the path stepped from
         self._delta = None  # δ of the last centred point (bound_due's scale)
         self._precise = False  # the precise routes for every Newton step from here on (newton)
@@ -346,7 +354,7 @@ class _ArxBarrier:
         self.bound_threads = contextlib.nullcontext  # the context of the bounds' BLAS calls (solve_arx_barrier)
 
     def _state(self, h, d) -> _State:
-        s = _State(h, d, self.f, self.ops)
+        s = _State(h, d, self.f, self.ops, self.w)
         self.trials += bool(s.d > 0.0 and s.psi > 0.0)  # only then is K factorised
         return s
 
@@ -402,8 +410,8 @@ class _ArxBarrier:
         d, ops = s.d, self.ops
         Kinv, A, S22, gens = self._inverse_blocks(s, precise)
         g_noise = ops.apply_T(s.r)
-        psi = s.psi
-        grad_h = 2.0 * ops.adjoint(A) - 2.0 * g_noise / psi
+        psi, w = s.psi, self.w
+        grad_h = 2.0 * ops.adjoint(A) - 2.0 * w * g_noise / psi
         grad_d = t - 2.0 * d * float(np.trace(Kinv))
         dd = 2.0 * (d * d * _sum_squares(Kinv) + _sum_squares(A))
         if ops.excess:  # the δ^{nl−nm} factor of det F (rectangular T(h))
@@ -416,9 +424,9 @@ class _ArxBarrier:
         # c: the h–δ column 4 T*(S21 S11); the FFT Hessian once the path's gap is below _PRECISE_GAP·δ
         Hm, c = ops.hessian_and_column(d, S11, S21, S22, precise=precise, generators=gens)
         Hm = np.ascontiguousarray(Hm)  # (a no-op for the routes' own arrays) the in-place updates need it
-        # Hm += (2/ψ) MᵀPM + (4/ψ²) g gᵀ in place (symmetric: its Fortran view is the same matrix)
-        _blas.daxpy(self.MtPM.reshape(-1), Hm.reshape(-1), a=2.0 / psi)
-        _blas.dger(4.0 / psi**2, g_noise, g_noise, a=Hm.T, overwrite_a=1)
+        # Hm += (2w/ψ) MᵀPM + (4w/ψ²) g gᵀ in place (symmetric: its Fortran view is the same matrix)
+        _blas.daxpy(self.MtPM.reshape(-1), Hm.reshape(-1), a=2.0 * w / psi)
+        _blas.dger(4.0 * w / psi**2, g_noise, g_noise, a=Hm.T, overwrite_a=1)
         cf = cholesky_retry(Hm, overwrite=True)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
         xg, xc = sol[:, 0], sol[:, 1]
@@ -496,7 +504,7 @@ class _ArxBarrier:
     def dual(self, t, s: _State, step):
         dh, dlt, _, blocks = step
         dr = -self.ops.image(dh)
-        v, W = linearised_dual(t, blocks, self.ops.toeplitz(dh), dlt, s.r, dr, s.psi)
+        v, W = linearised_dual(t, blocks, self.ops.toeplitz(dh), dlt, s.r, dr, s.psi, weight=self.w)
         return v[:, None], W[None]
 
     def advance(self, t, s: _State, step, bounds, deadline):
@@ -556,8 +564,7 @@ def solve_arx_barrier(form: ColumnForm, h0: np.ndarray, *, tol=1e-7, time_limit=
     progress : bool
         tqdm bar for solves longer than ~2 s.
     mu : float, optional
-        Factor of t per outer iteration; default 3, and 2 above the barrier parameter ν = 1600 (one channel:
-        n > 800; measured in the module docstring; the former route of
+        Factor of t per outer iteration; default 3 (measured in the module docstring; the former route of
         :func:`unfalsify.solvers.baselines.former_routes`: 8 for n ≤ 200, 3 above).
 
     Returns
@@ -581,12 +588,11 @@ def _sum_squares(X: np.ndarray) -> float:
     return float(np.vdot(X, X)) if X.flags.c_contiguous else float(np.sum(X * X))
 
 
-def _default_mu(nbar: int, form: ColumnForm) -> float:
-    """μ for barrier parameter ν = ``nbar``: :data:`_MU`, or :data:`_MU_LARGE` above ν = :data:`_LARGE_NU`
-    (the former route of :func:`~unfalsify.solvers.baselines.former_routes`: 8 up to n = 200, else 3)."""
+def _default_mu(form: ColumnForm) -> float:
+    """:data:`_MU` (the former route of :func:`~unfalsify.solvers.baselines.former_routes`: 8 up to n = 200, else 3)."""
     if _STEP_ROUTE["route"] == "former":
         return 8.0 if form.m <= 200 else 3.0
-    return _MU_LARGE if nbar > _LARGE_NU else _MU
+    return _MU
 
 
 def _blas_policy(form):
