@@ -26,7 +26,7 @@ and, as also once the path's gap is below 1e-7·δ, ``K⁻¹`` comes from the fa
 products ``T K⁻¹`` and ``(T K⁻¹) Tᵀ`` with the triangular T(h) by trmm (n³ each).  The h–δ column
 ``−4δ T*(T K⁻²) = 4 T*(S21 S11)`` comes with the Hessian (which reuses the generators), ``T(h)ᵀT(h)`` costs O(n²)
 (:func:`toeplitz_gram`), and a trial point of the line search never forms the dense T(h).  The certificate's two dense SVDs are evaluated only once
-the path's gap ν/t is within 10·tol of δ, then only where the last certified gap, shrunk like 1/t, would be
+the path's gap ν/t is within 4·tol of δ (:data:`_BOUND_FACTOR`), then only where the last certified gap, shrunk like 1/t, would be
 within tol (:meth:`_ArxBarrier.bound_due`), and at the centring that ends a solve, whatever ended it.  Up to
 n = 1000 a solve holds BLAS to one thread (:func:`_blas_policy`), except in the bounds.  Measured on 2 cores, the same solves in
 one process, alternating (the servo data of the benchmark, seed 0, tol 1e-4, same Newton steps and δ both
