@@ -238,6 +238,10 @@ def pcg(A, Minv, B, *, tol: float, maxiter: int, start=None, project=None, dot=N
     return X, iterations
 
 
+#: The diagonal shifts (relative to the largest diagonal entry) of :func:`cholesky_retry`'s retries.
+_RETRY_SHIFTS = (1e-14, 1e-12, 1e-10, 1e-8)
+
+
 def cholesky_retry(Hm, *, overwrite: bool = False):
     """Cholesky factor (``cho_factor``); on a (rounding-level) failure, retry with a growing diagonal shift.
 
@@ -251,7 +255,7 @@ def cholesky_retry(Hm, *, overwrite: bool = False):
         return scipy.linalg.cho_factor(Hm)
     except np.linalg.LinAlgError:
         scale = float(np.max(np.abs(np.diag(Hm))))
-        for e in (1e-14, 1e-12, 1e-10, 1e-8):
+        for e in _RETRY_SHIFTS:
             try:
                 return scipy.linalg.cho_factor(Hm + e * scale * np.eye(Hm.shape[0]))
             except np.linalg.LinAlgError:
@@ -264,7 +268,7 @@ def _cholesky_in_place(Hm):
     F = Hm if Hm.flags.f_contiguous else Hm.T  # the same symmetric matrix, in LAPACK's order
     diag = np.diag(F).copy()
     scale = float(np.max(np.abs(diag))) if diag.size else 0.0
-    for e in (0.0, 1e-14, 1e-12, 1e-10, 1e-8):
+    for e in (0.0, *_RETRY_SHIFTS):
         if e:  # the failed attempt overwrote the lower triangle: restore it from the upper one, shifted
             for j in range(F.shape[0] - 1):
                 F[j + 1:, j] = F[j, j + 1:]

@@ -142,11 +142,13 @@ def ridge_fit_gram(gram: np.ndarray, c: np.ndarray, residual, target: float, *, 
     scale = max(float(np.trace(gram)) / p, np.finfo(float).tiny)
     lo, hi = -np.inf, np.inf  # bracket of log λ: residual below target at lo, above at hi
     x, h = np.log(scale), None
+    G = np.empty_like(gram)  # G + λI, one p × p buffer for every λ (p = 10⁴: 800 MB)
     for _ in range(max_iter):
         lam = float(np.exp(x))
-        G = gram + lam * np.eye(p)
-        try:
-            factor = scipy.linalg.cho_factor(G, overwrite_a=True, check_finite=False)
+        np.copyto(G, gram)
+        G.flat[:: p + 1] += lam
+        try:  # on the transpose (symmetric, LAPACK's order): factorised in place, no copy
+            factor = scipy.linalg.cho_factor(G.T, overwrite_a=True, check_finite=False)
         except np.linalg.LinAlgError:  # rounding at a tiny λ: G is positive semidefinite
             lo, x = x, x + np.log(10.0)
             continue
