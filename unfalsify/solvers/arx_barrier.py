@@ -179,7 +179,7 @@ class _Siso:
     def hessian(self, S11, S21, S22):
         return corr_hessian(S11[None], S21[None], S22[None], S11.shape[0])[0]
 
-    def hessian_and_column(self, d, S11, S21, S22, precise=False, generators=None):
+    def hessian_and_column(self, S11, S21, S22, precise=False, generators=None):
         """The h–h Hessian block of F⁻¹ = [S11, S21ᵀ; S21, S22] (S11 = δK⁻¹, S21 = −T K⁻¹) and its h–δ column
         ``4 T*(S21 S11)``: from the displacement generators of F⁻¹'s blocks
         (:func:`~unfalsify.solvers.displacement.displacement_hessian`, O(n²); ``generators`` those
@@ -236,7 +236,7 @@ class _Channels(_Siso):
     def hessian(self, S11, S21, S22):
         return block_corr_hessian(S11, S21, S22, self.n, self.l, self.m)
 
-    def hessian_and_column(self, d, S11, S21, S22, precise=False, generators=None):
+    def hessian_and_column(self, S11, S21, S22, precise=False, generators=None):
         return self.hessian(S11, S21, S22), 4.0 * self.adjoint(S21 @ S11)
 
     def norm(self, h):
@@ -422,7 +422,7 @@ class _ArxBarrier:
         S11, S21 = np.multiply(Kinv, d, out=Kinv), np.negative(A, out=A)
         del Kinv, A
         # c: the h–δ column 4 T*(S21 S11); the FFT Hessian once the path's gap is below _PRECISE_GAP·δ
-        Hm, c = ops.hessian_and_column(d, S11, S21, S22, precise=precise, generators=gens)
+        Hm, c = ops.hessian_and_column(S11, S21, S22, precise=precise, generators=gens)
         Hm = np.ascontiguousarray(Hm)  # (a no-op for the routes' own arrays) the in-place updates need it
         # Hm += (2w/ψ) MᵀPM + (4w/ψ²) g gᵀ in place (symmetric: its Fortran view is the same matrix)
         _blas.daxpy(self.MtPM.reshape(-1), Hm.reshape(-1), a=2.0 * w / psi)
