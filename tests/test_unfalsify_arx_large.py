@@ -241,6 +241,61 @@ def test_certified_norm_above_the_dense_limit_is_proven_never_a_bare_lanczos_val
     assert arx.certified_norm(h) == arx.symbol_bound(h) >= true
 
 
+@pytest.fixture(scope="module")
+def clustered_impulses():
+    """Impulses at the optimum of (7.4) (n = 300, certified to 1e-8): their top singular values cluster at δ
+    (relative spacing 1e-9 to 1e-8), where Lanczos on TᵀT does not converge."""
+    u, y, sigma = _problem(300, 0)
+    r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-8, progress=False)
+    h = np.asarray(r.certificate.impulses, float).reshape(-1)
+    sv = np.linalg.svd(uf.toeplitz_matrix(h), compute_uv=False)
+    assert (sv[0] - sv[3]) / sv[0] < 1e-6  # the case the route is for
+    return h, float(sv[0]), r.delta
+
+
+def test_shift_invert_norm_is_proven_and_tight_on_a_clustered_spectrum(clustered_impulses):
+    # second route: LAPACK's dense SVD; the result is never below it and within the proof's margin above it
+    h, exact, delta = clustered_impulses
+    for near in (delta, exact * (1 + 1e-4), exact * (1 + 1e-2), exact * (1 - 1e-3)):
+        c = tk.norm_by_shift_invert(h, near)
+        assert exact <= c <= exact * (1 + 1e-8), near / exact - 1
+    assert tk.norm_by_shift_invert(h, 0.5 * float(np.linalg.norm(h))) is None  # no shift is above the norm
+
+
+def test_shift_invert_norm_refuses_a_low_estimate(clustered_impulses, monkeypatch):
+    # a Lanczos value far too small (or none) is never returned: the proof climbs to a bound it can prove
+    h, exact, _ = clustered_impulses
+    monkeypatch.setattr(tk, "_largest_inverse_eigenvalue", lambda L, tol: 1e-30)  # estimate ‖h‖ < ‖T‖
+    assert exact <= tk.norm_by_shift_invert(h, exact * (1 + 1e-3)) <= exact * (1 + 1e-3)
+    monkeypatch.setattr(tk, "_largest_inverse_eigenvalue", lambda L, tol: float("nan"))  # ARPACK failed
+    assert tk.norm_by_shift_invert(h, exact * (1 + 1e-3)) == exact * (1 + 1e-3)
+
+
+def test_certified_norm_with_a_near_value_uses_the_shift_not_lanczos_on_the_gram(clustered_impulses, monkeypatch):
+    h, exact, delta = clustered_impulses
+    monkeypatch.setattr(tk, "DENSE_NORM_LIMIT", 10)
+
+    def no_plain_lanczos(*a, **k):
+        raise AssertionError("Lanczos on TᵀT was called")
+
+    monkeypatch.setattr(tk, "toeplitz_norm", no_plain_lanczos)
+    assert exact <= tk.certified_norm(h, delta) <= exact * (1 + 1e-8)
+    with pytest.raises(AssertionError, match="Lanczos on TᵀT"):  # a hint above the symbol bound is no help
+        tk.certified_norm(h, 1e6 * exact)
+
+
+def test_certificate_above_the_dense_limit_verifies(monkeypatch):
+    # the front end hands the reported δ to the norm's shift, for the certificate and for verify()
+    monkeypatch.setattr(tk, "DENSE_NORM_LIMIT", 10)
+    u, y, sigma = _problem(300, 1)
+    r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-6, progress=False)
+    c = r.certificate
+    exact = float(np.linalg.norm(uf.toeplitz_matrix(np.asarray(c.impulses, float).reshape(-1)), 2))
+    assert r.status == "optimal" and c.verify()
+    assert exact <= c.upper_bound <= exact * (1 + 1e-8)
+    assert c.relative_gap <= 1e-6
+
+
 def test_cholesky_norm_test_decides_both_ways():
     from unfalsify.solvers.toeplitz import norm_below_by_cholesky as _norm_below_by_cholesky
 

@@ -204,7 +204,7 @@ class Certificate:
         """
         if self.problem is None:
             return False
-        up, nn = self.problem.evaluate_primal(self.impulses, self.params)
+        up, nn = self.problem.evaluate_primal(self.impulses, self.params, near=_near(self.upper_bound))
         if not (np.isfinite(up) and np.isfinite(nn)):
             return False
         bound = self.sigma * np.sqrt(self.n_noise)
@@ -220,6 +220,12 @@ class Certificate:
         return bool(ok)
 
 
+def _near(delta) -> float | None:
+    """A reported δ as the ``near`` hint of ``evaluate_primal`` (None where it is no number above 0)."""
+    delta = float(delta)
+    return delta if np.isfinite(delta) and delta > 0.0 else None
+
+
 def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     """The :class:`Certificate` of a solver's output for the problem ``P``, and the δ to report.
 
@@ -227,7 +233,7 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     ``(dual_v, dual_W)``.  For a structured solver (``out.bracketed``) δ is NaN unless the solve ended
     with a certified bracket, and any status but ``optimal`` warns with the certificate's gap.
     """
-    up, nn = P.evaluate_primal(out.impulses, out.params)
+    up, nn = P.evaluate_primal(out.impulses, out.params, near=_near(out.delta))
     if out.dual_v is not None:
         lo = P.evaluate_dual(out.dual_v, out.dual_W)
     else:  # a structured solve stopped before its first dual point still brackets δ_unf ≥ 0; cvxpy has none

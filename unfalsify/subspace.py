@@ -309,8 +309,11 @@ class SubspaceProblem:
         rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
         return BlockColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T, **kw)
 
-    def evaluate_primal(self, H, L) -> tuple[float, float]:
+    def evaluate_primal(self, H, L, near=None) -> tuple[float, float]:
         """``(max_k ‖T(h_k)‖₂, ‖Y_f − L A − H̃‖_F)`` recomputed from the data.
+
+        ``near`` (the reported δ) is accepted for the interface :class:`Certificate` shares with ARX and not
+        used: the columns' norms differ, and a shift helps only the column whose norm it is close to.
 
         The norms are the certificate's upper side, so they are never estimates: a dense SVD (the same
         numbers as before for ``i·max(l, m) ≤ 4000``), above that a bound proven by a Cholesky factor or

@@ -192,8 +192,10 @@ class _Siso:
         H, x = corr_hessian(S11[None], S21[None], S22[None], S11.shape[0], cross=True)
         return H[0], 4.0 * x[0]
 
-    def norm(self, h):
-        return certified_norm(h)  # the certificate's own route (dense SVD up to n = 4000)
+    def norm(self, h, near=None):
+        """The certificate's own route (dense SVD up to n = 4000); ``near`` (the iterate's δ, just above
+        ‖T(h)‖₂) is the shift of its proven Lanczos route above that."""
+        return certified_norm(h, near)
 
 
 class _Channels(_Siso):
@@ -239,7 +241,7 @@ class _Channels(_Siso):
     def hessian_and_column(self, S11, S21, S22, precise=False, generators=None):
         return self.hessian(S11, S21, S22), 4.0 * self.adjoint(S21 @ S11)
 
-    def norm(self, h):
+    def norm(self, h, near=None):
         return block_certified_norm(h.reshape(self.n, self.l, self.m))
 
 
@@ -473,7 +475,7 @@ class _ArxBarrier:
             s = sn
 
     def upper(self, s: _State) -> float:
-        return self.ops.norm(s.h)
+        return self.ops.norm(s.h, s.d)
 
     def bound_due(self, t, upper) -> bool:
         """Whether the bounds (a dense SVD each) are worth evaluating at t (the former route: always).

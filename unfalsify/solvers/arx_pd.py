@@ -447,7 +447,7 @@ class _ArxPrimalDual:
         return self.last_gap <= max(10.0 * self.tol, 1e-2) * max(upper, 1e-300)
 
     def upper(self, p: _Point) -> float:
-        return self.ops.norm(p.h)
+        return self.ops.norm(p.h, p.d)
 
     def impulses(self, p: _Point) -> np.ndarray:
         return p.h[:, None].copy()
