@@ -185,3 +185,52 @@ def test_the_adjoint_row_by_row_equals_the_strided_route(monkeypatch):
     by_rows = toeplitz.adjoint(W)
     assert np.allclose(by_rows, strided, rtol=1e-13, atol=1e-13)
     assert np.allclose(by_rows, [np.trace(W, offset=-d) for d in range(40)], rtol=1e-13, atol=1e-13)
+
+
+def test_toeplitz_products_by_fft_blocks_equal_the_dense_products(monkeypatch):
+    from unfalsify.solvers import toeplitz as tk
+
+    monkeypatch.setattr(tk, "_PRODUCT_BLOCK", 7)  # several column blocks and a short last one
+    rng = np.random.default_rng(3)
+    h, X = rng.standard_normal(50), rng.standard_normal((50, 30))
+    T = uf.toeplitz_matrix(h)
+    assert np.allclose(tk.toeplitz_times(h, X), T @ X, rtol=0, atol=1e-12 * np.abs(T @ X).max())
+    assert np.allclose(tk.toeplitz_times(h, X, transpose=True), T.T @ X, rtol=0, atol=1e-12 * np.abs(T.T @ X).max())
+
+
+def test_the_linearised_dual_with_fft_products_equals_the_dense_one():
+    from unfalsify.solvers.barrier import linearised_dual
+    from unfalsify.solvers.toeplitz import toeplitz_times
+
+    rng = np.random.default_rng(0)
+    n = 60
+    A = rng.standard_normal((2 * n, 2 * n))
+    S = A @ A.T / n + np.eye(2 * n)
+    blocks = (S[:n, :n], S[n:, :n], S[n:, n:])
+    dh, r, dr = rng.standard_normal((3, n))
+    v1, W1 = linearised_dual(2.0, blocks, uf.toeplitz_matrix(dh), 0.3, r, dr, 5.0, weight=3.0)
+    v2, W2 = linearised_dual(2.0, blocks, lambda X, tr: toeplitz_times(dh, X, transpose=tr), 0.3, r, dr, 5.0,
+                             weight=3.0)
+    assert np.array_equal(v1, v2)
+    assert np.allclose(W2, W1, rtol=0, atol=1e-13 * np.abs(W1).max())
+
+
+def test_the_structured_route_forms_its_dual_without_the_steps_dense_toeplitz(monkeypatch):
+    calls = []
+    times = arx_barrier.toeplitz_times
+    monkeypatch.setattr(arx_barrier, "toeplitz_times", lambda *a, **k: calls.append(1) or times(*a, **k))
+    toeplitz = arx_barrier._Siso.toeplitz
+    monkeypatch.setattr(arx_barrier._Siso, "toeplitz", lambda self, h: calls.append("dense") or toeplitz(self, h))
+    dual = arx_barrier._ArxBarrier.dual
+
+    def dual_only_fft(self, *a):
+        before = calls.count("dense")
+        out = dual(self, *a)
+        assert calls.count("dense") == before  # no dense T(dh) in the dual
+        return out
+
+    monkeypatch.setattr(arx_barrier._ArxBarrier, "dual", dual_only_fft)
+    u, y, sigma = _problem(arx_barrier._STRUCTURED_FROM + 20, 1)
+    r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-6, progress=False)
+    assert r.status == "optimal" and r.certificate.verify() and r.certificate.relative_gap <= 1e-6
+    assert calls.count(1) >= 2  # both products of each dual point

@@ -194,10 +194,16 @@ def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight:
     barrier, ``r`` the projected residual, ``dr`` its change along the step) is linearised the same way.
     The Newton equations make them satisfy ``T*(W) = T(u)ᵀ v`` to first order, so the repair in the
     bound is small even off the path; neither needs to be PSD (the bound uses ``‖W‖_*``).
-    Works on one matrix or on a stack ``(j, m, m)``.
+    Works on one matrix or on a stack ``(j, m, m)``.  ``dT`` is the step's Toeplitz matrix, or a function
+    ``dT(X, transpose)`` returning ``dT X`` or ``dTᵀ X`` (such as FFT products, which leave four dense
+    products of the six).
     """
     S11, S21, S22 = blocks
-    SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ np.swapaxes(dT, -1, -2) @ S21 + S22 @ dT @ S11
+    if callable(dT):
+        dT_S11, dTt_S21 = dT(S11, False), dT(S21, True)
+    else:
+        dT_S11, dTt_S21 = dT @ S11, np.swapaxes(dT, -1, -2) @ S21
+    SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ dTt_S21 + S22 @ dT_S11
     W = -2.0 * (S21 - SdFS21) / t
     v = (2.0 * weight / t) * (r / psi + dr / psi + 2.0 * r * float(np.sum(r * dr)) / psi**2)
     return v, W

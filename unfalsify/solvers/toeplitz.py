@@ -62,6 +62,7 @@ __all__ = [
     "corr_hessian",
     "ridge_lambda",
     "certified_norm",
+    "toeplitz_times",
     "symbol_bound",
     "norm_below_by_cholesky",
     "norm_by_shift_invert",
@@ -313,6 +314,37 @@ def spectrum_product(S: np.ndarray, x: np.ndarray, N: int, n: int) -> np.ndarray
     True
     """
     return np.fft.irfft(S * np.fft.rfft(x, N, axis=0), N, axis=0)[:n]
+
+
+#: columns per FFT block of :func:`toeplitz_times` (at n = 10⁴ a block's spectrum is 16385 × 512 complex, 134 MB)
+_PRODUCT_BLOCK = 512
+
+
+def toeplitz_times(h, X: np.ndarray, *, transpose: bool = False) -> np.ndarray:
+    """``T(h) X`` (or ``T(h)ᵀ X``) for a dense X (n, k), by FFT in blocks of columns, without T(h).
+
+    O(nk log n) against the 2n²k of a dense product: at n = 10⁴ and k = n a dense product takes 25 s on this
+    machine's two cores.  ``T(h)ᵀ = J T(h) J`` (J the flip of the rows).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h, X = np.array([1.0, -2.0, 0.5]), np.arange(6.0).reshape(3, 2)
+    >>> bool(np.allclose(toeplitz_times(h, X), toeplitz_matrix(h) @ X))
+    True
+    >>> bool(np.allclose(toeplitz_times(h, X, transpose=True), toeplitz_matrix(h).T @ X))
+    True
+    """
+    h = np.asarray(h, float).reshape(-1)
+    n = h.size
+    nf = nfft(n)
+    S = np.fft.rfft(h, nf)[:, None]
+    src = X[::-1] if transpose else X
+    out = np.empty(X.shape)
+    dst = out[::-1] if transpose else out  # J (T(h) J X) written straight into place
+    for j in range(0, X.shape[1], _PRODUCT_BLOCK):
+        dst[:, j:j + _PRODUCT_BLOCK] = spectrum_product(S, src[:, j:j + _PRODUCT_BLOCK], nf, n)
+    return out
 
 
 def conv_cols_T(U: np.ndarray, X: np.ndarray) -> np.ndarray:
