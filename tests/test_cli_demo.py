@@ -10,6 +10,8 @@ from experiments.cli import main
 
 pytestmark = pytest.mark.slow  # minutes of CLI/LMI work: deselect with -m 'not slow'
 
+# ``demo --json`` (JSON alone on stdout, naming the report) is run by tests/test_cli_quick.py with ``--quick``.
+
 
 def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
@@ -33,9 +35,3 @@ def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
 
     assert_reports_complete(tmp_path, "demo")  # demo.md and chapter7/chapter7.md
 
-
-def test_demo_json_flag_prints_json_only(tmp_path, capsys):
-    assert main(["demo", "--json", "--out", str(tmp_path)]) == 0
-    printed = capsys.readouterr().out
-    data = json.loads(printed)
-    assert data["report"].endswith("demo.md")
