@@ -34,4 +34,3 @@ def test_demo_writes_report_and_prints_summary(tmp_path, capsys):
     from _reports import assert_reports_complete
 
     assert_reports_complete(tmp_path, "demo")  # demo.md and chapter7/chapter7.md
-
