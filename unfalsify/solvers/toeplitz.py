@@ -643,8 +643,8 @@ def norm_by_shift_invert(h, near: float, *, tol: float = 1e-10):
        :func:`norm_below_by_cholesky`).
     2. The estimate: Lanczos (ARPACK) on ``((s² − τ)I − TᵀT)⁻¹`` with that factor (two triangular solves per
        product) gives its largest eigenvalue λ, so ``σ̃² = s² − τ − 1/λ`` (≤ ‖T(h)‖₂², a Ritz value).  The
-       shift spreads what clusters: singular values ``δ(1 − 1e-4)`` and ``δ(1 − 1.1e-4)`` of TᵀT are 2e-5
-       apart relative to its spread, their images 10 % apart.
+       shift spreads what clusters: singular values ``δ(1 − 1e-4)`` and ``δ(1 − 1.1e-4)`` of T(h) are
+       eigenvalues of TᵀT 2e-5 apart relative to its spread, and of the inverse 10 % apart.
     3. The proof: ``c = σ̃(1 + ε)`` for ε from twice the relative shift ``τ/c²`` up by factors of 10, each
        tried by :func:`norm_below_by_cholesky` while ``c < s``; the first success, else s.
 
