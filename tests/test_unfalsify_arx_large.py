@@ -284,6 +284,22 @@ def test_certified_norm_with_a_near_value_uses_the_shift_not_lanczos_on_the_gram
         tk.certified_norm(h, 1e6 * exact)
 
 
+def test_certified_norm_without_a_near_value_shifts_from_a_rough_lanczos_value(clustered_impulses, monkeypatch):
+    # a caller with no δ at hand (evaluate_primal from a script, the bracket route): Lanczos on TᵀT only to 1e-3
+    h, exact, _ = clustered_impulses
+    monkeypatch.setattr(tk, "DENSE_NORM_LIMIT", 10)
+    tols, real = [], tk.toeplitz_norm
+
+    def rough_only(h, method="auto", tol=1e-12):
+        tols.append(tol)
+        assert tol >= 1e-3, "Lanczos on TᵀT to full accuracy was called"
+        return real(h, method=method, tol=tol)
+
+    monkeypatch.setattr(tk, "toeplitz_norm", rough_only)
+    assert exact <= tk.certified_norm(h) <= exact * (1 + 1e-8)
+    assert tols == [1e-3]
+
+
 def test_certificate_above_the_dense_limit_verifies(monkeypatch):
     # the front end hands the reported δ to the norm's shift, for the certificate and for verify()
     monkeypatch.setattr(tk, "DENSE_NORM_LIMIT", 10)
