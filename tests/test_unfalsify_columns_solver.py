@@ -336,20 +336,21 @@ def test_deflation_declines_a_singular_coarse_matrix():
     assert sc._deflation(Cmul, W) is None
 
 
-def test_chol_inverse_matches_numpy_and_rejects_indefinite_or_nan():
+def test_chol_logdet_and_spd_inverse_match_numpy_and_reject_indefinite_or_nan():
     rng = np.random.default_rng(2)
     X = rng.standard_normal((7, 5, 5))
     K = X @ np.swapaxes(X, 1, 2) + 0.1 * np.eye(5)
-    inv, logdet = sc._chol_inverse(K)
+    logdet = sc._chol_logdet(K)
+    inv = sc._spd_inverse(K)
     np.testing.assert_allclose(inv, np.linalg.inv(K), rtol=1e-10, atol=1e-12)
     assert np.array_equal(inv, np.swapaxes(inv, 1, 2))
     assert logdet == pytest.approx(float(np.linalg.slogdet(K)[1].sum()), rel=1e-12)
     bad = K.copy()
     bad[3] = -bad[3]
-    assert sc._chol_inverse(bad) is None
+    assert sc._chol_logdet(bad) is None
     bad = K.copy()
     bad[2, 0, 0] = np.nan
-    assert sc._chol_inverse(bad) is None
+    assert sc._chol_logdet(bad) is None
 
 
 def test_noise_step_keeps_half_the_slack():
@@ -391,3 +392,64 @@ def test_blas_is_pinned_to_one_thread_per_worker(monkeypatch, workers):
     u, y = _other_plant(2 * 4 + 20 - 1, 0)
     uf.subspace_unfalsify(u, y, 4, _sigma(u, y, 4), backend="structured", progress=False, workers=workers)
     assert seen == [1]
+
+
+@pytest.mark.parametrize("m, j", [(1, 3), (2, 1), (7, 5), (40, 9), (100, 3)])
+def test_gram_stack_recursion_equals_the_products_and_is_symmetric(m, j):
+    from unfalsify.solvers.toeplitz import toeplitz_gram_stack, toeplitz_stack
+
+    rng = np.random.default_rng(m + j)
+    H = rng.standard_normal((m, j)) * np.exp(-0.05 * np.arange(m))[:, None]
+    T = toeplitz_stack(H)
+    G = toeplitz_gram_stack(H)
+    ref = np.swapaxes(T, 1, 2) @ T
+    assert G.shape == (j, m, m)
+    assert np.abs(G - ref).max() <= 1e-13 * np.abs(ref).max()
+    assert np.array_equal(G, np.swapaxes(G, 1, 2))  # the same sums in the same order on both sides
+
+
+@pytest.mark.parametrize("lead", [(4,), (2, 3)])
+def test_adjoint_of_a_stack_equals_the_subdiagonal_sums(lead):
+    rng = np.random.default_rng(len(lead))
+    m = 9
+    W = rng.standard_normal(lead + (m, m))
+    ref = np.stack([np.array([np.trace(w, offset=-d) for d in range(m)]) for w in W.reshape(-1, m, m)], axis=-1)
+    np.testing.assert_allclose(adjoint(W), ref.reshape((m,) + lead), rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("fixed", [True, False])
+def test_displacement_hessian_gives_the_fft_newton_step(fixed):
+    """The Newton step by the displacement Hessian (the default) equals the one by the FFT Hessian (the precise
+    route) to rounding, and a decrement the displacement route leaves non-positive is recomputed by the FFT."""
+    s, p = _barrier(fixed, 5, 16)
+    s.cg_tol, s.cg_maxiter = 1e-14, 10_000  # L optimised: the CG solves to rounding, not to its default 1e-8
+    t = 50.0
+    fast = s._newton_at(t, p, False)
+    precise = s._newton_at(t, p, True)
+    np.testing.assert_allclose(fast[0], precise[0], rtol=0, atol=1e-9 * np.abs(precise[0]).max())
+    assert fast[2] == pytest.approx(precise[2], rel=1e-9)
+    calls = []
+    orig = s._newton_at
+
+    def newton_at(t, p, precise):
+        calls.append(precise)
+        out = orig(t, p, precise)
+        return out if precise else (out[0], out[1], -1.0, out[3])
+
+    s._newton_at = newton_at
+    assert s._newton(t, p)[2] > 0 and calls == [False, True] and s.precise
+    s._newton(t, p)
+    assert calls == [False, True, True]  # the precise route from then on
+
+
+def test_path_step_is_the_best_of_the_centre_and_its_predictions():
+    """``advance`` returns a strictly feasible point whose f at μt is no higher than the centred point's."""
+    s, p = _barrier(True, 4, 20)
+    t = s.nu / p.d
+    deadline = sc.Deadline()
+    s._prev = (p.upper(), 0.0)
+    p1, step = s.centre(t, p, deadline)
+    t2, q = s.advance(t, p1, step, (p1.upper(), 0.0), deadline)
+    assert t2 == pytest.approx(s.mu * t) and q is not None
+    assert s._f(t2, q) <= s._f(t2, p1)
+    assert q.psi > 0 and np.all(np.linalg.eigvalsh(q.K) > 0)

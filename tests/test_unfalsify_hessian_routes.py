@@ -74,27 +74,72 @@ def test_arx_solve_equals_former_route(seed):
     _same(lambda: uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-6, progress=False), "arx_barrier")
 
 
-@pytest.mark.parametrize("seed, fixed", [(0, False), (1, True), (2, False)])
-def test_subspace_solve_equals_former_route(seed, fixed):
+def _subspace_problem(i, j, seed, fixed):
     import synthesis as sy
 
-    i, j = 4 + seed, 30
-    u, y = _servo(2 * i + j - 1, 10 + seed)
+    u, y = _servo(2 * i + j - 1, seed)
     pred = sy.fit_predictor(u, y, i)
     A, _, Yf = uf.subspace_data(u, y, i)
     sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
-    _same(lambda: uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred if fixed else None,
-                                        tol=1e-6, progress=False), "column_barrier")
+    return uf.SubspaceProblem.from_data(u, y, i, sigma, predictor=pred if fixed else None)
+
+
+@pytest.mark.parametrize("seed, fixed, i, j", [(0, False, 4, 30), (1, True, 5, 30), (2, False, 6, 30), (3, True, 36, 120)])
+def test_subspace_solve_equals_former_route_to_the_certified_gap(seed, fixed, i, j):
+    """``column_barrier`` today (displacement Hessian, path predictor, the Gram recursion from m = 32) against
+    :func:`baselines.former_routes` (FFT Hessian, t × 5 from the centred point, the Gram by products): both
+    certified to tol from the data, their brackets overlap."""
+    P = _subspace_problem(i, j, 10 + seed, fixed)
+    brackets = []
+    for route in ("current", "former"):
+        with baselines.former_routes() if route == "former" else contextlib.nullcontext():
+            out = solvers.run("column_barrier", P, tol=1e-6, progress=False)
+        assert out.status == "optimal"
+        lo, up = P.evaluate_dual(out.dual_v, out.dual_W), P.evaluate_primal(out.impulses, out.params)[0]
+        assert 0 < lo <= up and up - lo <= 1e-6 * up * (1 + 1e-6)
+        brackets.append((lo, up))
+    (lo_n, up_n), (lo_o, up_o) = brackets
+    assert max(lo_n, lo_o) <= min(up_n, up_o) * (1 + 1e-12)
+
+
+def test_subspace_front_end_certificate_by_the_former_hessian_verifies():
+    """The pruned and former FFT Hessians inside ``column_barrier``'s precise route: the same solve to rounding."""
+    from unfalsify.solvers import column_barrier
+
+    P = _subspace_problem(5, 30, 11, False)
+    answers = []
+    for route in ("pruned", "former"):
+        with baselines.former_hessian() if route == "former" else contextlib.nullcontext():
+            with _precise(column_barrier):
+                out = solvers.run("column_barrier", P, tol=1e-6, progress=False)
+        answers.append((out.delta, out.stats["newton"]))
+    (d_new, n_new), (d_old, n_old) = answers
+    assert abs(d_new - d_old) <= 1e-10 * abs(d_old) and n_new == n_old
+
+
+@contextlib.contextmanager
+def _precise(column_barrier):
+    """``column_barrier`` with the FFT Hessian at every step (its precise route)."""
+    gap = column_barrier._PRECISE_GAP
+    column_barrier._PRECISE_GAP = np.inf
+    try:
+        yield
+    finally:
+        column_barrier._PRECISE_GAP = gap
 
 
 def test_former_routes_context_restores_both_switches():
     from unfalsify.solvers import arx_barrier
 
+    from unfalsify.solvers import column_barrier
+
     with pytest.raises(RuntimeError):
         with baselines.former_routes():
             assert _HESSIAN_ROUTE["route"] == "former" and arx_barrier._STEP_ROUTE["route"] == "former"
+            assert column_barrier._STEP_ROUTE["route"] == "former"
             raise RuntimeError
     assert _HESSIAN_ROUTE["route"] == "pruned" and arx_barrier._STEP_ROUTE["route"] == "blas3"
+    assert column_barrier._STEP_ROUTE["route"] == "current"
 
 
 def _routes(problem, tol=1e-6):

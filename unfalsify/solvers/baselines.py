@@ -12,7 +12,8 @@ routes to use, and they may go with the benchmark that measures them.
    former_hessian       -- context manager: every solve inside it uses ``former_corr_hessian``
    former_routes        -- context manager: ``former_hessian`` and, in ``arx_barrier``, the former dense
                            algebra of a Newton step (K⁻¹ by solves against I, general products, both bounds
-                           at every centring): the ARX route before issue 27 in full
+                           at every centring): the ARX route before issue 27 in full; in ``column_barrier``
+                           the FFT Hessian and the path steps before issue 27 (the subspace route then)
    fft_barrier_hessian  -- context manager: ``arx_barrier``'s one-channel Hessian by the 2-D FFT instead of
                            the displacement generators (the route before ``displacement_hessian``)
    dense_inverse_blocks -- context manager: ``arx_barrier``'s blocks of F⁻¹ by potri and trmm (2⅔n³) instead
@@ -30,7 +31,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
-from . import arx_barrier, toeplitz
+from . import arx_barrier, column_barrier, toeplitz
 
 __all__ = ["former_corr_hessian", "former_hessian", "former_routes", "fft_barrier_hessian", "dense_inverse_blocks"]
 
@@ -93,7 +94,8 @@ def former_routes():
     """Inside this context the structured solvers run their former routes: the Hessians of
     :func:`former_hessian` and, in ``arx_barrier``, the former Newton-step algebra (``K⁻¹`` by two triangular
     solves against I, general matrix products with the triangular T(h), the certificate's bounds at every
-    centring).  The same iterates and δ to rounding; a process-wide switch, restored on leaving.
+    centring); in ``column_barrier`` the FFT Hessian and the former path steps (t × 5 from the centred point
+    itself).  The same δ to the certified gap; a process-wide switch, restored on leaving.
 
     Examples
     --------
@@ -108,7 +110,8 @@ def former_routes():
     >>> bool(abs(a.delta - b.delta) <= 1e-6 * a.delta)
     True
     """
-    with _switched(arx_barrier._STEP_ROUTE, "route", "former"), former_hessian():
+    with _switched(arx_barrier._STEP_ROUTE, "route", "former"), \
+            _switched(column_barrier._STEP_ROUTE, "route", "former"), former_hessian():
         yield
 
 

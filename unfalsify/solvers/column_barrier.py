@@ -70,11 +70,12 @@ import os
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, PathAdvance, Stop, linearised_dual, pcg, run_barrier
+from .barrier import Deadline, PathAdvance, Stop, linearised_dual, path_predictor, pcg, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
+from .displacement import displacement_hessian
 from .start import coordinates, impulses, operator_svd, ridge_fit
-from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_stack
+from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_gram_stack, toeplitz_stack
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
 
@@ -121,18 +122,26 @@ class _Chunks:
 _SERIAL = _Chunks()
 
 
-def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL):
-    """:func:`~unfalsify.solvers.toeplitz.corr_hessian` over the column stack in chunks (bounded FFT workspace), on
-    ``chunks``' threads; with it ``T*(S21_k S11_k)`` per column (``cross=True``), shape (m, j), as :func:`adjoint`."""
+def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = False):
+    """The barrier Hessian of every column over the stack in chunks (bounded workspace), on ``chunks``' threads;
+    with it ``T*(S21_k S11_k)`` per column (``cross=True``), shape (m, j), as :func:`adjoint`.
+
+    By :func:`~unfalsify.solvers.displacement.displacement_hessian` (O(m²) per column), or by the 2-D FFT of
+    :func:`~unfalsify.solvers.toeplitz.corr_hessian` when ``precise`` (and on the former route): the displacement
+    route's cumulative sums keep about 1e-13 of the largest entry against the FFT's 1e-16."""
     j, m = S11.shape[0], S11.shape[1]
     out = np.empty((j, m, m))
     cross = np.empty((j, m))
     step = max(1, int(1e7 // (4 * m * m * chunks.workers)))
+    fft = precise or _STEP_ROUTE["route"] == "former"
 
     def work(s):
         for k0 in range(s.start, s.stop, step):
             sl = slice(k0, min(k0 + step, s.stop))
-            out[sl], cross[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m, cross=True)
+            if fft:
+                out[sl], cross[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m, cross=True)
+            else:
+                out[sl], cross[sl] = displacement_hessian(S11[sl], S21[sl], S22[sl], cross=True)
 
     chunks.map(work, j, S11.size)
     return out, cross.T
@@ -152,6 +161,18 @@ def _sym_inverse_into(X: np.ndarray, out: np.ndarray) -> None:
     out *= 0.5
 
 
+def _block_solve(A: np.ndarray, X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
+    """Columns ``A_k⁻¹ X[:, k, :]`` for a stack A (j, m, m) and X (m, j, p), on ``chunks``' threads."""
+    Xs = np.ascontiguousarray(np.moveaxis(X, 1, 0))  # (j, m, p)
+    out = np.empty_like(Xs)
+
+    def work(s):
+        out[s] = np.linalg.solve(A[s], Xs[s])
+
+    chunks.map(work, A.shape[0], A.size)
+    return np.moveaxis(out, 0, 1)
+
+
 def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Columns ``A_k X[:, k]`` for a stack A (j, m, m) and X (m, j) (or (m, j, p))."""
     if X.ndim == 2:
@@ -160,19 +181,36 @@ def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 class _Point:
-    """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, the Cholesky-checked ``K_k⁻¹``, the residual."""
+    """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, the Cholesky-checked ``K_k``, its inverse (formed
+    when first needed: a trial point of a path step needs only f, i.e. log det K), the residual."""
 
-    def __init__(self, H, d, T, TtT, Kinv, logdet, r, psi, chunks: _Chunks = _SERIAL):
-        self.H, self.d, self.T, self.TtT, self.Kinv = H, d, T, TtT, Kinv
+    def __init__(self, H, d, T, TtT, K, logdet, r, psi, chunks: _Chunks = _SERIAL):
+        self.H, self.d, self.T, self.TtT, self.K = H, d, T, TtT, K
         self.logdet, self.r, self.psi = logdet, r, psi
         self.chunks = chunks
         self._blocks = None
+        self._Kinv = None
+        self._S21 = None
+
+    @property
+    def Kinv(self) -> np.ndarray:
+        """``K_k⁻¹`` (computed once)."""
+        if self._Kinv is None:
+            self._Kinv = _spd_inverse(self.K, self.chunks)
+        return self._Kinv
+
+    @property
+    def S21(self) -> np.ndarray:
+        """``−T K⁻¹`` (computed once): the slope of the line search reads it, the Newton step's blocks reuse it."""
+        if self._S21 is None:
+            self._S21 = self.chunks.matmul(self.T, self.Kinv)
+            self._S21 *= -1.0
+        return self._S21
 
     def blocks(self):
         """``(S11, S21, S22)`` of ``F⁻¹``: ``δK⁻¹``, ``−TK⁻¹``, ``(I + TK⁻¹Tᵀ)/δ`` (computed once)."""
         if self._blocks is None:
-            S21 = self.chunks.matmul(self.T, self.Kinv)
-            S21 *= -1.0
+            S21 = self.S21
             m = self.H.shape[0]
             S22 = (np.eye(m) - self.chunks.matmul(S21, _tr(self.T))) / self.d
             self._blocks = (self.d * self.Kinv, S21, 0.5 * (S22 + _tr(S22)))
@@ -196,29 +234,23 @@ def _max_norm(TtT: np.ndarray, chunks: _Chunks = _SERIAL) -> float:
     return float(np.sqrt(max(max(tops), 0.0)))
 
 
-def _chol_inverse(K: np.ndarray, chunks: _Chunks = _SERIAL):
-    """``(K_k⁻¹, log det K)`` for a stack, or None if some K_k is not positive definite (LAPACK potrf/potri)."""
-    out = np.empty_like(K)
-    parts = chunks.map(lambda s: _chol_inverse_into(K[s], out[s]), K.shape[0], K.size)
+def _chol_logdet(K: np.ndarray, chunks: _Chunks = _SERIAL) -> float | None:
+    """``log det K`` of a stack, or None if some K_k is not positive definite (numpy's batched Cholesky, which
+    releases the GIL, so chunks run in parallel; scipy's LAPACK wrappers hold it)."""
+    parts = chunks.map(lambda s: _chol_logdet_of(K[s]), K.shape[0], K.size)
     if any(v is None for v in parts):
         return None
-    return out, float(sum(parts))
+    return float(sum(parts))
 
 
-def _chol_inverse_into(K: np.ndarray, out: np.ndarray):
-    """:func:`_chol_inverse` of one chunk, written into ``out``; returns log det, or None.
-
-    numpy's batched Cholesky (the positive-definiteness test and log det) and inverse: they release
-    the GIL, so chunks run in parallel (scipy's LAPACK wrappers hold it)."""
+def _chol_logdet_of(K: np.ndarray) -> float | None:
+    """:func:`_chol_logdet` of one chunk."""
     try:
         L = np.linalg.cholesky(K)
     except np.linalg.LinAlgError:
         return None
     logdet = 2.0 * float(np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1))))
-    if not np.isfinite(logdet):
-        return None
-    _sym_inverse_into(K, out)
-    return logdet
+    return logdet if np.isfinite(logdet) else None
 
 
 def _kronecker_preconditioner(Q: np.ndarray, E: np.ndarray, sweeps: int = 4):
@@ -296,6 +328,14 @@ def _deflation(Cmul, W):
         return None
 
 
+#: The route of the Newton steps: ``"current"``, or ``"former"`` (the FFT Hessian, t × 5 per centring and the bound
+#: from 100 × tol: the route before issue 27, :func:`unfalsify.solvers.baselines.former_routes`).
+_STEP_ROUTE = {"route": "current"}
+#: Block size m from which the Gram stack is formed by the O(m²) recursion (:meth:`_ColumnBarrier._gram`).
+_GRAM_RECURSION_FROM = 32
+#: Below this relative gap of the path (ν/t < _PRECISE_GAP·δ) the Hessian is the FFT's (:func:`_chunked_hessian`),
+#: as in :mod:`~unfalsify.solvers.arx_barrier`, whose tol 1e-9 solves stalled on the displacement route's rounding.
+_PRECISE_GAP = 1e-7
 #: The lower bound is evaluated once the path's gap ν/t is within this factor of the tolerance (``bound_due``).
 _BOUND_FACTOR = 100.0
 #: Warm start (:meth:`_ColumnBarrier.warm`): the noise slack kept, as a fraction of the old centre's.
@@ -324,6 +364,7 @@ class _ColumnBarrier(PathAdvance):
         self.mu, self.max_newton = mu, max_newton
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
         self.far = False  # set by _centre: the next Newton solve is far from the centre (inexact CG)
+        self.precise = False  # the FFT Hessian from here on (_newton)
         self.Tu = toeplitz_stack(form.U)
         self.TuTu = _tr(self.Tu) @ self.Tu
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
@@ -337,6 +378,7 @@ class _ColumnBarrier(PathAdvance):
         self.trials = 0  # Cholesky stacks tried (_point): the line search's feasibility tests and the starts
         self.desc = f"structured unfalsification ({self.m}×{self.j})"
         self._prev = None
+        self._centred = None  # (t, (H, δ), tangent) of the last centred point the path stepped from (advance)
         self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
         self.path = []  # the centred points (record())
         self.warm_started = False  # set by warm()
@@ -346,9 +388,19 @@ class _ColumnBarrier(PathAdvance):
         return self.f.project(self.f.B - self.f.apply(H))
 
     def _gram(self, H):
-        """``(T_k, T_kᵀT_k)`` stacks of the impulses H."""
+        """``(T_k, T_kᵀT_k)`` stacks of the impulses H (the Gram by the O(m²) recursion from m = 32 on; measured
+        at (100, 1000), one thread: 49 ms against 168 ms for the products, 6 against 16 ms at (50, 500), 1.2
+        against 0.6 ms at (20, 400))."""
         T = toeplitz_stack(H)
-        return T, self.chunks.matmul(_tr(T), T)
+        if self.m < _GRAM_RECURSION_FROM or _STEP_ROUTE["route"] == "former":
+            return T, self.chunks.matmul(_tr(T), T)
+        G = np.empty_like(T)
+
+        def work(s):
+            G[s] = toeplitz_gram_stack(H[:, s])
+
+        self.chunks.map(work, self.j, T.size)
+        return T, G
 
     def _point(self, H, d, gram=None) -> _Point | None:
         """The blocks at (H, δ), or None outside the domain (a Cholesky fails or the noise ball is left);
@@ -359,23 +411,37 @@ class _ColumnBarrier(PathAdvance):
             return None
         T, TtT = self._gram(H) if gram is None else gram
         self.trials += 1
-        inv = _chol_inverse(d * d * np.eye(self.m) - TtT, self.chunks)
-        if inv is None:
+        K = d * d * np.eye(self.m) - TtT
+        logdet = _chol_logdet(K, self.chunks)
+        if logdet is None:
             return None
-        return _Point(H, d, T, TtT, inv[0], inv[1], r, psi, self.chunks)
+        return _Point(H, d, T, TtT, K, logdet, r, psi, self.chunks)
 
     def _slope(self, t, p: _Point, dh, dlt, q) -> float:
         """Directional derivative of f_t at p along (dh, dlt); ``q = P H̃(dh)``.
 
-        ``tr(F⁻¹ΔF) = dδ tr F⁻¹ + 2⟨S21, ΔT⟩`` and ``⟨S21, ΔT⟩ = −⟨K⁻¹, TᵀΔT⟩``: one product per column.
+        ``tr(F⁻¹ΔF) = dδ tr F⁻¹ + 2⟨S21, ΔT⟩`` and ``⟨S21, ΔT⟩ = ⟨T*(S21), dh⟩``: S21 is the block the next
+        Newton step needs if this point is accepted (most are), so the slope costs no product of its own.
         """
-        dT = toeplitz_stack(dh)
-        tr_fdf = dlt * p.trace_S() - 2.0 * float(np.sum(p.Kinv * self.chunks.matmul(_tr(p.T), dT)))
+        tr_fdf = dlt * p.trace_S() + 2.0 * float(np.sum(adjoint(p.S21) * dh))
         return t * dlt - tr_fdf - 2.0 * self.wn * float(np.sum(p.r * q)) / p.psi
 
     # ---- Newton system -----------------------------------------------------------------------
     def _newton(self, t, p: _Point):
-        """Newton step ``(dH, dδ)``, squared decrement and the central-path tangent ``d(H, δ)/dt``."""
+        """Newton step ``(dH, dδ)``, squared decrement and the central-path tangent ``d(H, δ)/dt``.
+
+        By the FFT Hessian once the path's gap is below :data:`_PRECISE_GAP`·δ, and from the first step whose
+        decrement the displacement Hessian's rounding left non-positive."""
+        if not self.precise and self.nu / t < _PRECISE_GAP * p.d:
+            self.precise = True
+        out = self._newton_at(t, p, self.precise)
+        if not self.precise and not out[2] > 0.0:
+            self.precise = True
+            out = self._newton_at(t, p, True)
+        return out
+
+    def _newton_at(self, t, p: _Point, precise: bool):
+        """:meth:`_newton` with the Hessian's route given."""
         S11, S21, S22 = p.blocks()
         psi = p.psi
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
@@ -383,7 +449,7 @@ class _ColumnBarrier(PathAdvance):
         grad_d = t - p.trace_S()
         dd = float(np.sum(S11 * S11) + np.sum(S22 * S22) + 2.0 * np.sum(S21 * S21))
         # c: (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K), its adjoint off the Hessian's spectra
-        G, x = _chunked_hessian(S11, S21, S22, self.chunks)
+        G, x = _chunked_hessian(S11, S21, S22, self.chunks, precise)
         c = 4.0 * x
         X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
         xg, xc = X[..., 0], X[..., 1]
@@ -397,10 +463,12 @@ class _ColumnBarrier(PathAdvance):
         """Solve ``(D − c U Uᵀ + α g gᵀ) X = R`` (D block diagonal; U Uᵀ only with L optimised)."""
         cc, alpha = 2.0 * self.wn / psi, 4.0 * self.wn / psi**2
         D = G + cc * self.TuTu
-        Dinv = _spd_inverse(D, self.chunks)
         rhs = np.concatenate([R, g_noise[..., None]], axis=-1)
-        Y = _bmv(Dinv, rhs)
-        if self.Q is not None:
+        if self.Q is None:  # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
+            Y = _block_solve(D, rhs, self.chunks)
+        else:  # the Woodbury correction applies D⁻¹ once more
+            Dinv = _spd_inverse(D, self.chunks)
+            Y = _bmv(Dinv, rhs)
             Y = Y + self._lowrank_correction(G, Dinv, cc, rhs, Y)
         Xr, xg = Y[..., :-1], Y[..., -1]
         # Sherman–Morrison for the rank-one term
@@ -663,6 +731,42 @@ class _ColumnBarrier(PathAdvance):
     def dual(self, t, p: _Point, step):
         dh, dlt, _ = step
         return self._dual(t, p, dh, dlt)
+
+    def advance(self, t, p: _Point, step, bounds, deadline: Deadline):
+        """``μt`` and a point near its centre: of the centred point itself and the predictions of
+        :func:`~unfalsify.solvers.barrier.path_predictor` (linear in 1/t, and the Hermite cubic through this
+        centred point and the one before), each backtracked on feasibility, the one with the lowest ``f_{μt}``
+        (the former route: the centred point)."""
+        t_new, p = super().advance(t, p, step, bounds, deadline)
+        if _STEP_ROUTE["route"] == "former":
+            return t_new, p
+        dH, dd = step[2]
+        centre = (t, np.append(p.H.ravel(), p.d), np.append(dH.ravel(), dd))
+        steps = [path_predictor(t_new, centre)]
+        if self._centred is not None:
+            steps.append(path_predictor(t_new, centre, self._centred))
+        self._centred = centre
+        best, f_best = p, self._f(t_new, p)
+        for x in steps:
+            q = self._feasible_along(p, x)
+            if q is not None and self._f(t_new, q) < f_best:
+                best, f_best = q, self._f(t_new, q)
+        return t_new, best
+
+    def _f(self, t, p: _Point) -> float:
+        """``f_t`` at p (comparisons between nearby points only: at large t its value loses digits)."""
+        return t * p.d - p.logdet - self.wn * float(np.log(p.psi))
+
+    def _feasible_along(self, p: _Point, x):
+        """The first strictly feasible point of ``p + a x``, ``a = 1, ½, …, 2⁻⁵`` (else None)."""
+        dH, dd = x[:-1].reshape(p.H.shape), float(x[-1])
+        a = 1.0
+        for _ in range(6):
+            q = self._point(p.H + a * dH, p.d + a * dd)
+            if q is not None:
+                return q
+            a *= 0.5
+        return None
 
     def run(self, p: _Point, t: float | None = None) -> dict:
         """:func:`run_barrier` from ``p`` at path parameter ``t`` (default the cold ``ν/δ``); adds the CG count

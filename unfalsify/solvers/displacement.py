@@ -291,10 +291,9 @@ def _a_term(S12, s12, m):
 
 def _shift_columns_right(M):
     """``M[..., :, 1:] = M[..., :, :-1]`` in place, row by row (a whole-array overlapping copy would buffer an
-    n × n temporary)."""
-    rows = M.reshape(-1, M.shape[-1])
-    for r in rows:
-        r[1:] = r[:-1].copy()
+    n × n temporary), each row for the whole stack at once."""
+    for a in range(M.shape[-2]):
+        M[..., a, 1:] = M[..., a, :-1].copy()
     return M
 
 

@@ -148,6 +148,36 @@ def toeplitz_gram(h: np.ndarray) -> np.ndarray:
     return G
 
 
+def toeplitz_gram_stack(H: np.ndarray) -> np.ndarray:
+    """``T(h_k)ᵀT(h_k)`` for every column h_k of H (m × j), shape (j, m, m), in O(j m²): the recursion of
+    :func:`toeplitz_gram` row by row, each row for all columns at once (no matrix products; at (m, j) =
+    (100, 1000) the batched products cost 2 GFlop).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> H = np.array([[1.0, 0.5], [-0.5, 2.0], [0.25, 0.0]])
+    >>> T = toeplitz_stack(H)
+    >>> bool(np.allclose(toeplitz_gram_stack(H), np.swapaxes(T, 1, 2) @ T))
+    True
+    """
+    H = np.asarray(H, dtype=float)
+    m, j = H.shape
+    G = np.empty((j, m, m))
+    if m == 0:
+        return G
+    nf = nfft(m)
+    F = np.fft.rfft(H.T, nf, axis=-1)
+    G[:, 0] = np.fft.irfft(F * np.conj(F), nf, axis=-1)[:, :m]  # r_k = Σ_i h_i h_{i+k} per column
+    a = np.ascontiguousarray(H[::-1].T)  # (j, m): each column reversed
+    tmp = np.empty((j, m - 1))
+    for i in range(m - 1):  # whole rows (contiguous writes); the same sums in the same order as the mirror image
+        np.multiply(a[:, i : i + 1], a[:, : m - 1], out=tmp)
+        np.subtract(G[:, i, : m - 1], tmp, out=G[:, i + 1, 1:])
+        G[:, i + 1, 0] = G[:, 0, i + 1]
+    return G
+
+
 def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
     """Spectral norm ``‖T(h)‖₂`` of the lower-triangular Toeplitz matrix with first column ``h``.
 
@@ -359,9 +389,9 @@ _ADJOINT_BY_ROWS = 1024
 def adjoint(W: np.ndarray) -> np.ndarray:
     """``T*(W)``: ``T*(W)_d = Σ_i W[i+d, i]`` for a square W (→ (m,)), or a stack ``(j, m, m)`` → ``(m, j)``.
 
-    Every subdiagonal sum at once: ``W[i+d, i]`` sits at ``dm + i(m + 1)`` of W's flat samples, so a view
-    with strides (m, m + 1) over the samples followed by zeros holds subdiagonal d in its row d.  That copies
-    W into a buffer of twice its size; one square W of order :data:`_ADJOINT_BY_ROWS` or more is instead summed
+    A stack is summed subdiagonal by subdiagonal.  For one W, every subdiagonal sum at once: ``W[i+d, i]`` sits at
+    ``dm + i(m + 1)`` of W's flat samples, so a view with strides (m, m + 1) over the samples followed by zeros holds
+    subdiagonal d in its row d.  That copies W into a buffer of twice its size; one W of order :data:`_ADJOINT_BY_ROWS` or more is instead summed
     row by row (row i adds ``W[i, :i+1]`` reversed to the sums of subdiagonals i … 0), as a fresh 1.6 GB
     buffer at m = 10⁴ cost about a second (measured: 6 ms against 0.12 s at m = 2048, 3.0 against 3.8 ms at 1000).
 
@@ -376,18 +406,20 @@ def adjoint(W: np.ndarray) -> np.ndarray:
     """
     W = np.asarray(W, float)
     m = W.shape[-1]
+    if W.ndim >= 3:
+        # a stack: one strided sum per subdiagonal, no buffer (a fresh one of 160 MB at (j, m) = (1000, 100) cost
+        # about 0.2 s a call inside a solve, against 25–31 ms for these sums)
+        return np.stack([np.trace(W, offset=-d, axis1=-2, axis2=-1) for d in range(m)])
     if W.ndim == 2 and m >= _ADJOINT_BY_ROWS:
         out = np.zeros(m)
         for i in range(m):
             out[i::-1] += W[i, : i + 1]
         return out
-    lead = W.shape[:-2]
-    buf = np.zeros(lead + (2 * m * m + m,))
-    buf[..., : m * m] = W.reshape(lead + (m * m,))
+    buf = np.zeros(2 * m * m + m)
+    buf[: m * m] = W.reshape(-1)
     step = buf.strides[-1]
-    D = as_strided(buf, shape=lead + (m, m), strides=buf.strides[:-1] + (m * step, (m + 1) * step), writeable=False)
-    out = D.sum(axis=-1)  # (…, m): row d of the view is subdiagonal d, then zeros
-    return out if W.ndim == 2 else np.moveaxis(out, -1, 0)
+    D = as_strided(buf, shape=(m, m), strides=(m * step, (m + 1) * step), writeable=False)
+    return D.sum(axis=-1)  # row d of the view is subdiagonal d, then zeros
 
 
 def adjoint_lowrank(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
