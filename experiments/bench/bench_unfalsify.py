@@ -45,8 +45,9 @@ Each structured row (issue 27, item 6) runs in a fresh child process, so its pea
 row's: the front end's solve (bracket, certificate, ``verify()``), then ``repeats`` (3; ``--quick``: 1) × the
 registry solver alone (``unfalsify.solvers.run`` on the certificate's problem) by today's route and, alternating,
 by the former route (:func:`unfalsify.solvers.baselines.former_routes`: the FFT Hessian before issue 27's
-pruning and, in ``arx_barrier``, the Newton-step algebra before its BLAS-3 rewrite) where the solver forms FFT
-Hessians (``arx_barrier``, ``column_barrier``); medians.  The row reports
+pruning and, in ``arx_barrier``, the Newton-step algebra before its BLAS-3 rewrite; in ``column_barrier`` the FFT
+Hessian, the Gram by products, K⁻¹ at every trial point and the path steps from the centred point itself) for
+``arx_barrier`` and ``column_barrier``; medians.  The row reports
 the solve time, the baseline's time in the same run and their ratio, the relative δ difference of the two routes,
 the Newton steps and trial factorisations (Cholesky stacks tried, line search and path steps included), the **arithmetic-limit time** and the ratio to it, the peak RSS and the 1-min load at the row's start and
 end; the table notes the load before and after the series.
@@ -54,13 +55,12 @@ end; the table notes the load before and after the series.
 Arithmetic limit: the flops the method needs at its measured counts, divided by the matmul rate measured in the
 same child (a numpy matmul of the row's size, timed: an n × n product for ARX, a (j, i, i) stack for the subspace
 rows, BLAS as in the solve).  Counted from the sizes (m = n for ARX, j = 1; m = i for the subspace rows), per
-column and Newton step: the blocks of F⁻¹ and the gradient's products (ARX: ``K⁻¹`` from its Cholesky factor,
-⅔m³, and the two triangular products ``T K⁻¹``, ``(T K⁻¹) Tᵀ``, m³ each; subspace: ``K⁻¹``, ``T K⁻¹``,
-``(T K⁻¹) Tᵀ``, ``(T K⁻¹) K⁻¹`` or the inverse of the block Hessian, 8m³), the Hessian (subspace: the FFT's four
-real 2-D transforms of 2m × 2m, ``2.5 N² log₂ N²`` each; ARX: the displacement route's ~60m²) and for ARX the
-Cholesky of the Newton system (m³/3); per trial
-factorisation the Cholesky of K (m³/3), and for the subspace rows the Gram ``TᵀT`` and the inverse of K as well
-((10/3) m³ in all).  ARX from n = 400 (:data:`ARX_STRUCTURED_FROM`): per step the Newton system's m³/3, the
+column and Newton step: the blocks of F⁻¹ and the gradient's products (``K⁻¹`` from its Cholesky factor,
+⅔m³, and the two triangular products ``T K⁻¹``, ``(T K⁻¹) Tᵀ``, m³ each), the Hessian (the displacement route's
+~60m²) and the Cholesky of the Newton system (ARX) or of its block (subspace), m³/3; per trial
+factorisation the Cholesky of K (m³/3), and for the subspace rows the Gram's O(m²) recursion (~2m²).  (Until
+the subspace rows' displacement Hessian their count was 8m³ and the FFT's four real 2-D transforms of 2m × 2m,
+``2.5 N² log₂ N²`` each, per step, and (10/3) m³ per trial.)  ARX from n = 400 (:data:`ARX_STRUCTURED_FROM`): per step the Newton system's m³/3, the
 Hessian's ~60m² and the blocks of F⁻¹ from generators ~90m²; per trial the Schur algorithm's ~3m².  (Before the ARX step's BLAS-3 rewrite the ARX count was the subspace rows' 8m³.)  The CG of L optimised, the certificate and the set-up
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
 and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
@@ -290,13 +290,6 @@ def _matmul_peak(shape: tuple, min_seconds: float = 0.05) -> float:
     return float(max(rates))
 
 
-def _fft_flops(m: int) -> float:
-    """Flops of the FFT Hessian of one m × m block set: four real 2-D transforms of N × N (N = 2m), counted as
-    ``2.5 N² log₂ N²`` each (half the classical ``5 N² log₂ N²`` of a complex transform)."""
-    N = 2 * m
-    return 4 * 2.5 * N * N * np.log2(N * N)
-
-
 def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     """The flops the method needs at its measured counts (the bench docstring's arithmetic limit); None where
     not defined (no Newton count: the bracket route, the 2×2 rows)."""
@@ -312,7 +305,10 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     if kind == "arx":  # j = 1, m = n: potri ⅔m³, two trmm m³ each, the Newton system's Cholesky m³/3,
         # the displacement Hessian ~60m²; per trial the Gram and LAPACK's Cholesky of K
         return newton * (3.0 * m3 + 60.0 * m * m) + trials * m3 / 3.0
-    return j * (newton * (8.0 * m3 + _fft_flops(m)) + trials * (10.0 / 3.0) * m3)
+    # subspace, per column: K⁻¹ from its Cholesky factor ⅔m³ (potri), T K⁻¹ and (T K⁻¹)Tᵀ m³ each (triangular),
+    # the block's Newton system m³/3 (Cholesky), the displacement Hessian ~60m²; per trial the Cholesky of K and
+    # the Gram's recursion ~2m²
+    return j * (newton * (3.0 * m3 + 60.0 * m * m) + trials * (m3 / 3.0 + 2.0 * m * m))
 
 
 def _solve_structured_one(spec: dict, size, seed: int) -> dict:

@@ -16,17 +16,29 @@ w = 60).  Structure used:
 * **Cholesky instead of SVD.**  ``K_k = δ²I − T_kᵀT_k`` (T_k = T(h_k)) is the Schur complement of
   F_k: ``log det F_k = log det K_k``, F_k ≻ 0 ⟺ the Cholesky of K_k exists (the line search's
   feasibility test), and ``F_k⁻¹ = [δK⁻¹, −K⁻¹Tᵀ; −TK⁻¹, (I + TK⁻¹Tᵀ)/δ]``.  Batched over the j columns.
-* **Hessian by 2-D FFT.**  ``tr(F⁻¹E_aF⁻¹E_b) = 2 tr(S12 Z_a S12 Z_b) + 2 tr(S11 Z_aᵀ S22 Z_b)`` (Z_a the
-  shift matrices, S = F⁻¹): two 2-D cross-correlations, O(i² log i) per column.
+  K⁻¹ is formed only at points whose slope or Newton step is needed (a trial point of a path step needs
+  log det K alone), and the Gram stack ``T_kᵀT_k`` comes from an O(i²) recursion from i = 32 on.
+* **Hessian from displacement generators.**  ``tr(F⁻¹E_aF⁻¹E_b)`` for every column at once by
+  :func:`~unfalsify.solvers.displacement.displacement_hessian` (O(i²) a column), not the 2-D FFT
+  cross-correlations of :func:`~unfalsify.solvers.toeplitz.corr_hessian` (O(i² log i) at the FFT's rate):
+  measured on one thread for the stacks of the benchmark, 16 against 20 ms at (20, 400), 81 against 243 ms
+  at (50, 500), 136 against 526 ms for 250 columns of i = 100.  Its cumulative sums keep about 1e-13 of the
+  largest entry, so below a path gap of 1e-7·δ, and from the first step whose decrement it leaves
+  non-positive, the FFT Hessian takes over (as in :mod:`~unfalsify.solvers.arx_barrier`).
 * **Newton system without O(n⁴) storage.**  The Hessian in H is block diagonal (j blocks i × i: the
   barrier plus ``c T(u_k)ᵀT(u_k)``, c = 2w/ψ) plus the rank-one noise term ``(4w/ψ²) g gᵀ`` and, with
-  L optimised, minus ``c U Uᵀ``, ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: block
-  inverses + Sherman–Morrison + the Schur complement of the δ row (exact, O(j i³)).  L optimised:
+  L optimised, minus ``c U Uᵀ``, ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: one LU solve
+  per block + Sherman–Morrison + the Schur complement of the δ row (exact, O(j i³)).  L optimised:
   Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (``q_k`` row k of Q,
   ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
   conjugate gradients; C is never formed (products cost O(i r j)), memory O(j i²).
-* **Steps.**  After each centring t grows by ``mu`` (5); the first Newton step of f_{μt} from
-  the centred point is the tangent of the central path.  Longer steps cost more Newton steps in all:
+* **Steps.**  After each centring t grows by ``mu`` (5), and the centring at μt starts from the best (lowest
+  ``f_{μt}``) of the centred point and the two predictions of
+  :func:`~unfalsify.solvers.barrier.path_predictor` (the tangent linear in 1/t, and the Hermite cubic through the
+  last two centred points), each backtracked to strict feasibility — the rule of
+  :mod:`~unfalsify.solvers.arx_barrier`.  Measured (servo data of the benchmark, seed 0, tol 1e-4), Newton steps
+  before → after: (20, 400) 36 → 28 with L fixed and 37 → 29 with L optimised, (50, 500) 47 → 31 and
+  37 → 34, (100, 1000) 48 → 41 with L fixed.  Longer steps cost more Newton steps in all:
   measured at (i, j) = (50, 500), 42 steps with μ = 5 against 60 with μ = 20 and 63 with μ = 60, and at
   (100, 1000) with L fixed, certified in 60 steps with μ = 5 while with μ = 20 one column pinned at
   ‖T(h_k)‖ = δ crawled for 30 full Newton steps of 7e-5 each in the second centring.  Steps use a safeguarded secant line search
@@ -328,8 +340,9 @@ def _deflation(Cmul, W):
         return None
 
 
-#: The route of the Newton steps: ``"current"``, or ``"former"`` (the FFT Hessian, t × 5 per centring and the bound
-#: from 100 × tol: the route before issue 27, :func:`unfalsify.solvers.baselines.former_routes`).
+#: The route of the Newton steps: ``"current"``, or ``"former"`` (the FFT Hessian, the Gram by products, K⁻¹ at every
+#: trial point, the block inverse in the L-fixed Newton system, the path steps from the centred point itself: the
+#: route before issue 27's changes to this solver, :func:`unfalsify.solvers.baselines.former_routes`).
 _STEP_ROUTE = {"route": "current"}
 #: Block size m from which the Gram stack is formed by the O(m²) recursion (:meth:`_ColumnBarrier._gram`).
 _GRAM_RECURSION_FROM = 32
@@ -415,7 +428,10 @@ class _ColumnBarrier(PathAdvance):
         logdet = _chol_logdet(K, self.chunks)
         if logdet is None:
             return None
-        return _Point(H, d, T, TtT, K, logdet, r, psi, self.chunks)
+        p = _Point(H, d, T, TtT, K, logdet, r, psi, self.chunks)
+        if _STEP_ROUTE["route"] == "former":  # K⁻¹ at every trial point, as before
+            _ = p.Kinv  # formed now
+        return p
 
     def _slope(self, t, p: _Point, dh, dlt, q) -> float:
         """Directional derivative of f_t at p along (dh, dlt); ``q = P H̃(dh)``.
@@ -464,12 +480,14 @@ class _ColumnBarrier(PathAdvance):
         cc, alpha = 2.0 * self.wn / psi, 4.0 * self.wn / psi**2
         D = G + cc * self.TuTu
         rhs = np.concatenate([R, g_noise[..., None]], axis=-1)
-        if self.Q is None:  # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
+        if self.Q is None and _STEP_ROUTE["route"] != "former":
+            # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
             Y = _block_solve(D, rhs, self.chunks)
         else:  # the Woodbury correction applies D⁻¹ once more
             Dinv = _spd_inverse(D, self.chunks)
             Y = _bmv(Dinv, rhs)
-            Y = Y + self._lowrank_correction(G, Dinv, cc, rhs, Y)
+            if self.Q is not None:
+                Y = Y + self._lowrank_correction(G, Dinv, cc, rhs, Y)
         Xr, xg = Y[..., :-1], Y[..., -1]
         # Sherman–Morrison for the rank-one term
         coef = alpha / (1.0 + alpha * float(np.sum(g_noise * xg)))
