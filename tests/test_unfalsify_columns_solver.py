@@ -418,17 +418,28 @@ def test_adjoint_of_a_stack_equals_the_subdiagonal_sums(lead):
 
 
 @pytest.mark.parametrize("fixed", [True, False])
-def test_displacement_hessian_gives_the_fft_newton_step(fixed):
-    """The Newton step by the displacement Hessian (the default) equals the one by the FFT Hessian (the precise
-    route) to rounding, and a decrement the displacement route leaves non-positive is recomputed by the FFT."""
+def test_displacement_hessian_gives_the_fft_newton_step(fixed, monkeypatch):
+    """The Newton step by the displacement Hessian (the default from i = 24; here from 1) equals the one by the
+    FFT Hessian (the precise route) to rounding, and a decrement the displacement route leaves non-positive is
+    recomputed by the FFT."""
+    monkeypatch.setattr(sc, "_DISPLACEMENT_FROM", 1)
+    used = {"displacement": 0}
+    real = sc.displacement_hessian
+
+    def counted(*args, **kwargs):
+        used["displacement"] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sc, "displacement_hessian", counted)
     s, p = _barrier(fixed, 5, 16)
     s.cg_tol, s.cg_maxiter = 1e-14, 10_000  # L optimised: the CG solves to rounding, not to its default 1e-8
     t = 50.0
     fast = s._newton_at(t, p, False)
+    assert used["displacement"] >= 1
     precise = s._newton_at(t, p, True)
     np.testing.assert_allclose(fast[0], precise[0], rtol=0, atol=1e-9 * np.abs(precise[0]).max())
     assert fast[2] == pytest.approx(precise[2], rel=1e-9)
-    calls = []
+    calls = []  # the route of each Newton system: precise or not
     orig = s._newton_at
 
     def newton_at(t, p, precise):
@@ -452,4 +463,5 @@ def test_path_step_is_the_best_of_the_centre_and_its_predictions():
     t2, q = s.advance(t, p1, step, (p1.upper(), 0.0), deadline)
     assert t2 == pytest.approx(s.mu * t) and q is not None
     assert s._f(t2, q) <= s._f(t2, p1)
-    assert q.psi > 0 and np.all(np.linalg.eigvalsh(q.K) > 0)
+    K = q.d**2 * np.eye(q.H.shape[0]) - q.TtT
+    assert q.psi > 0 and np.all(np.linalg.eigvalsh(K) > 0)

@@ -139,13 +139,14 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = F
     with it ``T*(S21_k S11_k)`` per column (``cross=True``), shape (m, j), as :func:`adjoint`.
 
     By :func:`~unfalsify.solvers.displacement.displacement_hessian` (O(m²) per column), or by the 2-D FFT of
-    :func:`~unfalsify.solvers.toeplitz.corr_hessian` when ``precise`` (and on the former route): the displacement
-    route's cumulative sums keep about 1e-13 of the largest entry against the FFT's 1e-16."""
+    :func:`~unfalsify.solvers.toeplitz.corr_hessian` when ``precise``, below m = :data:`_DISPLACEMENT_FROM` (and on the
+    former route): the displacement route's cumulative sums keep about 1e-13 of the largest entry against the
+    FFT's 1e-16."""
     j, m = S11.shape[0], S11.shape[1]
     out = np.empty((j, m, m))
     cross = np.empty((j, m))
     step = max(1, int(1e7 // (4 * m * m * chunks.workers)))
-    fft = precise or _STEP_ROUTE["route"] == "former"
+    fft = precise or _STEP_ROUTE["route"] == "former" or m < _DISPLACEMENT_FROM
 
     def work(s):
         for k0 in range(s.start, s.stop, step):
@@ -206,9 +207,10 @@ class _Point:
 
     @property
     def Kinv(self) -> np.ndarray:
-        """``K_k⁻¹`` (computed once)."""
+        """``K_k⁻¹`` (computed once; K is then dropped, one stack less per point)."""
         if self._Kinv is None:
             self._Kinv = _spd_inverse(self.K, self.chunks)
+            self.K = None
         return self._Kinv
 
     @property
@@ -344,6 +346,10 @@ def _deflation(Cmul, W):
 #: trial point, the block inverse in the L-fixed Newton system, the path steps from the centred point itself: the
 #: route before issue 27's changes to this solver, :func:`unfalsify.solvers.baselines.former_routes`).
 _STEP_ROUTE = {"route": "current"}
+#: Block size m from which the Hessian comes from displacement generators (:func:`_chunked_hessian`); below it the
+#: FFT is faster (one thread, stacks of 200–400: m = 5 0.6 against 2.7 ms, m = 10 2.3 against 3.9 ms, m = 16 11.9
+#: against 15.5 ms, m = 20 equal at 18.6 ms).
+_DISPLACEMENT_FROM = 24
 #: Block size m from which the Gram stack is formed by the O(m²) recursion (:meth:`_ColumnBarrier._gram`).
 _GRAM_RECURSION_FROM = 32
 #: Below this relative gap of the path (ν/t < _PRECISE_GAP·δ) the Hessian is the FFT's (:func:`_chunked_hessian`),
