@@ -37,8 +37,8 @@ w = 60).  Structure used:
   :func:`~unfalsify.solvers.barrier.path_predictor` (the tangent linear in 1/t, and the Hermite cubic through the
   last two centred points), each backtracked to strict feasibility — the rule of
   :mod:`~unfalsify.solvers.arx_barrier`.  Measured (servo data of the benchmark, seed 0, tol 1e-4), Newton steps
-  before → after: (20, 400) 36 → 28 with L fixed and 37 → 29 with L optimised, (50, 500) 47 → 31 and
-  37 → 34, (100, 1000) 48 → 41 with L fixed.  Longer steps cost more Newton steps in all:
+  before → after, L fixed / L optimised: (10, 200) 33 → 23 / 33 → 24, (20, 400) 36 → 28 / 37 → 29, (50, 500)
+  47 → 31 / 42 → 34, (100, 1000) 48 → 41 / 52 → 48.  Longer steps cost more Newton steps in all:
   measured at (i, j) = (50, 500), 42 steps with μ = 5 against 60 with μ = 20 and 63 with μ = 60, and at
   (100, 1000) with L fixed, certified in 60 steps with μ = 5 while with μ = 20 one column pinned at
   ‖T(h_k)‖ = δ crawled for 30 full Newton steps of 7e-5 each in the second centring.  Steps use a safeguarded secant line search
