@@ -353,6 +353,20 @@ def test_chol_logdet_and_spd_inverse_match_numpy_and_reject_indefinite_or_nan():
     assert sc._chol_logdet(bad) is None
 
 
+def test_shifted_stacks_block_by_block_equal_the_whole_stack(monkeypatch):
+    """``_chol_logdet`` and ``_spd_inverse`` of ``shift·I − X`` formed in blocks of a few columns (as at large
+    stacks) equal the whole-stack results."""
+    rng = np.random.default_rng(5)
+    X = rng.standard_normal((9, 6, 6))
+    G = X @ np.swapaxes(X, 1, 2)
+    shift = 1.1 * float(np.linalg.eigvalsh(G).max())
+    K = shift * np.eye(6) - G
+    monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * 6 * 6 * 8)  # two columns a block
+    assert sc._chol_logdet(G, shift=shift) == pytest.approx(float(np.linalg.slogdet(K)[1].sum()), rel=1e-12)
+    np.testing.assert_allclose(sc._spd_inverse(G, shift=shift), np.linalg.inv(K), rtol=1e-10, atol=1e-12)
+    assert sc._chol_logdet(G, shift=0.5 * shift) is None
+
+
 def test_noise_step_keeps_half_the_slack():
     s, p = _barrier(False, 4, 20)
     r = p.r

@@ -160,11 +160,40 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = F
     return out, cross.T
 
 
-def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
-    """Inverse of a stack of symmetric (positive definite) matrices, symmetrised, on ``chunks``' threads."""
-    out = np.empty_like(X)
-    chunks.map(lambda s: _sym_inverse_into(X[s], out[s]), X.shape[0], X.size)
+def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None) -> np.ndarray:
+    """Inverse of a stack of symmetric (positive definite) matrices, symmetrised, on ``chunks``' threads;
+    with ``shift`` the inverse of ``shift·I − X`` (formed block by block, never as a whole stack).  The result is
+    C-ordered whatever X's layout (``toeplitz_stack`` returns the column index fastest, and a stack in that layout
+    makes every later batched product strided)."""
+    out = np.empty(X.shape)
+
+    def work(s):
+        for b in _blocks_of(s, X[0].size):
+            _sym_inverse_into(X[b] if shift is None else _shifted(X[b], shift), out[b])
+
+    chunks.map(work, X.shape[0], X.size)
     return out
+
+
+#: Bytes of one block of a stack's temporaries (:func:`_blocks_of`): below glibc's largest mmap threshold (32 MB),
+#: so that they come from the heap and are reused.  A fresh mapping costs its page faults on first touch: at
+#: (100, 1000) the stacks are 80 MB, and whole-stack temporaries were a quarter of the CPU time in system calls.
+_BLOCK_BYTES = 8 << 20
+
+
+def _blocks_of(s: slice, item: int):
+    """Consecutive sub-slices of the column slice ``s`` whose stacks of ``item`` floats each fit in
+    :data:`_BLOCK_BYTES`."""
+    step = max(1, _BLOCK_BYTES // (8 * max(1, item)))
+    for k in range(s.start, s.stop, step):
+        yield slice(k, min(k + step, s.stop))
+
+
+def _shifted(X: np.ndarray, shift: float) -> np.ndarray:
+    """``shift·I − X`` for a stack (a new array)."""
+    K = np.negative(X)
+    K[..., np.arange(X.shape[-1]), np.arange(X.shape[-1])] += shift
+    return K
 
 
 def _sym_inverse_into(X: np.ndarray, out: np.ndarray) -> None:
@@ -194,11 +223,11 @@ def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 class _Point:
-    """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, the Cholesky-checked ``K_k``, its inverse (formed
-    when first needed: a trial point of a path step needs only f, i.e. log det K), the residual."""
+    """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, log det of the Cholesky-checked ``K_k``, its inverse
+    (formed when first needed: a trial point of a path step needs only f, i.e. log det K), the residual."""
 
-    def __init__(self, H, d, T, TtT, K, logdet, r, psi, chunks: _Chunks = _SERIAL):
-        self.H, self.d, self.T, self.TtT, self.K = H, d, T, TtT, K
+    def __init__(self, H, d, T, TtT, logdet, r, psi, chunks: _Chunks = _SERIAL):
+        self.H, self.d, self.T, self.TtT = H, d, T, TtT
         self.logdet, self.r, self.psi = logdet, r, psi
         self.chunks = chunks
         self._blocks = None
@@ -207,10 +236,9 @@ class _Point:
 
     @property
     def Kinv(self) -> np.ndarray:
-        """``K_k⁻¹`` (computed once; K is then dropped, one stack less per point)."""
+        """``K_k⁻¹ = (δ²I − T_kᵀT_k)⁻¹`` (computed once)."""
         if self._Kinv is None:
-            self._Kinv = _spd_inverse(self.K, self.chunks)
-            self.K = None
+            self._Kinv = _spd_inverse(self.TtT, self.chunks, shift=self.d * self.d)
         return self._Kinv
 
     @property
@@ -226,20 +254,31 @@ class _Point:
         if self._blocks is None:
             S21 = self.S21
             m = self.H.shape[0]
-            S22 = (np.eye(m) - self.chunks.matmul(S21, _tr(self.T))) / self.d
-            self._blocks = (self.d * self.Kinv, S21, 0.5 * (S22 + _tr(S22)))
+            P = self.chunks.matmul(S21, _tr(self.T))  # −T K⁻¹ Tᵀ; the rest in place (80 MB stacks at (100, 1000))
+            np.negative(P, out=P)
+            P[:, np.arange(m), np.arange(m)] += 1.0
+            S22 = np.add(P, _tr(P))
+            S22 *= 0.5 / self.d
+            del P
+            S11 = np.multiply(self.Kinv, self.d)
+            self._blocks = (S11, S21, S22)
         return self._blocks
 
     def trace_S(self) -> float:
         """``Σ_k tr F_k⁻¹ = Σ_k (δ tr K⁻¹ + (m + ⟨K⁻¹, TᵀT⟩)/δ)`` (no block products)."""
         m, j = self.H.shape
         trK = float(np.trace(self.Kinv, axis1=1, axis2=2).sum())
-        return self.d * trK + (m * j + float(np.sum(self.Kinv * self.TtT))) / self.d
+        return self.d * trK + (m * j + _inner(self.Kinv, self.TtT)) / self.d
 
     def upper(self) -> float:
         """``max_k ‖T(h_k)‖₂`` as ``√λ_max(T_kᵀT_k)`` (LAPACK ``syevd`` values of the Gram stack, a third
         of the SVDs' cost; the certificate recomputes the norms from the impulses on its own)."""
         return _max_norm(self.TtT, self.chunks)
+
+
+def _inner(A: np.ndarray, B: np.ndarray) -> float:
+    """``⟨A, B⟩`` of two stacks without a product stack (``np.vdot`` reads both once)."""
+    return float(np.vdot(A, B))
 
 
 def _max_norm(TtT: np.ndarray, chunks: _Chunks = _SERIAL) -> float:
@@ -248,17 +287,27 @@ def _max_norm(TtT: np.ndarray, chunks: _Chunks = _SERIAL) -> float:
     return float(np.sqrt(max(max(tops), 0.0)))
 
 
-def _chol_logdet(K: np.ndarray, chunks: _Chunks = _SERIAL) -> float | None:
+def _chol_logdet(K: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None) -> float | None:
     """``log det K`` of a stack, or None if some K_k is not positive definite (numpy's batched Cholesky, which
-    releases the GIL, so chunks run in parallel; scipy's LAPACK wrappers hold it)."""
-    parts = chunks.map(lambda s: _chol_logdet_of(K[s]), K.shape[0], K.size)
+    releases the GIL, so chunks run in parallel; scipy's LAPACK wrappers hold it); with ``shift`` that of
+    ``shift·I − K``, formed block by block."""
+    def work(s):
+        total = 0.0
+        for b in _blocks_of(s, K[0].size):
+            part = _chol_logdet_of(K[b] if shift is None else _shifted(K[b], shift))
+            if part is None:
+                return None
+            total += part
+        return total
+
+    parts = chunks.map(work, K.shape[0], K.size)
     if any(v is None for v in parts):
         return None
     return float(sum(parts))
 
 
 def _chol_logdet_of(K: np.ndarray) -> float | None:
-    """:func:`_chol_logdet` of one chunk."""
+    """:func:`_chol_logdet` of one block."""
     try:
         L = np.linalg.cholesky(K)
     except np.linalg.LinAlgError:
@@ -413,7 +462,7 @@ class _ColumnBarrier(PathAdvance):
         T = toeplitz_stack(H)
         if self.m < _GRAM_RECURSION_FROM or _STEP_ROUTE["route"] == "former":
             return T, self.chunks.matmul(_tr(T), T)
-        G = np.empty_like(T)
+        G = np.empty(T.shape)  # C-ordered, not T's layout (the column index fastest): products with it stay BLAS-ready
 
         def work(s):
             G[s] = toeplitz_gram_stack(H[:, s])
@@ -430,11 +479,10 @@ class _ColumnBarrier(PathAdvance):
             return None
         T, TtT = self._gram(H) if gram is None else gram
         self.trials += 1
-        K = d * d * np.eye(self.m) - TtT
-        logdet = _chol_logdet(K, self.chunks)
+        logdet = _chol_logdet(TtT, self.chunks, shift=d * d)  # K = δ²I − TᵀT, block by block
         if logdet is None:
             return None
-        p = _Point(H, d, T, TtT, K, logdet, r, psi, self.chunks)
+        p = _Point(H, d, T, TtT, logdet, r, psi, self.chunks)
         if _STEP_ROUTE["route"] == "former":  # K⁻¹ at every trial point, as before
             _ = p.Kinv  # formed now
         return p
@@ -469,7 +517,7 @@ class _ColumnBarrier(PathAdvance):
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
         grad_h = -2.0 * adjoint(S21) - 2.0 * self.wn * g_noise / psi
         grad_d = t - p.trace_S()
-        dd = float(np.sum(S11 * S11) + np.sum(S22 * S22) + 2.0 * np.sum(S21 * S21))
+        dd = _inner(S11, S11) + _inner(S22, S22) + 2.0 * _inner(S21, S21)
         # c: (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K), its adjoint off the Hessian's spectra
         G, x = _chunked_hessian(S11, S21, S22, self.chunks, precise)
         c = 4.0 * x
@@ -484,7 +532,8 @@ class _ColumnBarrier(PathAdvance):
     def _solve_h(self, G, psi, g_noise, R):
         """Solve ``(D − c U Uᵀ + α g gᵀ) X = R`` (D block diagonal; U Uᵀ only with L optimised)."""
         cc, alpha = 2.0 * self.wn / psi, 4.0 * self.wn / psi**2
-        D = G + cc * self.TuTu
+        D = np.multiply(self.TuTu, cc)
+        D += G
         rhs = np.concatenate([R, g_noise[..., None]], axis=-1)
         if self.Q is None and _STEP_ROUTE["route"] != "former":
             # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
