@@ -479,3 +479,16 @@ def test_path_step_is_the_best_of_the_centre_and_its_predictions():
     assert s._f(t2, q) <= s._f(t2, p1)
     K = q.d**2 * np.eye(q.H.shape[0]) - q.TtT
     assert q.psi > 0 and np.all(np.linalg.eigvalsh(K) > 0)
+
+
+@pytest.mark.parametrize("m, j", [(0, 3), (1, 2), (4, 1), (7, 5), (64, 9)])
+def test_toeplitz_stack_is_c_ordered_and_equals_each_matrix(m, j):
+    """Each slice is ``T(H[:, k])``, and the stack is C-ordered (a strided stack made every batched product with
+    it, and every stack made from it by ``empty_like``, strided)."""
+    from unfalsify.solvers.toeplitz import toeplitz_stack
+
+    H = np.random.default_rng(m + 10 * j).standard_normal((m, j))
+    T = toeplitz_stack(H)
+    assert T.shape == (j, m, m) and T.flags["C_CONTIGUOUS"]
+    for k in range(j):
+        assert np.array_equal(T[k], toeplitz_matrix(H[:, k]) if m else np.zeros((0, 0)))
