@@ -117,12 +117,7 @@ def _fft_operator(h: np.ndarray) -> LinearOperator:
 
 
 def toeplitz_gram(h: np.ndarray) -> np.ndarray:
-    """``T(h)ᵀT(h)`` in O(n²) (no matrix product): along the k-th diagonal,
-    ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h`` reversed
-    (``G[i+1, j+1] = G[i, j] − h_{n−1−i} h_{n−1−j}``).
-
-    Row by row, ``G[i+1, i+1:] = G[i, i:−1] − a_i a[i:−1]``: contiguous vector operations (4 ms at n = 1000,
-    against 15–23 ms for the former loop over the n diagonals, whose writes stride through memory).
+    """``T(h)ᵀT(h)`` in O(n²) (no matrix product): :func:`toeplitz_gram_stack` of the one column h.
 
     Examples
     --------
@@ -131,27 +126,18 @@ def toeplitz_gram(h: np.ndarray) -> np.ndarray:
     >>> bool(np.allclose(toeplitz_gram(h), toeplitz_matrix(h).T @ toeplitz_matrix(h)))
     True
     """
-    h = np.asarray(h, dtype=float).reshape(-1)
-    n = h.size
-    if n == 0:
-        return np.zeros((0, 0))
-    nf = nfft(n)
-    H = np.fft.rfft(h, nf)
-    a = h[::-1].copy()
-    G = np.empty((n, n))
-    G[0] = np.fft.irfft(H * np.conj(H), nf)[:n]  # r_k = Σ_j h_j h_{j+k}
-    tmp = np.empty(n)
-    for i in range(n - 1):
-        prod = np.multiply(a[i : n - 1], a[i], out=tmp[: n - 1 - i])
-        np.subtract(G[i, i : n - 1], prod, out=G[i + 1, i + 1 :])
-        G[i + 1 :, i] = G[i, i + 1 :]
-    return G
+    return toeplitz_gram_stack(np.asarray(h, dtype=float).reshape(-1, 1))[0]
 
 
 def toeplitz_gram_stack(H: np.ndarray) -> np.ndarray:
-    """``T(h_k)ᵀT(h_k)`` for every column h_k of H (m × j), shape (j, m, m), in O(j m²): the recursion of
-    :func:`toeplitz_gram` row by row, each row for all columns at once (no matrix products; at (m, j) =
-    (100, 1000) the batched products cost 2 GFlop).
+    """``T(h_k)ᵀT(h_k)`` for every column h_k of H (m × j), shape (j, m, m), in O(j m²), no matrix products.
+
+    Along the k-th diagonal ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h``
+    reversed, i.e. ``G[i+1, j+1] = G[i, j] − a_i a_j``: whole rows, each for all columns at once, contiguous
+    writes; the entries below the diagonal are the same sums in the same order as their mirror images, so G is
+    exactly symmetric.  Measured (one column, against the former half-row recursion with mirrored column
+    writes, the same numbers bit for bit): n = 1000 3.3 against 4.3 ms, n = 3000 29 against 45 ms, n = 10⁴ 0.22
+    against 2.0 s; a stack of (m, j) = (100, 1000) 49 ms against 168 ms for the batched products.
 
     Examples
     --------
@@ -171,7 +157,7 @@ def toeplitz_gram_stack(H: np.ndarray) -> np.ndarray:
     G[:, 0] = np.fft.irfft(F * np.conj(F), nf, axis=-1)[:, :m]  # r_k = Σ_i h_i h_{i+k} per column
     a = np.ascontiguousarray(H[::-1].T)  # (j, m): each column reversed
     tmp = np.empty((j, m - 1))
-    for i in range(m - 1):  # whole rows (contiguous writes); the same sums in the same order as the mirror image
+    for i in range(m - 1):
         np.multiply(a[:, i : i + 1], a[:, : m - 1], out=tmp)
         np.subtract(G[:, i, : m - 1], tmp, out=G[:, i + 1, 1:])
         G[:, i + 1, 0] = G[:, 0, i + 1]
