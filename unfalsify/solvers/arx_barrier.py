@@ -99,7 +99,7 @@ import scipy.linalg
 from scipy.linalg import blas as _blas
 from scipy.linalg import lapack as _lapack
 
-from .barrier import Deadline, Stop, cholesky_retry, linearised_dual, path_predictor, run_barrier
+from .barrier import Deadline, Stop, best_along, cholesky_retry, linearised_dual, path_steps, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
 from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
@@ -532,16 +532,9 @@ class _ArxBarrier:
         if _STEP_ROUTE["route"] == "former":
             steps = [(t_new - t) * centre[2]]
         else:
-            steps = [path_predictor(t_new, centre)]
-            if self._centred is not None:
-                steps.append(path_predictor(t_new, centre, self._centred))
+            steps = path_steps(t_new, centre, self._centred)
         self._centred = centre
-        best = s
-        for p in steps:
-            sn = self._feasible_along(s, p, t_new)
-            if sn.phi(t_new) < best.phi(t_new):
-                best = sn
-        return t_new, best
+        return t_new, best_along(s, steps, lambda p: self._feasible_along(s, p, t_new), lambda q: q.phi(t_new))
 
     def _feasible_along(self, s: _State, p, t):
         """The first strictly feasible point of ``s + a p``, ``a = 1, ½, …, 2⁻⁷`` (else ``s``)."""

@@ -40,6 +40,8 @@ __all__ = [
     "pcg",
     "cholesky_retry",
     "path_predictor",
+    "path_steps",
+    "best_along",
     "PathAdvance",
 ]
 
@@ -316,6 +318,33 @@ def path_predictor(t_new: float, centre, previous=None) -> np.ndarray:
     r1 = xp - x0 - d0 * span  # what the tangent misses at the previous centre
     r2 = (-tp * tp * xdotp - d0) * span  # and the change of dx/ds (times the span)
     return d0 * span * tau + (3.0 * r1 - r2) * tau**2 + (r2 - 2.0 * r1) * tau**3
+
+
+def path_steps(t_new: float, centre, previous=None) -> list:
+    """The steps of :func:`path_predictor` a path step tries: the tangent's, and with ``previous`` the cubic's."""
+    steps = [path_predictor(t_new, centre)]
+    if previous is not None:
+        steps.append(path_predictor(t_new, centre, previous))
+    return steps
+
+
+def best_along(start, steps, along, f):
+    """Of ``start`` and ``along(x)`` for each step x (a point backtracked to feasibility; None or ``start`` where
+    there is none), the one with the lowest ``f`` (the earlier of equals): the barrier solvers' path step.
+
+    Examples
+    --------
+    >>> best_along(0.0, [1.0, -2.0, 5.0], lambda x: None if x > 3 else x, lambda q: (q + 1.5) ** 2)
+    -2.0
+    """
+    best, f_best = start, f(start)
+    for x in steps:
+        q = along(x)
+        if q is not None and q is not start:
+            f_q = f(q)
+            if f_q < f_best:
+                best, f_best = q, f_q
+    return best
 
 
 class PathAdvance:

@@ -82,7 +82,7 @@ import os
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, PathAdvance, Stop, linearised_dual, path_predictor, pcg, run_barrier
+from .barrier import Deadline, PathAdvance, Stop, best_along, linearised_dual, path_steps, pcg, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
 from .displacement import displacement_hessian
@@ -815,16 +815,9 @@ class _ColumnBarrier(PathAdvance):
             return t_new, p
         dH, dd = step[2]
         centre = (t, np.append(p.H.ravel(), p.d), np.append(dH.ravel(), dd))
-        steps = [path_predictor(t_new, centre)]
-        if self._centred is not None:
-            steps.append(path_predictor(t_new, centre, self._centred))
+        steps = path_steps(t_new, centre, self._centred)
         self._centred = centre
-        best, f_best = p, self._f(t_new, p)
-        for x in steps:
-            q = self._feasible_along(p, x)
-            if q is not None and self._f(t_new, q) < f_best:
-                best, f_best = q, self._f(t_new, q)
-        return t_new, best
+        return t_new, best_along(p, steps, lambda x: self._feasible_along(p, x), lambda q: self._f(t_new, q))
 
     def _f(self, t, p: _Point) -> float:
         """``f_t`` at p (comparisons between nearby points only: at large t its value loses digits)."""
