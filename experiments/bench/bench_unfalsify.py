@@ -354,8 +354,8 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     # no arithmetic limit for the bracket row (no Newton steps), so no matmul probe: at n = 10⁴ its three
     # n × n arrays (2.4 GB) raised the row's peak RSS to 2.5 GB, above the front end's own 0.96 GB
     peak = None if name == "bracket" else _matmul_peak(peak_shape, 0.01 if spec.get("repeats", 1) == 1 else 0.05)
-    # the former route differs only where the solver forms FFT Hessians (corr_hessian): arx_barrier (one
-    # channel) and column_barrier; the bracket route has no Hessian, block_barrier forms its own dense blocks
+    # a former route exists for arx_barrier (one channel) and column_barrier (baselines.former_routes); the
+    # bracket route has no Hessian, block_barrier forms its own dense blocks
     baseline = name in ("arx_barrier", "column_barrier") and channels == 1
     baseline = baseline and not (spec["kind"] == "arx" and n > ARX_BASELINE_UPTO)
     runs = {"current": [], "baseline": []}
