@@ -492,3 +492,90 @@ def test_toeplitz_stack_is_c_ordered_and_equals_each_matrix(m, j):
     assert T.shape == (j, m, m) and T.flags["C_CONTIGUOUS"]
     for k in range(j):
         assert np.array_equal(T[k], toeplitz_matrix(H[:, k]) if m else np.zeros((0, 0)))
+
+
+def test_stack_pool_gives_a_stack_again_only_when_nothing_else_refers_to_it(monkeypatch):
+    from unfalsify.solvers import baselines
+
+    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    pool = sc._StackPool()
+    a = pool.take((3, 4, 4))
+    b = pool.take((3, 4, 4))
+    assert a is not b and pool.made == 2
+    first = id(a)
+    del a
+    c = pool.take((3, 4, 4))
+    assert id(c) == first and pool.made == 2  # a's stack, free again
+    view = c[1:]
+    del c
+    d = pool.take((3, 4, 4))  # the view keeps c's stack busy, b is still held
+    assert id(d) not in (first, id(b)) and pool.made == 3
+    assert view.base is not None and id(view.base) == first
+    assert pool.take((2, 4, 4)).shape == (2, 4, 4) and pool.made == 4  # another shape, another stack
+    with baselines.former_routes():  # the former route allocates afresh
+        assert pool.take((3, 4, 4)) is not None and pool.made == 4
+    monkeypatch.setattr(sc, "_POOL_FROM", 10**9)  # small stacks too
+    assert pool.take((3, 4, 4)) is not None and pool.made == 4
+
+
+def test_point_passes_in_blocks_on_threads_equal_the_dense_inverse_of_F(monkeypatch):
+    """K⁻¹, the blocks of F⁻¹, Σ tr F⁻¹, ‖F⁻¹‖² and T*(S21) from the two blocked passes of ``_Point`` (two columns a
+    block, three threads) against the inverse of the dense F = [δI Tᵀ; T δI] of each column."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from unfalsify.solvers.toeplitz import toeplitz_stack
+
+    rng = np.random.default_rng(11)
+    m, j = 6, 9
+    H = rng.standard_normal((m, j))
+    T = toeplitz_stack(H)
+    TtT = np.swapaxes(T, 1, 2) @ T
+    d = 1.2 * float(np.sqrt(np.linalg.eigvalsh(TtT).max()))
+    monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * m * m * 8)
+    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    F = np.block([[d * np.broadcast_to(np.eye(m), T.shape), np.swapaxes(T, 1, 2)],
+                  [T, d * np.broadcast_to(np.eye(m), T.shape)]])
+    S = np.linalg.inv(F)
+    with ThreadPoolExecutor(3) as threads:
+        p = sc._Point(H, d, T, TtT, 0.0, None, None, sc._Chunks(threads, 3, min_size=0))
+        np.testing.assert_allclose(p.Kinv, np.linalg.inv(d * d * np.eye(m) - TtT), rtol=1e-10, atol=1e-12)
+        assert p.trace_S() == pytest.approx(float(np.trace(S, axis1=1, axis2=2).sum()), rel=1e-12)
+        np.testing.assert_allclose(p.adjoint_S21(), adjoint(S[:, m:, :m]), rtol=1e-10, atol=1e-12)
+        S11, S21, S22 = p.blocks()
+        assert p.norm2() == pytest.approx(float(np.sum(S * S)), rel=1e-12)
+    np.testing.assert_allclose(S11, S[:, :m, :m], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(S21, S[:, m:, :m], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(S22, S[:, m:, m:], rtol=1e-10, atol=1e-12)
+    assert np.array_equal(S22, np.swapaxes(S22, 1, 2))
+
+
+@pytest.mark.parametrize("fixed", [True, False])
+def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, monkeypatch):
+    # pooling changes where the stacks live, not one operation: the same iterates bit for bit; and the pool
+    # makes far fewer stacks than are taken
+    u, y = servo_arx_data(2 * 4 + 24 - 1, 5)
+    P = SubspaceProblem.from_data(u, y, 4, _sigma(u, y, 4), predictor=fit_predictor(u, y, 4) if fixed else None)
+    f = P.column_form(scaled=True)
+    B0 = f.project(f.B)
+    fresh = sc._solve(f, B0, 1e-7, None, False, 5.0, None, sc._SERIAL)
+    taken, made = [], []
+    take, init = sc._StackPool.take, sc._StackPool.__init__
+
+    def counted(self, shape):
+        taken.append(shape)
+        return take(self, shape)
+
+    def remembered(self):
+        init(self)
+        made.append(self)
+
+    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    monkeypatch.setattr(sc._StackPool, "take", counted)
+    monkeypatch.setattr(sc._StackPool, "__init__", remembered)
+    pooled = sc._solve(f, B0, 1e-7, None, False, 5.0, None, sc._SERIAL)
+    assert pooled["status"] == fresh["status"] == "optimal"
+    assert pooled["newton"] == fresh["newton"]
+    assert pooled["upper"] == fresh["upper"] and pooled["lower"] == fresh["lower"]
+    assert np.array_equal(pooled["H"], fresh["H"])
+    stacks = sum(pool.made for pool in made)
+    assert 0 < stacks < len(taken) / 5

@@ -188,7 +188,7 @@ def run_barrier(method, form, point, t: float, deadline: Deadline, upper: float)
     return best
 
 
-def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight: float = 1.0):
+def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight: float = 1.0, out=None):
     """Dual point of the Newton-linearised centrality conditions (exact on the central path).
 
     ``G = (S − S ΔF S)/t`` (``S = F⁻¹`` with blocks ``(S11, S21, S22)``, ``ΔF`` the last Newton step
@@ -198,7 +198,7 @@ def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight:
     bound is small even off the path; neither needs to be PSD (the bound uses ``‖W‖_*``).
     Works on one matrix or on a stack ``(j, m, m)``.  ``dT`` is the step's Toeplitz matrix, or a function
     ``dT(X, transpose)`` returning ``dT X`` or ``dTᵀ X`` (such as FFT products, which leave four dense
-    products of the six).
+    products of the six).  W is written into ``out`` if given.
     """
     S11, S21, S22 = blocks
     if callable(dT):
@@ -206,7 +206,9 @@ def linearised_dual(t: float, blocks, dT, dlt: float, r, dr, psi: float, weight:
     else:
         dT_S11, dTt_S21 = dT @ S11, np.swapaxes(dT, -1, -2) @ S21
     SdFS21 = dlt * (S21 @ S11 + S22 @ S21) + S21 @ dTt_S21 + S22 @ dT_S11
-    W = -2.0 * (S21 - SdFS21) / t
+    W = np.subtract(S21, SdFS21, out=out)
+    W *= -2.0
+    W /= t
     v = (2.0 * weight / t) * (r / psi + dr / psi + 2.0 * r * float(np.sum(r * dr)) / psi**2)
     return v, W
 

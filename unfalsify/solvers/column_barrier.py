@@ -78,6 +78,7 @@ far below its value at the next centre (8.6), and 40+ Newton steps crawled back.
 from __future__ import annotations
 
 import os
+import sys
 
 import numpy as np
 import scipy.linalg
@@ -117,9 +118,10 @@ class _Chunks:
             return [fn(sl[0])]
         return list(self.pool.map(fn, sl))
 
-    def matmul(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """``A @ B`` for stacks ``(j, p, q) @ (j, q, r)``."""
-        out = np.empty(A.shape[:-1] + B.shape[-1:], np.result_type(A, B))
+    def matmul(self, A: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``A @ B`` for stacks ``(j, p, q) @ (j, q, r)`` (into ``out`` if given)."""
+        if out is None:
+            out = np.empty(A.shape[:-1] + B.shape[-1:], np.result_type(A, B))
         self.map(lambda s: np.matmul(A[s], B[s], out=out[s]), A.shape[0], out.size + A.size)
         return out
 
@@ -134,18 +136,56 @@ class _Chunks:
 _SERIAL = _Chunks()
 
 
-def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = False):
+#: Bytes from which a stack comes from a :class:`_StackPool` (below, numpy's allocations come from the heap and are
+#: reused anyway).
+_POOL_FROM = 4 << 20
+
+
+class _StackPool:
+    """Float stacks reused within one solve, handed out again once nothing but the pool refers to them.
+
+    A stack of 80 MB (a (1000, 100, 100) stack at (i, j) = (100, 1000)) is above glibc's largest mmap threshold, so
+    every fresh one is a new mapping whose pages fault on first touch: measured at (100, 1000) with L fixed, 26 s of
+    system time in a 55 s solve, and 43 s when the process allocator kept freed memory instead
+    (``MALLOC_MMAP_MAX_=0``).  The pool keeps the stacks it made and gives one out again when its reference count
+    shows that no point, view or temporary still uses it (a numpy view refers to its base), so a buffer is never
+    shared between two live arrays.  The pool lives as long as the solver; it is bypassed on the former route
+    (:func:`unfalsify.solvers.baselines.former_routes`) and for stacks below :data:`_POOL_FROM` bytes.
+    """
+
+    def __init__(self):
+        self._stacks: dict[tuple, list[np.ndarray]] = {}
+        self.made = 0  # stacks allocated (for tests and measurements)
+
+    def take(self, shape) -> np.ndarray:
+        """An uninitialised C-ordered float stack of ``shape``: a free one of the pool, or a new one."""
+        shape = tuple(int(n) for n in shape)
+        if 8 * int(np.prod(shape)) < _POOL_FROM or _STEP_ROUTE["route"] == "former":
+            return np.empty(shape)
+        stacks = self._stacks.setdefault(shape, [])
+        for k in range(len(stacks)):
+            # references: the list, and getrefcount's argument; any other holder (a point, a view) makes it busy
+            if sys.getrefcount(stacks[k]) <= 2:
+                return stacks[k]
+        stack = np.empty(shape)
+        stacks.append(stack)
+        self.made += 1
+        return stack
+
+
+def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = False, out: np.ndarray | None = None):
     """The barrier Hessian of every column over the stack in chunks (bounded workspace), on ``chunks``' threads;
     with it ``T*(S21_k S11_k)`` per column (``cross=True``), shape (m, j), as :func:`adjoint`.
 
     By :func:`~unfalsify.solvers.displacement.displacement_hessian` (O(m²) per column), or by the 2-D FFT of
     :func:`~unfalsify.solvers.toeplitz.corr_hessian` when ``precise``, below m = :data:`_DISPLACEMENT_FROM` (and on the
     former route): the displacement route's cumulative sums keep about 1e-13 of the largest entry against the
-    FFT's 1e-16."""
+    FFT's 1e-16.  The Hessian stack goes into ``out`` if given."""
     j, m = S11.shape[0], S11.shape[1]
-    out = np.empty((j, m, m))
+    if out is None:
+        out = np.empty((j, m, m))
     cross = np.empty((j, m))
-    step = max(1, int(1e7 // (4 * m * m * chunks.workers)))
+    step = max(1, _BLOCK_BYTES // (8 * m * m))
     fft = precise or _STEP_ROUTE["route"] == "former" or m < _DISPLACEMENT_FROM
 
     def work(s):
@@ -160,25 +200,42 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = F
     return out, cross.T
 
 
-def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None) -> np.ndarray:
+def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None,
+                 out: np.ndarray | None = None) -> np.ndarray:
     """Inverse of a stack of symmetric (positive definite) matrices, symmetrised, on ``chunks``' threads;
-    with ``shift`` the inverse of ``shift·I − X`` (formed block by block, never as a whole stack).  The result is
-    C-ordered whatever X's layout (``toeplitz_stack`` returns the column index fastest, and a stack in that layout
-    makes every later batched product strided)."""
-    out = np.empty(X.shape)
+    with ``shift`` the inverse of ``shift·I − X`` (formed block by block, never as a whole stack).  X may be a
+    :class:`_BlockSum`.  The result is C-ordered whatever X's layout (a strided stack makes every later batched
+    product strided), into ``out`` if given."""
+    if out is None:
+        out = np.empty(X.shape)
 
     def work(s):
-        for b in _blocks_of(s, X[0].size):
+        for b in _blocks_of(s, X.shape[1] * X.shape[2]):
             _sym_inverse_into(X[b] if shift is None else _shifted(X[b], shift), out[b])
 
     chunks.map(work, X.shape[0], X.size)
     return out
 
 
-#: Bytes of one block of a stack's temporaries (:func:`_blocks_of`): below glibc's largest mmap threshold (32 MB),
-#: so that they come from the heap and are reused.  A fresh mapping costs its page faults on first touch: at
-#: (100, 1000) the stacks are 80 MB, and whole-stack temporaries were a quarter of the CPU time in system calls.
-_BLOCK_BYTES = 8 << 20
+class _BlockSum:
+    """The stack ``A + c B`` read block by block (``X[b]``), never formed whole."""
+
+    def __init__(self, A: np.ndarray, B: np.ndarray, c: float):
+        self.A, self.B, self.c = A, B, c
+        self.shape, self.size = A.shape, A.size
+
+    def __getitem__(self, b):
+        out = np.multiply(self.B[b], self.c)
+        out += self.A[b]
+        return out
+
+
+#: Bytes of one block of a stack's temporaries (:func:`_blocks_of`, the Hessian's pieces, the two passes of
+#: :class:`_Point`): small enough to come from the heap and be reused while in cache.  A fresh mapping costs its page
+#: faults on first touch: at (100, 1000) the stacks are 80 MB, and whole-stack temporaries were a quarter of the CPU
+#: time in system calls.  Measured there with L fixed (whole solve, separate processes): 8 MB blocks 46 s and 16 s of
+#: system time, 2 MB 42 s / 13 s, 1 MB 41 s / 7 s, 256 KB 63 s (the per-call overhead of small batches).
+_BLOCK_BYTES = 1 << 20
 
 
 def _blocks_of(s: slice, item: int):
@@ -203,16 +260,24 @@ def _sym_inverse_into(X: np.ndarray, out: np.ndarray) -> None:
     out *= 0.5
 
 
-def _block_solve(A: np.ndarray, X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
-    """Columns ``A_k⁻¹ X[:, k, :]`` for a stack A (j, m, m) and X (m, j, p), on ``chunks``' threads."""
+def _block_solve(A, X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
+    """Columns ``A_k⁻¹ X[:, k, :]`` for a stack A (j, m, m) (or a :class:`_BlockSum`) and X (m, j, p), on ``chunks``'
+    threads, A read in blocks of :data:`_BLOCK_BYTES`."""
     Xs = np.ascontiguousarray(np.moveaxis(X, 1, 0))  # (j, m, p)
     out = np.empty_like(Xs)
 
     def work(s):
-        out[s] = np.linalg.solve(A[s], Xs[s])
+        for b in _blocks_of(s, A.shape[1] * A.shape[2]):
+            out[b] = np.linalg.solve(A[b], Xs[b])
 
     chunks.map(work, A.shape[0], A.size)
     return np.moveaxis(out, 0, 1)
+
+
+def _stack_of(H: np.ndarray, chunks: _Chunks, out: np.ndarray) -> np.ndarray:
+    """:func:`~unfalsify.solvers.toeplitz.toeplitz_stack` of H into ``out``, the columns in chunks on the threads."""
+    chunks.map(lambda s: toeplitz_stack(H[:, s], out=out[s]), H.shape[1], out.size)
+    return out
 
 
 def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -224,56 +289,102 @@ def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 class _Point:
     """The barrier's blocks at (H, δ): ``T_k``, ``T_kᵀT_k``, log det of the Cholesky-checked ``K_k``, its inverse
-    (formed when first needed: a trial point of a path step needs only f, i.e. log det K), the residual."""
+    (formed when first needed: a trial point of a path step needs only f, i.e. log det K), the residual.
 
-    def __init__(self, H, d, T, TtT, logdet, r, psi, chunks: _Chunks = _SERIAL):
+    The stacks derived from K⁻¹ are formed in two passes over the columns, each block of :data:`_BLOCK_BYTES` on the
+    chunks' threads carried through every product and elementwise step and its sums while it is in cache:
+    (K⁻¹, S21, and the slope's ``Σ tr K⁻¹``, ``⟨K⁻¹, TᵀT⟩``, ``T*(S21)``), then (S11, S22, and ``‖F⁻¹‖²_F``).  (Whole-
+    stack steps had left these sums, the adjoint and the elementwise steps to the main thread: 10 of 56 s at
+    (100, 1000) with L fixed.)"""
+
+    def __init__(self, H, d, T, TtT, logdet, r, psi, chunks: _Chunks = _SERIAL, pool: _StackPool | None = None):
         self.H, self.d, self.T, self.TtT = H, d, T, TtT
         self.logdet, self.r, self.psi = logdet, r, psi
         self.chunks = chunks
+        self.pool = pool if pool is not None else _StackPool()
         self._blocks = None
-        self._Kinv = None
-        self._S21 = None
+        self._first = None  # (K⁻¹, S21, Σ tr K⁻¹, ⟨K⁻¹, TᵀT⟩, T*(S21))
+        self._norm2 = None  # ‖F⁻¹‖²_F summed over the columns
+
+    def _first_pass(self):
+        """K⁻¹, ``S21 = −T K⁻¹`` and the slope's sums, block by block."""
+        if self._first is None:
+            T, TtT, shift = self.T, self.TtT, self.d * self.d
+            j, m = T.shape[0], T.shape[1]
+            Kinv, S21 = self.pool.take(T.shape), self.pool.take(T.shape)
+            adj = np.empty((m, j))
+
+            def work(s):
+                trK = inner = 0.0
+                for b in _blocks_of(s, m * m):
+                    _sym_inverse_into(_shifted(TtT[b], shift), Kinv[b])
+                    np.matmul(T[b], Kinv[b], out=S21[b])
+                    np.negative(S21[b], out=S21[b])
+                    trK += float(np.trace(Kinv[b], axis1=1, axis2=2).sum())
+                    inner += _inner(Kinv[b], TtT[b])
+                    adj[:, b] = adjoint(S21[b])
+                return trK, inner
+
+            parts = self.chunks.map(work, j, T.size)
+            self._first = (Kinv, S21, sum(p[0] for p in parts), sum(p[1] for p in parts), adj)
+        return self._first
 
     @property
     def Kinv(self) -> np.ndarray:
         """``K_k⁻¹ = (δ²I − T_kᵀT_k)⁻¹`` (computed once)."""
-        if self._Kinv is None:
-            self._Kinv = _spd_inverse(self.TtT, self.chunks, shift=self.d * self.d)
-        return self._Kinv
+        return self._first_pass()[0]
 
     @property
     def S21(self) -> np.ndarray:
         """``−T K⁻¹`` (computed once): the slope of the line search reads it, the Newton step's blocks reuse it."""
-        if self._S21 is None:
-            self._S21 = self.chunks.matmul(self.T, self.Kinv)
-            self._S21 *= -1.0
-        return self._S21
+        return self._first_pass()[1]
+
+    def adjoint_S21(self) -> np.ndarray:
+        """``T*(S21_k)`` per column, shape (m, j) (:func:`~unfalsify.solvers.toeplitz.adjoint`)."""
+        return self._first_pass()[4]
 
     def blocks(self):
         """``(S11, S21, S22)`` of ``F⁻¹``: ``δK⁻¹``, ``−TK⁻¹``, ``(I + TK⁻¹Tᵀ)/δ`` (computed once)."""
         if self._blocks is None:
-            S21 = self.S21
-            m = self.H.shape[0]
-            P = self.chunks.matmul(S21, _tr(self.T))  # −T K⁻¹ Tᵀ; the rest in place (80 MB stacks at (100, 1000))
-            np.negative(P, out=P)
-            P[:, np.arange(m), np.arange(m)] += 1.0
-            S22 = np.add(P, _tr(P))
-            S22 *= 0.5 / self.d
-            del P
-            S11 = np.multiply(self.Kinv, self.d)
+            Kinv, S21 = self.Kinv, self.S21
+            T, d = self.T, self.d
+            j, m = T.shape[0], T.shape[1]
+            S11, S22 = self.pool.take(T.shape), self.pool.take(T.shape)
+            diag = np.arange(m)
+
+            def work(s):
+                total = 0.0
+                for b in _blocks_of(s, m * m):
+                    P = np.matmul(S21[b], _tr(T[b]))  # −T K⁻¹ Tᵀ
+                    np.negative(P, out=P)
+                    P[:, diag, diag] += 1.0
+                    np.add(P, _tr(P), out=S22[b])
+                    S22[b] *= 0.5 / d
+                    np.multiply(Kinv[b], d, out=S11[b])
+                    total += _inner(S11[b], S11[b]) + _inner(S22[b], S22[b]) + 2.0 * _inner(S21[b], S21[b])
+                return total
+
+            self._norm2 = float(sum(self.chunks.map(work, j, T.size)))
             self._blocks = (S11, S21, S22)
         return self._blocks
+
+    def norm2(self) -> float:
+        """``Σ_k ‖F_k⁻¹‖²_F = Σ_k (‖S11‖² + ‖S22‖² + 2‖S21‖²)`` (the δ–δ entry of the Hessian)."""
+        self.blocks()
+        return self._norm2
 
     def trace_S(self) -> float:
         """``Σ_k tr F_k⁻¹ = Σ_k (δ tr K⁻¹ + (m + ⟨K⁻¹, TᵀT⟩)/δ)`` (no block products)."""
         m, j = self.H.shape
-        trK = float(np.trace(self.Kinv, axis1=1, axis2=2).sum())
-        return self.d * trK + (m * j + _inner(self.Kinv, self.TtT)) / self.d
+        _, _, trK, inner, _ = self._first_pass()
+        return self.d * trK + (m * j + inner) / self.d
 
     def upper(self) -> float:
         """``max_k ‖T(h_k)‖₂`` as ``√λ_max(T_kᵀT_k)`` (LAPACK ``syevd`` values of the Gram stack, a third
-        of the SVDs' cost; the certificate recomputes the norms from the impulses on its own)."""
-        return _max_norm(self.TtT, self.chunks)
+        of the SVDs' cost; the certificate recomputes the norms from the impulses on its own); computed once."""
+        if getattr(self, "_upper", None) is None:
+            self._upper = _max_norm(self.TtT, self.chunks)
+        return self._upper
 
 
 def _inner(A: np.ndarray, B: np.ndarray) -> float:
@@ -427,6 +538,7 @@ class _ColumnBarrier(PathAdvance):
                  cg_tol=1e-8, cg_maxiter=2000, noise_weight=None, chunks: _Chunks = _SERIAL):
         self.f = form
         self.chunks = chunks
+        self.pool = _StackPool()  # the stacks of the points and Newton steps, reused (page faults at (100, 1000))
         self.m, self.j = form.m, form.j
         self.tol, self.time_limit, self.progress = tol, time_limit, progress
         self.mu, self.max_newton = mu, max_newton
@@ -459,13 +571,14 @@ class _ColumnBarrier(PathAdvance):
         """``(T_k, T_kᵀT_k)`` stacks of the impulses H (the Gram by the O(m²) recursion from m = 32 on; measured
         at (100, 1000), one thread: 49 ms against 168 ms for the products, 6 against 16 ms at (50, 500), 1.2
         against 0.6 ms at (20, 400))."""
-        T = toeplitz_stack(H)
+        shape = (self.j, self.m, self.m)
+        T = _stack_of(H, self.chunks, self.pool.take(shape))
         if self.m < _GRAM_RECURSION_FROM or _STEP_ROUTE["route"] == "former":
-            return T, self.chunks.matmul(_tr(T), T)
-        G = np.empty(T.shape)  # C-ordered, not T's layout (the column index fastest): products with it stay BLAS-ready
+            return T, self.chunks.matmul(_tr(T), T, out=self.pool.take(shape))
+        G = self.pool.take(shape)
 
         def work(s):
-            G[s] = toeplitz_gram_stack(H[:, s])
+            toeplitz_gram_stack(H[:, s], out=G[s])
 
         self.chunks.map(work, self.j, T.size)
         return T, G
@@ -482,7 +595,7 @@ class _ColumnBarrier(PathAdvance):
         logdet = _chol_logdet(TtT, self.chunks, shift=d * d)  # K = δ²I − TᵀT, block by block
         if logdet is None:
             return None
-        p = _Point(H, d, T, TtT, logdet, r, psi, self.chunks)
+        p = _Point(H, d, T, TtT, logdet, r, psi, self.chunks, self.pool)
         if _STEP_ROUTE["route"] == "former":  # K⁻¹ at every trial point, as before
             _ = p.Kinv  # formed now
         return p
@@ -493,7 +606,7 @@ class _ColumnBarrier(PathAdvance):
         ``tr(F⁻¹ΔF) = dδ tr F⁻¹ + 2⟨S21, ΔT⟩`` and ``⟨S21, ΔT⟩ = ⟨T*(S21), dh⟩``: S21 is the block the next
         Newton step needs if this point is accepted (most are), so the slope costs no product of its own.
         """
-        tr_fdf = dlt * p.trace_S() + 2.0 * float(np.sum(adjoint(p.S21) * dh))
+        tr_fdf = dlt * p.trace_S() + 2.0 * float(np.sum(p.adjoint_S21() * dh))
         return t * dlt - tr_fdf - 2.0 * self.wn * float(np.sum(p.r * q)) / p.psi
 
     # ---- Newton system -----------------------------------------------------------------------
@@ -515,11 +628,11 @@ class _ColumnBarrier(PathAdvance):
         S11, S21, S22 = p.blocks()
         psi = p.psi
         g_noise = self.f.apply_T(p.r)  # Mᵀ r
-        grad_h = -2.0 * adjoint(S21) - 2.0 * self.wn * g_noise / psi
+        grad_h = -2.0 * p.adjoint_S21() - 2.0 * self.wn * g_noise / psi
         grad_d = t - p.trace_S()
-        dd = _inner(S11, S11) + _inner(S22, S22) + 2.0 * _inner(S21, S21)
+        dd = p.norm2()
         # c: (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K), its adjoint off the Hessian's spectra
-        G, x = _chunked_hessian(S11, S21, S22, self.chunks, precise)
+        G, x = _chunked_hessian(S11, S21, S22, self.chunks, precise, out=self.pool.take(S11.shape))
         c = 4.0 * x
         X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
         xg, xc = X[..., 0], X[..., 1]
@@ -532,14 +645,13 @@ class _ColumnBarrier(PathAdvance):
     def _solve_h(self, G, psi, g_noise, R):
         """Solve ``(D − c U Uᵀ + α g gᵀ) X = R`` (D block diagonal; U Uᵀ only with L optimised)."""
         cc, alpha = 2.0 * self.wn / psi, 4.0 * self.wn / psi**2
-        D = np.multiply(self.TuTu, cc)
-        D += G
+        D = _BlockSum(G, self.TuTu, cc)  # D = G + c T(u)ᵀT(u), formed block by block where it is used
         rhs = np.concatenate([R, g_noise[..., None]], axis=-1)
         if self.Q is None and _STEP_ROUTE["route"] != "former":
             # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
             Y = _block_solve(D, rhs, self.chunks)
         else:  # the Woodbury correction applies D⁻¹ once more
-            Dinv = _spd_inverse(D, self.chunks)
+            Dinv = _spd_inverse(D, self.chunks, out=self.pool.take(G.shape))
             Y = _bmv(Dinv, rhs)
             if self.Q is not None:
                 Y = Y + self._lowrank_correction(G, Dinv, cc, rhs, Y)
@@ -560,8 +672,13 @@ class _ColumnBarrier(PathAdvance):
         Q = self.Q
         m = self.m
         Tu = self.Tu
-        mm = self.chunks.matmul
-        E = _spd_inverse(cc * np.eye(m) + cc * cc * mm(mm(Tu, _spd_inverse(G, self.chunks)), _tr(Tu)), self.chunks)
+        take, mm = self.pool.take, self.chunks.matmul
+        X = mm(Tu, _spd_inverse(G, self.chunks, out=take(G.shape)), out=take(G.shape))
+        X = mm(X, _tr(Tu), out=take(G.shape))  # T(u_k) G_k⁻¹ T(u_k)ᵀ
+        X *= cc * cc
+        X[:, np.arange(m), np.arange(m)] += cc
+        E = _spd_inverse(X, self.chunks, out=take(G.shape))
+        del X
         Ainv, Binv = _kronecker_preconditioner(Q, E)
         Cmul = self._capacitance(E)
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
@@ -573,7 +690,9 @@ class _ColumnBarrier(PathAdvance):
 
     def _capacitance(self, E):
         """The product ``Y ↦ Σ_k E_k Y q_k q_kᵀ`` on stacks (p, m, r), on the chunks' threads."""
-        Q, QT, Et, chunks = self.Q, np.ascontiguousarray(self.Q.T), np.ascontiguousarray(_tr(E)), self.chunks
+        Et = self.pool.take(E.shape)
+        np.copyto(Et, _tr(E))
+        Q, QT, chunks = self.Q, np.ascontiguousarray(self.Q.T), self.chunks
         m, r, j = self.m, Q.shape[1], self.j
 
         def Cmul(Y3):
@@ -610,7 +729,13 @@ class _ColumnBarrier(PathAdvance):
     def _dual(self, t, p: _Point, dh, dlt):
         """Dual point of the Newton-linearised centrality conditions (:func:`linearised_dual`)."""
         dr = -self.f.project(self.f.apply(dh))
-        return linearised_dual(t, p.blocks(), toeplitz_stack(dh), dlt, p.r, dr, p.psi, weight=self.wn)
+        S11, S21, S22 = p.blocks()
+        dT = _stack_of(dh, self.chunks, self.pool.take(S11.shape))
+        W = self.pool.take(S11.shape)  # the six block products on the chunks' threads, a block at a time
+        parts = self.chunks.map(lambda s: [linearised_dual(t, (S11[b], S21[b], S22[b]), dT[b], dlt, p.r, dr, p.psi,
+                                                           weight=self.wn, out=W[b])[0]
+                                           for b in _blocks_of(s, self.m * self.m)], self.j, W.size)
+        return parts[0][0], np.array(W)  # v does not depend on the block; W escapes the pool (a copy)
 
     # ---- steps -------------------------------------------------------------------------------
     def _noise_step(self, r, q) -> float:

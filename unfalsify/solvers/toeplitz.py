@@ -129,8 +129,9 @@ def toeplitz_gram(h: np.ndarray) -> np.ndarray:
     return toeplitz_gram_stack(np.asarray(h, dtype=float).reshape(-1, 1))[0]
 
 
-def toeplitz_gram_stack(H: np.ndarray) -> np.ndarray:
-    """``T(h_k)ᵀT(h_k)`` for every column h_k of H (m × j), shape (j, m, m), in O(j m²), no matrix products.
+def toeplitz_gram_stack(H: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``T(h_k)ᵀT(h_k)`` for every column h_k of H (m × j), shape (j, m, m), in O(j m²), no matrix products;
+    written into ``out`` (that shape) if given.
 
     Along the k-th diagonal ``G[i, i+k] = r_k − Σ_{q<i} a_q a_{q+k}`` with ``r_k = Σ_j h_j h_{j+k}`` and ``a = h``
     reversed, i.e. ``G[i+1, j+1] = G[i, j] − a_i a_j``: whole rows, each for all columns at once, contiguous
@@ -149,7 +150,7 @@ def toeplitz_gram_stack(H: np.ndarray) -> np.ndarray:
     """
     H = np.asarray(H, dtype=float)
     m, j = H.shape
-    G = np.empty((j, m, m))
+    G = np.empty((j, m, m)) if out is None else out
     if m == 0:
         return G
     nf = nfft(m)
@@ -431,8 +432,9 @@ def toeplitz_nuclear_upper(c: np.ndarray) -> float:
     return float(np.sum(np.abs(c) * (m - np.arange(m))))
 
 
-def toeplitz_stack(H: np.ndarray) -> np.ndarray:
-    """Stack ``(j, m, m)`` of ``T(H[:, k])`` (a sequence per row instead: pass ``X.T``), C-ordered.
+def toeplitz_stack(H: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Stack ``(j, m, m)`` of ``T(H[:, k])`` (a sequence per row instead: pass ``X.T``), C-ordered; written into
+    ``out`` (that shape) if given.
 
     Row a of ``T(h)`` is the window ``g[m−1−a : 2m−1−a]`` of ``g = (h_{m−1}, …, h_0, 0, …, 0)``, so the stack is a
     copy of windows read row by row.  (A gather ``H.T[:, idx]`` had put the column index fastest in memory; every
@@ -452,7 +454,10 @@ def toeplitz_stack(H: np.ndarray) -> np.ndarray:
     g = np.zeros((j, 2 * m - 1), dtype=np.result_type(H, float))
     g[:, :m] = H[::-1].T
     windows = np.lib.stride_tricks.sliding_window_view(g, m, axis=-1)  # (j, m, m): window s is row m−1−s
-    return np.ascontiguousarray(windows[:, ::-1, :])
+    if out is None:
+        return np.ascontiguousarray(windows[:, ::-1, :])
+    np.copyto(out, windows[:, ::-1, :])
+    return out
 
 
 def _tr(X: np.ndarray) -> np.ndarray:
