@@ -126,9 +126,11 @@ class _Chunks:
         return out
 
     def dot(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """``A @ B`` for matrices, the rows of A in chunks (BLAS is single-threaded inside the solve)."""
+        """``A @ B`` for matrices, the rows of A in chunks (BLAS is single-threaded inside the solve); threaded by
+        the count of multiply-adds, not of elements (the CG's (3i, 3i) × (3i, j) products at (100, 1000) had run on
+        the main thread alone: 8 of its 50 serial seconds with L optimised)."""
         out = np.empty((A.shape[0], B.shape[1]), np.result_type(A, B))
-        self.map(lambda s: np.matmul(A[s], B, out=out[s]), A.shape[0], out.size + A.size)
+        self.map(lambda s: np.matmul(A[s], B, out=out[s]), A.shape[0], A.shape[0] * A.shape[1] * B.shape[1])
         return out
 
 
@@ -434,12 +436,16 @@ def _kronecker_preconditioner(Q: np.ndarray, E: np.ndarray, sweeps: int = 4):
     ``B Y A`` with ``A = Σ_k w_k q_k q_kᵀ``.  Alternating least squares on the rank-one approximation of
     the rearranged C: ``A ∝ Σ_k ⟨E_k, B⟩ q_k q_kᵀ``, ``B ∝ Σ_k (q_kᵀ A q_k) E_k``, starting from ``B = mean E_k``.
     """
+    j, m = E.shape[0], E.shape[1]
+    E2 = E.reshape(j, m * m)
     B = E.mean(axis=0)
     for _ in range(sweeps):
-        wa = np.einsum("kab,ab->k", E, B)
+        wa = E2 @ B.ravel()
         A = (Q.T * wa) @ Q
-        wb = np.einsum("kr,rs,ks->k", Q, A, Q)
-        B = np.einsum("k,kab->ab", wb, E) / max(float(np.sum(A * A)), 1e-300)
+        # q_kᵀ A q_k by a product (a three-operand einsum loops over (k, r, s) in C: 10 of the 50 serial seconds of
+        # the L-optimised solve at (100, 1000))
+        wb = np.einsum("kr,kr->k", Q @ A, Q)
+        B = (wb @ E2).reshape(m, m) / max(float(np.sum(A * A)), 1e-300)
     return np.linalg.inv(0.5 * (A + A.T)), np.linalg.inv(0.5 * (B + B.T))
 
 
@@ -468,36 +474,49 @@ class _Deflation:
     With ``E = Wᵀ C W``, CG starts at ``x₀ = W E⁻¹ Wᵀ b`` (the residual is then orthogonal to W) and
     keeps its search directions C-orthogonal to W (:meth:`project`): the iteration runs on the
     C-orthogonal complement of span W, whose smallest eigenvalues are those that slowed it.  The
-    solution is that of C x = b; one read of W and of CW per iteration.
+    solution is that of C x = b; one read of W and of CW per iteration, split over ``chunks``' threads (W and CW are
+    24 MB each at (100, 1000), so these reads are memory-bound: 11 of the 50 serial seconds of that solve with L
+    optimised when they ran on the main thread).
     """
 
-    def __init__(self, Cmul, W: np.ndarray):
+    def __init__(self, Cmul, W: np.ndarray, chunks: _Chunks = _SERIAL):
         k = W.shape[0]
+        self.chunks = chunks
         self.W2 = W.reshape(k, -1)
         self.CW = Cmul(W).reshape(k, -1)
-        E = self.W2 @ self.CW.T
+        E = self._gram(self.W2, self.CW)
         self.L = np.linalg.cholesky(0.5 * (E + E.T))  # LinAlgError: E not numerically positive definite
+
+    def _gram(self, V2, X2) -> np.ndarray:
+        """``V2 X2ᵀ``, summed over column chunks of the long axis on the threads."""
+        return sum(self.chunks.map(lambda s: V2[:, s] @ X2[:, s].T, V2.shape[1], V2.size))
+
+    def _combine(self, c, V2) -> np.ndarray:
+        """``c V2`` (p, N), its columns in chunks on the threads."""
+        out = np.empty((c.shape[0], V2.shape[1]))
+        self.chunks.map(lambda s: np.matmul(c, V2[:, s], out=out[:, s]), V2.shape[1], V2.size)
+        return out
 
     def _solve(self, V2, X2):
         """``E⁻¹ V2 X2ᵀ`` transposed: (p, k)."""
-        return scipy.linalg.cho_solve((self.L, True), V2 @ X2.T).T
+        return scipy.linalg.cho_solve((self.L, True), self._gram(V2, X2)).T
 
     def start(self, B: np.ndarray):
         """``(x₀, b − C x₀)`` for the stack B (p, …)."""
         B2 = B.reshape(B.shape[0], -1)
         c = self._solve(self.W2, B2)
-        return (c @ self.W2).reshape(B.shape), (B2 - c @ self.CW).reshape(B.shape)
+        return self._combine(c, self.W2).reshape(B.shape), (B2 - self._combine(c, self.CW)).reshape(B.shape)
 
     def project(self, Z: np.ndarray) -> np.ndarray:
         """``Z − W E⁻¹ (CW)ᵀ Z``: C-orthogonal to span W."""
         Z2 = Z.reshape(Z.shape[0], -1)
-        return (Z2 - self._solve(self.CW, Z2) @ self.W2).reshape(Z.shape)
+        return (Z2 - self._combine(self._solve(self.CW, Z2), self.W2)).reshape(Z.shape)
 
 
-def _deflation(Cmul, W):
+def _deflation(Cmul, W, chunks: _Chunks = _SERIAL):
     """:class:`_Deflation` of ``span W``, or None if ``Wᵀ C W`` is not numerically positive definite."""
     try:
-        return _Deflation(Cmul, W)
+        return _Deflation(Cmul, W, chunks)
     except np.linalg.LinAlgError:
         return None
 
@@ -651,17 +670,25 @@ class _ColumnBarrier(PathAdvance):
             # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
             Y = _block_solve(D, rhs, self.chunks)
         else:  # the Woodbury correction applies D⁻¹ once more
-            Dinv = _spd_inverse(D, self.chunks, out=self.pool.take(G.shape))
-            Y = _bmv(Dinv, rhs)
+            if _STEP_ROUTE["route"] == "former":  # by the inverse stack
+                Dinv = _spd_inverse(D, self.chunks, out=self.pool.take(G.shape))
+
+                def solve(X):
+                    return _bmv(Dinv, X)
+            else:  # by two LU solves per block (1⅓m³) instead of the inverse (2⅔m³)
+                def solve(X):
+                    return _block_solve(D, X, self.chunks)
+            Y = solve(rhs)
             if self.Q is not None:
-                Y = Y + self._lowrank_correction(G, Dinv, cc, rhs, Y)
+                Y = Y + self._lowrank_correction(G, solve, cc, rhs, Y)
         Xr, xg = Y[..., :-1], Y[..., -1]
         # Sherman–Morrison for the rank-one term
         coef = alpha / (1.0 + alpha * float(np.sum(g_noise * xg)))
         return Xr - xg[..., None] * (coef * np.einsum("ik,ikp->p", g_noise, Xr))[None, None, :]
 
-    def _lowrank_correction(self, G, Dinv, cc, rhs, Y):
-        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with ``C = c⁻¹I − UᵀD⁻¹U = Σ_k q_k q_kᵀ ⊗ E_k`` by PCG.
+    def _lowrank_correction(self, G, solve, cc, rhs, Y):
+        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with ``C = c⁻¹I − UᵀD⁻¹U = Σ_k q_k q_kᵀ ⊗ E_k`` by PCG; ``solve(X)`` is
+        ``D_k⁻¹ X[:, k, :]`` per column and ``Y = solve(rhs)``.
 
         ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹`` equals ``c⁻¹I − T(u_k) D_k⁻¹ T(u_k)ᵀ`` without its
         cancellation.  Preconditioner: the nearest Kronecker product ``A ⊗ B`` to C
@@ -684,9 +711,9 @@ class _ColumnBarrier(PathAdvance):
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
         TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
         Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
-        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, _deflation(Cmul, self.W))
+        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, _deflation(Cmul, self.W, self.chunks))
         UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
-        return np.moveaxis(UZ @ Dinv, 0, 2).transpose(1, 2, 0)  # D_k⁻¹ (…), back to (m, j, p)
+        return solve(UZ.transpose(2, 0, 1))  # D_k⁻¹ (…) in the layout (m, j, p)
 
     def _capacitance(self, E):
         """The product ``Y ↦ Σ_k E_k Y q_k q_kᵀ`` on stacks (p, m, r), on the chunks' threads."""
