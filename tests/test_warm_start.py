@@ -147,6 +147,30 @@ def test_a_stalled_warm_path_is_resolved_cold(small, monkeypatch):
     assert res.certificate.verify()
 
 
+def test_a_warm_path_that_stagnates_twice_is_given_up_for_a_cold_solve(small, monkeypatch):
+    """Newton decrements that stop halving (λ² held at 3 on a warm path, the pattern of the failed warm paths at
+    (20, 400)) end the warm path at the second stagnating centring; the solve is redone cold and says so."""
+    newton = column_barrier._ColumnBarrier._newton
+    seen = []
+
+    def plateau(self, t, p):
+        dh, dlt, lam2, tangent = newton(self, t, p)
+        if self.warm_started:
+            seen.append(self.stagnated)
+            return 1e-3 * dh, 1e-3 * dlt, 3.0, tangent  # short steps at a constant decrement
+        return dh, dlt, lam2, tangent
+
+    monkeypatch.setattr(column_barrier._ColumnBarrier, "_newton", plateau)
+    res = _solve(small["u"][1:], small["y"][1:], small["sigma"], warm_start=small["first"])
+    limit = column_barrier._WARM_MAX_STAGNATIONS
+    assert f"stagnated in {limit} centrings" in res.start and "re-solved cold" in res.start
+    assert res.status == "optimal" and res.certificate.verify()
+    # the rule needs _WARM_STAGNATION steps a centring: the warm path ran exactly limit centrings of them
+    assert res.solver_stats["warm_newton"] == len(seen) == limit * column_barrier._WARM_STAGNATION
+    assert seen[-1] == limit - 1
+    _same_delta(res, _solve(small["u"][1:], small["y"][1:], small["sigma"]))
+
+
 def test_state_of_a_cvxpy_result_is_usable(small):
     """A result without a barrier path (cvxpy) still warm-starts the structured solver (its point and gap)."""
     ref = uf.subspace_unfalsify(small["u"], small["y"], I, small["sigma"])

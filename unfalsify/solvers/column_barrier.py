@@ -49,7 +49,9 @@ w = 60).  Structure used:
   new columns 0…; or another σ) resumes from the last recorded point at gap ≥ 0.1 (chosen by the front end),
   made strictly feasible, at that gap's t.  Later points hug the boundaries and stalled after the data moved
   (measured at (20, 400): 60 Newton steps at λ² ≈ 3 after a one-sample advance); a resumed path that still
-  stalls is re-solved cold.  The tail of the path (about 4 steps per centring, set by ``_NOISE_KEEP``) is
+  stalls, or whose centrings stop converging twice (:data:`_WARM_MAX_STAGNATIONS`), is re-solved cold.  (The
+  stagnating warm paths measured with L optimised had one new column pressed against δ: its K's smallest
+  eigenvalue 2e-5·δ² against a median of 0.016·δ² over the columns.)  The tail of the path (about 4 steps per centring, set by ``_NOISE_KEEP``) is
   what a warm start cannot skip: 23–33 Newton steps against 36–38 cold there.
 * **Lower bounds when they can close the gap.**  The bound costs j SVDs; it is evaluated once ``ν/t`` is
   within :data:`_BOUND_FACTOR` × tol of δ (:meth:`_ColumnBarrier.bound_due`), and at the last centring whatever
@@ -540,8 +542,15 @@ _BOUND_FACTOR = 100.0
 _WARM_PSI = 0.5
 #: Warm start: a centring ends when λ² ≤ _FAR_DECREMENT has not halved over this many Newton steps.
 _WARM_STAGNATION = 4
+#: Warm start: the centrings ended by the stagnation rule after which the warm path is given up for a cold solve.
+#: Measured at (20, 400), L optimised, servo data, windows advanced by 1–50 samples (seeds 0–2): the 4 warm paths that
+#: failed had stagnated in 8–9 centrings each (66–125 Newton steps before the cold re-solve, 3–4.7× a cold solve);
+#: of the 8 that certified, 7 never stagnated and one once.
+_WARM_MAX_STAGNATIONS = 2
 #: New columns of a warm start keep ``‖T(h_k)‖₂`` at most this fraction of the old δ (:meth:`_capped_ridge`).
 _WARM_CAP = 0.9
+#: The longest line-search step, in Newton steps.
+_MAX_STEP = 1.0
 #: Fraction of the noise slack ψ a line-search step must keep (``_noise_step``).
 _NOISE_KEEP = 0.5
 #: Newton decrement λ² above which a step counts as far from the centre (inexact CG, see ``_centre``).
@@ -581,6 +590,7 @@ class _ColumnBarrier(PathAdvance):
         self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
         self.path = []  # the centred points (record())
         self.warm_started = False  # set by warm()
+        self.stagnated = 0  # centrings of a warm path ended by the stagnation rule (centre())
 
     # ---- evaluation --------------------------------------------------------------------------
     def _resid(self, H):
@@ -776,9 +786,9 @@ class _ColumnBarrier(PathAdvance):
         """
         qq, rq, rr = float(np.sum(q * q)), float(np.sum(r * q)), float(np.sum(r * r))
         if qq <= 0:
-            return 1.0
+            return _MAX_STEP
         disc = rq * rq + qq * (1.0 - _NOISE_KEEP) * (self.f.rho**2 - rr)
-        return min(1.0, (rq + np.sqrt(max(disc, 0.0))) / qq)
+        return min(_MAX_STEP, (rq + np.sqrt(max(disc, 0.0))) / qq)
 
     def _line_search(self, t, p: _Point, dh, dlt, slope0, a_init=1.0):
         """A step along (dh, dlt) near the minimiser of f_t on the line (convex there), by safeguarded
@@ -938,6 +948,9 @@ class _ColumnBarrier(PathAdvance):
                 # warm start: full Newton steps that no longer reduce λ² (measured at (20, 400), window advanced by
                 # one sample: λ² between 2 and 4 for 50 steps).  Near enough to the centre for the dual point,
                 # whose bound is certified wherever it is taken; the path goes on from here.
+                self.stagnated += 1
+                if self.stagnated >= _WARM_MAX_STAGNATIONS:
+                    raise Stop("failed")  # not converging to the centres: _solve re-solves cold
                 break
             pn, _ = self._line_search(t, p, dh, dlt, -lam2)
             if pn is None:  # rounding-level stall: take the bounds here; run() stops if they do not improve
@@ -993,7 +1006,7 @@ class _ColumnBarrier(PathAdvance):
         up = p.upper()
         self._prev = (up, 0.0)
         out = run_barrier(self, self.f, p, self.nu / p.d if t is None else t, deadline, up)
-        out.update(cg=self.cg_iters, trials=self.trials)
+        out.update(cg=self.cg_iters, trials=self.trials, stagnated=self.stagnated)
         out.pop("last")
         if self.path:
             out["state"] = dict(path=self.path)
@@ -1093,8 +1106,9 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
     out = solver.run(p, t)
     if note == "used" and out["status"] in ("failed", "max_iter"):
         # the resumed path stalled: never an answer worse than cold, so solve again from the cold start
-        note = (f"the resumed path stopped with status {out['status']!r} after {out['newton']} Newton steps; "
-                "re-solved cold")
+        why = (f"stagnated in {solver.stagnated} centrings" if solver.stagnated >= _WARM_MAX_STAGNATIONS
+               else f"stopped with status {out['status']!r}")
+        note = f"the resumed path {why} after {out['newton']} Newton steps; re-solved cold"
         wasted = out["newton"]
         out = _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks)
         out["warm_newton"] = wasted
