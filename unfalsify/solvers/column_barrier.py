@@ -51,8 +51,8 @@ w = 60).  Structure used:
   (measured at (20, 400): 60 Newton steps at λ² ≈ 3 after a one-sample advance); a resumed path that still
   stalls, or whose centrings stop converging twice (:data:`_WARM_MAX_STAGNATIONS`), is re-solved cold.  (The
   stagnating warm paths measured with L optimised had one new column pressed against δ: its K's smallest
-  eigenvalue 2e-5·δ² against a median of 0.016·δ² over the columns.)  The tail of the path (about 4 steps per centring, set by ``_NOISE_KEEP``) is
-  what a warm start cannot skip: 23–33 Newton steps against 36–38 cold there.
+  eigenvalue 2e-5·δ² against a median of 0.016·δ² over the columns.)  The tail of the path (about 4 steps per
+  centring, set by ``_NOISE_KEEP``) is what a warm start cannot skip: 23–33 Newton steps against 36–38 cold there.
 * **Lower bounds when they can close the gap.**  The bound costs j SVDs; it is evaluated once ``ν/t`` is
   within :data:`_BOUND_FACTOR` × tol of δ (:meth:`_ColumnBarrier.bound_due`), and at the last centring whatever
   ends the solve.
@@ -160,6 +160,10 @@ class _StackPool:
     def __init__(self):
         self._stacks: dict[tuple, list[np.ndarray]] = {}
         self.made = 0  # stacks allocated (for tests and measurements)
+        # the count of a stack nothing else holds, read the way take() reads it: interpreters differ in the
+        # references a call adds (Python 3.14 skips some), so it is measured, not assumed
+        probe = [np.empty(0)]
+        self._free_refs = sys.getrefcount(probe[0])
 
     def take(self, shape) -> np.ndarray:
         """An uninitialised C-ordered float stack of ``shape``: a free one of the pool, or a new one."""
@@ -168,8 +172,7 @@ class _StackPool:
             return np.empty(shape)
         stacks = self._stacks.setdefault(shape, [])
         for k in range(len(stacks)):
-            # references: the list, and getrefcount's argument; any other holder (a point, a view) makes it busy
-            if sys.getrefcount(stacks[k]) <= 2:
+            if sys.getrefcount(stacks[k]) <= self._free_refs:  # any other holder (a point, a view) makes it busy
                 return stacks[k]
         stack = np.empty(shape)
         stacks.append(stack)
@@ -308,6 +311,7 @@ class _Point:
         self.pool = pool if pool is not None else _StackPool()
         self._blocks = None
         self._first = None  # (K⁻¹, S21, Σ tr K⁻¹, ⟨K⁻¹, TᵀT⟩, T*(S21))
+        self._upper = None
         self._norm2 = None  # ‖F⁻¹‖²_F summed over the columns
 
     def _first_pass(self):
@@ -386,7 +390,7 @@ class _Point:
     def upper(self) -> float:
         """``max_k ‖T(h_k)‖₂`` as ``√λ_max(T_kᵀT_k)`` (LAPACK ``syevd`` values of the Gram stack, a third
         of the SVDs' cost; the certificate recomputes the norms from the impulses on its own); computed once."""
-        if getattr(self, "_upper", None) is None:
+        if self._upper is None:
             self._upper = _max_norm(self.TtT, self.chunks)
         return self._upper
 
