@@ -549,15 +549,22 @@ def test_point_passes_in_blocks_on_threads_equal_the_dense_inverse_of_F(monkeypa
     assert np.array_equal(S22, np.swapaxes(S22, 1, 2))
 
 
+@pytest.mark.parametrize("threads", [0, 3])
 @pytest.mark.parametrize("fixed", [True, False])
-def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, monkeypatch):
-    # pooling changes where the stacks live, not one operation: the same iterates bit for bit; and the pool
-    # makes far fewer stacks than are taken
+def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, threads, monkeypatch):
+    # pooling changes where the stacks live, not one operation: the same iterates bit for bit (serial, and on three
+    # threads in blocks of two columns); and the pool makes far fewer stacks than are taken
+    from concurrent.futures import ThreadPoolExecutor
+
     u, y = servo_arx_data(2 * 4 + 24 - 1, 5)
     P = SubspaceProblem.from_data(u, y, 4, _sigma(u, y, 4), predictor=fit_predictor(u, y, 4) if fixed else None)
     f = P.column_form(scaled=True)
     B0 = f.project(f.B)
-    fresh = sc._solve(f, B0, 1e-7, None, False, 5.0, None, sc._SERIAL)
+    executor = ThreadPoolExecutor(threads) if threads else None
+    chunks = sc._Chunks(executor, threads, min_size=0) if threads else sc._SERIAL
+    if threads:
+        monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * 4 * 4 * 8)
+    fresh = sc._solve(f, B0, 1e-7, None, False, 5.0, None, chunks)
     taken, made = [], []
     take, init = sc._StackPool.take, sc._StackPool.__init__
 
@@ -572,7 +579,9 @@ def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, monkey
     monkeypatch.setattr(sc, "_POOL_FROM", 0)
     monkeypatch.setattr(sc._StackPool, "take", counted)
     monkeypatch.setattr(sc._StackPool, "__init__", remembered)
-    pooled = sc._solve(f, B0, 1e-7, None, False, 5.0, None, sc._SERIAL)
+    pooled = sc._solve(f, B0, 1e-7, None, False, 5.0, None, chunks)
+    if executor is not None:
+        executor.shutdown()
     assert pooled["status"] == fresh["status"] == "optimal"
     assert pooled["newton"] == fresh["newton"]
     assert pooled["upper"] == fresh["upper"] and pooled["lower"] == fresh["lower"]

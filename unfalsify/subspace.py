@@ -490,7 +490,9 @@ def subspace_unfalsify(
         made strictly feasible for the new problem, instead of from the cold start; new columns get ridge
         impulses capped at the old δ.  The stop is the same certified gap, so the result equals a cold
         solve's to ``tol``.  A warm start the solver cannot use (another solver, unrelated data, no finite
-        δ, a resumed path that stalls and is re-solved cold) says why in the result's ``start``.  A
+        δ, a resumed path that stalls, or whose centrings stop converging twice, and is re-solved cold) says
+        why in the result's ``start``.  It saves Newton steps for small changes (a few samples, a nearby σ);
+        after larger advances it can cost as much as a cold solve, and a path given up costs about 1.5×.  A
         result of the cvxpy backend can warm-start the structured one.
 
     Returns
