@@ -64,7 +64,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse.linalg
 from scipy.linalg import blas as _blas
 
 from .arx_barrier import ridge_start
@@ -72,129 +71,11 @@ from .barrier import Deadline, Stop, cholesky_retry, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .arx_barrier import _Channels, _channel_operator, _Siso
 from .columns import BlockColumnForm, ColumnForm
+from .cones import (_sdp_step, _soc_div, _soc_prod, _soc_step, _soc_w, _soc_winv, nt_scaling,
+                    soc_scaling)
 from .toeplitz import toeplitz_matrix
 
 __all__ = ["solve", "solve_arx_pd", "nt_scaling", "soc_scaling"]
-
-
-# ---- the cones' scalings and Jordan algebra ---------------------------------------------------------
-def nt_scaling(S: np.ndarray, Z: np.ndarray):
-    """Nesterov–Todd scaling of the pair ``(S, Z)`` of positive definite matrices.
-
-    Returns ``(Rinv, lam, Winv)``: ``R⁻¹ = Λ^{-1/2}QᵀLᵀ`` with ``Z = LLᵀ`` and ``LᵀSL = QΛ²Qᵀ``, so that
-    ``R⁻¹ S R⁻ᵀ = Rᵀ Z R = diag(lam)``; and ``W⁻¹ = R⁻ᵀR⁻¹`` with ``W⁻¹ S W⁻¹ = Z`` (the NT point's inverse,
-    whose blocks give the Schur complement).  Raises ``LinAlgError`` if either matrix is not positive definite.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> rng = np.random.default_rng(0)
-    >>> X, Y = rng.standard_normal((2, 4, 4))
-    >>> S, Z = X @ X.T + np.eye(4), Y @ Y.T + np.eye(4)
-    >>> Rinv, lam, Winv = nt_scaling(S, Z)
-    >>> bool(np.allclose(Winv @ S @ Winv, Z)), bool(np.allclose(Rinv @ S @ Rinv.T, np.diag(lam)))
-    (True, True)
-    """
-    L = scipy.linalg.cholesky(Z, lower=True, check_finite=False)
-    G = L.T @ (S @ L)
-    G = 0.5 * (G + G.T)
-    lam2, Q = scipy.linalg.eigh(G, check_finite=False, driver="evd")
-    if not lam2[0] > 0.0:
-        raise np.linalg.LinAlgError("the NT scaling needs S ≻ 0 and Z ≻ 0")
-    lam = np.sqrt(lam2)
-    Rinv = (Q / np.sqrt(lam)).T @ L.T
-    return Rinv, lam, Rinv.T @ Rinv
-
-
-def soc_scaling(s: np.ndarray, z: np.ndarray):
-    """Nesterov–Todd scaling ``W = β(2vvᵀ − J)`` of two interior points of the second-order cone.
-
-    Returns ``(beta, v)`` with ``W = β(2vvᵀ − J)`` and ``W z = W⁻¹ s`` (CVXOPT's ``compute_scaling``: normalise
-    s and z to unit J-norm, ``γ = √((1 + s̄ᵀz̄)/2)``, ``w̄ = (s̄ + Jz̄)/(2γ)`` (the scaling point),
-    ``v = (w̄ + e)/√(2(w̄₀ + 1))``, ``β = (sᵀJs / zᵀJz)^{1/4}``); ``vᵀJv = 1``.
-    """
-    sn, zn = _jnorm(s), _jnorm(z)
-    if not (sn > 0.0 and zn > 0.0 and s[0] > 0.0 and z[0] > 0.0):
-        raise np.linalg.LinAlgError("the SOC scaling needs interior points")
-    sb, zb = s / sn, z / zn
-    gamma = np.sqrt(0.5 * (1.0 + float(sb @ zb)))
-    wbar = sb.copy()
-    wbar[0] += zb[0]
-    wbar[1:] -= zb[1:]
-    wbar /= 2.0 * gamma
-    v = wbar
-    v[0] += 1.0
-    v /= np.sqrt(2.0 * v[0])  # v = (w̄ + e)/√(2(w̄₀ + 1)): vᵀJv = 1 and β(2vvᵀ − J) the NT matrix
-    return np.sqrt(sn / zn), v
-
-
-def _jnorm(x):
-    """``√(x₀² − ‖x₁‖²)`` (0 outside the cone's interior)."""
-    q = float(x[0] * x[0] - x[1:] @ x[1:])
-    return np.sqrt(q) if q > 0.0 else 0.0
-
-
-def _soc_w(beta, w, v):
-    """``W_Q x = β(2v(vᵀx) − Jx)`` (``w`` the v of :func:`soc_scaling`)."""
-    out = 2.0 * float(w @ v) * w
-    out[0] -= v[0]
-    out[1:] += v[1:]
-    return beta * out
-
-
-def _soc_winv(beta, w, v):
-    """``W_Q⁻¹ x = (2Jv(vᵀJx) − Jx)/β``."""
-    Jw = w.copy()
-    Jw[1:] *= -1.0
-    Jv = v.copy()
-    Jv[1:] *= -1.0
-    return (2.0 * float(w @ Jv) * Jw - Jv) / beta
-
-
-def _soc_prod(x, y):
-    """Jordan product ``x∘y = (xᵀy, x₀y₁ + y₀x₁)``."""
-    return np.r_[x @ y, x[0] * y[1:] + y[0] * x[1:]]
-
-
-def _soc_div(lam, r):
-    """``x`` with ``lam∘x = r`` (lam in the cone's interior)."""
-    l0, l1 = lam[0], lam[1:]
-    x0 = (l0 * r[0] - l1 @ r[1:]) / (l0 * l0 - l1 @ l1)
-    return np.r_[x0, (r[1:] - x0 * l1) / l0]
-
-
-def _soc_step(x, d):
-    """Largest α (inf if none) with ``x + αd`` in the second-order cone, x interior."""
-    a = d[0] * d[0] - d[1:] @ d[1:]
-    b = x[0] * d[0] - x[1:] @ d[1:]
-    c = x[0] * x[0] - x[1:] @ x[1:]
-    roots = np.roots([a, 2.0 * b, c]) if abs(a) > 1e-300 else ([-c / (2.0 * b)] if b != 0 else [])
-    pos = [float(r.real) for r in np.atleast_1d(roots) if abs(np.imag(r)) <= 1e-12 * abs(r) and r.real > 0]
-    if d[0] < 0:
-        pos.append(-x[0] / d[0])
-    return min(pos) if pos else np.inf
-
-
-def _sdp_step(lam, dt, *, exact=False):
-    """Largest α (inf if none) with ``diag(lam) + α dt ⪰ 0``: ``1/max(0, −λ_min(Λ^{-1/2} dt Λ^{-1/2}))``.
-
-    λ_min by Lanczos (ARPACK, O(N²) per product) unless ``exact`` or it does not converge (then LAPACK's
-    smallest eigenvalue, O(N³)).  A Lanczos value lies above λ_min by at most its tolerance, so the step can
-    overshoot by a relative ~1e-8; the caller's fraction to the boundary (0.99) and its Cholesky check of the
-    new point cover that."""
-    r = 1.0 / np.sqrt(lam)
-    D = dt * r[:, None]
-    D *= r[None, :]
-    low = None
-    if not exact and D.shape[0] > 60:
-        try:
-            low = float(scipy.sparse.linalg.eigsh(D, k=1, which="SA", tol=1e-8, return_eigenvectors=False,
-                                                  ncv=min(D.shape[0], 40))[0])
-        except scipy.sparse.linalg.ArpackNoConvergence:
-            low = None
-    if low is None:
-        low = float(scipy.linalg.eigvalsh(D, subset_by_index=[0, 0], driver="evr", check_finite=False)[0])
-    return np.inf if low >= 0.0 else -1.0 / low
 
 
 # ---- the iterate and one predictor–corrector step ---------------------------------------------------
