@@ -143,7 +143,7 @@ def test_woodbury_pcg_solve_equals_dense_solve():
     g_noise = s.f.apply_T(p.r)
     rng = np.random.default_rng(0)
     R = rng.standard_normal((i, j, 2))
-    X = s._solve_h(G, p.psi, g_noise, R)
+    X, parts = s._solve_h(G, 2 * s.wn / p.psi, 4 * s.wn / p.psi**2, g_noise, R)
     n = i * j
     M = np.zeros((n, n))  # vec_F(H) -> vec_F(H̃)
     for k in range(j):
@@ -157,6 +157,12 @@ def test_woodbury_pcg_solve_equals_dense_solve():
     A = D + (2 * s.wn / p.psi) * M.T @ Pperp @ M + (4 * s.wn / p.psi**2) * np.outer(gv, gv)
     ref = np.linalg.solve(A, R.reshape(n, 2, order="F"))
     np.testing.assert_allclose(X.reshape(n, 2, order="F"), ref, rtol=1e-6, atol=1e-8 * np.abs(ref).max())
+    # the primal–dual method solves twice per iteration with the same system: the Woodbury parts reused
+    R2 = rng.standard_normal((i, j, 1))
+    X2, again = s._solve_h(G, 2 * s.wn / p.psi, 4 * s.wn / p.psi**2, g_noise, R2, woodbury=parts)
+    assert again is parts
+    ref2 = np.linalg.solve(A, R2.reshape(n, 1, order="F"))
+    np.testing.assert_allclose(X2.reshape(n, 1, order="F"), ref2, rtol=1e-6, atol=1e-8 * np.abs(ref2).max())
 
 
 def test_time_limit_returns_certified_bracket_with_warning():

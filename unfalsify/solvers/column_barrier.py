@@ -563,40 +563,29 @@ _FAR_DECREMENT = 10.0
 _CG_TOL_FAR = 1e-3
 
 
-class _ColumnBarrier(PathAdvance):
-    """The barrier method of the module docstring on a :class:`ColumnForm` with j ≥ 1 columns."""
+class _ColumnSystem:
+    """What the column methods share: the data's Toeplitz stacks, the threads and stack pool, and the solve of
+    their Newton (barrier) or Schur-complement (primal–dual) system
 
-    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=5.0, max_newton=3000,
-                 cg_tol=1e-8, cg_maxiter=2000, noise_weight=None, chunks: _Chunks = _SERIAL):
+        (D − c U Uᵀ + α g gᵀ) X = R,   D = blockdiag(G_k + c T(u_k)ᵀT(u_k)),
+
+    G_k the LMI blocks' curvature (the barrier Hessian, or the same form with the NT scaling in place of F⁻¹),
+    c the curvature of the noise cone along 𝓛^⊥ and ``α g gᵀ`` its rank-one part (module docstring, "Newton
+    system without O(n⁴) storage")."""
+
+    def __init__(self, form: ColumnForm, *, cg_tol=1e-8, cg_maxiter=2000, chunks: _Chunks = _SERIAL):
         self.f = form
         self.chunks = chunks
         self.pool = _StackPool()  # the stacks of the points and Newton steps, reused (page faults at (100, 1000))
         self.m, self.j = form.m, form.j
-        self.tol, self.time_limit, self.progress = tol, time_limit, progress
-        self.mu, self.max_newton = mu, max_newton
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
-        self.far = False  # set by _centre: the next Newton solve is far from the centre (inexact CG)
-        self.precise = False  # the FFT Hessian from here on (_newton)
+        self.far = False  # the next Newton solve is far from the centre (inexact CG, see pcg_tol)
         self.Tu = toeplitz_stack(form.U)
         self.TuTu = _tr(self.Tu) @ self.Tu
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
         self.W = _common_impulse_basis(form.U, self.Q) if self.Q is not None else None
-        self.wn = float(noise_weight) if noise_weight is not None else float(np.sqrt(2 * self.m * self.j))
-        self.nu = 2 * self.m * self.j + self.wn
         self.cg_iters = 0
-        self.center_tol = 1.0
-        self.stalled = 0
-        self.steps = 0
-        self.trials = 0  # Cholesky stacks tried (_point): the line search's feasibility tests and the starts
-        self.desc = f"structured unfalsification ({self.m}×{self.j})"
-        self._prev = None
-        self._centred = None  # (t, (H, δ), tangent) of the last centred point the path stepped from (advance)
-        self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
-        self.path = []  # the centred points (record())
-        self.warm_started = False  # set by warm()
-        self.stagnated = 0  # centrings of a warm path ended by the stagnation rule (centre())
 
-    # ---- evaluation --------------------------------------------------------------------------
     def _resid(self, H):
         return self.f.project(self.f.B - self.f.apply(H))
 
@@ -616,6 +605,129 @@ class _ColumnBarrier(PathAdvance):
         self.chunks.map(work, self.j, T.size)
         return T, G
 
+    def _solve_h(self, G, cc, alpha, g, R, woodbury=None):
+        """Solve ``(D − c U Uᵀ + α g gᵀ) X = R`` (class docstring; U Uᵀ only with L optimised); returns X and the
+        Woodbury parts of L optimised (``woodbury``: those of an earlier solve with the same G and c, reused)."""
+        D = _BlockSum(G, self.TuTu, cc)  # D = G + c T(u)ᵀT(u), formed block by block where it is used
+        rhs = np.concatenate([R, g[..., None]], axis=-1)
+        if self.Q is None and _STEP_ROUTE["route"] != "former":
+            # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
+            Y = _block_solve(D, rhs, self.chunks)
+        else:  # the Woodbury correction applies D⁻¹ once more
+            if _STEP_ROUTE["route"] == "former":  # by the inverse stack
+                Dinv = _spd_inverse(D, self.chunks, out=self.pool.take(G.shape))
+
+                def solve(X):
+                    return _bmv(Dinv, X)
+            else:  # by two LU solves per block (1⅓m³) instead of the inverse (2⅔m³)
+                def solve(X):
+                    return _block_solve(D, X, self.chunks)
+            Y = solve(rhs)
+            if self.Q is not None:
+                if woodbury is None:
+                    woodbury = self._woodbury(G, cc)
+                Y = Y + self._lowrank_correction(woodbury, solve, rhs, Y)
+        Xr, xg = Y[..., :-1], Y[..., -1]
+        # Sherman–Morrison for the rank-one term
+        coef = alpha / (1.0 + alpha * float(np.sum(g * xg)))
+        return Xr - xg[..., None] * (coef * np.einsum("ik,ikp->p", g, Xr))[None, None, :], woodbury
+
+    def _woodbury(self, G, cc):
+        """The capacitance ``C = c⁻¹I − UᵀD⁻¹U = Σ_k q_k q_kᵀ ⊗ E_k`` of :meth:`_lowrank_correction` as its product,
+        Kronecker preconditioner and deflation: ``(Cmul, (A⁻¹, B⁻¹), deflation)``.
+
+        ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹`` equals ``c⁻¹I − T(u_k) D_k⁻¹ T(u_k)ᵀ`` without its
+        cancellation."""
+        m, Tu = self.m, self.Tu
+        take, mm = self.pool.take, self.chunks.matmul
+        X = mm(Tu, _spd_inverse(G, self.chunks, out=take(G.shape)), out=take(G.shape))
+        X = mm(X, _tr(Tu), out=take(G.shape))  # T(u_k) G_k⁻¹ T(u_k)ᵀ
+        X *= cc * cc
+        X[:, np.arange(m), np.arange(m)] += cc
+        E = _spd_inverse(X, self.chunks, out=take(G.shape))
+        del X
+        Cmul = self._capacitance(E)
+        return Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks)
+
+    def _lowrank_correction(self, woodbury, solve, rhs, Y):
+        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with C of :meth:`_woodbury` by PCG; ``solve(X)`` is
+        ``D_k⁻¹ X[:, k, :]`` per column and ``Y = solve(rhs)``.
+
+        Preconditioner: the nearest Kronecker product ``A ⊗ B`` to C (:func:`_kronecker_preconditioner`), with the
+        m common-impulse directions (:func:`_common_impulse_basis`) deflated (:class:`_Deflation`).  Vectors are
+        stacks (p, m, r) (p right-hand sides); a product costs O(p m r j + p m² j) and C is never formed.
+        """
+        Q, Tu = self.Q, self.Tu
+        Cmul, (Ainv, Binv), deflation = woodbury
+        YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
+        TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
+        Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
+        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, deflation)
+        UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
+        return solve(UZ.transpose(2, 0, 1))  # D_k⁻¹ (…) in the layout (m, j, p)
+
+    def _capacitance(self, E):
+        """The product ``Y ↦ Σ_k E_k Y q_k q_kᵀ`` on stacks (p, m, r), on the chunks' threads."""
+        Et = self.pool.take(E.shape)
+        np.copyto(Et, _tr(E))
+        Q, QT, chunks = self.Q, np.ascontiguousarray(self.Q.T), self.chunks
+        m, r, j = self.m, Q.shape[1], self.j
+
+        def Cmul(Y3):
+            p = Y3.shape[0]
+            Z = chunks.dot(Y3.reshape(p * m, r), QT).reshape(p, m, j)  # column k of Y Qᵀ: Z[:, :, k]
+            out = np.empty_like(Z)
+
+            def work(s):
+                out[:, :, s] = np.matmul(np.ascontiguousarray(Z[:, :, s].transpose(2, 0, 1)), Et[s]).transpose(1, 2, 0)
+
+            chunks.map(work, j, Z.size + E.size)
+            return chunks.dot(out.reshape(p * m, j), Q).reshape(p, m, r)
+
+        return Cmul
+
+    def pcg_tol(self) -> float:
+        """Relative residual of the CG solves: ``cg_tol``, relaxed to :data:`_CG_TOL_FAR` when :attr:`far`."""
+        return max(_CG_TOL_FAR, self.cg_tol) if self.far else self.cg_tol
+
+    def _pcg(self, A, Minv, B, deflation: _Deflation | None = None):
+        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual :meth:`pcg_tol`),
+        deflated by ``deflation`` if given."""
+        def dot(X, Y):
+            return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
+
+        start = None if deflation is None else deflation.start(B)
+        project = None if deflation is None else deflation.project
+        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol(), maxiter=self.cg_maxiter, start=start, project=project,
+                            dot=dot)
+        self.cg_iters += iterations
+        return X
+
+
+class _ColumnBarrier(_ColumnSystem, PathAdvance):
+    """The barrier method of the module docstring on a :class:`ColumnForm` with j ≥ 1 columns."""
+
+    def __init__(self, form: ColumnForm, *, tol, time_limit, progress, mu=5.0, max_newton=3000,
+                 cg_tol=1e-8, cg_maxiter=2000, noise_weight=None, chunks: _Chunks = _SERIAL):
+        super().__init__(form, cg_tol=cg_tol, cg_maxiter=cg_maxiter, chunks=chunks)
+        self.tol, self.time_limit, self.progress = tol, time_limit, progress
+        self.mu, self.max_newton = mu, max_newton
+        self.precise = False  # the FFT Hessian from here on (_newton)
+        self.wn = float(noise_weight) if noise_weight is not None else float(np.sqrt(2 * self.m * self.j))
+        self.nu = 2 * self.m * self.j + self.wn
+        self.center_tol = 1.0
+        self.stalled = 0
+        self.steps = 0
+        self.trials = 0  # Cholesky stacks tried (_point): the line search's feasibility tests and the starts
+        self.desc = f"structured unfalsification ({self.m}×{self.j})"
+        self._prev = None
+        self._centred = None  # (t, (H, δ), tangent) of the last centred point the path stepped from (advance)
+        self.warm_blend = None  # set by warm(): how far the warm point was moved towards the ridge start
+        self.path = []  # the centred points (record())
+        self.warm_started = False  # set by warm()
+        self.stagnated = 0  # centrings of a warm path ended by the stagnation rule (centre())
+
+    # ---- evaluation --------------------------------------------------------------------------
     def _point(self, H, d, gram=None) -> _Point | None:
         """The blocks at (H, δ), or None outside the domain (a Cholesky fails or the noise ball is left);
         ``gram``: :meth:`_gram` of H if already computed."""
@@ -667,104 +779,14 @@ class _ColumnBarrier(PathAdvance):
         # c: (F⁻²)21 = S21 S11 + S22 S21 = 2 S21 S11 (TᵀT = δ²I − K), its adjoint off the Hessian's spectra
         G, x = _chunked_hessian(S11, S21, S22, self.chunks, precise, out=self.pool.take(S11.shape))
         c = 4.0 * x
-        X = self._solve_h(G, psi, g_noise, np.stack([grad_h, c], axis=-1))
+        X, _ = self._solve_h(G, 2.0 * self.wn / psi, 4.0 * self.wn / psi**2, g_noise,
+                             np.stack([grad_h, c], axis=-1))
         xg, xc = X[..., 0], X[..., 1]
         dd_eff = dd - float(np.sum(c * xc))
         dlt = (-grad_d + float(np.sum(c * xg))) / dd_eff
         dh = -xg - xc * dlt
         lam2 = -(float(np.sum(grad_h * dh)) + grad_d * dlt)
         return dh, dlt, lam2, (xc / dd_eff, -1.0 / dd_eff)
-
-    def _solve_h(self, G, psi, g_noise, R):
-        """Solve ``(D − c U Uᵀ + α g gᵀ) X = R`` (D block diagonal; U Uᵀ only with L optimised)."""
-        cc, alpha = 2.0 * self.wn / psi, 4.0 * self.wn / psi**2
-        D = _BlockSum(G, self.TuTu, cc)  # D = G + c T(u)ᵀT(u), formed block by block where it is used
-        rhs = np.concatenate([R, g_noise[..., None]], axis=-1)
-        if self.Q is None and _STEP_ROUTE["route"] != "former":
-            # p + 1 right-hand sides: one LU solve per block (⅔m³) instead of the inverse (2⅔m³)
-            Y = _block_solve(D, rhs, self.chunks)
-        else:  # the Woodbury correction applies D⁻¹ once more
-            if _STEP_ROUTE["route"] == "former":  # by the inverse stack
-                Dinv = _spd_inverse(D, self.chunks, out=self.pool.take(G.shape))
-
-                def solve(X):
-                    return _bmv(Dinv, X)
-            else:  # by two LU solves per block (1⅓m³) instead of the inverse (2⅔m³)
-                def solve(X):
-                    return _block_solve(D, X, self.chunks)
-            Y = solve(rhs)
-            if self.Q is not None:
-                Y = Y + self._lowrank_correction(G, solve, cc, rhs, Y)
-        Xr, xg = Y[..., :-1], Y[..., -1]
-        # Sherman–Morrison for the rank-one term
-        coef = alpha / (1.0 + alpha * float(np.sum(g_noise * xg)))
-        return Xr - xg[..., None] * (coef * np.einsum("ik,ikp->p", g_noise, Xr))[None, None, :]
-
-    def _lowrank_correction(self, G, solve, cc, rhs, Y):
-        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with ``C = c⁻¹I − UᵀD⁻¹U = Σ_k q_k q_kᵀ ⊗ E_k`` by PCG; ``solve(X)`` is
-        ``D_k⁻¹ X[:, k, :]`` per column and ``Y = solve(rhs)``.
-
-        ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹`` equals ``c⁻¹I − T(u_k) D_k⁻¹ T(u_k)ᵀ`` without its
-        cancellation.  Preconditioner: the nearest Kronecker product ``A ⊗ B`` to C
-        (:func:`_kronecker_preconditioner`), with the m common-impulse directions
-        (:func:`_common_impulse_basis`) deflated (:class:`_Deflation`).  Vectors are stacks
-        (p, m, r) (p right-hand sides); a product costs O(p m r j + p m² j) and C is never formed.
-        """
-        Q = self.Q
-        m = self.m
-        Tu = self.Tu
-        take, mm = self.pool.take, self.chunks.matmul
-        X = mm(Tu, _spd_inverse(G, self.chunks, out=take(G.shape)), out=take(G.shape))
-        X = mm(X, _tr(Tu), out=take(G.shape))  # T(u_k) G_k⁻¹ T(u_k)ᵀ
-        X *= cc * cc
-        X[:, np.arange(m), np.arange(m)] += cc
-        E = _spd_inverse(X, self.chunks, out=take(G.shape))
-        del X
-        Ainv, Binv = _kronecker_preconditioner(Q, E)
-        Cmul = self._capacitance(E)
-        YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
-        TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
-        Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
-        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, _deflation(Cmul, self.W, self.chunks))
-        UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
-        return solve(UZ.transpose(2, 0, 1))  # D_k⁻¹ (…) in the layout (m, j, p)
-
-    def _capacitance(self, E):
-        """The product ``Y ↦ Σ_k E_k Y q_k q_kᵀ`` on stacks (p, m, r), on the chunks' threads."""
-        Et = self.pool.take(E.shape)
-        np.copyto(Et, _tr(E))
-        Q, QT, chunks = self.Q, np.ascontiguousarray(self.Q.T), self.chunks
-        m, r, j = self.m, Q.shape[1], self.j
-
-        def Cmul(Y3):
-            p = Y3.shape[0]
-            Z = chunks.dot(Y3.reshape(p * m, r), QT).reshape(p, m, j)  # column k of Y Qᵀ: Z[:, :, k]
-            out = np.empty_like(Z)
-
-            def work(s):
-                out[:, :, s] = np.matmul(np.ascontiguousarray(Z[:, :, s].transpose(2, 0, 1)), Et[s]).transpose(1, 2, 0)
-
-            chunks.map(work, j, Z.size + E.size)
-            return chunks.dot(out.reshape(p * m, j), Q).reshape(p, m, r)
-
-        return Cmul
-
-    def pcg_tol(self) -> float:
-        """Relative residual of the CG solves: ``cg_tol``, relaxed to :data:`_CG_TOL_FAR` when :attr:`far`."""
-        return max(_CG_TOL_FAR, self.cg_tol) if self.far else self.cg_tol
-
-    def _pcg(self, A, Minv, B, deflation: _Deflation | None = None):
-        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual :meth:`pcg_tol`),
-        deflated by ``deflation`` if given."""
-        def dot(X, Y):
-            return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
-
-        start = None if deflation is None else deflation.start(B)
-        project = None if deflation is None else deflation.project
-        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol(), maxiter=self.cg_maxiter, start=start, project=project,
-                            dot=dot)
-        self.cg_iters += iterations
-        return X
 
     # ---- dual point --------------------------------------------------------------------------
     def _dual(self, t, p: _Point, dh, dlt):
