@@ -39,13 +39,14 @@ def _subspace(fixed):
 
 def test_backend_and_method_resolve_to_registered_solvers():
     assert uf.SOLVERS is solvers.SOLVERS
-    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "arx_pd", "bracket", "column_barrier",
+    assert set(solvers.SOLVERS) == {"cvxpy", "arx_barrier", "arx_pd", "bracket", "column_barrier", "column_pd",
                                    "block_barrier", "split"}
     assert solvers.resolve("arx", "cvxpy") == solvers.resolve("subspace", "cvxpy") == "cvxpy"
     assert solvers.resolve("arx", "structured") == "arx_barrier"
     assert solvers.resolve("arx", "structured", "bracket") == "bracket"
     assert solvers.resolve("arx", "structured", "primal_dual") == "arx_pd"
     assert solvers.resolve("subspace", "structured") == "column_barrier"
+    assert solvers.resolve("subspace", "structured", "primal_dual") == "column_pd"
     for program, name in [(p, n) for n, ps in solvers.PROGRAMS.items() for p in ps]:
         assert name in solvers.SOLVERS and program in ("arx", "subspace")
 
@@ -60,7 +61,7 @@ def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
         solvers.resolve("subspace", "structured", "bracket")
     with pytest.raises(uf.UnknownSolverError, match="'arx_barrier'"):
         solvers.run("nope", _arx())
-    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'column_barrier', 'block_barrier', 'split'"):
+    with pytest.raises(uf.UnknownSolverError, match="'cvxpy', 'column_barrier', 'column_pd', 'block_barrier', 'split'"):
         solvers.run("arx_barrier", _subspace(fixed=True))
 
 
@@ -71,6 +72,7 @@ def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
     ("bracket", "arx", dict(progress=False)),
     ("cvxpy", "subspace", {}),
     ("column_barrier", "subspace", dict(progress=False)),
+    ("column_pd", "subspace", dict(progress=False)),
     ("split", "subspace-fixed", dict(executor=None)),
 ])
 def test_every_solver_meets_the_contract(name, problem, options):
@@ -78,7 +80,7 @@ def test_every_solver_meets_the_contract(name, problem, options):
     out = solvers.run(name, P, **options)
     assert isinstance(out, uf.SolverOutput) and isinstance(out.status, uf.SolverStatus)
     assert out.status in (uf.SolverStatus.OPTIMAL, uf.SolverStatus.BRACKET)
-    assert out.bracketed == (name in ("arx_barrier", "arx_pd", "bracket", "column_barrier"))
+    assert out.bracketed == (name in ("arx_barrier", "arx_pd", "bracket", "column_barrier", "column_pd"))
     up, noise = P.evaluate_primal(out.impulses, out.params)  # data units: the primal point is feasible
     assert noise <= P.sigma * np.sqrt(P.n_noise) * (1 + 1e-6)
     assert up <= out.delta * (1 + 1e-6)

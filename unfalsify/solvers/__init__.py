@@ -13,6 +13,7 @@ name                what                                                        
 ``arx_pd``          primal–dual interior point (NT scaling, Mehrotra), same certificate        arx
 ``bracket``         FFT-only certified bracket, gap reported (n = 10⁴; norm proof: one n × n)   arx
 ``column_barrier``  column barrier method with threads over the columns                        subspace
+``column_pd``       primal–dual interior point (NT scaling, Mehrotra), same certificate        subspace
 ``block_barrier``   barrier method for several channels (l × m operators, dense block Hessians)  subspace
 ``split``           fixed predictor: columns as tasks on an ``Executor``, 1-D outer problem     subspace
 ==================  =========================================================================  ==========
@@ -31,20 +32,23 @@ displacement generators, O(m²)).
 
 The front ends' ``backend=`` and ``method=`` resolve to these names (:func:`resolve`): ``"cvxpy"`` →
 ``cvxpy``; ``"structured"`` → ``arx_barrier`` (``method="barrier"``), ``arx_pd`` (``method="primal_dual"``)
-or ``bracket`` (``method="bracket"``) for (7.4), ``column_barrier`` for (7.5); ``executor=`` → ``split``.
+or ``bracket`` (``method="bracket"``) for (7.4), ``column_barrier`` (``method="barrier"``) or ``column_pd``
+(``method="primal_dual"``) for (7.5); ``executor=`` → ``split``.
 
 >>> from unfalsify import solvers
 >>> sorted(solvers.SOLVERS)
-['arx_barrier', 'arx_pd', 'block_barrier', 'bracket', 'column_barrier', 'cvxpy', 'split']
+['arx_barrier', 'arx_pd', 'block_barrier', 'bracket', 'column_barrier', 'column_pd', 'cvxpy', 'split']
 >>> solvers.resolve("arx", "structured", "bracket")
 'bracket'
 >>> solvers.resolve("arx", "structured", "primal_dual")
 'arx_pd'
+>>> solvers.resolve("subspace", "structured", "primal_dual")
+'column_pd'
 """
 from __future__ import annotations
 
 from ..exceptions import UnknownSolverError
-from . import arx_barrier, arx_pd, block_barrier, bracket, column_barrier, cvxpy_models, split
+from . import arx_barrier, arx_pd, block_barrier, bracket, column_barrier, column_pd, cvxpy_models, split
 from .base import SolverOutput, SolverStatus
 from .column_barrier import check_workers
 
@@ -59,6 +63,7 @@ SOLVERS = {
     "arx_pd": arx_pd.solve,
     "bracket": bracket.solve,
     "column_barrier": column_barrier.solve,
+    "column_pd": column_pd.solve,
     "block_barrier": block_barrier.solve,
     "split": split.solve,
 }
@@ -70,6 +75,7 @@ PROGRAMS = {
     "arx_pd": ("arx",),
     "bracket": ("arx",),
     "column_barrier": ("subspace",),
+    "column_pd": ("subspace",),
     "block_barrier": ("subspace",),
     "split": ("subspace",),
 }
@@ -80,12 +86,12 @@ CHANNELS = ("cvxpy", "arx_barrier", "arx_pd", "block_barrier")
 #: ``backend=`` of the front ends
 BACKENDS = ("cvxpy", "structured")
 
-#: ``method=`` of the structured backend of (7.4)
+#: ``method=`` of the structured backend (the bracket is for (7.4) only)
 METHODS = ("barrier", "bracket", "primal_dual")
 
 # (program, method) of backend="structured" -> solver
 _STRUCTURED = {("arx", "barrier"): "arx_barrier", ("arx", "bracket"): "bracket", ("arx", "primal_dual"): "arx_pd",
-               ("subspace", "barrier"): "column_barrier"}
+               ("subspace", "barrier"): "column_barrier", ("subspace", "primal_dual"): "column_pd"}
 
 
 def _names(xs) -> str:
