@@ -60,14 +60,16 @@ COMMANDS: dict[str, tuple] = {
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
                                                                      "(default: cvxpy)")),
-                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm", "arx-pd"),
+                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm", "arx-pd",
+                                                                        "subspace-pd"),
                                               default="all",
                                               help="structured backend: all series, the ARX rows, the "
-                                                   "subspace rows, the warm-start table or the primal-dual "
-                                                   "against barrier table only")),
+                                                   "subspace rows, the warm-start table or one of the primal-dual "
+                                                   "against barrier tables only")),
                          (("--sizes",), dict(dest="sizes", default=None, metavar="N,N,...",
                                              help="structured backend, arx-pd table: the ARX sizes "
-                                                  "(default 200,400,1000)")),
+                                                  "(default 200,400,1000); subspace-pd table: i×j pairs "
+                                                  "(default 10x200,20x400,50x500)")),
                          (("--repeats",), dict(dest="repeats", type=int, default=None, metavar="R",
                                                help="structured backend: timed repeats of each row's solves "
                                                     "(default 3; --quick: 1)")))),

@@ -1,9 +1,9 @@
-import pytest
 """Smoke test of ``python -m experiments bench-unfalsify --quick``."""
 import json
 
 import pytest
 
+from synthesis import DataError
 from experiments.bench.bench_unfalsify import run
 from experiments.cli import Options, main
 
@@ -99,6 +99,24 @@ def test_bench_unfalsify_primal_dual_table(tmp_path):
     assert row["repeats"] == 2 and len(row["arx_barrier"]["walls"]) == len(row["arx_pd"]["walls"]) == 2
     for name in ("arx_barrier", "arx_pd"):
         assert row[name]["status"] == "optimal" and row[name]["gap"] <= 1e-4
+
+
+@pytest.mark.slow
+def test_bench_unfalsify_subspace_primal_dual_table(tmp_path):
+    # ``--series subspace-pd``: column_pd against column_barrier on (7.5), L fixed and optimised, both certified
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace-pd", "--sizes",
+                 "3x20", "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert st["series"] == [] and st["primal_dual"] is None
+    rows = st["subspace_primal_dual"]["rows"]
+    assert [(r["size"], r["L_fixed"]) for r in rows] == [([3, 20], True), ([3, 20], False)]
+    for row in rows:
+        assert row["overlap"] is True and row["ratio"] > 0
+        for name in ("column_barrier", "column_pd"):
+            assert row[name]["status"] == "optimal" and row[name]["gap"] <= 1e-4
+    with pytest.raises(DataError, match="i×j pairs"):
+        main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace-pd", "--sizes", "30",
+              "--out", str(tmp_path)])
 
 
 def test_repeats_option_is_checked(tmp_path):

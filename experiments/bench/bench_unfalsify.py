@@ -41,6 +41,11 @@ overrides, e.g. ``--sizes 200,400,1000,3000``; ``--quick``: 30, 60); medians, th
 iteration counts, both certified brackets recomputed from the data (``evaluate_primal`` / ``evaluate_dual``) and
 the 1-min load average before and after every solve.
 
+``--series subspace-pd`` (also part of ``all``) does the same for (7.5): the primal–dual solver ``"column_pd"``
+(:mod:`unfalsify.solvers.column_pd`, ``method="primal_dual"``) against ``"column_barrier"``, both with ``workers=None``,
+at (i, j) = (10, 200), (20, 400), (50, 500), each with L fixed and with L optimised (``--sizes 10x200,100x1000``
+overrides; ``--quick``: (4, 30)).
+
 Each structured row (issue 27, item 6) runs in a fresh child process, so its peak RSS (``ru_maxrss``) is that
 row's: the front end's solve (bracket, certificate, ``verify()``), then ``repeats`` (3; ``--quick``: 1) × the
 registry solver alone (``unfalsify.solvers.run`` on the certificate's problem; the subspace solvers with the front
@@ -404,69 +409,122 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
 
 #: the primal–dual head-to-head (``--series arx-pd``): sizes, tolerance, limit per solve
 PD_SIZES, QUICK_PD_SIZES, PD_TOL, PD_LIMIT_S = (200, 400, 1000), (30, 60), 1e-4, 1800.0
+#: the same for (7.5) (``--series subspace-pd``): (i, j), each with L fixed and with L optimised
+SUBSPACE_PD_SIZES, QUICK_SUBSPACE_PD_SIZES = ((10, 200), (20, 400), (50, 500)), ((4, 30),)
+#: the solvers each head-to-head compares: (barrier, primal–dual)
+PD_SOLVERS = {"arx": ("arx_barrier", "arx_pd"), "subspace": ("column_barrier", "column_pd")}
 
 
-def _solve_pd_pair(spec: dict, size: int, seed: int) -> dict:
-    """One size of the primal–dual head-to-head in the child process: ``repeats`` × (``arx_barrier``,
-    ``arx_pd``) on the same :class:`unfalsify.ArxProblem`, the order alternating between repeats; every
-    solve's wall time, status, δ, counts, certified bracket (recomputed from the data) and load."""
+def _pd_problem(spec: dict, size, seed: int):
+    """The problem of one head-to-head row: ARX (7.4) na = nb = 2 at n = size, or (7.5) at (i, j) = size with L
+    fixed (the least-squares predictor) or optimised; σ = ½ the least-squares residual rms."""
+    import synthesis as sy
     import unfalsify as uf
+
+    if spec["program"] == "arx":
+        u, y = _data(size, seed)
+        _, rms = uf.arx_least_squares(u, y, 2, 2)
+        return uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+    i, j = size
+    u, y = _data(2 * i + j - 1, seed)
+    pred = sy.fit_predictor(u, y, i)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+    return uf.SubspaceProblem.from_data(u, y, i, sigma, predictor=pred if spec["fixed"] else None)
+
+
+def _solve_pd_pair(spec: dict, size, seed: int) -> dict:
+    """One row of a primal–dual head-to-head in the child process: ``repeats`` × (the barrier solver, the
+    primal–dual solver of :data:`PD_SOLVERS`) on the same problem, the order alternating between repeats (the
+    subspace solvers on every core, ``workers=None``, as the front end); every solve's wall time, status, δ, counts,
+    certified bracket (recomputed from the data) and load."""
     from unfalsify import solvers
 
     warnings.simplefilter("ignore")
-    u, y = _data(size, seed)
-    _, rms = uf.arx_least_squares(u, y, 2, 2)
-    P = uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
-    runs = {"arx_barrier": [], "arx_pd": []}
+    P = _pd_problem(spec, size, seed)
+    names = PD_SOLVERS[spec["program"]]
+    threads = dict(workers=None) if spec["program"] == "subspace" else {}
+    runs = {name: [] for name in names}
     for k in range(spec["repeats"]):
-        order = ("arx_barrier", "arx_pd") if k % 2 == 0 else ("arx_pd", "arx_barrier")
-        for name in order:
+        for name in names if k % 2 == 0 else names[::-1]:
             load0 = os.getloadavg()[0]
             t0 = time.perf_counter()
-            out = solvers.run(name, P, tol=spec["tol"], time_limit=spec["limit"], progress=False)
+            out = solvers.run(name, P, tol=spec["tol"], time_limit=spec["limit"], progress=False, **threads)
             wall = time.perf_counter() - t0
             load1 = os.getloadavg()[0]
             upper, _ = P.evaluate_primal(out.impulses, out.params)
             lower = P.evaluate_dual(out.dual_v, out.dual_W) if out.dual_W is not None else 0.0
+            stats = {k: v for k, v in out.stats.items() if k != "state"}
             runs[name].append(dict(wall=wall, status=str(out.status.value), delta=out.delta, upper=upper,
-                                   lower=lower, gap=(upper - lower) / upper, load=(load0, load1), **out.stats))
-    row = {"n": size, "repeats": spec["repeats"], "peak_rss_mb": _rss_mb()}
+                                   lower=lower, gap=(upper - lower) / upper, load=(load0, load1), **stats))
+    row = {"size": list(size) if spec["program"] == "subspace" else size, "repeats": spec["repeats"],
+           "peak_rss_mb": _rss_mb(), "barrier": names[0], "primal_dual": names[1]}
+    if spec["program"] == "arx":
+        row["n"] = size
+    else:
+        row["L_fixed"] = bool(spec["fixed"])
     for name, rs in runs.items():
         row[name] = dict(rs[-1], wall=float(np.median([r["wall"] for r in rs])), walls=[r["wall"] for r in rs],
                          loads=[r["load"] for r in rs])
-    b, p = row["arx_barrier"], row["arx_pd"]
+    b, p = row[names[0]], row[names[1]]
     row["ratio"] = b["wall"] / p["wall"]
     row["delta_rel"] = abs(b["delta"] - p["delta"]) / max(abs(b["delta"]), 1e-300)
     row["overlap"] = bool(max(b["lower"], p["lower"]) <= min(b["upper"], p["upper"]) * (1 + 1e-9))
     return row
 
 
-def _run_pd(opts) -> dict:
-    """The primal–dual head-to-head: each size in its own child process (:func:`_solve_pd_pair`)."""
+def _pd_sizes(opts, program: str) -> list:
+    """``--sizes`` (ARX: ``200,400``; subspace: ``10x200,20x400``) or the defaults."""
     sizes = (getattr(opts, "extra", None) or {}).get("sizes")
-    sizes = [int(x) for x in sizes.split(",")] if sizes else list(QUICK_PD_SIZES if opts.quick else PD_SIZES)
+    if program == "arx":
+        return [int(x) for x in sizes.split(",")] if sizes else list(QUICK_PD_SIZES if opts.quick else PD_SIZES)
+    if not sizes:
+        return list(QUICK_SUBSPACE_PD_SIZES if opts.quick else SUBSPACE_PD_SIZES)
+    try:
+        pairs = [tuple(int(v) for v in x.lower().split("x")) for x in sizes.split(",")]
+    except ValueError:
+        pairs = []
+    if not pairs or any(len(ij) != 2 or min(ij) < 1 for ij in pairs):
+        raise DataError(f"--sizes for the subspace-pd table takes i×j pairs such as 10x200,20x400; got {sizes!r}")
+    return pairs
+
+
+def _run_pd(opts, program: str = "arx") -> dict:
+    """A primal–dual head-to-head: each row in its own child process (:func:`_solve_pd_pair`); the subspace rows
+    with L fixed and with L optimised."""
     repeats = _structured_repeats(opts)
-    spec = dict(tol=PD_TOL, limit=QUICK_STRUCTURED_LIMIT_S if opts.quick else PD_LIMIT_S, repeats=repeats)
+    base = dict(program=program, tol=PD_TOL, limit=QUICK_STRUCTURED_LIMIT_S if opts.quick else PD_LIMIT_S,
+                repeats=repeats)
+    cases = [(dict(base), n) for n in _pd_sizes(opts, program)] if program == "arx" else \
+        [(dict(base, fixed=fixed), ij) for fixed in (True, False) for ij in _pd_sizes(opts, program)]
+    names = PD_SOLVERS[program]
     rows = []
     load_before = os.getloadavg()
-    for n in tqdm(sizes, desc="bench-unfalsify: arx_pd against arx_barrier", leave=False):
-        row = _run_with_budget(spec, n, opts.seed, spec["limit"] * 2 * repeats + 120.0, worker=_solve_pd_pair,
-                               label=f"n={n}")
+    for spec, size in tqdm(cases, desc=f"bench-unfalsify: {names[1]} against {names[0]}", leave=False):
+        label = f"n={size}" if program == "arx" else f"({size[0]}, {size[1]}), L {'fixed' if spec['fixed'] else 'optimised'}"
+        row = _run_with_budget(spec, size, opts.seed, spec["limit"] * 2 * repeats + 120.0, worker=_solve_pd_pair,
+                               label=label)
+        row["label"] = label
         rows.append(row)
         if "ratio" in row:
-            tqdm.write(f"[bench-unfalsify] n={n}: arx_barrier {row['arx_barrier']['wall']:.2f} s, arx_pd "
-                       f"{row['arx_pd']['wall']:.2f} s ({row['ratio']:.2f}×)", file=sys.stderr)
-    return {"rows": rows, "tol": spec["tol"], "repeats": repeats, "time_limit_s": spec["limit"],
+            tqdm.write(f"[bench-unfalsify] {label}: {names[0]} {row[names[0]]['wall']:.2f} s, {names[1]} "
+                       f"{row[names[1]]['wall']:.2f} s ({row['ratio']:.2f}×)", file=sys.stderr)
+    return {"program": program, "rows": rows, "tol": base["tol"], "repeats": repeats, "time_limit_s": base["limit"],
             "load": {"before": list(load_before), "after": list(os.getloadavg())}}
 
 
 def _report_pd(rep: Report, pd: dict) -> None:
-    rep.section(f"ARX (7.4): primal–dual (`arx_pd`) against the barrier method (`arx_barrier`), tol {pd['tol']:g}")
+    program = pd.get("program", "arx")
+    barrier, primal_dual = PD_SOLVERS[program]
+    what = "ARX (7.4)" if program == "arx" else "Subspace (7.5)"
+    rep.section(f"{what}: primal–dual (`{primal_dual}`) against the barrier method (`{barrier}`), tol {pd['tol']:g}")
     rep.text(
-        "Same problem, same child process, registry solvers alone (`unfalsify.solvers.run`), "
+        "Same problem, same child process, registry solvers alone (`unfalsify.solvers.run`"
+        + ("" if program == "arx" else ", `workers=None`: every core") + "), "
         f"{pd['repeats']} repeat(s) each, the order alternating between repeats; medians. `×` = barrier/primal–dual "
         "(above 1: primal–dual faster). Iterations: barrier Newton steps; primal–dual predictor–corrector "
-        "iterations (factorisations: its dense Cholesky, eigendecompositions and smallest-eigenvalue computations). "
+        "iterations (factorisations: its Cholesky, eigendecompositions and step-length computations"
+        + (", dense" if program == "arx" else ", each a stack over the columns") + "). "
         "`gap`: the certified relative gap of each answer, both sides recomputed from the data; `overlap`: the two "
         "brackets intersect. `load`: 1-min load average, lowest → highest over the row's solves. Table load: "
         f"{pd['load']['before'][0]:.2f} → {pd['load']['after'][0]:.2f} (1-min); {os.cpu_count()} CPU(s)."
@@ -476,13 +534,13 @@ def _report_pd(rep: Report, pd: dict) -> None:
         if "ratio" not in r:
             rows.append([r.get("label"), r.get("status"), *[""] * 10])
             continue
-        b, p = r["arx_barrier"], r["arx_pd"]
+        b, p = r[barrier], r[primal_dual]
         loads = [x for s in (b, p) for pair in s["loads"] for x in pair]
-        rows.append([f"n={r['n']}", b["wall"], p["wall"], f"{r['ratio']:.2f}", _count(b.get("newton")),
-                     _count(p.get("newton")), _count(p.get("factorisations")), f"{b['status']} / {p['status']}",
-                     f"{b['gap']:.1e} / {p['gap']:.1e}", f"{r['delta_rel']:.1e}", str(r["overlap"]),
-                     f"{min(loads):.1f} → {max(loads):.1f}"])
-    rep.table(["size", "arx_barrier [s]", "arx_pd [s]", "×", "barrier Newton", "pd iterations", "pd fact.",
+        rows.append([r.get("label", f"n={r.get('n')}"), b["wall"], p["wall"], f"{r['ratio']:.2f}",
+                     _count(b.get("newton")), _count(p.get("newton")), _count(p.get("factorisations")),
+                     f"{b['status']} / {p['status']}", f"{b['gap']:.1e} / {p['gap']:.1e}", f"{r['delta_rel']:.1e}",
+                     str(r["overlap"]), f"{min(loads):.1f} → {max(loads):.1f}"])
+    rep.table(["size", f"{barrier} [s]", f"{primal_dual} [s]", "×", "barrier Newton", "pd iterations", "pd fact.",
                "status", "gap", "|Δδ|/δ", "overlap", "load"], rows, floatfmt=".3g")
 
 
@@ -747,7 +805,7 @@ def _run_structured(opts, rep: Report) -> dict:
     repeats = _structured_repeats(opts)
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
-            continue  # (--series warm / arx-pd: that table alone)
+            continue  # (--series warm / arx-pd / subspace-pd: that table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
@@ -764,9 +822,10 @@ def _run_structured(opts, rep: Report) -> dict:
                        "rows": rows, "exponent": _fit_exponent(rows)})
     load_after = os.getloadavg()
 
-    comparison = None if only in ("subspace", "warm", "arx-pd") else _compare_arx(opts, limit)
+    comparison = None if only in ("subspace", "warm", "arx-pd", "subspace-pd") else _compare_arx(opts, limit)
     warm = _run_warm(opts) if only in ("all", "warm") else None
-    pd = _run_pd(opts) if only in ("all", "arx-pd") else None
+    pd = _run_pd(opts, "arx") if only in ("all", "arx-pd") else None
+    subspace_pd = _run_pd(opts, "subspace") if only in ("all", "subspace-pd") else None
 
     rep.section("Structured backend")
     rep.text(
@@ -824,6 +883,8 @@ def _run_structured(opts, rep: Report) -> dict:
         _report_warm(rep, warm)
     if pd is not None:
         _report_pd(rep, pd)
+    if subspace_pd is not None:
+        _report_pd(rep, subspace_pd)
     csv_path = opts.out / "bench_unfalsify_structured.csv"
     opts.out.mkdir(parents=True, exist_ok=True)
     with csv_path.open("w", newline="") as fh:
@@ -836,7 +897,8 @@ def _run_structured(opts, rep: Report) -> dict:
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd, "time_limit_s": limit,
+    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd,
+            "subspace_primal_dual": subspace_pd, "time_limit_s": limit,
             "csv": csv_path.name,
             "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
 
