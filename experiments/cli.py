@@ -72,7 +72,11 @@ COMMANDS: dict[str, tuple] = {
                                                   "(default 10x200,20x400,50x500)")),
                          (("--repeats",), dict(dest="repeats", type=int, default=None, metavar="R",
                                                help="structured backend: timed repeats of each row's solves "
-                                                    "(default 3; --quick: 1)")))),
+                                                    "(default 3; --quick: 1)")),
+                         (("--baseline-rev",), dict(dest="baseline_rev", default=None, metavar="REV",
+                                                    help="structured backend: also solve each row with the code of "
+                                                         "this git revision (git archive), alternating in the same "
+                                                         "run")))),
     "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",

@@ -119,6 +119,22 @@ def test_bench_unfalsify_subspace_primal_dual_table(tmp_path):
               "--out", str(tmp_path)])
 
 
+@pytest.mark.slow
+def test_bench_unfalsify_baseline_revision_is_timed_in_the_same_run(tmp_path):
+    # --baseline-rev HEAD: the committed code exported by git archive and run in a subprocess on each row's data;
+    # against itself the δ agree to the tolerance and every row has its time
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace", "--baseline-rev",
+                 "HEAD", "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert st["baseline_rev"] == "HEAD"
+    one_channel = [r for s in st["series"] for r in s["rows"] if s["kind"] == "subspace" and "2×2" not in s["series"]]
+    assert one_channel and all(r["revision_s"] > 0 and r["revision_delta_rel"] <= 2e-6 for r in one_channel)
+    assert "× rev" in (tmp_path / "bench_unfalsify" / "bench_unfalsify.md").read_text()
+    with pytest.raises(DataError, match="--baseline-rev 'no-such-revision'"):
+        main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "subspace", "--baseline-rev",
+              "no-such-revision", "--out", str(tmp_path)])
+
+
 def test_repeats_option_is_checked(tmp_path):
     from synthesis import DataError
 

@@ -41,6 +41,12 @@ overrides, e.g. ``--sizes 200,400,1000,3000``; ``--quick``: 30, 60); medians, th
 iteration counts, both certified brackets recomputed from the data (``evaluate_primal`` / ``evaluate_dual``) and
 the 1-min load average before and after every solve.
 
+``--baseline-rev REV`` (structured series) times every row a third way in the same run: the code of git revision
+REV (:func:`export_revision`: ``git archive`` into a temporary directory), its own front end in a subprocess on the
+row's data, alternating with today's route; the table adds its solver time, the speed-up against it, its Newton
+steps and the δ difference.  This is the baseline an issue's "today's route, kept privately" means: the route as it
+was, not a switch inside today's code (``former_routes`` shares what changed around the switched part).
+
 ``--series subspace-pd`` (also part of ``all``) does the same for (7.5): the primal–dual solver ``"column_pd"``
 (:mod:`unfalsify.solvers.column_pd`, ``method="primal_dual"``) against ``"column_barrier"``, both with ``workers=None``,
 at (i, j) = (10, 200), (20, 400), (50, 500), each with L fixed and with L optimised (``--sizes 10x200,100x1000``
@@ -79,12 +85,14 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import multiprocessing as mp
 import os
 import resource
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -317,6 +325,70 @@ def _needed_flops(kind: str, m: int, j: int, newton, trials) -> float | None:
     return j * (newton * (3.0 * m3 + 60.0 * m * m) + trials * (m3 / 3.0 + 2.0 * m * m))
 
 
+#: The script a baseline revision's solve runs in (``--baseline-rev``): the revision's own front end on the data of
+#: the row (an .npz written by today's code, so both routes solve the same problem), its solver time and counts as
+#: JSON on the last line of stdout.  Only the front ends' long-standing arguments are used.
+_REVISION_SCRIPT = r"""
+import json, sys, warnings
+import numpy as np
+warnings.simplefilter("ignore")
+import synthesis as sy
+import unfalsify as uf
+d = np.load(sys.argv[1])
+spec = json.loads(sys.argv[2])
+u, y, sigma = d["u"], d["y"], float(d["sigma"])
+if spec["kind"] == "arx":
+    res = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=spec["tol"], time_limit=spec["limit"],
+                           progress=False)
+else:
+    i = int(spec["i"])
+    pred = sy.fit_predictor(u, y, i) if spec["fixed"] else None
+    res = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred, tol=spec["tol"],
+                                time_limit=spec["limit"], progress=False)
+stats = dict(getattr(res, "solver_stats", None) or {})
+print(json.dumps(dict(solve=float(res.solve_time), delta=float(res.delta), status=str(res.status),
+                      newton=stats.get("newton"), trials=stats.get("trials"))))
+"""
+
+
+def export_revision(rev: str) -> Path:
+    """Export git revision ``rev`` of this checkout into a temporary directory (``git archive``); returns its path.
+
+    Raises :class:`~synthesis.DataError` naming the fix when this is not a git checkout or ``rev`` is unknown."""
+    import subprocess
+    import tarfile
+    import tempfile
+
+    top = Path(__file__).resolve().parents[2]
+    tree = Path(tempfile.mkdtemp(prefix=f"bench-baseline-{rev[:12]}-"))
+    try:
+        archive = subprocess.run(["git", "-C", str(top), "archive", "--format=tar", rev], check=True,
+                                 capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        why = exc.stderr.decode(errors="replace").strip() if getattr(exc, "stderr", None) else str(exc)
+        raise DataError(f"--baseline-rev {rev!r}: cannot export it from the git checkout at {top} ({why}); run the "
+                        "benchmark from a git clone and name a commit, tag or branch (e.g. --baseline-rev HEAD~10)") \
+            from None
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tree, filter="data")
+    return tree
+
+
+def _revision_solve(tree: str, data: Path, spec: dict) -> dict:
+    """One solve by the exported revision at ``tree`` (a subprocess with that tree first on ``sys.path``)."""
+    import json
+    import subprocess
+
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    args = json.dumps(dict(kind=spec["kind"], tol=spec["tol"], limit=spec["limit"], i=spec.get("i"),
+                           fixed=bool(spec.get("fixed"))))
+    done = subprocess.run([sys.executable, "-c", _REVISION_SCRIPT, str(data), args], cwd=tree, env=env,
+                          capture_output=True, text=True, timeout=spec["limit"] * 2 + 300)
+    if done.returncode != 0:
+        raise RuntimeError(f"the baseline revision's solve failed: {done.stderr.strip()[-400:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     """One structured row (runs in the child process): the front end's solve (bracket, certificate, verify), the
     matmul peak, then ``repeats`` × (the registry solver by today's route, the same solver by the former route
@@ -364,7 +436,14 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     # bracket route has no Hessian, block_barrier forms its own dense blocks
     baseline = name in ("arx_barrier", "column_barrier") and channels == 1
     baseline = baseline and not (spec["kind"] == "arx" and n > ARX_BASELINE_UPTO)
-    runs = {"current": [], "baseline": []}
+    runs = {"current": [], "baseline": [], "revision": []}
+    data = None
+    if spec.get("baseline_tree") and channels == 1 and name != "bracket":
+        import tempfile
+
+        data = Path(tempfile.mkdtemp(prefix="bench-row-")) / "data.npz"
+        sigma_row = 0.5 * rms if spec["kind"] == "arx" else sigma
+        np.savez(data, u=u, y=y, sigma=sigma_row)
     # the bracket route (FFT only, no Hessian, no former route) and ARX n = 10⁴ (about 20 minutes a solve): the
     # front end's solve alone
     front_end_only = name == "bracket" or n >= spec.get("front_end_only_from", np.inf)
@@ -375,8 +454,15 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     # the subspace solvers on the front end's threads (workers=None: every core); the registry's default is one
     # worker, which had made these repeats slower than the front end's own solve (59 against 43 s at (100, 1000))
     threads = {} if spec["kind"] == "arx" else dict(workers=None)
+    routes = ("current", "baseline") if baseline else ("current",)
+    routes += ("revision",) if data is not None else ()
     for _ in range(0 if front_end_only else spec.get("repeats", 1)):
-        for route in ("current", "baseline") if baseline else ("current",):
+        for route in routes:
+            if route == "revision":  # the revision's own front end, in a subprocess: its solver time
+                rev = _revision_solve(spec["baseline_tree"], data, dict(spec, i=i, fixed=spec.get("fixed")))
+                runs[route].append(dict(wall=rev["solve"], delta=rev["delta"], status=rev["status"],
+                                        newton=rev.get("newton"), trials=rev.get("trials")))
+                continue
             context = baselines.former_routes() if route == "baseline" else contextlib.nullcontext()
             with context:
                 t0 = time.perf_counter()
@@ -404,6 +490,16 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         row.update(baseline_s=float(np.median([r["wall"] for r in old])), baseline_walls=[r["wall"] for r in old],
                    baseline_newton=old[-1]["newton"],
                    baseline_delta_rel=abs(old[-1]["delta"] - cur[-1]["delta"]) / max(abs(old[-1]["delta"]), 1e-300))
+    if data is not None:
+        import shutil
+
+        shutil.rmtree(data.parent, ignore_errors=True)
+    if runs["revision"]:
+        rev = runs["revision"]
+        row.update(revision=spec.get("baseline_rev"), revision_s=float(np.median([r["wall"] for r in rev])),
+                   revision_walls=[r["wall"] for r in rev], revision_newton=rev[-1]["newton"],
+                   revision_status=rev[-1]["status"],
+                   revision_delta_rel=abs(rev[-1]["delta"] - cur[-1]["delta"]) / max(abs(rev[-1]["delta"]), 1e-300))
     return row
 
 
@@ -803,13 +899,16 @@ def _run_structured(opts, rep: Report) -> dict:
     only = (getattr(opts, "extra", None) or {}).get("series") or "all"
     load_before = os.getloadavg()
     repeats = _structured_repeats(opts)
+    rev = (getattr(opts, "extra", None) or {}).get("baseline_rev")
+    tree = str(export_revision(rev)) if rev else None
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
             continue  # (--series warm / arx-pd / subspace-pd: that table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
-            spec = dict(spec, limit=spec.get("limits", {}).get(size, base), repeats=repeats)
+            spec = dict(spec, limit=spec.get("limits", {}).get(size, base), repeats=repeats, baseline_tree=tree,
+                        baseline_rev=rev)
             # the front end's solve, then repeats × (today's route, the former route), each up to the limit
             row_budget = spec["limit"] * (1 + 2 * repeats) + 120.0
             row = _run_with_budget(spec, size, opts.seed, row_budget, worker=_solve_structured_one,
@@ -821,6 +920,10 @@ def _run_structured(opts, rep: Report) -> dict:
         series.append({"series": spec["name"], "kind": spec["kind"], "L_fixed": spec.get("fixed"), "tol": spec["tol"],
                        "rows": rows, "exponent": _fit_exponent(rows)})
     load_after = os.getloadavg()
+    if tree is not None:
+        import shutil
+
+        shutil.rmtree(tree, ignore_errors=True)
 
     comparison = None if only in ("subspace", "warm", "arx-pd", "subspace-pd") else _compare_arx(opts, limit)
     warm = _run_warm(opts) if only in ("all", "warm") else None
@@ -857,9 +960,16 @@ def _run_structured(opts, rep: Report) -> dict:
         f"row's start → end. Table load: {load_before[0]:.2f} → {load_after[0]:.2f} (1-min), "
         f"{load_before[1]:.2f} → {load_after[1]:.2f} (5-min); {os.cpu_count()} CPU(s)."
     )
+    if rev:
+        rep.text(
+            f"`rev [s]`: the same problem solved by the code of git revision `{rev}` (`--baseline-rev`, exported with "
+            "`git archive`; its own front end in a subprocess, its solver time), alternating with today's route in "
+            "the same run, median; `× rev` = rev/solve; `Newton rev` its Newton steps (blank where that revision "
+            "did not report them)."
+        )
     headers = ["series", "size", "status", "lower", "upper", "gap", "tol", "verify", "wall [s]", "solve [s]",
                "baseline [s]", "×", "|Δδ|/δ", "Newton", "trial fact.", "GF/s", "limit [s]", "ratio",
-               "peak RSS [MB]", "RSS₀ [MB]", "load"]
+               "peak RSS [MB]", "RSS₀ [MB]", "load"] + (["rev [s]", "× rev", "Newton rev", "|Δδ|/δ rev"] if rev else [])
     rows_md, rows_csv = [], []
     for s in series:
         for r in s["rows"]:
@@ -871,9 +981,13 @@ def _run_structured(opts, rep: Report) -> dict:
                     _fmt(r.get("baseline_delta_rel"), ".1e"), _count(r.get("newton")), _count(r.get("trials")),
                     _fmt(r.get("matmul_gflops"), ".1f"), _fmt(r.get("limit_s")), _fmt(r.get("limit_ratio"), ".1f"),
                     r.get("peak_rss_mb", float("nan")), r.get("rss_start_mb", float("nan")), load]
+            if rev:
+                vs_rev = r["revision_s"] / r["solve_s"] if r.get("revision_s") else None
+                vals += [_fmt(r.get("revision_s")), _fmt(vs_rev, ".2f"), _count(r.get("revision_newton")),
+                         _fmt(r.get("revision_delta_rel"), ".1e")]
             rows_md.append([s["series"], r["label"], *vals])
-            rows_csv.append([s["series"], r["label"], r.get("size"), r.get("n_samples"), *vals,
-                             r.get("delta", float("nan")), r.get("error", "")])
+            rows_csv.append([s["series"], r["label"], r.get("size"), r.get("n_samples"), *vals[:19],
+                             r.get("delta", float("nan")), r.get("error", ""), *vals[19:]])
     rep.table(headers, rows_md)
     rep.section("Fitted exponents (wall ∝ size^p over the certified rows)")
     rep.table(["series", "p"], [[s["series"], s["exponent"]] for s in series], floatfmt=".2f")
@@ -892,12 +1006,13 @@ def _run_structured(opts, rep: Report) -> dict:
         w.writerow(["series", "label", "unknowns", "n_samples", "status", "lower", "upper", "relative_gap", "tol",
                     "verify", "wall_s", "solve_s", "baseline_s", "speedup", "baseline_delta_rel", "newton", "trials",
                     "matmul_gflops", "limit_s", "limit_ratio", "peak_rss_mb", "rss_start_mb", "load", "delta",
-                    "error"])
+                    "error"] + (["revision_s", "speedup_vs_revision", "revision_newton", "revision_delta_rel"]
+                                if rev else []))
         w.writerows(rows_csv)
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "comparison": comparison, "warm": warm, "primal_dual": pd,
+    return {"series": series, "baseline_rev": rev, "comparison": comparison, "warm": warm, "primal_dual": pd,
             "subspace_primal_dual": subspace_pd, "time_limit_s": limit,
             "csv": csv_path.name,
             "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
