@@ -1087,18 +1087,25 @@ def solve_columns_barrier(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_li
         centring (what ``warm`` takes), and ``warm``: ``"used"``, or why the warm point was not (only when
         ``warm`` was given).  Ctrl-C during the solve returns the bracket so far with status ``interrupted``.
     """
+    return _on_threads(workers, lambda chunks: _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks,
+                                                     warm))
+
+
+def _on_threads(workers, run):
+    """``run(chunks)`` with ``chunks`` a :class:`_Chunks` over ``workers`` threads (``None``: every core) and BLAS
+    held to one thread per worker, ``workers = 1`` included: the column methods' products are many and small, and a
+    second BLAS thread competing with other jobs was measured 5.5× slower (183 s against 33 s at (50, 500) under
+    load)."""
     n = check_workers(workers)
     from threadpoolctl import threadpool_limits
 
-    # one BLAS thread per worker, workers = 1 included: the products are many and small, and a second BLAS
-    # thread competing with other jobs was measured 5.5× slower (183 s against 33 s at (50, 500) under load)
     with threadpool_limits(limits=1, user_api="blas"):
         if n == 1:
-            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _SERIAL, warm)
+            return run(_SERIAL)
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=n) as pool:
-            return _solve(form, B0, tol, time_limit, progress, mu, noise_weight, _Chunks(pool, n), warm)
+            return run(_Chunks(pool, n))
 
 
 def check_workers(workers) -> int:

@@ -49,7 +49,7 @@ import numpy as np
 
 from .barrier import Deadline, Stop, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
-from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, check_workers
+from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, _on_threads
 from .columns import ColumnForm
 from .cones import _soc_div, _soc_prod, _soc_step, _soc_w, _soc_winv, sdp_step_stack, soc_scaling
 from .start import operator_svd, ridge_fit
@@ -365,16 +365,7 @@ def solve_columns_pd(form: ColumnForm, B0: np.ndarray, *, tol=1e-6, time_limit=N
         plus ``factorisations`` (batched Cholesky stacks, eigendecompositions and step-length stacks) and ``cg``.
         Ctrl-C returns the bracket so far with status ``interrupted``.
     """
-    n = check_workers(workers)
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        if n == 1:
-            return _solve(form, B0, tol, time_limit, progress, _SERIAL)
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=n) as pool:
-            return _solve(form, B0, tol, time_limit, progress, _Chunks(pool, n))
+    return _on_threads(workers, lambda chunks: _solve(form, B0, tol, time_limit, progress, chunks))
 
 
 def _solve(form, B0, tol, time_limit, progress, chunks: _Chunks) -> dict:
