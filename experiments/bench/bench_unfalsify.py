@@ -77,9 +77,9 @@ Hessian's ~60m² and the blocks of F⁻¹ from generators ~90m²; per trial the 
 are not counted, so the limit is a lower bound and the ratio an upper one.  Not defined for the bracket row
 and the 2×2 rows (blank).  The **warm-start table** (``--backend structured``, series ``all``
 or ``--series warm`` alone; issue 27, item 4) times a cold solve and a warm re-solve
-(``subspace_unfalsify(..., warm_start=...)``) of the same new problem at (i, j) = (20, 400), L optimised,
-tol 1e-4: the window advanced by k ∈ {1, 10, 50} samples, and the same window at σ × 1.05; median of 3
-repeats, load average noted.
+(``subspace_unfalsify(..., warm_start=...)``) of the same new problem at (i, j) = (20, 400), tol 1e-4: the window
+advanced by k ∈ {1, 10, 50} samples with L optimised and with L fixed (the first window's least-squares predictor),
+and the same window at σ × 1.05 (L optimised); median of 3 repeats, load average noted.
 """
 from __future__ import annotations
 
@@ -657,16 +657,19 @@ def _solve_warm_case(spec: dict, case, seed: int) -> dict:
     """One warm-start case in the child process: the first window's cold solve (not timed), then ``repeats``
     × (cold solve of the new problem, warm solve of it from the first), each timed around the whole
     ``subspace_unfalsify`` call; medians, and the load average before and after."""
+    import synthesis as sy
     import unfalsify as uf
 
     warnings.simplefilter("ignore")
-    (i, j), (k, factor), repeats = spec["size"], case, spec["repeats"]
+    (i, j), (k, factor, fixed), repeats = spec["size"], case, spec["repeats"]
     n = 2 * i + j - 1
     u, y = _data(n + max(spec["shifts"]), seed)
     A, _, Yf = uf.subspace_data(u[:n], y[:n], i)
     L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
     sigma = 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
-    kw = dict(backend="structured", tol=spec["tol"], progress=False, workers=1)
+    # L fixed: the first window's least-squares predictor, kept for the new window (δ of one model tracked online)
+    pred = sy.fit_predictor(u[:n], y[:n], i) if fixed else None
+    kw = dict(backend="structured", tol=spec["tol"], progress=False, workers=1, predictor=pred)
     first = uf.subspace_unfalsify(u[:n], y[:n], i, sigma, **kw)
     load0 = os.getloadavg()[0]
     runs = {"cold": [], "warm": []}
@@ -680,7 +683,8 @@ def _solve_warm_case(spec: dict, case, seed: int) -> dict:
                                    outer=res.solver_stats.get("outer"), trials=res.solver_stats.get("trials"),
                                    gap=cert.relative_gap, delta=res.delta, verify=bool(cert.verify()),
                                    lower=cert.lower_bound, upper=cert.upper_bound, start=res.start))
-    out = {"k": k, "sigma_factor": factor, "load": (load0, os.getloadavg()[0]), "peak_rss_mb": _rss_mb()}
+    out = {"k": k, "sigma_factor": factor, "L_fixed": bool(fixed), "load": (load0, os.getloadavg()[0]),
+           "peak_rss_mb": _rss_mb()}
     for name, rs in runs.items():
         out[name] = dict(rs[-1], wall=float(np.median([r["wall"] for r in rs])),
                          solve=float(np.median([r["solve"] for r in rs])), walls=[r["wall"] for r in rs],
@@ -694,7 +698,7 @@ def _run_warm(opts) -> dict:
     """The warm-start table: each case in its own child process (``_solve_warm_case``)."""
     spec = dict(size=QUICK_WARM_SIZE if opts.quick else WARM_SIZE, repeats=QUICK_WARM_REPEATS if opts.quick
                 else WARM_REPEATS, shifts=WARM_SHIFTS, tol=1e-4)
-    cases = [(k, 1.0) for k in WARM_SHIFTS] + [(0, WARM_SIGMA_FACTOR)]
+    cases = [(k, 1.0, fixed) for fixed in (False, True) for k in WARM_SHIFTS] + [(0, WARM_SIGMA_FACTOR, False)]
     rows = []
     for case in tqdm(cases, desc="bench-unfalsify: warm starts", leave=False):
         row = _run_with_budget(spec, case, opts.seed, 1200.0, worker=_solve_warm_case, label=str(case))
@@ -707,10 +711,11 @@ def _run_warm(opts) -> dict:
 
 def _report_warm(rep: Report, warm: dict) -> None:
     i, j = warm["size"]
-    rep.section(f"Warm starts at (i, j) = ({i}, {j}), L optimised, tol {warm['tol']:g}")
+    rep.section(f"Warm starts at (i, j) = ({i}, {j}), tol {warm['tol']:g}")
     rep.text(
         "`subspace_unfalsify(..., warm_start=first)`, `first` the cold solve of the first window; the new problem "
-        f"is the window advanced by k samples (same σ) or the first window at σ × {WARM_SIGMA_FACTOR}. Cold and "
+        f"is the window advanced by k samples (same σ) or the first window at σ × {WARM_SIGMA_FACTOR}; L optimised, "
+        "or fixed to the first window's least-squares predictor (δ of one model tracked as the window slides). Cold and "
         f"warm alternate, {warm['repeats']} repeat(s) each, medians; `wall` is the whole call (problem set-up, "
         "solve, certificate), `solve` the solver's own time; `workers=1`. `overlap`: the two certified brackets "
         "intersect (the same δ to the certified gap). Load: 1-min load average before → after the case."
@@ -722,6 +727,7 @@ def _report_warm(rep: Report, warm: dict) -> None:
             continue
         c, w = r["cold"], r["warm"]
         case = f"k = {r['k']}" if r["sigma_factor"] == 1.0 else f"σ × {r['sigma_factor']:g}"
+        case += ", L fixed" if r.get("L_fixed") else ", L optimised"
         rows.append([case, c["wall"], w["wall"], w["wall"] / c["wall"], c["solve"], w["solve"], _count(c["newton"]),
                      _count(w["newton"]), _count(c["trials"]), _count(w["trials"]), c["gap"], w["gap"],
                      f"{r['overlap']} / {c['verify'] and w['verify']}", f"{r['load'][0]:.1f} → {r['load'][1]:.1f}"])
