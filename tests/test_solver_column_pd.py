@@ -256,3 +256,15 @@ def test_a_numerical_failure_mid_solve_keeps_the_certified_bracket(monkeypatch):
     assert r.status == "failed"
     c = r.certificate
     assert c.verify() and c.ok() and 0 < c.lower_bound <= c.upper_bound
+
+
+def test_a_real_tiny_time_limit_stops_before_the_first_iteration_with_the_start_certified():
+    # no iteration finishes: the start's impulses are the certified upper side, there is no dual point yet (lower 0),
+    # and the front end warns
+    u, y, pred, sigma = _problem(12, 4, 40, False)
+    with pytest.warns(uf.SolverWarning, match="time_limit"):
+        r = uf.subspace_unfalsify(u, y, 4, sigma, backend="structured", method="primal_dual", time_limit=0.0,
+                                  progress=False)
+    c = r.certificate
+    assert r.status == "time_limit" and c.verify() and c.ok()
+    assert np.isfinite(c.upper_bound) and not c.lower_bound > c.upper_bound
