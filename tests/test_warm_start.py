@@ -191,7 +191,8 @@ def test_bench_warm_table_quick(tmp_path):
     st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
     assert st["series"] == [] and st["comparison"] is None
     rows = st["warm"]["rows"]
-    assert len(rows) == 4
+    assert len(rows) == 7  # k = 1, 10, 50 with L optimised and with L fixed, and σ × 1.05
+    assert sorted(r["L_fixed"] for r in rows) == [False] * 4 + [True] * 3
     for r in rows:
         assert r["overlap"] and r["cold"]["verify"] and r["warm"]["verify"]
         assert r["warm"]["start"].startswith("warm (") and r["cold"]["start"] == "cold"
