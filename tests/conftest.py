@@ -12,6 +12,7 @@ limited through threadpoolctl, because OpenBLAS read its variable when numpy was
 """
 import os
 
+import pytest
 from threadpoolctl import threadpool_limits
 
 _VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -20,3 +21,19 @@ if not any(v in os.environ for v in _VARIABLES):
     for _v in _VARIABLES:
         os.environ[_v] = "1"
     _LIMITS = threadpool_limits(limits=1, user_api="blas")
+
+
+@pytest.fixture
+def one_second_clock(monkeypatch):
+    """The structured solvers' wall clock (``unfalsify.solvers.barrier._clock``) replaced by one that advances one
+    second per reading: a time limit then expires after a fixed number of readings, whatever the machine's speed."""
+    import unfalsify.solvers.barrier as barrier
+
+    clock = [0.0]
+
+    def tick():
+        clock[0] += 1.0
+        return clock[0]
+
+    monkeypatch.setattr(barrier, "_clock", tick)
+    return clock

@@ -214,18 +214,11 @@ def _record_brackets(monkeypatch):
     return seen
 
 
-def test_time_limit_returns_a_certified_bracket_and_warns(monkeypatch):
+def test_time_limit_returns_a_certified_bracket_and_warns(monkeypatch, one_second_clock):
     # a fake clock (one second per reading) makes a 12 s limit expire after a few iterations, deterministically
     u, y = servo_arx_data(60, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
     seen = _record_brackets(monkeypatch)
-    clock = [0.0]
-
-    def fake_clock():
-        clock[0] += 1.0
-        return clock[0]
-
-    monkeypatch.setattr(barrier, "_clock", fake_clock)
     with pytest.warns(uf.SolverWarning, match="time_limit"):
         r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", method="primal_dual", tol=1e-12,
                              time_limit=12.0, progress=False)

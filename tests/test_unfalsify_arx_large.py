@@ -122,17 +122,10 @@ def test_ctrl_c_returns_the_best_certified_bracket(monkeypatch):
     assert 0 < c.lower_bound <= c.upper_bound <= up
 
 
-def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch):
+def test_time_limit_mid_solve_returns_the_best_certified_bracket(monkeypatch, one_second_clock):
     # a fake clock (one second per reading) makes the limit expire mid-solve, deterministically
     u, y, sigma = _problem(60, 1)
     seen = _record_brackets(monkeypatch)
-    clock = [0.0]
-
-    def fake_clock():
-        clock[0] += 1.0
-        return clock[0]
-
-    monkeypatch.setattr(barrier, "_clock", fake_clock)
     with pytest.warns(uf.SolverWarning, match="time_limit"):
         r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-12, time_limit=30.0, progress=False)
     assert r.status == "time_limit"
@@ -342,16 +335,9 @@ def test_cholesky_norm_proof_holds_one_n_by_n_array():
 
 
 @pytest.mark.parametrize("progress", [True, False])
-def test_a_long_solve_shows_its_progress_on_stderr(monkeypatch, capsys, progress):
+def test_a_long_solve_shows_its_progress_on_stderr(one_second_clock, capsys, progress):
     # a fake clock (one second per reading): past 2 s the barrier opens a tqdm bar with the bracket so far
     u, y, sigma = _problem(60, 1)
-    clock = [0.0]
-
-    def fake_clock():
-        clock[0] += 1.0
-        return clock[0]
-
-    monkeypatch.setattr(barrier, "_clock", fake_clock)
     r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=1e-6, progress=progress)
     err = capsys.readouterr().err
     if progress:
