@@ -67,7 +67,7 @@ import scipy.linalg
 from scipy.linalg import blas as _blas
 
 from .arx_barrier import ridge_start
-from .barrier import Deadline, Stop, cholesky_retry, run_barrier
+from .barrier import Deadline, PrimalDualSteps, Stop, cholesky_retry, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .arx_barrier import _Channels, _channel_operator, _Siso
 from .columns import BlockColumnForm, ColumnForm
@@ -122,7 +122,7 @@ class _Scaling:
     __slots__ = ("Rinv", "lam", "Winv", "M", "beta", "v")
 
 
-class _ArxPrimalDual:
+class _ArxPrimalDual(PrimalDualSteps):
     """The method of the module docstring, plugged into :func:`run_barrier`: ``centre`` is one
     predictor–corrector iteration, ``t`` the complementarity μ, ``advance`` the stall check."""
 
@@ -323,10 +323,6 @@ class _ArxPrimalDual:
         return new, a
 
     # -- the rest of run_barrier's contract
-    def bound_due(self, mu, upper):
-        """The certified lower bound (an n × n SVD) only once the method's own gap could meet ``tol``."""
-        return self.last_gap <= max(10.0 * self.tol, 1e-2) * max(upper, 1e-300)
-
     def upper(self, p: _Point) -> float:
         return self.ops.norm(p.h, p.d)
 
@@ -337,11 +333,6 @@ class _ArxPrimalDual:
         """``V = −z₁``, ``W = −2Z₂₁`` (module docstring) for :meth:`ColumnForm.lower_bound`."""
         n1 = self.N1
         return -p.z[1:, None].copy(), -2.0 * p.Z[None, n1:, :n1]
-
-    def advance(self, mu, p, step, bounds, deadline):
-        if self.small_steps >= 3:  # no progress possible: the end of double precision here
-            raise Stop("failed")
-        return mu, p
 
     def run(self, h0):
         deadline = Deadline(self.time_limit)

@@ -13,7 +13,8 @@ read a certified bracket off every centred point.  :func:`run_barrier` is that o
   (:func:`stop_status`);
 * a **progress** bar once the solve has run 2 s (:func:`tick_progress`).
 
-The ``advance`` step shared by the column methods is the mix-in :class:`PathAdvance`.
+The ``advance`` step shared by the column methods is the mix-in :class:`PathAdvance`; the primal–dual methods
+(one predictor–corrector iteration per "centring") share :class:`PrimalDualSteps`.
 A method provides ``centre(t, point, deadline) -> (point, step)``, ``upper(point)``,
 ``impulses(point)``, ``dual(t, point, step) -> (V, W)``, ``advance(t, point, step, bounds, deadline)
 -> (t, point)`` and the attributes ``steps`` (Newton steps so far), ``tol``, ``progress`` and ``desc``.
@@ -43,6 +44,7 @@ __all__ = [
     "path_steps",
     "best_along",
     "PathAdvance",
+    "PrimalDualSteps",
 ]
 
 
@@ -363,3 +365,20 @@ class PathAdvance:
         self._prev, self.stalled = (min(self._prev[0], upper), max(self._prev[1], lower)), 0
         deadline.check()
         return t * self.mu, p
+
+
+class PrimalDualSteps:
+    """What the primal–dual methods (``arx_pd``, ``column_pd``) share of :func:`run_barrier`'s contract (a mix-in;
+    needs ``tol``, ``last_gap``, the complementarity sᵀz of the last iteration, and ``small_steps``, the count of
+    consecutive steps below 1e-8 that ``centre`` keeps).
+
+    The bounds are evaluated only once the method's own gap could meet ``tol`` (the lower bound costs SVDs); three
+    consecutive steps below 1e-8 are the end of double precision: status ``"failed"`` with the best bracket."""
+
+    def bound_due(self, t, upper) -> bool:
+        return self.last_gap <= max(10.0 * self.tol, 1e-2) * max(upper, 1e-300)
+
+    def advance(self, t, p, step, bounds, deadline: Deadline):
+        if self.small_steps >= 3:  # no progress possible
+            raise Stop("failed")
+        return t, p

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .barrier import Deadline, Stop, run_barrier
+from .barrier import Deadline, PrimalDualSteps, Stop, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, _on_threads
 from .columns import ColumnForm
@@ -76,7 +76,7 @@ class _Scaling:
     __slots__ = ("M", "Rinv", "Winv", "beta", "lam", "lq", "v")
 
 
-class _ColumnPrimalDual(_ColumnSystem):
+class _ColumnPrimalDual(_ColumnSystem, PrimalDualSteps):
     """The method of the module docstring, plugged into :func:`run_barrier`: ``centre`` is one predictor–corrector
     iteration, ``t`` unused, ``advance`` the stall check."""
 
@@ -301,10 +301,6 @@ class _ColumnPrimalDual(_ColumnSystem):
         return new, a
 
     # ---- the rest of run_barrier's contract ----------------------------------------------------------
-    def bound_due(self, t, upper):
-        """The certified lower bound (j SVDs) only once the method's own gap could meet ``tol``."""
-        return self.last_gap <= max(10.0 * self.tol, 1e-2) * max(upper, 1e-300)
-
     def upper(self, p: _Point) -> float:
         return _max_norm(p.TtT, self.chunks)
 
@@ -315,11 +311,6 @@ class _ColumnPrimalDual(_ColumnSystem):
         """``V = −z₁``, ``W_k = −2Z_k,₂₁`` (module docstring) for :meth:`ColumnForm.lower_bound`."""
         m = self.m
         return -p.z1.copy(), -2.0 * p.Z[:, m:, :m]
-
-    def advance(self, t, p, step, bounds, deadline):
-        if self.small_steps >= 3:  # no progress possible: the end of double precision here
-            raise Stop("failed")
-        return t, p
 
     def start(self, B0) -> _Point:
         """The barrier method's ridge start (module docstring) with a strictly feasible dual point."""
