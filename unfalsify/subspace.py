@@ -511,8 +511,9 @@ def subspace_unfalsify(
         NaN/inf, lengths, time along axis 1 (the message names ``u.T``), bad horizon / too few samples,
         σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
     UnknownSolverError
-        Unknown backend (a ``ValueError``; the message lists the valid names), or several channels with
-        ``executor=`` (the message names ``backend="cvxpy"``).
+        Unknown backend or method (a ``ValueError``; the message lists the valid names), several channels with
+        ``executor=`` (the message names ``backend="cvxpy"``) or with ``method="primal_dual"`` (the message names
+        ``method="barrier"``).
     DataError
         ``warm_start`` that is not a :class:`SubspaceResult` of this horizon and these channels (the message
         names the fix).
