@@ -98,7 +98,7 @@ def test_newton_direction_solves_the_linearised_cone_equations(fixed):
     tL = rng.standard_normal(p.Z.shape)
     tL = tL + tL.transpose(0, 2, 1)
     tq = rng.standard_normal(1 + f.m * f.j)
-    dH, dlt, dsL, dzL, dsq, dzq, _ = method._direction(sc, schur, None, rx, tL, tq)
+    dH, dlt, dsL, dzL, dsq, dzq, parts = method._direction(sc, schur, None, rx, tL, tq)
     np.testing.assert_allclose(dsL + dzL, tL, atol=1e-10 * np.abs(tL).max())
     m = f.m
     dZ = sc.Rinv.transpose(0, 2, 1) @ dzL @ sc.Rinv
@@ -115,6 +115,15 @@ def test_newton_direction_solves_the_linearised_cone_equations(fixed):
     dT = toeplitz_stack(dH)
     np.testing.assert_allclose(dS[:, m:, :m], dT, atol=1e-8 * max(np.abs(dT).max(), abs(dlt)))
     np.testing.assert_allclose(np.diagonal(dS, axis1=1, axis2=2), dlt, atol=1e-8 * max(np.abs(dT).max(), abs(dlt)))
+    # a second right-hand side (the corrector's) solved with the first's Woodbury parts and h–δ column: the same
+    # direction as a solve from scratch
+    tL2 = rng.standard_normal(p.Z.shape)
+    tL2 = tL2 + tL2.transpose(0, 2, 1)
+    tq2 = rng.standard_normal(1 + f.m * f.j)
+    reused = method._direction(sc, schur, parts, rx, tL2, tq2)
+    fresh = method._direction(sc, schur, None, rx, tL2, tq2)
+    np.testing.assert_allclose(reused[0], fresh[0], rtol=1e-7, atol=1e-9 * np.abs(fresh[0]).max())
+    assert reused[1] == pytest.approx(fresh[1], rel=1e-7)
 
 
 # ---- against the barrier method and cvxpy ---------------------------------------------------------------

@@ -191,7 +191,9 @@ class _ColumnPrimalDual(_ColumnSystem, PrimalDualSteps):
         """Solve the scaled Newton system for ``t̃ = (tL, tq)`` (``affine``: ``tL = −Λ`` given as the vectors −lam).
 
         Returns ``(dH, dδ, dsL, dzL, dsq, dzq, parts)``: the step in x, the scaled slack and dual steps
-        (``ds̃ + dz̃ = t̃``) and the Woodbury parts for the next solve with this Schur complement."""
+        (``ds̃ + dz̃ = t̃``), and what the next solve with this Schur complement reuses: its Woodbury parts and the
+        h–h block's solve against the h–δ column (for the elimination of dδ; the corrector's right-hand side
+        alone is then solved)."""
         m, j = self.m, self.j
         G, col, dd, cc, alpha, g = schur
         C, D = sc.Rinv[:, :, :m], sc.Rinv[:, :, m:]
@@ -209,8 +211,14 @@ class _ColumnPrimalDual(_ColumnSystem, PrimalDualSteps):
         wq = _soc_winv(sc.beta, sc.v, tq)
         rh = -rx[0] + 2.0 * adjoint(Y21) - self.f.apply_T(self.f.project(self._mat(wq)))
         rd = -rx[1] + trY
-        X, parts = self._solve_h(G, cc, alpha, g, np.stack([rh, col], axis=-1), parts)
-        xr, xc = X[..., 0], X[..., 1]
+        if parts is None:
+            X, woodbury = self._solve_h(G, cc, alpha, g, np.stack([rh, col], axis=-1))
+            xr, xc = X[..., 0], X[..., 1]
+        else:
+            woodbury, xc = parts
+            X, _ = self._solve_h(G, cc, alpha, g, rh[..., None], woodbury)
+            xr = X[..., 0]
+        parts = (woodbury, xc)
         dlt = (rd - float(np.sum(col * xr))) / (dd - float(np.sum(col * xc)))
         dH = xr - xc * dlt
         dsL = self._scaled_slack_step(sc, dH, dlt)
