@@ -206,6 +206,19 @@ def _mimo_data(n: int, seed: int):
     return d.u, d.y
 
 
+def _half_ls_sigma(u, y, i=None):
+    """σ of the structured rows: half the least-squares residual rms; ARX (7.4) with na = nb = 2 (``i`` None), or
+    (7.5) at horizon i, where it is that of the least-squares predictor, returned with it: ``(predictor, σ)``."""
+    import synthesis as sy
+    import unfalsify as uf
+
+    if i is None:
+        return 0.5 * uf.arx_least_squares(u, y, 2, 2)[1]
+    pred = sy.fit_predictor(u, y, i)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    return pred, 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+
+
 def _solve_one(spec: dict, size: int, seed: int) -> dict:
     """One solve (runs in the child process)."""
     import unfalsify as uf
@@ -393,7 +406,6 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     """One structured row (runs in the child process): the front end's solve (bracket, certificate, verify), the
     matmul peak, then ``repeats`` × (the registry solver by today's route, the same solver by the former route
     of :mod:`unfalsify.solvers.baselines`), alternating; medians, counts and the δ agreement of the two routes."""
-    import synthesis as sy
     import unfalsify as uf
     from unfalsify import solvers
     from unfalsify.solvers import baselines
@@ -406,9 +418,9 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
     if spec["kind"] == "arx":
         n = size
         u, y = _data(n, seed)
-        _, rms = uf.arx_least_squares(u, y, 2, 2)
+        sigma = _half_ls_sigma(u, y)
         t0 = time.perf_counter()
-        res = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=spec["tol"], time_limit=limit,
+        res = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", tol=spec["tol"], time_limit=limit,
                                progress=False, method=spec.get("method", "barrier"))
         wall = time.perf_counter() - t0
         unknowns, i, j = n, None, None
@@ -418,9 +430,7 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         i, j = size
         n = 2 * i + j - 1
         u, y = _mimo_data(n, seed) if channels > 1 else _data(n, seed)
-        pred = sy.fit_predictor(u, y, i)
-        A, _, Yf = uf.subspace_data(u, y, i)
-        sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+        pred, sigma = _half_ls_sigma(u, y, i)
         t0 = time.perf_counter()
         res = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", predictor=pred if spec["fixed"] else None,
                                     tol=spec["tol"], time_limit=limit, progress=False)
@@ -442,8 +452,7 @@ def _solve_structured_one(spec: dict, size, seed: int) -> dict:
         import tempfile
 
         data = Path(tempfile.mkdtemp(prefix="bench-row-")) / "data.npz"
-        sigma_row = 0.5 * rms if spec["kind"] == "arx" else sigma
-        np.savez(data, u=u, y=y, sigma=sigma_row)
+        np.savez(data, u=u, y=y, sigma=sigma)
     # the bracket route (FFT only, no Hessian, no former route) and ARX n = 10⁴ (about 20 minutes a solve): the
     # front end's solve alone
     front_end_only = name == "bracket" or n >= spec.get("front_end_only_from", np.inf)
@@ -514,18 +523,14 @@ PD_SOLVERS = {"arx": ("arx_barrier", "arx_pd"), "subspace": ("column_barrier", "
 def _pd_problem(spec: dict, size, seed: int):
     """The problem of one head-to-head row: ARX (7.4) na = nb = 2 at n = size, or (7.5) at (i, j) = size with L
     fixed (the least-squares predictor) or optimised; σ = ½ the least-squares residual rms."""
-    import synthesis as sy
     import unfalsify as uf
 
     if spec["program"] == "arx":
         u, y = _data(size, seed)
-        _, rms = uf.arx_least_squares(u, y, 2, 2)
-        return uf.ArxProblem.from_data(u, y, 2, 2, 0.5 * rms)
+        return uf.ArxProblem.from_data(u, y, 2, 2, _half_ls_sigma(u, y))
     i, j = size
     u, y = _data(2 * i + j - 1, seed)
-    pred = sy.fit_predictor(u, y, i)
-    A, _, Yf = uf.subspace_data(u, y, i)
-    sigma = 0.5 * float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+    pred, sigma = _half_ls_sigma(u, y, i)
     return uf.SubspaceProblem.from_data(u, y, i, sigma, predictor=pred if spec["fixed"] else None)
 
 
