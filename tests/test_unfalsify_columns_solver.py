@@ -209,6 +209,26 @@ def test_failed_solve_gives_nan_and_warning(monkeypatch):
 
 
 @pytest.mark.parametrize("fixed", [True, False])
+def test_a_lost_delta_schur_complement_fails_the_solve_not_raises(fixed, monkeypatch):
+    # Σ‖F_k⁻¹‖² (the δ–δ entry of the Hessian) forced to zero: the δ Schur complement is negative at every step,
+    # as when its two terms cancel at a point pressed against the boundary (it raised ZeroDivisionError there)
+    u, y = servo_arx_data(2 * 3 + 20 - 1, 4)
+    blocks = sc._Point.blocks
+
+    def zero_norm(self):
+        out = blocks(self)
+        self._norm2 = 0.0
+        return out
+
+    monkeypatch.setattr(sc._Point, "blocks", zero_norm)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False,
+                                  predictor=fit_predictor(u, y, 3) if fixed else None)
+    assert r.status == "failed" and np.isnan(r.delta)
+    assert r.solver_stats["newton"] == 1  # the first step stops the solve (its FFT retry included)
+
+
+@pytest.mark.parametrize("fixed", [True, False])
 def test_column_threads_equal_serial_solve(fixed):
     # the chunked, threaded stack operations against the serial ones on the same problem: the same
     # per-column kernels, so the same iterates (sums of chunk sums are the only reordering)

@@ -171,6 +171,29 @@ def test_a_warm_path_that_stagnates_twice_is_given_up_for_a_cold_solve(small, mo
     _same_delta(res, _solve(small["u"][1:], small["y"][1:], small["sigma"]))
 
 
+def test_a_warm_path_whose_newton_solves_lose_their_digits_is_resolved_cold(small, monkeypatch):
+    """The δ Schur complement of the Newton system cancelled to exactly zero on a warm path pressed against
+    ‖T(h_k)‖₂ = δ (measured at (20, 400)), and the solve raised ZeroDivisionError.  Now the decrement is non-finite,
+    the warm path stops as failed and the solve is redone cold (here forced: the Schur complement made non-positive
+    on the warm path only)."""
+    newton_at = column_barrier._ColumnBarrier._newton_at
+    calls = []
+
+    def cancelled(self, t, p, precise):
+        if self.warm_started:
+            p.blocks()
+            p._norm2 = 0.0  # Σ‖F_k⁻¹‖²: the δ–δ entry, so the Schur complement is −cᵀx_c < 0
+            calls.append(precise)
+        return newton_at(self, t, p, precise)
+
+    monkeypatch.setattr(column_barrier._ColumnBarrier, "_newton_at", cancelled)
+    res = _solve(small["u"][1:], small["y"][1:], small["sigma"], warm_start=small["first"])
+    assert "stopped with status 'failed'" in res.start and "re-solved cold" in res.start
+    assert calls == [False, True]  # the displacement Hessian's step, then the FFT Hessian's, then the stop
+    assert res.status == "optimal" and res.certificate.verify()
+    _same_delta(res, _solve(small["u"][1:], small["y"][1:], small["sigma"]))
+
+
 def test_state_of_a_cvxpy_result_is_usable(small):
     """A result without a barrier path (cvxpy) still warm-starts the structured solver (its point and gap)."""
     ref = uf.subspace_unfalsify(small["u"], small["y"], I, small["sigma"])

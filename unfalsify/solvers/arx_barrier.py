@@ -99,7 +99,8 @@ import scipy.linalg
 from scipy.linalg import blas as _blas
 from scipy.linalg import lapack as _lapack
 
-from .barrier import Deadline, Stop, best_along, cholesky_retry, linearised_dual, path_steps, run_barrier
+from .barrier import (Deadline, Stop, best_along, cholesky_retry, delta_step, linearised_dual, path_steps,
+                      run_barrier)
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
 from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
@@ -440,8 +441,10 @@ class _ArxBarrier:
         cf = cholesky_retry(Hm, overwrite=True)
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
         xg, xc = sol[:, 0], sol[:, 1]
-        dd_eff = dd - c @ xc
-        dlt = (-grad_d + c @ xg) / dd_eff
+        elim = delta_step(dd, grad_d, c @ xg, c @ xc)
+        if elim is None:  # the solves lost their digits: a non-finite decrement ends the solve (centre())
+            return np.zeros_like(xg), 0.0, float("nan"), (np.zeros_like(xc), 0.0), (S11, S21, S22)
+        dlt, dd_eff = elim
         dh = -xg - xc * dlt
         lam2 = -(grad_h @ dh + grad_d * dlt)
         tangent = (xc / dd_eff, -1.0 / dd_eff)  # d(h, δ)/dt on the central path

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, linearised_dual, run_barrier
+from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, delta_step, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
 from .start import operator_svd, ridge_fit
@@ -197,8 +197,10 @@ class _BlockBarrier(PathAdvance):
         coef = alpha / (1.0 + alpha * float(np.sum(g_noise * xg)))
         X = Xr - xg[..., None] * (coef * np.einsum("pk,pkr->r", g_noise, Xr))[None, None, :]
         xg, xc = X[..., 0], X[..., 1]
-        dd_eff = dd - float(np.sum(c * xc))
-        dlt = (-grad_d + float(np.sum(c * xg))) / dd_eff
+        elim = delta_step(dd, grad_d, float(np.sum(c * xg)), float(np.sum(c * xc)))
+        if elim is None:  # the solves lost their digits: a non-finite decrement ends the solve (centre())
+            return np.zeros_like(xg), 0.0, float("nan")
+        dlt = elim[0]
         dH = -xg - xc * dlt
         lam2 = -(float(np.sum(grad_h * dH)) + grad_d * dlt)
         return dH, dlt, lam2

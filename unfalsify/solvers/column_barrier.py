@@ -85,7 +85,8 @@ import sys
 import numpy as np
 import scipy.linalg
 
-from .barrier import Deadline, PathAdvance, Stop, best_along, linearised_dual, path_steps, pcg, run_barrier
+from .barrier import (Deadline, PathAdvance, Stop, best_along, delta_step, linearised_dual, path_steps, pcg,
+                      run_barrier)
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import ColumnForm
 from .displacement import displacement_hessian
@@ -782,8 +783,10 @@ class _ColumnBarrier(_ColumnSystem, PathAdvance):
         X, _ = self._solve_h(G, 2.0 * self.wn / psi, 4.0 * self.wn / psi**2, g_noise,
                              np.stack([grad_h, c], axis=-1))
         xg, xc = X[..., 0], X[..., 1]
-        dd_eff = dd - float(np.sum(c * xc))
-        dlt = (-grad_d + float(np.sum(c * xg))) / dd_eff
+        elim = delta_step(dd, grad_d, float(np.sum(c * xg)), float(np.sum(c * xc)))
+        if elim is None:  # the solves lost their digits: a non-finite decrement (centre() stops, _newton retries)
+            return np.zeros_like(xg), 0.0, float("nan"), (np.zeros_like(xc), 0.0)
+        dlt, dd_eff = elim
         dh = -xg - xc * dlt
         lam2 = -(float(np.sum(grad_h * dh)) + grad_d * dlt)
         return dh, dlt, lam2, (xc / dd_eff, -1.0 / dd_eff)

@@ -1,0 +1,105 @@
+"""The pieces of ``unfalsify.solvers.barrier`` every barrier solver shares: the δ elimination of a Newton system and
+the numerical failures the outer loop turns into status ``"failed"``."""
+import numpy as np
+import pytest
+
+from unfalsify.solvers.barrier import SOLVE_ERRORS, Deadline, Stop, delta_step, run_barrier
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_delta_step_equals_the_bordered_newton_solve(seed):
+    # second route: the whole (n + 1) × (n + 1) system [H c; cᵀ d] (dh, dδ) = −(g_h, g_δ) by numpy's solve
+    rng = np.random.default_rng(seed)
+    n = 6
+    A = rng.standard_normal((n + 1, n + 1))
+    K = A @ A.T + 0.1 * np.eye(n + 1)
+    g = rng.standard_normal(n + 1)
+    Hh, c, dd = K[:n, :n], K[:n, n], K[n, n]
+    xg, xc = np.linalg.solve(Hh, g[:n]), np.linalg.solve(Hh, c)
+    dlt, schur = delta_step(dd, g[n], c @ xg, c @ xc)
+    full = np.linalg.solve(K, -g)
+    assert dlt == pytest.approx(full[n], rel=1e-10)
+    assert schur == pytest.approx(1.0 / np.linalg.inv(K)[n, n], rel=1e-10)
+    np.testing.assert_allclose(-xg - xc * dlt, full[:n], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("dd, c_xc", [(1.0, 1.0), (1.0, 2.0), (np.nan, 0.0), (np.inf, 1.0), (5e25, 5e25)])
+def test_delta_step_refuses_a_schur_complement_that_is_not_positive(dd, c_xc):
+    assert delta_step(dd, 1.0, 0.5, c_xc) is None
+
+
+class _Failing:
+    """A method whose second centring raises ``error``: the first one gave a bracket."""
+
+    steps, tol, progress, desc = 0, 1e-6, False, "test"
+
+    def __init__(self, error):
+        self.error = error
+
+    def centre(self, t, point, deadline):
+        self.steps += 1
+        if self.steps > 1:
+            raise self.error
+        return point, None
+
+    def upper(self, point):
+        return 2.0
+
+    def impulses(self, point):
+        return np.zeros(1)
+
+    def dual(self, t, point, step):
+        return np.ones(1), np.ones((1, 1))
+
+    def advance(self, t, point, step, bounds, deadline):
+        return 5.0 * t, point
+
+
+class _Form:
+    def lower_bound(self, V, W):
+        return 1.0
+
+
+@pytest.mark.parametrize("error", [ZeroDivisionError("float division by zero"), OverflowError("overflow"),
+                                   FloatingPointError("invalid"), np.linalg.LinAlgError("not positive definite")])
+def test_a_numerical_failure_ends_the_loop_as_failed_with_the_bracket_so_far(error):
+    assert isinstance(error, SOLVE_ERRORS)
+    best = run_barrier(_Failing(error), _Form(), object(), 1.0, Deadline(), 3.0)
+    assert best["status"] == "failed" and best["error"].startswith(type(error).__name__)
+    assert (best["lower"], best["upper"]) == (1.0, 2.0)
+
+
+def test_a_stop_keeps_its_own_status():
+    best = run_barrier(_Failing(Stop("max_iter")), _Form(), object(), 1.0, Deadline(), 3.0)
+    assert best["status"] == "max_iter" and "error" not in best
+
+
+def _siso(n, seed):
+    from experiments.bench.bench_unfalsify import _data
+
+    return _data(n, seed)
+
+
+@pytest.mark.parametrize("solver", ["arx_barrier", "column_barrier", "block_barrier"])
+def test_every_barrier_solver_fails_on_a_lost_schur_complement(solver, monkeypatch):
+    # the wiring of delta_step in each barrier solver: its refusal ends the solve as failed (warned, δ NaN), where a
+    # Python float division by the cancelled Schur complement had raised ZeroDivisionError
+    import importlib
+
+    import unfalsify as uf
+
+    monkeypatch.setattr(importlib.import_module(f"unfalsify.solvers.{solver}"), "delta_step", lambda *a: None)
+    kw = dict(backend="structured", progress=False)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        if solver == "arx_barrier":
+            u, y = _siso(450, 0)
+            r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * uf.arx_least_squares(u, y, 2, 2)[1], **kw)
+        elif solver == "column_barrier":
+            u, y = _siso(2 * 3 + 20 - 1, 1)
+            r = uf.subspace_unfalsify(u, y, 3, 0.02, **kw)
+        else:
+            rng = np.random.default_rng(2)
+            u = np.sign(rng.standard_normal((2 * 3 + 24 - 1, 2)))
+            y = u @ rng.standard_normal((2, 2)) + 0.1 * rng.standard_normal(u.shape)
+            r = uf.subspace_unfalsify(u, y, 3, 0.05, **kw)
+    assert r.status == "failed" and np.isnan(r.delta)
