@@ -60,12 +60,13 @@ COMMANDS: dict[str, tuple] = {
                         ((("--backend",), dict(dest="backend", choices=("cvxpy", "structured", "both"),
                                                default="cvxpy", help="unfalsification backend to time "
                                                                      "(default: cvxpy)")),
-                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm", "arx-pd",
-                                                                        "subspace-pd"),
+                         (("--series",), dict(dest="series", choices=("all", "arx", "subspace", "warm", "warm-floor",
+                                                                        "arx-pd", "subspace-pd"),
                                               default="all",
                                               help="structured backend: all series, the ARX rows, the "
-                                                   "subspace rows, the warm-start table or one of the primal-dual "
-                                                   "against barrier tables only")),
+                                                   "subspace rows, the warm-start table, the warm-start floor "
+                                                   "(resumed from the new problem's own centres) or one of the "
+                                                   "primal-dual against barrier tables only")),
                          (("--sizes",), dict(dest="sizes", default=None, metavar="N,N,...",
                                              help="structured backend, arx-pd table: the ARX sizes "
                                                   "(default 200,400,1000); subspace-pd table: i×j pairs "

@@ -222,6 +222,30 @@ def test_bench_warm_table_quick(tmp_path):
     assert "Warm starts at (i, j) = (6, 60)" in (tmp_path / "bench_unfalsify" / "bench_unfalsify.md").read_text()
 
 
+def test_bench_warm_floor_table_quick(tmp_path):
+    """``--series warm-floor --quick``: both L modes resumed from every centre of their own path, each resumed solve
+    certified to the same δ; resuming later on the path never takes more Newton steps than the cold solve."""
+    import json
+
+    from experiments.cli import main
+
+    assert main(["bench-unfalsify", "--quick", "--backend", "structured", "--series", "warm-floor",
+                 "--out", str(tmp_path)]) == 0
+    st = json.loads((tmp_path / "bench_unfalsify" / "bench_unfalsify.json").read_text())["structured"]
+    assert st["warm"] is None and st["series"] == []
+    cases = st["warm_floor"]["cases"]
+    assert [c["L_fixed"] for c in cases] == [False, True]
+    for c in cases:
+        assert len(c["rows"]) >= 3 and c["delta_old"] > 0 and c["delta_new"] > 0
+        gaps = [r["gap"] for r in c["rows"]]
+        assert gaps == sorted(gaps, reverse=True)  # the path's centres in order
+        for r in c["rows"]:
+            assert r["status"] == "optimal" and r["used"] and r["overlap"] and r["certified_gap"] <= 1e-4
+            assert r["newton"] <= c["cold_newton"] + 2
+        assert c["rows"][-1]["newton"] < c["cold_newton"]
+    assert "The floor of a warm start" in (tmp_path / "bench_unfalsify" / "bench_unfalsify.md").read_text()
+
+
 def test_fixed_predictor_warm_equals_cold(small):
     """L fixed (the predictor of each window): the same mapping of the columns, the same certified δ."""
     import synthesis as sy

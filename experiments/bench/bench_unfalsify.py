@@ -743,6 +743,95 @@ def _report_warm(rep: Report, warm: dict) -> None:
     rep.text("Warm starts: " + "; ".join(f"`{s}`" for s in starts) + ".")
 
 
+#: the warm-start floor (issue 27, item 4): the window advance of the oracle resumes
+WARM_FLOOR_SHIFT, QUICK_WARM_FLOOR_SHIFT = 50, 10
+
+
+def _solve_warm_floor_case(spec: dict, fixed: bool, seed: int) -> dict:
+    """The floor of any warm start that resumes on the central path, in the child process.
+
+    The window advanced by ``shift`` samples is solved cold (timed), then re-solved from each of its *own* centred
+    points (an oracle: the exact central point of the new problem at that gap, which no warm start from the old
+    window has), timed.  What the tail of the path from gap g costs is a lower bound on the time of every warm start
+    that re-enters the path at gap g.  Also the move of δ between the two windows: the distance a warm start has to
+    cover.  Medians of ``repeats``; ``workers=1``."""
+    import unfalsify as uf
+    from unfalsify import solvers
+
+    warnings.simplefilter("ignore")
+    (i, j), shift, repeats, tol = spec["size"], spec["shift"], spec["repeats"], spec["tol"]
+    n = 2 * i + j - 1
+    u, y = _data(n + shift, seed)
+    pred, sigma = _half_ls_sigma(u[:n], y[:n], i)
+    pred = pred if fixed else None
+    first = uf.SubspaceProblem.from_data(u[:n], y[:n], i, sigma, predictor=pred)
+    new = uf.SubspaceProblem.from_data(u[shift:n + shift], y[shift:n + shift], i, sigma, predictor=pred)
+    load0 = os.getloadavg()[0]
+
+    def timed(problem, **kw):
+        walls, out = [], None
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            out = solvers.run("column_barrier", problem, tol=tol, progress=False, workers=1, **kw)
+            walls.append(time.perf_counter() - t0)
+        return out, float(np.median(walls))
+
+    old, _ = timed(first)
+    cold, cold_s = timed(new)
+    up_cold, _ = new.evaluate_primal(cold.impulses, cold.params)
+    lo_cold = new.evaluate_dual(cold.dual_v, cold.dual_W)
+    rows = []
+    for centre in cold.stats["state"]["path"]:
+        out, wall = timed(new, warm_start=centre)
+        upper, _ = new.evaluate_primal(out.impulses, out.params)  # both bounds recomputed from the data
+        lower = new.evaluate_dual(out.dual_v, out.dual_W) if out.dual_W is not None else 0.0
+        rows.append(dict(gap=float(centre["gap"]), wall=wall, ratio=wall / cold_s, newton=out.stats.get("newton"),
+                         status=out.status.value, certified_gap=float((upper - lower) / upper),
+                         overlap=bool(max(lower, lo_cold) <= min(upper, up_cold) * (1 + 1e-9)),
+                         used=out.stats.get("warm") == "used"))
+    return dict(L_fixed=bool(fixed), shift=shift, delta_old=float(old.delta), delta_new=float(cold.delta),
+                cold=cold_s, cold_newton=cold.stats.get("newton"), rows=rows, load=(load0, os.getloadavg()[0]))
+
+
+def _run_warm_floor(opts) -> dict:
+    """The warm-start floor table: L optimised and L fixed, each in its own child process."""
+    spec = dict(size=QUICK_WARM_SIZE if opts.quick else WARM_SIZE, repeats=QUICK_WARM_REPEATS if opts.quick
+                else WARM_REPEATS, shift=QUICK_WARM_FLOOR_SHIFT if opts.quick else WARM_FLOOR_SHIFT, tol=1e-4)
+    cases = []
+    for fixed in tqdm((False, True), desc="bench-unfalsify: warm-start floor", leave=False):
+        cases.append(_run_with_budget(spec, fixed, opts.seed, 1200.0, worker=_solve_warm_floor_case,
+                                      label="L fixed" if fixed else "L optimised"))
+    return {"size": spec["size"], "repeats": spec["repeats"], "tol": spec["tol"], "shift": spec["shift"],
+            "cases": cases}
+
+
+def _report_warm_floor(rep: Report, floor: dict) -> None:
+    i, j = floor["size"]
+    rep.section(f"The floor of a warm start at (i, j) = ({i}, {j}): resumed from the new problem's own centres")
+    rep.text(
+        f"The window advanced by {floor['shift']} samples, solved cold, then re-solved from each of its own centred "
+        "points (`solvers.run(\"column_barrier\", ..., warm_start=centre)`): an oracle no warm start has, since it "
+        "needs the new problem's path. A warm start that re-enters the path at gap g costs at least the row at g. "
+        f"`warm/cold` = median wall of the resumed solve / the cold solve's ({floor['repeats']} repeat(s), "
+        f"`workers=1`, tol {floor['tol']:g}); `δ move` = δ of the advanced window / δ of the first − 1, the way a warm "
+        "start from the first window has to go. `certified gap`: the resumed solve's, both bounds recomputed from the "
+        "data; `overlap`: its bracket meets the cold solve's (the same δ)."
+    )
+    rows = []
+    for c in floor["cases"]:
+        if "rows" not in c:
+            rows.append([c.get("label"), c.get("status"), *[""] * 8])
+            continue
+        mode = "L fixed" if c["L_fixed"] else "L optimised"
+        move = f"{c['delta_new'] / c['delta_old'] - 1:+.1%}"
+        for r in c["rows"]:
+            rows.append([mode, move, r["gap"], r["ratio"], _count(r["newton"]), _count(c["cold_newton"]),
+                         f"{r['status']} / {r['used']}", r["certified_gap"], r["overlap"],
+                         f"{c['load'][0]:.1f} → {c['load'][1]:.1f}"])
+    rep.table(["L", "δ move", "resumed at gap", "warm/cold", "Newton", "cold Newton", "status / resumed",
+               "certified gap", "overlap", "load"], rows, floatfmt=".3g")
+
+
 def _label(spec: dict, size: int) -> str:
     return f"n={size}" if spec["kind"] == "arx" else f"(i, j)=({spec['i']}, {size})"
 
@@ -914,7 +1003,7 @@ def _run_structured(opts, rep: Report) -> dict:
     tree = str(export_revision(rev)) if rev else None
     for spec in _structured_series(opts.quick):
         if only != "all" and spec["kind"] != only:
-            continue  # (--series warm / arx-pd / subspace-pd: that table alone)
+            continue  # (--series warm / warm-floor / arx-pd / subspace-pd: that table alone)
         base = limit if opts.quick else spec.get("limit_s", limit)
         rows = []
         for size in tqdm(spec["sizes"], desc=f"bench-unfalsify: {spec['name']}", leave=False):
@@ -936,8 +1025,10 @@ def _run_structured(opts, rep: Report) -> dict:
 
         shutil.rmtree(tree, ignore_errors=True)
 
-    comparison = None if only in ("subspace", "warm", "arx-pd", "subspace-pd") else _compare_arx(opts, limit)
+    comparison = None if only in ("subspace", "warm", "warm-floor", "arx-pd", "subspace-pd") \
+        else _compare_arx(opts, limit)
     warm = _run_warm(opts) if only in ("all", "warm") else None
+    floor = _run_warm_floor(opts) if only in ("all", "warm-floor") else None
     pd = _run_pd(opts, "arx") if only in ("all", "arx-pd") else None
     subspace_pd = _run_pd(opts, "subspace") if only in ("all", "subspace-pd") else None
 
@@ -1006,6 +1097,8 @@ def _run_structured(opts, rep: Report) -> dict:
         _report_comparison(rep, comparison)
     if warm is not None:
         _report_warm(rep, warm)
+    if floor is not None:
+        _report_warm_floor(rep, floor)
     if pd is not None:
         _report_pd(rep, pd)
     if subspace_pd is not None:
@@ -1023,7 +1116,8 @@ def _run_structured(opts, rep: Report) -> dict:
     png = opts.out / "bench_unfalsify_scaling.png"
     _plot_scaling(series, png)
     rep.figure(png, "Structured backend: wall time against size (log-log), fitted slopes in the legend")
-    return {"series": series, "baseline_rev": rev, "comparison": comparison, "warm": warm, "primal_dual": pd,
+    return {"series": series, "baseline_rev": rev, "comparison": comparison, "warm": warm, "warm_floor": floor,
+            "primal_dual": pd,
             "subspace_primal_dual": subspace_pd, "time_limit_s": limit,
             "csv": csv_path.name,
             "figure": png.name, "repeats": repeats, "load": {"before": list(load_before), "after": list(load_after)}}
