@@ -20,6 +20,7 @@ import scipy.sparse as sp
 
 from ..exceptions import SolverWarning, UnfalsificationError
 from .base import SolverOutput, SolverStatus
+from .columns import ColumnForm
 from .toeplitz import adjoint, block_conv_cols, conv_cols, deconvolve, toeplitz_matrix
 
 __all__ = ["solve"]
@@ -137,7 +138,7 @@ def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
         return _arx_channels_model(P, solver, solver_options)
     n, na, nb = P.n, P.na, P.nb
     su, sy = P.scale
-    us, ys = P.u / su, P.y / sy
+    us = P.u / su
     Phi_s, Y_s = P.regressor(scaled=True)
     sig_s = P.sigma / sy
     Tu_s = toeplitz_matrix(us)

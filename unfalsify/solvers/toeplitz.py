@@ -974,7 +974,6 @@ def block_corr_hessian(S11, S21, S22, n: int, l: int, m: int) -> np.ndarray:
     For l = m = 1 it equals :func:`corr_hessian`.
     """
     N = scipy.fft.next_fast_len(2 * n - 1, real=True)  # lags in (−n, n) without wrap-around
-    hN = N // 2 + 1
     R4 = S21.reshape(n, l, n, m).transpose(1, 3, 0, 2)  # [α, δ] time matrices of S21
     A4 = S11.reshape(n, m, n, m).transpose(1, 3, 0, 2)  # [δ, β] of S11
     B4 = S22.reshape(n, l, n, l).transpose(1, 3, 0, 2)  # [α, γ] of S22
