@@ -103,3 +103,32 @@ def test_every_barrier_solver_fails_on_a_lost_schur_complement(solver, monkeypat
             y = u @ rng.standard_normal((2, 2)) + 0.1 * rng.standard_normal(u.shape)
             r = uf.subspace_unfalsify(u, y, 3, 0.05, **kw)
     assert r.status == "failed" and np.isnan(r.delta)
+
+
+@pytest.mark.parametrize("solver", ["arx_barrier", "column_barrier"])
+def test_one_refused_elimination_moves_the_solve_to_the_precise_routes(solver, monkeypatch):
+    # the solvers with two Hessian routes retry a refused elimination by the precise one (the FFT Hessian, dense
+    # blocks) and keep it: the solve goes on and certifies
+    import importlib
+
+    import unfalsify as uf
+
+    module = importlib.import_module(f"unfalsify.solvers.{solver}")
+    calls = []
+
+    def refuse_once(*args):
+        calls.append(args)
+        return None if len(calls) == 1 else delta_step(*args)
+
+    monkeypatch.setattr(module, "delta_step", refuse_once)
+    if solver == "arx_barrier":
+        u, y = _siso(450, 0)
+        r = uf.arx_unfalsify(u, y, 2, 2, 0.5 * uf.arx_least_squares(u, y, 2, 2)[1], backend="structured",
+                             progress=False)
+    else:
+        from experiments.bench.bench_unfalsify import _half_ls_sigma
+
+        u, y = _siso(2 * 24 + 40 - 1, 1)  # m = 24: the displacement Hessian, so there is a precise route to move to
+        r = uf.subspace_unfalsify(u, y, 24, _half_ls_sigma(u, y, 24)[1], backend="structured", progress=False)
+    assert r.status == "optimal" and r.certificate.verify() and r.delta > 0
+    assert len(calls) == r.solver_stats["newton"] + 1  # the refused step was taken again, by the other route

@@ -406,7 +406,8 @@ class _ArxBarrier:
 
         By the precise routes (dense blocks, FFT Hessian) once the path's gap is below :data:`_PRECISE_GAP`·δ,
         and from the first step whose Newton system the structured routes' rounding left indefinite (measured:
-        n = 200, tol 1e-8, at a path gap of 1.7e-7·δ, where the solve had stopped with status "failed")."""
+        n = 200, tol 1e-8, at a path gap of 1.7e-7·δ, where the solve had stopped with status "failed") or whose
+        δ Schur complement it left non-positive (:func:`~unfalsify.solvers.barrier.delta_step`)."""
         if not self._precise and self.nbar / t < _PRECISE_GAP * s.d:
             self._precise = True
         if self._precise:
@@ -442,8 +443,10 @@ class _ArxBarrier:
         sol = scipy.linalg.cho_solve(cf, np.column_stack([grad_h, c]), check_finite=False)
         xg, xc = sol[:, 0], sol[:, 1]
         elim = delta_step(dd, grad_d, c @ xg, c @ xc)
-        if elim is None:  # the solves lost their digits: a non-finite decrement ends the solve (centre())
-            return np.zeros_like(xg), 0.0, float("nan"), (np.zeros_like(xc), 0.0), (S11, S21, S22)
+        if elim is None:  # the solves lost their digits
+            if not precise:  # the structured routes' rounding: newton() moves to the precise routes
+                raise np.linalg.LinAlgError("the δ Schur complement of the Newton system is not positive")
+            return np.zeros_like(xg), 0.0, float("nan"), (np.zeros_like(xc), 0.0), (S11, S21, S22)  # centre() stops
         dlt, dd_eff = elim
         dh = -xg - xc * dlt
         lam2 = -(grad_h @ dh + grad_d * dlt)
