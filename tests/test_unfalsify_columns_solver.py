@@ -228,6 +228,29 @@ def test_a_lost_delta_schur_complement_fails_the_solve_not_raises(fixed, monkeyp
     assert r.solver_stats["newton"] == 1  # the first step stops the solve (its FFT retry included)
 
 
+def test_a_start_outside_the_domain_fails_the_solve_not_raises(monkeypatch):
+    # the ridge start is strictly feasible by construction unless the noise budget is at the data's rounding level;
+    # if it is not, the solver's internal Stop must not leave subspace_unfalsify
+    u, y = servo_arx_data(2 * 3 + 20 - 1, 4)
+    monkeypatch.setattr(sc._ColumnBarrier, "_point", lambda self, H, d, gram=None: None)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False)
+    assert r.status == "failed" and np.isnan(r.delta) and r.certificate.lower_bound == 0.0
+
+
+def test_projection_onto_the_complement_of_the_whole_space_is_exactly_zero():
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((4, 6))
+    Q = np.linalg.qr(rng.standard_normal((6, 6)))[0]
+    assert not np.any(uf.solvers.columns.ColumnForm(X, X, 1.0, basis_right=Q).project(X))
+    assert np.abs(X - X @ Q @ Q.T).max() > 0  # what the formula leaves: rounding
+    Q5 = Q[:, :5]  # a proper subspace: the formula, X minus its part in the row space
+    P = uf.solvers.columns.ColumnForm(X, X, 1.0, basis_right=Q5).project(X)
+    np.testing.assert_allclose(P, np.outer(X @ Q[:, 5], Q[:, 5]), atol=1e-14)
+    Ql = np.linalg.qr(rng.standard_normal((4, 4)))[0]
+    assert not np.any(uf.solvers.columns.ColumnForm(X[:, :1], X[:, :1], 1.0, basis_left=Ql).project(X[:, :1]))
+
+
 @pytest.mark.parametrize("fixed", [True, False])
 def test_column_threads_equal_serial_solve(fixed):
     # the chunked, threaded stack operations against the serial ones on the same problem: the same

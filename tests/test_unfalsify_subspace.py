@@ -173,3 +173,53 @@ def test_fixed_predictor_with_wrong_horizon_raises():
     pred = synthesis.fit_predictor(u, y, 3, method="qr")
     with pytest.raises(DataError, match="horizon"):
         uf.subspace_unfalsify(u, y, 4, 0.05, predictor=pred)
+
+
+def _few_columns(i=24, j=40, seed=1):
+    """A window with fewer columns than the rank of [W_p; U_f] (±1 servo input): L optimised fits it exactly."""
+    u, y = servo_arx_data(2 * i + j - 1, seed)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    assert np.linalg.matrix_rank(A) >= j
+    return u, y, i, j, A, Yf
+
+
+@pytest.mark.parametrize("backend", ["structured", "cvxpy"])
+def test_no_more_columns_than_the_rank_warns_that_delta_is_zero_for_any_sigma(backend):
+    # L optimised on j ≤ rank [W_p; U_f]: the projection onto 𝓛^⊥ = {0} is exactly zero, δ = 0 is certified, and the
+    # user is told why the answer says nothing
+    u, y, i, j, A, Yf = _few_columns()
+    with pytest.warns(uf.FewDataWarning, match=rf"j = {j} columns: \[W_p; U_f\] has rank \d+ ≥ j"):
+        r = uf.subspace_unfalsify(u, y, i, 0.05, backend=backend, progress=False)
+    assert r.status == "optimal" and r.certificate.verify()
+    assert r.delta <= 1e-9 and r.certificate.upper_bound <= 1e-9
+
+
+def test_a_sigma_at_the_rounding_level_of_the_data_is_refused():
+    # σ = ½ the least-squares residual rms of data a predictor fits exactly: rounding (2e-16). The structured solver had
+    # raised its internal Stop out of subspace_unfalsify, and no certificate could be checked (noise 2× its budget)
+    u, y, i, j, A, Yf = _few_columns()
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    sigma = 0.5 * float(np.linalg.norm(Yf - L @ A) / np.sqrt(Yf.size))
+    assert sigma < 1e-13 * float(np.sqrt(np.mean(Yf**2)))
+    for backend in ("structured", "cvxpy"):
+        with pytest.raises(DataError, match="rounding level of the data .*pass sigma >"):
+            uf.subspace_unfalsify(u, y, i, sigma, backend=backend, progress=False)
+    with pytest.raises(DataError, match="rounding level"):
+        uf.arx_unfalsify(u, y, 2, 2, 1e-18)
+    floor = uf._common.NOISE_RESOLUTION * float(np.linalg.norm(Yf)) / np.sqrt(Yf.size)
+    uf.SubspaceProblem.from_data(u, y, i, 1.01 * floor)  # just above the floor: accepted
+    with pytest.raises(DataError):
+        uf.SubspaceProblem.from_data(u, y, i, 0.99 * floor)
+
+
+def test_a_fixed_predictor_on_few_columns_does_not_warn():
+    # with L fixed (fitted on a longer record) the columns must be explained by the impulses alone: not vacuous
+    i, j = 6, 12
+    u, y = servo_arx_data(2 * i + 200 - 1, 2)
+    pred = synthesis.fit_predictor(u, y, i)
+    u, y = u[: 2 * i + j - 1], y[: 2 * i + j - 1]
+    assert np.linalg.matrix_rank(uf.subspace_data(u, y, i)[0]) >= j
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.FewDataWarning)
+        r = uf.subspace_unfalsify(u, y, i, 0.01, backend="structured", progress=False, predictor=pred)
+    assert r.delta > 0 and r.certificate.verify()

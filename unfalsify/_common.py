@@ -51,6 +51,28 @@ def check_sigma(sigma) -> float:
     return s
 
 
+#: The smallest noise budget σ√N a certificate can be checked against, relative to ‖data‖_F: the residual
+#: ``data − model`` is computed with a rounding error of a few eps·‖data‖ (and cvxpy's solvers stop far above it).
+NOISE_RESOLUTION = 1e3 * float(np.finfo(float).eps)
+
+
+def check_noise_resolution(sigma: float, n_noise: int, data: np.ndarray, name: str) -> None:
+    """Raise DataError when the noise budget ``σ√N`` is at the rounding level of the data it bounds.
+
+    Below ``NOISE_RESOLUTION·‖data‖_F`` the noise of any returned point is rounding, so the premise
+    ``‖ξ‖ ≤ σ√N`` of the certificate cannot be checked in floating point (measured: a σ taken from the
+    least-squares residual of data a predictor fits exactly, 2e-16, left the certificate's noise 2× its bound)."""
+    scale = float(np.linalg.norm(data))
+    floor = NOISE_RESOLUTION * scale
+    if not sigma * np.sqrt(n_noise) > floor:
+        raise DataError(
+            f"sigma = {sigma:.3g} gives the noise budget σ√N = {sigma * np.sqrt(n_noise):.3g} (N = {n_noise}), at the "
+            f"rounding level of the data (‖{name}‖_F = {scale:.3g}): no certificate can be checked below "
+            f"{floor:.2g}; pass sigma > {floor / np.sqrt(n_noise):.2g} (a σ from the least-squares residual of data "
+            "the model fits exactly is rounding, not noise)"
+        )
+
+
 def siso_signal(x, name: str, n: int | None = None) -> np.ndarray:
     """A single-channel signal as a 1-D float array (raises DataError otherwise)."""
     arr = as_signal(x, name, n=n)

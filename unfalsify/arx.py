@@ -74,7 +74,8 @@ import numpy as np
 from synthesis import DataError
 from synthesis.results import result
 
-from ._common import COND_WARN, Certificate, certify, channel_pair, check_form, check_sigma, rms_or_one
+from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_resolution, check_sigma,
+                      rms_or_one)
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
 from .solvers.arx_barrier import ArxBlockForm
@@ -311,6 +312,7 @@ class ArxProblem:
         n = u.shape[0]
         m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])
         params = (na * l + nb * m + free_rows) if u.ndim == 2 else (na + nb + free_rows)
+        check_noise_resolution(sigma, y[free_rows:].size, y, "y")
         if n <= params:
             what = "na·l + nb·m + free_rows" if u.ndim == 2 else "na + nb + free_rows"
             raise DataError(f"need more samples than parameters: n = {n} <= {what} = {params}; pass a longer "

@@ -1,8 +1,9 @@
 """Exceptions and warnings of :mod:`unfalsify` (as python-control's ``exception.py``).
 
 Every class is also importable from ``unfalsify`` itself, where users find them.  The pipeline's own
-warnings (``FewDataWarning``, ``LongSolveWarning``, ``NotCertifiedWarning``, ``NotCertifiedError``) still
-live in :mod:`unfalsify.robust` while that module is being reworked; they move here with it.
+warnings (``LongSolveWarning``, ``NotCertifiedWarning``, ``NotCertifiedError``) still live in
+:mod:`unfalsify.robust` while that module is being reworked; they move here with it (``FewDataWarning`` has: the
+subspace program warns with it too).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ __all__ = [
     "NotAtRestWarning",
     "IllConditionedWarning",
     "SolverWarning",
+    "FewDataWarning",
 ]
 
 
@@ -37,3 +39,8 @@ class IllConditionedWarning(UserWarning):
 
 class SolverWarning(UserWarning):
     """The conic solver returned a status other than ``optimal``."""
+
+
+class FewDataWarning(UserWarning):
+    """The (7.5) window has few columns for the predictor it estimates: δ is then optimistic (with no more columns than
+    the rank of ``[W_p; U_f]``, and L optimised, it is 0 whatever the data)."""

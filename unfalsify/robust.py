@@ -61,7 +61,7 @@ from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis.validation import DataError, check_horizon
 
 from ._common import channel_pair, check_sigma
-from .exceptions import SolverWarning, UnfalsificationError
+from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
                       tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
@@ -101,10 +101,6 @@ class NotCertifiedWarning(UserWarning):
 
 class NotCertifiedError(UnfalsificationError):
     """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""
-
-
-class FewDataWarning(UserWarning):
-    """The (7.5) window has few columns for the predictor it estimates: δ is then optimistic."""
 
 
 class LongSolveWarning(UserWarning):

@@ -48,8 +48,9 @@ from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
 from synthesis.validation import as_signal, check_horizon
 
-from ._common import COND_WARN, Certificate, certify, check_form, check_sigma, rms_or_one
-from .exceptions import IllConditionedWarning, UnknownSolverError
+from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_resolution, check_sigma,
+                      rms_or_one)
+from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
 from .solvers.columns import BlockColumnForm, ColumnForm
 from .solvers.toeplitz import (block_certified_norm, block_conv_cols, certified_norm, conv_cols, signal_toeplitz,
@@ -233,6 +234,7 @@ class SubspaceProblem:
         sigma = check_sigma(sigma)
         A, Uf, Yf = subspace_data(u, y, horizon)
         i, j = Uf.shape[0] // m, Uf.shape[1]
+        check_noise_resolution(sigma, Yf.size, Yf, "Y_f")
         zero_cols = np.flatnonzero(np.all(Uf[:m] == 0.0, axis=0))
         if zero_cols.size:
             raise DataError(
@@ -260,6 +262,8 @@ class SubspaceProblem:
         su = rms_or_one(u)
         Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         sy = rms_or_one(Yf - Lref @ A)
+        if not sy > 1e-12 * rms_or_one(Yf):  # a predictor fits the data exactly: the residual is rounding
+            sy = rms_or_one(Yf)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
         return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
@@ -294,20 +298,21 @@ class SubspaceProblem:
         rho = self.sigma / sy * np.sqrt(i * j)
         if self.L_fixed is not None:
             return ColumnForm(self.Uf / su, (self.Yf - self.L_fixed @ self.A) / sy, rho)
-        As = self.scaled_A() if scaled else self.A
-        Vt, sv = np.linalg.svd(As, full_matrices=False)[2], np.linalg.svd(As, compute_uv=False)
-        rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
-        return ColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T)
+        return ColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=self._row_basis(scaled))
 
     def _block_form(self, su, sy, scaled) -> BlockColumnForm:
         rho = self.sigma / sy * np.sqrt(self.n_noise)
         kw = dict(n_inputs=self.n_inputs, n_outputs=self.n_outputs)
         if self.L_fixed is not None:
             return BlockColumnForm(self.Uf / su, (self.Yf - self.L_fixed @ self.A) / sy, rho, **kw)
+        return BlockColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=self._row_basis(scaled), **kw)
+
+    def _row_basis(self, scaled: bool = True) -> np.ndarray:
+        """Orthonormal basis (j × rank) of the row space of ``A = [W_p; U_f]`` (scaled or not): 𝓛 = {X Qᵀ}."""
         As = self.scaled_A() if scaled else self.A
-        Vt, sv = np.linalg.svd(As, full_matrices=False)[2], np.linalg.svd(As, compute_uv=False)
+        _, sv, Vt = np.linalg.svd(As, full_matrices=False)
         rank = int(np.count_nonzero(sv > max(As.shape) * np.finfo(float).eps * (sv[0] if sv.size else 1.0)))
-        return BlockColumnForm(self.Uf / su, self.Yf / sy, rho, basis_right=Vt[:rank].T, **kw)
+        return Vt[:rank].T
 
     def evaluate_primal(self, H, L, near=None) -> tuple[float, float]:
         """``(max_k ‖T(h_k)‖₂, ‖Y_f − L A − H̃‖_F)`` recomputed from the data.
@@ -570,6 +575,16 @@ def subspace_unfalsify(
             f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
             "singular; prefer form='conditioned'",
             IllConditionedWarning,
+            stacklevel=2,
+        )
+    rank = np.linalg.matrix_rank(P.scaled_A()) if predictor is None else 0  # the rule of _row_basis
+    if rank >= j:
+        warnings.warn(
+            f"(7.5) with L optimised on j = {j} columns: [W_p; U_f] has rank {rank} ≥ j, so a predictor fits every "
+            "column exactly and δ = 0 for any σ (the data cannot falsify anything); use a longer record (more than "
+            f"{rank} columns: n > {rank + 2 * i - 1} samples) or fix the predictor (predictor=..., fitted on a longer "
+            "record)",
+            FewDataWarning,
             stacklevel=2,
         )
     if executor is not None:

@@ -88,7 +88,12 @@ class ColumnForm:
         self.Qr = basis_right
 
     def project(self, X: np.ndarray) -> np.ndarray:
-        """Orthogonal projection onto 𝓛^⊥."""
+        """Orthogonal projection onto 𝓛^⊥ (exactly zero when 𝓛 is the whole space: a square orthonormal basis, e.g.
+        (7.5) with L optimised on no more columns than the rank of ``[W_p; U_f]``, where ``X − X Q Qᵀ`` would leave
+        rounding of ``‖X‖`` that a noise budget at that level could not absorb)."""
+        if (self.Ql is not None and self.Ql.shape[1] >= self.Ql.shape[0]) or \
+                (self.Qr is not None and self.Qr.shape[1] >= self.Qr.shape[0]):
+            return np.zeros_like(X)
         if self.Ql is not None and self.Ql.shape[1]:
             X = X - self.Ql @ (self.Ql.T @ X)
         if self.Qr is not None and self.Qr.shape[1]:
