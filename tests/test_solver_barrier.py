@@ -128,7 +128,7 @@ def test_one_refused_elimination_moves_the_solve_to_the_precise_routes(solver, m
     else:
         from experiments.bench.bench_unfalsify import _half_ls_sigma
 
-        u, y = _siso(2 * 24 + 40 - 1, 1)  # m = 24: the displacement Hessian, so there is a precise route to move to
+        u, y = _siso(2 * 24 + 120 - 1, 1)  # m = 24: the displacement Hessian, so there is a precise route to move to
         r = uf.subspace_unfalsify(u, y, 24, _half_ls_sigma(u, y, 24)[1], backend="structured", progress=False)
     assert r.status == "optimal" and r.certificate.verify() and r.delta > 0
     assert len(calls) == r.solver_stats["newton"] + 1  # the refused step was taken again, by the other route

@@ -228,13 +228,22 @@ def test_a_lost_delta_schur_complement_fails_the_solve_not_raises(fixed, monkeyp
     assert r.solver_stats["newton"] == 1  # the first step stops the solve (its FFT retry included)
 
 
-def test_a_start_outside_the_domain_fails_the_solve_not_raises(monkeypatch):
+@pytest.mark.parametrize("solver", ["column_barrier", "block_barrier"])
+def test_a_start_outside_the_domain_fails_the_solve_not_raises(solver, monkeypatch):
     # the ridge start is strictly feasible by construction unless the noise budget is at the data's rounding level;
     # if it is not, the solver's internal Stop must not leave subspace_unfalsify
+    from unfalsify.solvers import block_barrier
+
     u, y = servo_arx_data(2 * 3 + 20 - 1, 4)
-    monkeypatch.setattr(sc._ColumnBarrier, "_point", lambda self, H, d, gram=None: None)
+    if solver == "column_barrier":
+        monkeypatch.setattr(sc._ColumnBarrier, "_point", lambda self, H, d, gram=None: None)
+    else:
+        monkeypatch.setattr(block_barrier._BlockBarrier, "_point", lambda self, H, d: None)
+        rng = np.random.default_rng(4)
+        u = np.column_stack([u, np.sign(rng.standard_normal(u.size))])
+        y = np.column_stack([y, y + 0.1 * rng.standard_normal(u.shape[0])])
     with pytest.warns(uf.SolverWarning, match="failed"):
-        r = uf.subspace_unfalsify(u, y, 3, _sigma(u, y, 3), backend="structured", progress=False)
+        r = uf.subspace_unfalsify(u, y, 3, 0.01, backend="structured", progress=False)
     assert r.status == "failed" and np.isnan(r.delta) and r.certificate.lower_bound == 0.0
 
 

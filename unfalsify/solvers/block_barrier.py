@@ -264,7 +264,7 @@ class _BlockBarrier(PathAdvance):
         T = _toeplitz_blocks(H, self.i, self.l, self.m)
         up = float(np.linalg.svd(T, compute_uv=False)[:, 0].max())
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
-        if p is None:  # pragma: no cover - strictly inside by construction
+        if p is None:  # inside by construction, unless the noise budget is at the rounding level of the data
             raise Stop("failed")
         return p
 
@@ -305,7 +305,11 @@ class _BlockBarrier(PathAdvance):
 
     def run(self) -> dict:
         deadline = Deadline(self.time_limit)
-        p = self.start()
+        try:
+            p = self.start()
+        except Stop as exc:  # before the first point: no bracket but δ ≥ 0
+            return dict(status=str(exc), lower=0.0, upper=float("nan"), V=None, W=None, newton=0, outer=0,
+                        H=np.zeros((self.i * self.l * self.m, self.j)))
         up = p.upper()
         self._prev = (up, 0.0)
         return run_barrier(self, self.f, p, self.nu / p.d, deadline, up)
