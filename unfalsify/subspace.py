@@ -262,8 +262,6 @@ class SubspaceProblem:
         su = rms_or_one(u)
         Lref = L_fixed if L_fixed is not None else np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         sy = rms_or_one(Yf - Lref @ A)
-        if not sy > 1e-12 * rms_or_one(Yf):  # a predictor fits the data exactly: the residual is rounding
-            sy = rms_or_one(Yf)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
         return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
