@@ -4,7 +4,6 @@ Its NT-scaled Schur complement against a dense construction, its SOC scaling aga
 its answer against ``arx_barrier`` and the cvxpy model to the certified gap on random ARX problems, the
 certificates, several channels, and an early stop (time limit, Ctrl-C, numerical failure) that keeps a certified
 bracket."""
-import warnings
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ import unfalsify.solvers.barrier as barrier
 from unfalsify import solvers
 from unfalsify.solvers.toeplitz import toeplitz_matrix
 
+from _quiet import quiet  # tests/ helper
 from _servo_arx import servo_arx_data  # tests/ helper
 
 try:
@@ -23,13 +23,6 @@ try:
     from hypothesis import strategies as st
 except ImportError:  # pragma: no cover - hypothesis is a dev dependency
     given = None
-
-
-def _quiet(fn, *args, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", uf.SolverWarning)
-        warnings.simplefilter("ignore", uf.IllConditionedWarning)
-        return fn(*args, **kw)
 
 
 def _random_arx(seed, n):
@@ -106,10 +99,10 @@ def test_soc_scaling_meets_its_identities():
 # ---- against the barrier method and cvxpy ---------------------------------------------------------------
 def _check_against_references(seed, n, tol=1e-6):
     u, y, na, nb, sigma = _random_arx(seed, n)
-    rp = _quiet(uf.arx_unfalsify, u, y, na, nb, sigma, backend="structured", method="primal_dual", tol=tol,
+    rp = quiet(uf.arx_unfalsify, u, y, na, nb, sigma, backend="structured", method="primal_dual", tol=tol,
                 progress=False)
-    rb = _quiet(uf.arx_unfalsify, u, y, na, nb, sigma, backend="structured", tol=tol, progress=False)
-    rc = _quiet(uf.arx_unfalsify, u, y, na, nb, sigma)
+    rb = quiet(uf.arx_unfalsify, u, y, na, nb, sigma, backend="structured", tol=tol, progress=False)
+    rc = quiet(uf.arx_unfalsify, u, y, na, nb, sigma)
     assert rp.status == "optimal" and rb.status == "optimal"
     cp_, cb = rp.certificate, rb.certificate
     assert cp_.verify() and cp_.ok() and cb.verify()
@@ -165,9 +158,9 @@ def test_several_channels_equal_the_barrier_method_and_cvxpy(l, m, na, free_rows
     _, rms = uf.arx_least_squares(u, y, na, na)
     sigma = 0.5 * rms if na else 0.15 * float(np.sqrt(np.mean(y[free_rows:] ** 2)))
     kw = dict(free_rows=free_rows, progress=False)
-    rp = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", method="primal_dual", **kw)
-    rb = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", **kw)
-    rc = _quiet(uf.arx_unfalsify, u, y, na, na, sigma, free_rows=free_rows)
+    rp = quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", method="primal_dual", **kw)
+    rb = quiet(uf.arx_unfalsify, u, y, na, na, sigma, backend="structured", **kw)
+    rc = quiet(uf.arx_unfalsify, u, y, na, na, sigma, free_rows=free_rows)
     c = rp.certificate
     assert rp.status == rb.status == "optimal" and c.verify() and c.ok() and c.relative_gap <= 1e-6
     assert rp.impulse.shape == (n, l, m) and (rp.n_outputs, rp.n_inputs) == (l, m)

@@ -5,7 +5,6 @@ equations (the Schur complement and its solve by the barrier method's block/Wood
 ``column_barrier`` and the cvxpy model to the certified gap on random problems (L fixed and optimised), the
 certificates, the front end's ``method="primal_dual"``, threads, and an early stop (time limit, Ctrl-C, numerical
 failure) that keeps a certified bracket."""
-import warnings
 
 import numpy as np
 import pytest
@@ -17,19 +16,13 @@ from unfalsify import solvers
 from unfalsify.solvers.cones import nt_scaling, nt_scaling_stack
 from unfalsify.solvers.toeplitz import adjoint
 
+from _quiet import quiet  # tests/ helper
+
 try:
     from hypothesis import given, settings
     from hypothesis import strategies as st
 except ImportError:  # pragma: no cover - hypothesis is a dev dependency
     given = None
-
-
-def _quiet(fn, *args, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", uf.SolverWarning)
-        warnings.simplefilter("ignore", uf.IllConditionedWarning)
-        warnings.simplefilter("ignore", uf.FewDataWarning)
-        return fn(*args, **kw)
 
 
 def _random_data(seed, n):
@@ -130,9 +123,9 @@ def test_newton_direction_solves_the_linearised_cone_equations(fixed):
 def _check_against_references(seed, i, j, fixed, tol=1e-6):
     u, y, pred, sigma = _problem(seed, i, j, fixed)
     kw = dict(predictor=pred, backend="structured", tol=tol, progress=False)
-    rp = _quiet(uf.subspace_unfalsify, u, y, i, sigma, method="primal_dual", **kw)
-    rb = _quiet(uf.subspace_unfalsify, u, y, i, sigma, **kw)
-    rc = _quiet(uf.subspace_unfalsify, u, y, i, sigma, predictor=pred)
+    rp = quiet(uf.subspace_unfalsify, u, y, i, sigma, method="primal_dual", **kw)
+    rb = quiet(uf.subspace_unfalsify, u, y, i, sigma, **kw)
+    rc = quiet(uf.subspace_unfalsify, u, y, i, sigma, predictor=pred)
     assert rp.status == "optimal" and rb.status == "optimal"
     cp_, cb = rp.certificate, rb.certificate
     assert cp_.verify() and cp_.ok() and cb.verify()
@@ -160,8 +153,8 @@ if given is not None:
 def test_tight_tolerance_against_the_barrier_method():
     u, y, pred, sigma = _problem(7, 5, 50, False)
     kw = dict(backend="structured", progress=False, tol=1e-8)
-    rp = _quiet(uf.subspace_unfalsify, u, y, 5, sigma, method="primal_dual", **kw)
-    rb = _quiet(uf.subspace_unfalsify, u, y, 5, sigma, **kw)
+    rp = quiet(uf.subspace_unfalsify, u, y, 5, sigma, method="primal_dual", **kw)
+    rb = quiet(uf.subspace_unfalsify, u, y, 5, sigma, **kw)
     assert rp.status == rb.status == "optimal"
     assert rp.certificate.verify() and rp.certificate.relative_gap <= 1e-8
     assert rp.delta == pytest.approx(rb.delta, rel=2e-8)
@@ -198,9 +191,9 @@ def test_several_channels_are_refused_with_the_fix_named():
 
 def test_a_warm_start_is_not_used_and_says_why():
     u, y, pred, sigma = _problem(8, 4, 40, True)
-    first = _quiet(uf.subspace_unfalsify, u[:-5], y[:-5], 4, sigma, predictor=pred, backend="structured",
+    first = quiet(uf.subspace_unfalsify, u[:-5], y[:-5], 4, sigma, predictor=pred, backend="structured",
                    progress=False)
-    r = _quiet(uf.subspace_unfalsify, u[5:], y[5:], 4, sigma, predictor=pred, backend="structured",
+    r = quiet(uf.subspace_unfalsify, u[5:], y[5:], 4, sigma, predictor=pred, backend="structured",
                method="primal_dual", progress=False, warm_start=first)
     assert r.start.startswith("cold (warm start not used") and "column_pd" in r.start
     assert r.status == "optimal" and r.certificate.verify()

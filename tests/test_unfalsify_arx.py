@@ -10,17 +10,11 @@ import scipy.signal
 import unfalsify as uf
 from synthesis import DataError
 
+from _quiet import quiet  # tests/ helper
 from _servo_arx import A_SERVO, B_SERVO, servo_arx_data  # tests/ helper
 
 # servo 1/(s(s+1)) ZOH at 10 Hz, as an ARX(2, 2) model (coefficients rounded)
 _data = servo_arx_data
-
-
-def _quiet(fn, *args, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", uf.SolverWarning)
-        warnings.simplefilter("ignore", uf.IllConditionedWarning)
-        return fn(*args, **kw)
 
 
 def test_regressor_matches_thesis_definition():
@@ -94,7 +88,7 @@ def test_conditioned_and_thesis_forms_agree(n):
     u, y = _data(n, 4 + n)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
     rc = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms)
-    rt = _quiet(uf.arx_unfalsify, u, y, 2, 2, 0.5 * rms, form="thesis")
+    rt = quiet(uf.arx_unfalsify, u, y, 2, 2, 0.5 * rms, form="thesis")
     assert rc.status == "optimal"
     assert rt.status in ("optimal", "optimal_inaccurate")
     assert rt.delta == pytest.approx(rc.delta, rel=1e-4)
