@@ -466,6 +466,39 @@ def test_blas_is_pinned_to_one_thread_per_worker(monkeypatch, workers):
     assert seen == [1]
 
 
+@pytest.mark.parametrize("backend", ["structured", "cvxpy"])
+def test_the_structured_call_holds_blas_to_one_thread_from_set_up_to_certificate(monkeypatch, backend):
+    # the set-up (SVDs of the regressor, cond T(u_k)) and the certificate too: with BLAS as configured they took
+    # 6.5–9 s around a 14 s solve at (50, 500) on a loaded machine, 0.33 s with one thread. The cvxpy backend keeps
+    # the configured threads.
+    import threadpoolctl
+
+    import unfalsify.subspace as sub
+
+    def blas_threads():
+        return max((p["num_threads"] for p in threadpoolctl.threadpool_info() if p["user_api"] == "blas"), default=1)
+
+    seen = {}
+    from_data, certify = sub.SubspaceProblem.from_data.__func__, sub.certify
+
+    def spy_from_data(cls, *args, **kw):
+        seen["set-up"] = blas_threads()
+        return from_data(cls, *args, **kw)
+
+    def spy_certify(*args, **kw):
+        seen["certificate"] = blas_threads()
+        return certify(*args, **kw)
+
+    monkeypatch.setattr(sub.SubspaceProblem, "from_data", classmethod(spy_from_data))
+    monkeypatch.setattr(sub, "certify", spy_certify)
+    u, y = _other_plant(2 * 4 + 20 - 1, 0)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        configured = blas_threads()
+        uf.subspace_unfalsify(u, y, 4, _sigma(u, y, 4), backend=backend, progress=False, workers=1)
+    expected = 1 if backend == "structured" else configured
+    assert seen == {"set-up": expected, "certificate": expected}
+
+
 @pytest.mark.parametrize("m, j", [(1, 3), (2, 1), (7, 5), (40, 9), (100, 3)])
 def test_gram_stack_recursion_equals_the_products_and_is_symmetric(m, j):
     from unfalsify.solvers.toeplitz import toeplitz_gram_stack, toeplitz_stack

@@ -37,6 +37,7 @@ SISO only and names ``backend="cvxpy"``.  With one channel each the SISO code ru
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -52,6 +53,7 @@ from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_r
                       rms_or_one)
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
+from .solvers.base import one_blas_thread
 from .solvers.columns import BlockColumnForm, ColumnForm
 from .solvers.toeplitz import (block_certified_norm, block_conv_cols, certified_norm, conv_cols, signal_toeplitz,
                                toeplitz_cond)
@@ -486,10 +488,11 @@ def subspace_unfalsify(
         as serial.
     workers : int or None
         Structured backend: threads over the column stack (default ``None``: every core,
-        ``os.cpu_count()``).  BLAS is held to one thread per worker during the solve, so the
-        threads do not compete with BLAS's own; the result equals the one-thread solve up to the
-        order of floating-point sums.  One channel only: the solver for several channels
-        (``block_barrier``) runs on one thread and ignores it.
+        ``os.cpu_count()``).  BLAS is held to one thread for the whole call (set-up, solve and
+        certificate), so the threads do not compete with BLAS's own and ``workers=1`` uses one
+        core; the result equals the one-thread solve up to the order of floating-point sums.  One
+        channel only: the solver for several channels (``block_barrier``) runs on one thread and
+        ignores it.
     warm_start : SubspaceResult, optional
         An earlier result on related data: the same record with the window advanced by k ≥ 0 samples
         (found by matching the samples; its Hankel columns ``k…`` are this window's columns ``0…``), the
@@ -558,75 +561,78 @@ def subspace_unfalsify(
     if predictor is not None and eliminate_L:
         raise ValueError("eliminate_L and a fixed predictor exclude each other")
     workers = check_workers(workers)
-    P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
-    i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
-    if not P.siso and form != "conditioned":
-        raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
-                         "form='conditioned'")
-    if not P.siso and name == "column_barrier":
-        name = "block_barrier"  # the structured solver for several channels
-    if name == "column_pd" and not P.siso:
-        raise UnknownSolverError(f"method='primal_dual' of (7.5) solves single-channel data only; for {l}×{m} data "
-                                 "use method='barrier' (solver 'block_barrier') or backend='cvxpy'")
-    if form == "thesis" and not P.cond_Tu <= COND_WARN:
-        warnings.warn(
-            f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
-            "singular; prefer form='conditioned'",
-            IllConditionedWarning,
-            stacklevel=2,
+    # the structured solvers' set-up and certificate as well as the solve: BLAS held to one thread (one_blas_thread)
+    structured = executor is None and name in ("column_barrier", "block_barrier", "column_pd")
+    with one_blas_thread() if structured else contextlib.nullcontext():
+        P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
+        i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
+        if not P.siso and form != "conditioned":
+            raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
+                             "form='conditioned'")
+        if not P.siso and name == "column_barrier":
+            name = "block_barrier"  # the structured solver for several channels
+        if name == "column_pd" and not P.siso:
+            raise UnknownSolverError(f"method='primal_dual' of (7.5) solves single-channel data only; for {l}×{m} "
+                                     "data use method='barrier' (solver 'block_barrier') or backend='cvxpy'")
+        if form == "thesis" and not P.cond_Tu <= COND_WARN:
+            warnings.warn(
+                f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
+                "singular; prefer form='conditioned'",
+                IllConditionedWarning,
+                stacklevel=2,
+            )
+        rank = np.linalg.matrix_rank(P.scaled_A()) if predictor is None else 0  # the rule of _row_basis
+        if rank >= j:
+            warnings.warn(
+                f"(7.5) with L optimised on j = {j} columns: [W_p; U_f] has rank {rank} ≥ j, so a predictor fits "
+                "every column exactly and δ = 0 for any σ (the data cannot falsify anything); use a longer record "
+                f"(more than {rank} columns: n > {rank + 2 * i - 1} samples) or fix the predictor (predictor=..., "
+                "fitted on a longer record)",
+                FewDataWarning,
+                stacklevel=2,
+            )
+        if executor is not None:
+            if predictor is None or form != "conditioned":
+                raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
+                                "form='conditioned': pass predictor=... (e.g. synthesis.fit_predictor(u, y, i))")
+            name, backend, options = "split", "split", dict(executor=executor)
+        elif name == "cvxpy":
+            options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
+        else:
+            options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
+        start = "cold"
+        if warm_start is not None:
+            state, start = _warm_state(warm_start, P, name)
+            if state is not None:
+                options["warm_start"] = state
+        out = run(name, P, **options)
+        note = out.stats.get("warm")
+        if note is not None and note != "used":
+            start = f"cold (warm start not used: {note})"
+        cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
+        L = out.params
+        w = i * (m + l)  # columns of L_w
+        return SubspaceResult(
+            delta=delta,
+            Lw=L[:, :w].copy(),
+            Lu=L[:, w:].copy(),
+            noise=P.Yf - L @ P.A - P._conv(out.impulses),
+            impulses=out.impulses,
+            status=out.status.value,
+            solve_time=out.solve_time,
+            problem=out.problem,
+            form=form,
+            eliminate_L=bool(eliminate_L and form == "conditioned"),
+            sigma=P.sigma,
+            horizon=i,
+            n_columns=j,
+            cond_Tu=P.cond_Tu,
+            certificate=cert,
+            scale=P.scale,
+            regressor_singular_values=np.linalg.svd(P.A, compute_uv=False),
+            backend=backend,
+            n_inputs=m,
+            n_outputs=l,
+            start=start,
+            solver_stats=dict(out.stats),
         )
-    rank = np.linalg.matrix_rank(P.scaled_A()) if predictor is None else 0  # the rule of _row_basis
-    if rank >= j:
-        warnings.warn(
-            f"(7.5) with L optimised on j = {j} columns: [W_p; U_f] has rank {rank} ≥ j, so a predictor fits every "
-            "column exactly and δ = 0 for any σ (the data cannot falsify anything); use a longer record (more than "
-            f"{rank} columns: n > {rank + 2 * i - 1} samples) or fix the predictor (predictor=..., fitted on a longer "
-            "record)",
-            FewDataWarning,
-            stacklevel=2,
-        )
-    if executor is not None:
-        if predictor is None or form != "conditioned":
-            raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
-                            "form='conditioned': pass predictor=... (e.g. synthesis.fit_predictor(u, y, i))")
-        name, backend, options = "split", "split", dict(executor=executor)
-    elif name == "cvxpy":
-        options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
-    else:
-        options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
-    start = "cold"
-    if warm_start is not None:
-        state, start = _warm_state(warm_start, P, name)
-        if state is not None:
-            options["warm_start"] = state
-    out = run(name, P, **options)
-    note = out.stats.get("warm")
-    if note is not None and note != "used":
-        start = f"cold (warm start not used: {note})"
-    cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
-    L = out.params
-    w = i * (m + l)  # columns of L_w
-    return SubspaceResult(
-        delta=delta,
-        Lw=L[:, :w].copy(),
-        Lu=L[:, w:].copy(),
-        noise=P.Yf - L @ P.A - P._conv(out.impulses),
-        impulses=out.impulses,
-        status=out.status.value,
-        solve_time=out.solve_time,
-        problem=out.problem,
-        form=form,
-        eliminate_L=bool(eliminate_L and form == "conditioned"),
-        sigma=P.sigma,
-        horizon=i,
-        n_columns=j,
-        cond_Tu=P.cond_Tu,
-        certificate=cert,
-        scale=P.scale,
-        regressor_singular_values=np.linalg.svd(P.A, compute_uv=False),
-        backend=backend,
-        n_inputs=m,
-        n_outputs=l,
-        start=start,
-        solver_stats=dict(out.stats),
-    )

@@ -101,7 +101,7 @@ from scipy.linalg import lapack as _lapack
 
 from .barrier import (Deadline, Stop, best_along, cholesky_retry, delta_step, linearised_dual, path_steps,
                       run_barrier)
-from .base import SolverOutput, unscaled, zero_answer
+from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
 from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
 from .start import operator_svd, ridge_fit, ridge_fit_gram
@@ -621,9 +621,7 @@ def _blas_policy(form):
     """
     if isinstance(form, BlockColumnForm) or form.m > _ONE_BLAS_THREAD_UP_TO:
         return contextlib.nullcontext()
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_blas_thread()
 
 
 def _configured_blas():

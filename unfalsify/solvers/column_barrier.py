@@ -87,7 +87,7 @@ import scipy.linalg
 
 from .barrier import (Deadline, PathAdvance, Stop, best_along, delta_step, linearised_dual, path_steps, pcg,
                       run_barrier)
-from .base import SolverOutput, unscaled, zero_answer
+from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
 from .columns import ColumnForm
 from .displacement import displacement_hessian
 from .start import coordinates, impulses, operator_svd, ridge_fit
@@ -1100,9 +1100,7 @@ def _on_threads(workers, run):
     second BLAS thread competing with other jobs was measured 5.5× slower (183 s against 33 s at (50, 500) under
     load)."""
     n = check_workers(workers)
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         if n == 1:
             return run(_SERIAL)
         from concurrent.futures import ThreadPoolExecutor
