@@ -105,6 +105,17 @@ def test_time_limit_returns_certified_bracket_with_warning():
     assert r.delta == pytest.approx(c.upper_bound)
 
 
+def test_cvxpy_delta_is_never_negative():
+    # σ above the least-squares residual: δ = 0, which Clarabel reached as −6.3e-12 (servo seed 1, σ = 1.2 × the rms)
+    u, y = servo_arx_data(40, 1)
+    r = uf.arx_unfalsify(u, y, 2, 2, 1.2 * uf.arx_least_squares(u, y, 2, 2)[1])
+    assert r.status == "optimal" and 0.0 <= r.delta <= 1e-9 and r.certificate.verify()
+    from unfalsify.solvers.cvxpy_models import _solved_value
+
+    assert _solved_value("optimal", -6.3e-12) == 0.0 and _solved_value("optimal", 0.25) == 0.25
+    assert np.isnan(_solved_value("infeasible", 0.25)) and np.isnan(_solved_value("optimal", None))
+
+
 def test_zero_delta_structured():
     u, y = servo_arx_data(25, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
