@@ -116,6 +116,26 @@ def test_cvxpy_delta_is_never_negative():
     assert np.isnan(_solved_value("infeasible", 0.25)) and np.isnan(_solved_value("optimal", None))
 
 
+def test_an_optimal_status_whose_point_is_not_certified_is_warned():
+    # Clarabel's "optimal" holds to its own tolerances: measured (fuzz), σ = 1e-10 on data of rms 0.16 came back
+    # "optimal" with the noise at 1.52 σ√N. The mechanism, deterministically: a cvxpy answer for σ certified
+    # against the same data at σ/2, where its point's noise is about twice the budget.
+    from unfalsify._common import certify
+    from unfalsify.solvers import run
+
+    u, y = servo_arx_data(40, 3)
+    sigma = 0.5 * uf.arx_least_squares(u, y, 2, 2)[1]
+    P, P_half = uf.ArxProblem.from_data(u, y, 2, 2, sigma), uf.ArxProblem.from_data(u, y, 2, 2, sigma / 2)
+    out = run("cvxpy", P, form="conditioned", solver="CLARABEL", solver_options=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.SolverWarning)
+        cert, _ = certify(P, out, "test")  # its own problem: certified, no warning
+    assert cert.ok()
+    with pytest.warns(uf.SolverWarning, match=r"reported 'optimal', but its point .*\(noise ‖ξ‖ = 2(\.0+)? σ√N"):
+        cert_half, delta = certify(P_half, out, "test")
+    assert not cert_half.ok() and delta == out.delta
+
+
 def test_zero_delta_structured():
     u, y = servo_arx_data(25, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
