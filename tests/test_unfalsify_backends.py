@@ -136,6 +136,35 @@ def test_an_optimal_status_whose_point_is_not_certified_is_warned():
     assert not cert_half.ok() and delta == out.delta
 
 
+@pytest.mark.parametrize("method", ["barrier", "primal_dual"])
+def test_sigma_equal_to_the_least_squares_rms_gives_a_certified_zero(method):
+    # ‖PB‖ on ρ up to rounding: δ = 0 with an empty interior, where the structured solvers had failed (fuzz run:
+    # multisine and low-pass ARX records, a multilevel (7.5) window with its own predictor, ‖PB‖/ρ − 1 = 2e-16 …
+    # 4e-15). σ is the least-squares rms shrunk by 3e-15, the rounding's side that needs a solve.
+    shrink = 1.0 + 3e-15
+    u, y = servo_arx_data(450, 5)
+    sigma = uf.arx_least_squares(u, y, 2, 2)[1] / shrink
+    r = uf.arx_unfalsify(u, y, 2, 2, sigma, backend="structured", method=method, progress=False)
+    assert r.status == "optimal" and r.delta == 0.0 and r.certificate.verify()
+    i = 4
+    u, y = servo_arx_data(2 * i + 40 - 1, 6)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    sigma = float(np.sqrt(np.mean((Yf - L @ A) ** 2))) / shrink
+    r = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", method=method, progress=False)
+    assert r.status == "optimal" and r.delta == 0.0 and r.certificate.verify()
+
+
+def test_zero_answer_takes_rounding_not_more():
+    from unfalsify.solvers.base import zero_answer
+    from unfalsify.solvers.columns import ColumnForm
+
+    B = np.random.default_rng(0).standard_normal((5, 3))
+    rho = float(np.linalg.norm(B))
+    assert zero_answer(ColumnForm(B, B, rho / (1 + 4e-15))) and zero_answer(ColumnForm(B, B, rho))
+    assert not zero_answer(ColumnForm(B, B, rho / (1 + 1e-9)))
+
+
 def test_zero_delta_structured():
     u, y = servo_arx_data(25, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)
