@@ -165,6 +165,37 @@ def test_zero_answer_takes_rounding_not_more():
     assert not zero_answer(ColumnForm(B, B, rho / (1 + 1e-9)))
 
 
+@pytest.mark.parametrize("method, tol", [("barrier", 1e-6), ("primal_dual", 1e-8)])
+def test_structured_arx_with_a_rank_deficient_regressor_is_certified(method, tol):
+    # noise-free data of an order-3 plant fitted with na = nb = 4: cond Φ 1.8e16. The unpivoted QR basis of range Φ
+    # kept a direction of rounding, and the solve stopped "optimal" with gap 1.7e-3 and the noise 5e-4 over its bound
+    # (fuzz run); the basis now has the rank of the least-squares fit
+    import scipy.signal
+
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(149)
+    y = scipy.signal.lfilter([1.0, -0.4, 0.3, 0.2], np.poly([0.9, 0.5 + 0.4j, 0.5 - 0.4j]).real, u)
+    sigma = 0.01 * uf.arx_least_squares(u, y, 4, 4)[1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.SolverWarning)
+        r = uf.arx_unfalsify(u, y, 4, 4, sigma, backend="structured", method=method, tol=tol, progress=False)
+    c = r.certificate
+    assert r.status == "optimal" and c.verify() and c.relative_gap <= tol
+
+
+def test_a_structured_optimal_whose_certificate_fails_is_warned():
+    from unfalsify._common import certify
+    from unfalsify.solvers import run
+
+    u, y = servo_arx_data(450, 3)
+    sigma = 0.5 * uf.arx_least_squares(u, y, 2, 2)[1]
+    P, P_half = uf.ArxProblem.from_data(u, y, 2, 2, sigma), uf.ArxProblem.from_data(u, y, 2, 2, sigma / 2)
+    out = run("arx_barrier", P, tol=1e-6, progress=False)
+    with pytest.warns(uf.SolverWarning, match="column form and the data disagree"):
+        cert, _ = certify(P_half, out, "test")
+    assert not cert.ok()
+
+
 def test_zero_delta_structured():
     u, y = servo_arx_data(25, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)

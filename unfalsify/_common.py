@@ -275,14 +275,17 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
         problem=P,
     )
     delta = out.delta
-    if not out.bracketed and out.status == "optimal" and np.isfinite(cert.upper_bound) and not cert.ok():
-        # a conic solver's "optimal" holds to its own feasibility tolerance, not to the certificate's
+    if out.status == "optimal" and np.isfinite(cert.upper_bound) and not cert.ok():
+        # a conic solver's "optimal" holds to its own feasibility tolerance, not to the certificate's; a structured
+        # solver's holds in its scaled column form, which the certificate recomputes from the data
+        fix = ("the structured solver's column form and the data disagree (please report it); backend='cvxpy' is the "
+               "second route" if out.bracketed else
+               "a σ well above the solver's tolerance relative to the data, or backend='structured' (which certifies "
+               "its answer or reports a failed status), gives a certified one")
         warnings.warn(
             f"{what}: the solver reported 'optimal', but its point does not satisfy the program to the certificate's "
             f"tolerance (noise ‖ξ‖ = {cert.noise_rms / P.sigma:.3g} σ√N, δ of its impulses {cert.upper_bound:.6g} "
-            f"against the reported {float(out.delta):.6g}): δ is not certified (result.certificate); a σ well above "
-            "the solver's tolerance relative to the data, or backend='structured' (which certifies its answer or "
-            "reports a failed status), gives a certified one",
+            f"against the reported {float(out.delta):.6g}): δ is not certified (result.certificate); {fix}",
             SolverWarning,
             stacklevel=4,
         )
