@@ -475,7 +475,9 @@ def arx_unfalsify(
         :mod:`unfalsify.solvers`).  ``"structured"``: a solver that exploits the Toeplitz structure,
         chosen by ``method`` (see :func:`unfalsify.solvers.resolve`).
     tol : float
-        Structured backend: stop when the certified relative gap ``(upper − lower)/upper ≤ tol``.
+        Structured backend: stop when the certified relative gap ``(upper − lower)/upper ≤ tol``, or when the upper
+        bound is below 1e-14 in the solver's units (y scaled to a unit least-squares residual): δ = 0 to rounding,
+        where the relative gap says nothing (it can read 1).
     time_limit : float, optional
         Structured backend: wall-clock limit in seconds; on expiry (or Ctrl-C) the best certified
         bracket so far is returned with status ``"time_limit"`` (``"interrupted"``) and a warning.
