@@ -39,7 +39,7 @@ import scipy.linalg
 from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, delta_step, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
-from .start import operator_svd, ridge_fit
+from .start import cold_impulses, operator_svd
 
 __all__ = ["solve"]
 
@@ -259,14 +259,33 @@ class _BlockBarrier(PathAdvance):
 
     # ---- start -------------------------------------------------------------------------------
     def start(self) -> _Point:
-        """Ridge impulses per column with ``‖PB − 𝓜H‖_F = 0.7 ρ``, δ 20 % above their norm."""
-        H = ridge_fit(operator_svd(self.M), self.f.project(self.f.B), (0.7 * self.f.rho) ** 2)
-        T = _toeplitz_blocks(H, self.i, self.l, self.m)
-        up = float(np.linalg.svd(T, compute_uv=False)[:, 0].max())
+        """Ridge impulses per column with ``‖PB − 𝓜H‖_F = 0.7 ρ`` (with L optimised, in the norm of 𝓛^⊥ where the plain
+        fit has an outlying column: :func:`~unfalsify.solvers.start.cold_impulses`), δ 20 % above their norm."""
+        B0 = self.f.project(self.f.B)
+        fit = None if self.Q is None else (lambda lam: self._projected_fit(B0, lam))
+        H = cold_impulses(operator_svd(self.M), B0, (0.7 * self.f.rho) ** 2, projected_fit=fit, top=self._top)
+        up = self._top(H)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
         if p is None:  # inside by construction, unless the noise budget is at the rounding level of the data
             raise Stop("failed")
         return p
+
+    def _top(self, H) -> float:
+        """``max_k ‖T(h_k)‖₂``."""
+        return float(np.linalg.svd(_toeplitz_blocks(H, self.i, self.l, self.m), compute_uv=False)[:, 0].max())
+
+    def _projected_fit(self, B0, lam: float):
+        """``H = argmin λ‖H‖²_F + ‖P(B0 − 𝓜H)‖²_F`` and that residual, or None where the solve fails: the normal
+        equations are the Newton system's ``(D − c 𝓤ᵀ𝓤)`` with ``D_k = M_kᵀM_k + λI`` and c = 1
+        (:meth:`_solve_lowrank`)."""
+        try:
+            H = self._solve_lowrank(self.MtM + lam * np.eye(self.p), 1.0, self._apply_T(B0)[..., None])[..., 0]
+        except (np.linalg.LinAlgError, ValueError):  # cho_factor: not positive definite / non-finite entries
+            return None
+        if not np.all(np.isfinite(H)):
+            return None
+        r = self.f.project(B0 - self._apply(H))
+        return H, float(np.sum(r * r))
 
     # ---- the plug-in of run_barrier ----------------------------------------------------------
     def centre(self, t, p, deadline: Deadline):

@@ -90,7 +90,7 @@ from .barrier import (Deadline, PathAdvance, Stop, best_along, delta_step, linea
 from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
 from .columns import ColumnForm
 from .displacement import displacement_hessian
-from .start import coordinates, impulses, operator_svd, ridge_fit
+from .start import cold_impulses, coordinates, impulses, operator_svd, ridge_fit
 from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_gram_stack, toeplitz_stack
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
@@ -650,9 +650,9 @@ class _ColumnSystem:
         Cmul = self._capacitance(E)
         return Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks)
 
-    def _lowrank_correction(self, woodbury, solve, rhs, Y):
-        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with C of :meth:`_woodbury` by PCG; ``solve(X)`` is
-        ``D_k⁻¹ X[:, k, :]`` per column and ``Y = solve(rhs)``.
+    def _lowrank_correction(self, woodbury, solve, rhs, Y, tol: float | None = None):
+        """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with C of :meth:`_woodbury` by PCG (relative residual ``tol``, default
+        :meth:`pcg_tol`); ``solve(X)`` is ``D_k⁻¹ X[:, k, :]`` per column and ``Y = solve(rhs)``.
 
         Preconditioner: the nearest Kronecker product ``A ⊗ B`` to C (:func:`_kronecker_preconditioner`), with the
         m common-impulse directions (:func:`_common_impulse_basis`) deflated (:class:`_Deflation`).  Vectors are
@@ -663,7 +663,7 @@ class _ColumnSystem:
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
         TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
         Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
-        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, deflation)
+        Z = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, deflation, tol)
         UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
         return solve(UZ.transpose(2, 0, 1))  # D_k⁻¹ (…) in the layout (m, j, p)
 
@@ -691,18 +691,56 @@ class _ColumnSystem:
         """Relative residual of the CG solves: ``cg_tol``, relaxed to :data:`_CG_TOL_FAR` when :attr:`far`."""
         return max(_CG_TOL_FAR, self.cg_tol) if self.far else self.cg_tol
 
-    def _pcg(self, A, Minv, B, deflation: _Deflation | None = None):
-        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual :meth:`pcg_tol`),
-        deflated by ``deflation`` if given."""
+    def _pcg(self, A, Minv, B, deflation: _Deflation | None = None, tol: float | None = None):
+        """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual ``tol``, default
+        :meth:`pcg_tol`), deflated by ``deflation`` if given."""
         def dot(X, Y):
             return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
 
         start = None if deflation is None else deflation.start(B)
         project = None if deflation is None else deflation.project
-        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol(), maxiter=self.cg_maxiter, start=start, project=project,
+        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol() if tol is None else tol, maxiter=self.cg_maxiter, start=start, project=project,
                             dot=dot)
         self.cg_iters += iterations
         return X
+
+    # ---- cold start ----------------------------------------------------------------------------
+    def _cold_impulses(self, svd, B0) -> np.ndarray:
+        """:func:`~unfalsify.solvers.start.cold_impulses` (``‖B0 − H̃‖_F = 0.7 ρ``) with this system's projected fit."""
+        fit = None if self.Q is None else (lambda lam: self._projected_fit(svd, B0, lam))
+        return cold_impulses(svd, B0, (0.7 * self.f.rho) ** 2, projected_fit=fit,
+                             top=lambda H: _max_norm(self._gram(H)[1], self.chunks))
+
+    def _projected_fit(self, svd, B0, lam: float):
+        """``H = argmin λ‖H‖²_F + ‖P(B0 − H̃)‖²_F`` and its residual ``‖P(B0 − H̃)‖²_F``, or None where the solve lost
+        its digits.
+
+        The normal equations ``(D − U Uᵀ) h = Mᵀ B0`` are the Newton system of the class docstring with ``G_k = λI``,
+        c = 1 and no rank-one term, solved by the same Woodbury route; the SVD ``T(u_k) = U_k S_k V_kᵀ`` gives
+        ``D_k⁻¹ = V_k (S_k² + λ)⁻¹ V_kᵀ`` and ``E_k = U_k λ(S_k² + λ)⁻¹ U_kᵀ`` without an inverse.  The CG goes to a
+        relative residual of 1 % of ``ρ/‖B0‖`` within [1e-12, 1e-4] (the fit must resolve the noise ball, not the data;
+        the caller checks the residual it returns).
+        """
+        Uk, s, Vt = svd
+        w = 1.0 / (s * s + lam)
+
+        def solve(X):  # D_k⁻¹ x_k for every column, X (m, j, p)
+            return np.einsum("kqa,kqp->akp", Vt, np.einsum("kqa,akp->kqp", Vt, X) * w[..., None])
+
+        E = np.matmul(Uk * (lam * w)[:, None, :], _tr(Uk))
+        rhs = self.f.apply_T(B0)[..., None]
+        tol = min(max(1e-2 * self.f.rho / max(float(np.linalg.norm(B0)), np.finfo(float).tiny), 1e-12), 1e-4)
+        try:
+            Cmul = self._capacitance(E)
+            woodbury = (Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks))
+            Y = solve(rhs)
+            H = (Y + self._lowrank_correction(woodbury, solve, rhs, Y, tol))[..., 0]
+        except np.linalg.LinAlgError:
+            return None
+        if not np.all(np.isfinite(H)):
+            return None
+        r = self._resid(H)
+        return H, float(np.sum(r * r))
 
 
 class _ColumnBarrier(_ColumnSystem, PathAdvance):
@@ -857,7 +895,7 @@ class _ColumnBarrier(_ColumnSystem, PathAdvance):
     def start(self, B0) -> _Point:
         """Ridge impulses with ``‖B0 − H̃‖_F = 0.7 ρ`` (B0 = B minus a point of 𝓛), δ 20 % above their norm."""
         self._svd = operator_svd(self.Tu, split=lambda work: self.chunks.map(work, self.j, self.Tu.size))
-        H = ridge_fit(self._svd, B0, (0.7 * self.f.rho) ** 2)
+        H = self._cold_impulses(self._svd, B0)
         gram = self._gram(H)
         up = _max_norm(gram[1], self.chunks)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up), gram)

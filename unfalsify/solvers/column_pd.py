@@ -52,7 +52,7 @@ from .base import SolverOutput, unscaled, zero_answer
 from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, _on_threads
 from .columns import ColumnForm
 from .cones import _soc_div, _soc_prod, _soc_step, _soc_w, _soc_winv, sdp_step_stack, soc_scaling
-from .start import operator_svd, ridge_fit
+from .start import operator_svd
 from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_stack
 
 __all__ = ["solve", "solve_columns_pd"]
@@ -323,7 +323,7 @@ class _ColumnPrimalDual(_ColumnSystem, PrimalDualSteps):
     def start(self, B0) -> _Point:
         """The barrier method's ridge start (module docstring) with a strictly feasible dual point."""
         svd = operator_svd(self.Tu, split=lambda work: self.chunks.map(work, self.j, self.Tu.size))
-        H = ridge_fit(svd, B0, (0.7 * self.f.rho) ** 2)
+        H = self._cold_impulses(svd, B0)
         T, TtT = self._gram(H)
         up = _max_norm(TtT, self.chunks)
         d = 1.2 * up + 1e-3 * (1.0 + up)

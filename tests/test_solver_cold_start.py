@@ -1,0 +1,136 @@
+"""The cold start of the column solvers of (7.5) with L optimised: the ridge fit in the norm of 𝓛^⊥ where the plain
+fit puts an outlying impulse on a column whose T(u_k) is singular in floating point."""
+import warnings
+
+import numpy as np
+import pytest
+import scipy.signal
+
+import unfalsify as uf
+from unfalsify.solvers import column_barrier as sc
+from unfalsify.solvers import start
+from unfalsify.solvers.start import operator_svd, ridge_fit, ridge_search
+from unfalsify.solvers.toeplitz import toeplitz_matrix
+from unfalsify.subspace import SubspaceProblem
+
+
+def _small_first_sample(seed=0, i=9, n=51, frac=0.01):
+    """A Gaussian record whose column 5 of U_f starts with 0.01 (cond T(u_5) about 1e17), σ = 1 % of the LS rms."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    u[i + 5] = 0.01
+    y = scipy.signal.lfilter([0.0, 1.0, 0.5], [1.0, -0.7], u)
+    y = y + 0.3 * np.sqrt(np.mean(y**2)) * rng.standard_normal(n)
+    A, _, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    return u, y, i, frac * float(np.sqrt(np.mean((Yf - L @ A) ** 2)))
+
+
+def _solver(u, y, i, sigma):
+    f = SubspaceProblem.from_data(u, y, i, sigma).column_form()
+    return sc._ColumnBarrier(f, tol=1e-6, time_limit=None, progress=False), f
+
+
+def test_projected_fit_equals_the_dense_ridge_solution():
+    rng = np.random.default_rng(3)
+    u = np.sign(rng.standard_normal(40))
+    y = scipy.signal.lfilter([0.0, 0.5, 0.3], [1.0, -0.6], u) + 0.05 * rng.standard_normal(40)
+    s, f = _solver(u, y, 3, 0.02)
+    B0 = f.project(f.B)
+    m, j = f.m, f.j
+    M = np.zeros((m * j, m * j))  # vec_F(H) -> vec_F(H̃), assembled column by column
+    for k in range(j):
+        M[k * m:(k + 1) * m, k * m:(k + 1) * m] = toeplitz_matrix(f.U[:, k])
+    Pperp = np.kron(np.eye(j) - s.Q @ s.Q.T, np.eye(m))
+    b = B0.ravel(order="F")
+    for lam in (1e-3, 0.3):
+        H, r = s._projected_fit(operator_svd(s.Tu), B0, lam)
+        ref = np.linalg.solve(lam * np.eye(m * j) + M.T @ Pperp @ M, M.T @ Pperp @ b)
+        # the CG stops at 1 % of ρ/‖B0‖ (at most 1e-4): the fit has to resolve the noise ball, not the data
+        np.testing.assert_allclose(H.ravel(order="F"), ref, rtol=0, atol=1e-3 * np.abs(ref).max())
+        res = Pperp @ (b - M @ ref)
+        assert abs(np.sqrt(r) - np.sqrt(float(res @ res))) < 1e-2 * f.rho
+
+
+def test_plain_fit_is_kept_where_no_impulse_stands_out():
+    # ±1 input: every T(u_k) is well conditioned enough, the start is the plain ridge fit to the bit
+    rng = np.random.default_rng(5)
+    u = np.sign(rng.standard_normal(60))
+    y = scipy.signal.lfilter([0.0, 0.5, 0.3], [1.0, -0.6], u) + 0.05 * rng.standard_normal(60)
+    s, f = _solver(u, y, 4, 0.02)
+    svd = operator_svd(s.Tu)
+    B0 = f.project(f.B)
+    H = s._cold_impulses(svd, B0)
+    assert np.array_equal(H, ridge_fit(svd, B0, (0.7 * f.rho) ** 2))
+    assert s.cg_iters == 0  # no projected fit was tried
+
+
+def test_projected_start_is_strictly_feasible_and_far_lower_than_the_plain_one():
+    u, y, i, sigma = _small_first_sample()
+    s, f = _solver(u, y, i, sigma)
+    B0 = f.project(f.B)
+    svd = operator_svd(s.Tu)
+    plain = ridge_fit(svd, B0, (0.7 * f.rho) ** 2)
+    H = s._cold_impulses(svd, B0)
+    r = s._resid(H)
+    assert float(np.sum(r * r)) < f.rho**2
+    top = sc._max_norm(s._gram(H)[1])
+    assert top < 1e-6 * sc._max_norm(s._gram(plain)[1])  # measured 9.6 against 1.7e15 (scaled units)
+    assert s.cg_iters > 0
+
+
+@pytest.mark.parametrize("method", ["barrier", "primal_dual"])
+def test_a_window_singular_in_floating_point_is_certified_as_clarabel(method):
+    u, y, i, sigma = _small_first_sample()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.IllConditionedWarning)
+        r = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", method=method, tol=1e-6, progress=False)
+        ref = uf.subspace_unfalsify(u, y, i, sigma)
+    assert r.status == "optimal" and r.certificate.verify()
+    assert r.cond_Tu > 1e15
+    c, cr = r.certificate, ref.certificate
+    assert c.relative_gap <= 1e-6
+    # the two brackets meet (Clarabel's own to its tolerance)
+    assert max(c.lower_bound, cr.lower_bound) <= min(c.upper_bound, cr.upper_bound) * (1 + 1e-6)
+
+
+def test_without_the_projected_start_the_same_record_fails(monkeypatch):
+    # the defect the projected start removes: the plain fit's impulses of 1e15 make the first Newton system singular
+    monkeypatch.setattr(start, "OUTLIER", np.inf)
+    u, y, i, sigma = _small_first_sample()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.IllConditionedWarning)
+        with pytest.warns(uf.SolverWarning, match="failed"):
+            r = uf.subspace_unfalsify(u, y, i, sigma, backend="structured", tol=1e-6, progress=False)
+    assert r.status == "failed" and np.isnan(r.delta)
+
+
+def _fit_of(M, b, small=None):
+    def fit(lam):
+        if small is not None and lam < small:
+            return None  # "singular in floating point"
+        h = np.linalg.solve(M.T @ M + lam * np.eye(M.shape[1]), M.T @ b)
+        return h, float(np.sum((b - M @ h) ** 2))
+    return fit
+
+
+@pytest.mark.parametrize("lam0", [1e-12, 1e-3, 1e4])
+def test_ridge_search_lands_in_the_band_from_far_on_either_side(lam0):
+    rng = np.random.default_rng(1)
+    M, b = rng.standard_normal((30, 10)), rng.standard_normal(30)
+    floor = float(np.sum((b - M @ np.linalg.lstsq(M, b, rcond=None)[0]) ** 2))
+    target = floor + 0.3 * (float(b @ b) - floor)
+    h, r = ridge_search(_fit_of(M, b), target, lam0)
+    assert 0.5 * target <= r <= 1.3 * target
+    assert abs(float(np.sum((b - M @ h) ** 2)) - r) <= 1e-9 * r
+
+
+def test_ridge_search_treats_an_unsolvable_lambda_as_too_small_and_gives_up_with_none():
+    rng = np.random.default_rng(2)
+    M, b = rng.standard_normal((30, 10)), rng.standard_normal(30)
+    target = 0.5 * float(b @ b)
+    h, r = ridge_search(_fit_of(M, b, small=1e-2), target, 1e-8)
+    assert 0.5 * target <= r <= 1.3 * target
+    # a target below the least-squares floor: no λ reaches the band
+    floor = float(np.sum((b - M @ np.linalg.lstsq(M, b, rcond=None)[0]) ** 2))
+    assert ridge_search(_fit_of(M, b), 0.1 * floor, 1.0) is None
