@@ -252,6 +252,28 @@ def test_a_numerical_failure_mid_solve_keeps_the_certified_bracket(monkeypatch):
     assert c.verify() and c.ok() and 0 < c.lower_bound <= c.upper_bound
 
 
+@pytest.mark.parametrize("fixed", [True, False])
+def test_a_lost_delta_schur_complement_fails_the_solve_and_takes_no_step(fixed, monkeypatch):
+    # the δ–δ entry forced to zero from the 4th iteration: the δ Schur complement is then negative, i.e. the h-block
+    # solves have lost their digits; the method must stop there (the barrier's rule), not step along that direction
+    u, y, pred, sigma = _problem(12, 4, 30, fixed)
+    orig = cpd._ColumnPrimalDual._schur
+    calls = [0]
+
+    def schur(self, sc):
+        calls[0] += 1
+        G, col, dd, cc, alpha, g = orig(self, sc)
+        return G, col, (0.0 if calls[0] >= 4 else dd), cc, alpha, g
+
+    monkeypatch.setattr(cpd._ColumnPrimalDual, "_schur", schur)
+    with pytest.warns(uf.SolverWarning, match="failed"):
+        r = uf.subspace_unfalsify(u, y, 4, sigma, backend="structured", method="primal_dual", tol=1e-12,
+                                  progress=False, predictor=pred)
+    assert r.status == "failed" and r.solver_stats["newton"] == 3
+    c = r.certificate
+    assert c.verify() and 0 <= c.lower_bound <= c.upper_bound
+
+
 def test_a_real_tiny_time_limit_stops_before_the_first_iteration_with_the_start_certified():
     # no iteration finishes: the start's impulses are the certified upper side, there is no dual point yet (lower 0),
     # and the front end warns

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .barrier import Deadline, PrimalDualSteps, Stop, run_barrier
+from .barrier import Deadline, PrimalDualSteps, Stop, delta_step, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, _on_threads
 from .columns import ColumnForm
@@ -219,7 +219,11 @@ class _ColumnPrimalDual(_ColumnSystem, PrimalDualSteps):
             X, _ = self._solve_h(G, cc, alpha, g, rh[..., None], woodbury)
             xr = X[..., 0]
         parts = (woodbury, xc)
-        dlt = (rd - float(np.sum(col * xr))) / (dd - float(np.sum(col * xc)))
+        # the system reads S Δ = r: the gradient of delta_step is −r
+        elim = delta_step(dd, -rd, -float(np.sum(col * xr)), float(np.sum(col * xc)))
+        if elim is None:  # a Schur complement that is not positive: the h-block solves lost their digits
+            raise Stop("failed")
+        dlt = elim[0]
         dH = xr - xc * dlt
         dsL = self._scaled_slack_step(sc, dH, dlt)
         dzL = -dsL
