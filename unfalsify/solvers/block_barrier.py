@@ -207,7 +207,7 @@ class _BlockBarrier(PathAdvance):
 
     def _solve_lowrank(self, D, cc, R):
         """``(D − c 𝓤ᵀ𝓤)⁻¹ R`` (D block diagonal (j, p, p), R (p, j, s)); Woodbury when L is optimised."""
-        Dc = [scipy.linalg.cho_factor(0.5 * (Dk + Dk.T)) for Dk in D]
+        Dc = [cholesky_retry(0.5 * (Dk + Dk.T)) for Dk in D]
         Rk = np.moveaxis(R, 1, 0)  # (j, p, s)
         Y = np.stack([scipy.linalg.cho_solve(Dc[k], Rk[k]) for k in range(self.j)])  # (j, p, s)
         if self.Q is not None:
