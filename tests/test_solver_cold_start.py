@@ -1,5 +1,6 @@
-"""The cold start of the column solvers of (7.5) with L optimised: the ridge fit in the norm of 𝓛^⊥ where the plain
-fit puts an outlying impulse on a column whose T(u_k) is singular in floating point."""
+"""The cold start of the structured solvers: for (7.5) with L optimised the ridge fit in the norm of 𝓛^⊥ where the plain
+fit puts an outlying impulse on a column whose T(u_k) is singular in floating point; and the reason a solve states
+when no start lies inside the noise ball."""
 import warnings
 
 import numpy as np
@@ -134,3 +135,23 @@ def test_ridge_search_treats_an_unsolvable_lambda_as_too_small_and_gives_up_with
     # a target below the least-squares floor: no λ reaches the band
     floor = float(np.sum((b - M @ np.linalg.lstsq(M, b, rcond=None)[0]) ** 2))
     assert ridge_search(_fit_of(M, b), 0.1 * floor, 1.0) is None
+
+
+@pytest.mark.parametrize("method", ["barrier", "primal_dual"])
+def test_no_start_inside_the_noise_ball_is_failed_with_the_reason_and_the_sigma_scale(method):
+    # three tones excite too little for 0.1 % of the least-squares residual: the ridge start leaves the noise ball
+    n = 512
+    t = np.arange(n)
+    u = np.sin(2 * np.pi * 0.05 * t) + np.sin(2 * np.pi * 0.17 * t + 1.0) + np.sin(2 * np.pi * 0.31 * t + 2.0)
+    y = scipy.signal.lfilter([0.0, 1.0, 0.5], [1.0, -0.6], u) + 0.01 * np.random.default_rng(0).standard_normal(n)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)  # the second route to the σ at which δ = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.IllConditionedWarning)
+        with pytest.warns(uf.SolverWarning, match="no strictly feasible start") as rec:
+            r = uf.arx_unfalsify(u, y, 2, 2, 1e-3 * rms, backend="structured", method=method, progress=False)
+    assert r.status == "failed" and np.isnan(r.delta) and r.solver_stats["newton"] == 0
+    assert r.certificate.noise_norm > r.certificate.noise_bound
+    message = next(str(w.message) for w in rec if "no strictly feasible start" in str(w.message))
+    assert f"residual rms, {rms:.3g}, δ = 0" in message
+    r = uf.arx_unfalsify(u, y, 2, 2, rms, backend="structured", method=method, progress=False)
+    assert r.status == "optimal" and r.delta == 0.0

@@ -266,6 +266,7 @@ class _BlockBarrier(PathAdvance):
         H = cold_impulses(operator_svd(self.M), B0, (0.7 * self.f.rho) ** 2, projected_fit=fit, top=self._top)
         up = self._top(H)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
+        self.start_H = H  # returned if it is not strictly feasible: the front end names the noise it leaves
         if p is None:  # inside by construction, unless the noise budget is at the rounding level of the data
             raise Stop("failed")
         return p
@@ -328,7 +329,7 @@ class _BlockBarrier(PathAdvance):
             p = self.start()
         except Stop as exc:  # before the first point: no bracket but δ ≥ 0
             return dict(status=str(exc), lower=0.0, upper=float("nan"), V=None, W=None, newton=0, outer=0,
-                        H=np.zeros((self.i * self.l * self.m, self.j)))
+                        H=getattr(self, "start_H", np.zeros((self.i * self.l * self.m, self.j))))
         up = p.upper()
         self._prev = (up, 0.0)
         return run_barrier(self, self.f, p, self.nu / p.d, deadline, up)

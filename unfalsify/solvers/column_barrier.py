@@ -899,6 +899,7 @@ class _ColumnBarrier(_ColumnSystem, PathAdvance):
         gram = self._gram(H)
         up = _max_norm(gram[1], self.chunks)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up), gram)
+        self.start_H = H  # returned if it is not strictly feasible: the front end names the noise it leaves
         if p is None:  # inside by construction, unless the noise budget is at the rounding level of the data
             raise Stop("failed")
         return p
@@ -1174,7 +1175,8 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
             p, t = resumed
     except (KeyboardInterrupt, Stop) as exc:  # before the first point: no bracket but δ ≥ 0
         return dict(status="interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc), lower=0.0,
-                    upper=float("nan"), H=np.zeros((form.m, form.j)), V=None, W=None, outer=0, newton=0, cg=0,
+                    upper=float("nan"), H=getattr(solver, "start_H", np.zeros((form.m, form.j))), V=None, W=None,
+                    outer=0, newton=0, cg=0,
                     time=clock.elapsed())
     out = solver.run(p, t)
     if note == "used" and out["status"] in ("failed", "max_iter"):
