@@ -149,3 +149,55 @@ def test_one_refused_elimination_moves_the_solve_to_the_precise_routes(solver, m
         r = uf.subspace_unfalsify(u, y, 24, _half_ls_sigma(u, y, 24)[1], backend="structured", progress=False)
     assert r.status == "optimal" and r.certificate.verify() and r.delta > 0
     assert len(calls) == r.solver_stats["newton"] + 1  # the refused step was taken again, by the other route
+
+
+def _far_records(seed):
+    """16 samples of Gaussian input and 50 % output noise, σ = 2 % of the least-squares rms: δ about 1e6 times the
+    data's scale with cond T(u) about 1e7 (the Newton system's barrier part 1e-21 of its noise part)."""
+    import scipy.signal
+
+    import unfalsify as uf
+
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(16)
+    y = scipy.signal.lfilter([0.2, 0.5], [1.0, -0.5], u)
+    y = y + 0.5 * np.sqrt(np.mean(y**2)) * rng.standard_normal(16)
+    return u, y, 0.02 * uf.arx_least_squares(u, y, 0, 4)[1]
+
+
+def test_a_stalled_arx_barrier_stops_with_the_reason_and_the_primal_dual_method_certifies():
+    # before: 3001 Newton steps in one centring (steps of 2⁻¹⁵ accepted by Armijo's rounding slack) until max_iter
+    import unfalsify as uf
+
+    u, y, sigma = _far_records(0)
+    with pytest.warns(uf.SolverWarning, match="stalled.*method='primal_dual'"):
+        r = uf.arx_unfalsify(u, y, 0, 4, sigma, backend="structured", progress=False)
+    assert r.status == "failed" and r.solver_stats["newton"] <= 410 and "stalled" in r.solver_stats["reason"]
+    assert r.certificate.verify()
+    pd = uf.arx_unfalsify(u, y, 0, 4, sigma, backend="structured", method="primal_dual", progress=False)
+    assert pd.status == "optimal" and pd.certificate.verify()
+    assert r.certificate.lower_bound <= pd.certificate.upper_bound * (1 + 1e-9)
+
+
+def test_a_stall_first_moves_to_the_precise_routes_then_stops():
+    import unfalsify as uf
+    from unfalsify.solvers import arx_barrier as ab
+
+    u, y, sigma = _far_records(0)
+    f = uf.ArxProblem.from_data(u, y, 0, 4, sigma).column_form()
+    s = ab._ArxBarrier(f, tol=1e-6, time_limit=None, progress=False)
+    for k in range(1, ab._STALL_STEPS + 1):
+        s._check_stall(2.0**-30, k)  # short steps in a row
+    assert s._precise and s.reason is None
+    s._check_stall(1.0, 1)  # a full step resets the count
+    for k in range(2, ab._STALL_STEPS + 1):
+        s._check_stall(2.0**-30, k)
+    assert s.reason is None
+    with pytest.raises(Stop, match="failed"):
+        s._check_stall(2.0**-30, ab._STALL_STEPS + 1)
+    assert "cut below 1e-6" in s.reason
+    t = ab._ArxBarrier(f, tol=1e-6, time_limit=None, progress=False)
+    t._precise = True
+    with pytest.raises(Stop, match="failed"):
+        t._check_stall(1.0, ab._CENTRING_STEPS)  # one centring too long
+    assert f"a centring took {ab._CENTRING_STEPS} Newton steps" in t.reason

@@ -317,7 +317,8 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
             warnings.warn(
                 f"{what}: structured backend stopped with status '{out.status.value}'"
                 + (f"; the certified bracket has relative gap {gap:.3g}" if np.isfinite(gap) else "")
-                + _no_start_reason(P, cert, out),
+                + _no_start_reason(P, cert, out)
+                + (f"; {out.stats['reason']}" if out.stats.get("reason") else ""),
                 SolverWarning,
                 stacklevel=4,
             )
