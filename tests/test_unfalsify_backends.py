@@ -221,3 +221,28 @@ def test_lower_bound_never_exceeds_clarabel_optimum(seed, n, frac):
     # independent optimum (Clarabel), solved to its own accuracy
     assert c.lower_bound <= rc.delta * (1 + 1e-6) + 1e-9
     assert rc.certificate.lower_bound <= rs.certificate.upper_bound * (1 + 1e-6) + 1e-9
+
+
+def test_bounds_that_cross_at_the_rounding_level_of_the_data_are_warned_with_the_scale():
+    # σ within 1e-11 of the least-squares residual rms: δ is 1e-12 of the data's scale, where the two sides, computed
+    # from different points, hold only to the data's rounding (measured: lower above upper by 8.9e-6 relative)
+    import scipy.signal
+
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(120))
+    y = scipy.signal.lfilter([0.0, 0.5, 0.3], [1.0, -0.6], u) + 0.05 * rng.standard_normal(120)
+    A, _, Yf = uf.subspace_data(u, y, 4)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    rms = float(np.sqrt(np.mean((Yf - L @ A) ** 2)))
+    with pytest.warns(uf.SolverWarning, match="the certified bounds cross") as rec:
+        r = uf.subspace_unfalsify(u, y, 4, rms * (1 - 1e-11), backend="structured", progress=False)
+    c = r.certificate
+    assert c.lower_bound > c.upper_bound and not c.verify()
+    scale = np.linalg.norm(Yf) / np.linalg.norm(uf.subspace_data(u, y, 4)[1])  # ‖Y_f‖/‖U_f‖, the second route
+    message = next(str(w.message) for w in rec if "cross" in str(w.message))
+    assert f"‖Y‖/‖U‖ = {scale:.3g}" in message
+    # a well-scaled σ: no such warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", uf.SolverWarning)
+        r = uf.subspace_unfalsify(u, y, 4, 0.5 * rms, backend="structured", progress=False)
+    assert r.certificate.lower_bound <= r.certificate.upper_bound
