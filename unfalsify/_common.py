@@ -248,41 +248,61 @@ def _near(delta) -> float | None:
     return delta if np.isfinite(delta) and delta > 0.0 else None
 
 
+def _data_scale(P) -> float:
+    """``‖y‖/‖u‖`` of the problem's record: the scale of a gain from u to y, and so of δ."""
+    return float(np.linalg.norm(P.y)) / max(float(np.linalg.norm(P.u)), np.finfo(float).tiny)
+
+
+#: :func:`_no_start_reason`: a start whose δ is this many times the data's scale ‖y‖/‖u‖ is named as the cause of a
+#: failure at the first Newton step (healthy records: δ 0.01–10 of that scale)
+_FAR_START = 1e6
+
+
 def _no_start_reason(P, cert: Certificate, out: SolverOutput) -> str:
     """Why a structured solve that never took a step failed, where the data show it: its start, a ridge fit of the
-    impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it).
+    impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it), or
+    its δ is :data:`_FAR_START` times the data's scale (the first Newton system is then singular in floating point).
 
     Measured on fuzzed records: multisine and low-pass inputs with σ a percent of the least-squares residual, where
     cond T(u) reaches 1e18 and the δ that explains the data is astronomically large; and a record with σ = 1e-10
     absolute (the noise budget 2e-9 of the data), where the fit cannot resolve the noise ball in floating point and
     cvxpy's answer was not certified either (its noise 1.9 σ√N).  Which of the two holds the data cannot say."""
     ratio = cert.noise_norm / cert.noise_bound if cert.noise_bound > 0 else float("nan")
-    if out.stats.get("newton", 1) != 0 or not ratio > 1.0:
+    if out.stats.get("newton", 1) != 0:
         return ""
     f = P.column_form(scaled=False)
     ls = float(np.linalg.norm(f.project(f.B))) / np.sqrt(P.n_noise)  # σ at which δ = 0
-    return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at {ratio:.3g} "
-            f"σ√N. Either the δ that explains these data within σ is astronomically large (an input that excites "
-            f"few frequencies makes T(u) singular in floating point), or σ is below what the fit resolves in "
-            f"floating point. A larger σ gives a start (at the least-squares residual rms, {ls:.3g}, δ = 0); "
-            f"backend='cvxpy' is a second route")
+    larger = f"(at the least-squares residual rms, {ls:.3g}, δ = 0)"
+    if ratio > 1.0:
+        return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at "
+                f"{ratio:.3g} σ√N. Either the δ that explains these data within σ is astronomically large (an input "
+                f"that excites few frequencies makes T(u) singular in floating point), or σ is below what the fit "
+                f"resolves in floating point. A larger σ gives a start {larger}; backend='cvxpy' is a second route")
+    scale = _data_scale(P)
+    if cert.upper_bound > _FAR_START * scale:
+        # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
+        return (f"; it stopped at its first Newton step, from a start whose δ is {cert.upper_bound:.3g}, "
+                f"{cert.upper_bound / scale:.2g} times the data's scale ‖y‖/‖u‖: the input makes T(u) singular in "
+                f"floating point, and the Newton system with it. The δ that explains these data within σ may be that "
+                f"large. A larger σ helps {larger}, and so does an input that excites more frequencies; "
+                f"backend='cvxpy' is a second route")
+    return ""
 
 
 def _crossed_bounds(P, cert: Certificate) -> str:
     """Why the two sides of a certificate cross (lower above upper by more than 1e-9 relative), or "".
 
     Both are computed in floating point from different points, so each holds to the rounding of the data, about
-    eps·‖Y‖/‖U‖ absolute in δ's units.  Measured: σ within 1e-11 of the least-squares residual rms, where δ is 1e-12
+    eps·‖y‖/‖u‖ absolute in δ's units.  Measured: σ within 1e-11 of the least-squares residual rms, where δ is 1e-12
     of that scale, gave lower 8.0973017e-13 > upper 8.0972297e-13 with status 'optimal'."""
     lo, up = cert.lower_bound, cert.upper_bound
     if not (np.isfinite(lo) and np.isfinite(up) and lo > up * (1.0 + 1e-9)):
         return ""
     if not cert.noise_norm <= cert.noise_bound * (1.0 + 1e-6):
         return ""  # the primal point is outside the noise ball: its own warning says so, and it is not rounding
-    f = P.column_form(scaled=False)
-    scale = float(np.linalg.norm(f.B)) / max(float(np.linalg.norm(f.U)), np.finfo(float).tiny)
+    scale = _data_scale(P)
     return (f"the certified bounds cross (lower {lo:.8g} > upper {up:.8g}, by {(lo - up) / up:.2g} relative): δ is "
-            f"{up / scale:.2g} of the data's scale ‖Y‖/‖U‖ = {scale:.3g}, where the rounding of both bounds "
+            f"{up / scale:.2g} of the data's scale ‖y‖/‖u‖ = {scale:.3g}, where the rounding of both bounds "
             f"(about {np.finfo(float).eps * scale:.2g}) shows; δ is certified only to that absolute accuracy, and a σ "
             f"this close to the least-squares residual rms makes δ that small")
 
