@@ -138,7 +138,8 @@ _MU = 3.0
 
 #: Up to this n (one channel) a solve holds BLAS to one thread (:func:`_blas_policy`).
 _ONE_BLAS_THREAD_UP_TO = 1000
-#: :meth:`_ArxBarrier._check_stall`: this many accepted Newton steps in a row of length at most ``_STALL_STEP`` are a stall
+#: :meth:`_ArxBarrier._check_stall`: this many accepted Newton steps in a row of length at most ``_STALL_STEP`` are a
+#: stall
 _STALL_STEP = 2.0**-20
 _STALL_STEPS = 8
 #: :meth:`_ArxBarrier._check_stall`: a centring of this many Newton steps is a stall
@@ -368,7 +369,7 @@ class _ArxBarrier:
         self._precise = False  # the precise routes for every Newton step from here on (newton)
         self._seen = None  # (t, certified relative gap) where both bounds were last evaluated (bound_due)
         self.bound_threads = contextlib.nullcontext  # the context of the bounds' BLAS calls (solve_arx_barrier)
-        self._stalled = 0  # accepted steps in a row that did not move the point (_check_stall)
+        self._stalled = 0  # accepted steps in a row cut to at most _STALL_STEP (_check_stall)
         self.reason = None  # why the solve stopped, where the status alone does not say
 
     def _state(self, h, d) -> _State:

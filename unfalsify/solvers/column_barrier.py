@@ -699,8 +699,8 @@ class _ColumnSystem:
 
         start = None if deflation is None else deflation.start(B)
         project = None if deflation is None else deflation.project
-        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol() if tol is None else tol, maxiter=self.cg_maxiter, start=start, project=project,
-                            dot=dot)
+        X, iterations = pcg(A, Minv, B, tol=self.pcg_tol() if tol is None else tol, maxiter=self.cg_maxiter,
+                            start=start, project=project, dot=dot)
         self.cg_iters += iterations
         return X
 
