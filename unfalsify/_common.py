@@ -253,39 +253,40 @@ def _data_scale(P) -> float:
     return float(np.linalg.norm(P.y)) / max(float(np.linalg.norm(P.u)), np.finfo(float).tiny)
 
 
-#: :func:`_no_start_reason`: a start whose δ is this many times the data's scale ‖y‖/‖u‖ is named as the cause of a
-#: failure at the first Newton step (healthy records: δ 0.01–10 of that scale)
+#: :func:`_no_start_reason`: a best point whose δ is this many times the data's scale ‖y‖/‖u‖ is named as the cause of
+#: a failure (healthy records: δ 0.01–10 of that scale)
 _FAR_START = 1e6
 
 
 def _no_start_reason(P, cert: Certificate, out: SolverOutput) -> str:
-    """Why a structured solve that never took a step failed, where the data show it: its start, a ridge fit of the
-    impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it), or
-    its δ is :data:`_FAR_START` times the data's scale (the first Newton system is then singular in floating point).
+    """Why a structured solve failed, where the data show it: it never took a step because its start, a ridge fit of
+    the impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it);
+    or its best point's δ is :data:`_FAR_START` times the data's scale (its Newton systems are then singular in
+    floating point).
 
     Measured on fuzzed records: multisine and low-pass inputs with σ a percent of the least-squares residual, where
     cond T(u) reaches 1e18 and the δ that explains the data is astronomically large; and a record with σ = 1e-10
     absolute (the noise budget 2e-9 of the data), where the fit cannot resolve the noise ball in floating point and
     cvxpy's answer was not certified either (its noise 1.9 σ√N).  Which of the two holds the data cannot say."""
     ratio = cert.noise_norm / cert.noise_bound if cert.noise_bound > 0 else float("nan")
-    if out.stats.get("newton", 1) != 0:
-        return ""
+    steps = out.stats.get("newton")
     f = P.column_form(scaled=False)
     ls = float(np.linalg.norm(f.project(f.B))) / np.sqrt(P.n_noise)  # σ at which δ = 0
     larger = f"(at the least-squares residual rms, {ls:.3g}, δ = 0)"
-    if ratio > 1.0:
+    if steps == 0 and ratio > 1.0:
         return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at "
                 f"{ratio:.3g} σ√N. Either the δ that explains these data within σ is astronomically large (an input "
                 f"that excites few frequencies makes T(u) singular in floating point), or σ is below what the fit "
                 f"resolves in floating point. A larger σ gives a start {larger}; backend='cvxpy' is a second route")
     scale = _data_scale(P)
-    if cert.upper_bound > _FAR_START * scale:
+    if cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6:
         # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
-        return (f"; it stopped at its first Newton step, from a start whose δ is {cert.upper_bound:.3g}, "
-                f"{cert.upper_bound / scale:.2g} times the data's scale ‖y‖/‖u‖: the input makes T(u) singular in "
-                f"floating point, and the Newton system with it. The δ that explains these data within σ may be that "
-                f"large. A larger σ helps {larger}, and so does an input that excites more frequencies; "
-                f"backend='cvxpy' is a second route")
+        where = ("at its first Newton step, from a start" if steps == 0 else
+                 f"after {steps} Newton step{'s' if steps != 1 else ''}, at a point")
+        return (f"; it stopped {where} whose δ is {cert.upper_bound:.3g}, {cert.upper_bound / scale:.2g} times the "
+                f"data's scale ‖y‖/‖u‖: the input makes T(u) singular in floating point, and the Newton system with "
+                f"it. The δ that explains these data within σ may be that large. A larger σ helps {larger}, and so "
+                f"does an input that excites more frequencies; backend='cvxpy' is a second route")
     return ""
 
 
