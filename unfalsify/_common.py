@@ -253,12 +253,12 @@ def _data_scale(P) -> float:
     return float(np.linalg.norm(P.y)) / max(float(np.linalg.norm(P.u)), np.finfo(float).tiny)
 
 
-#: :func:`_no_start_reason`: a best point whose δ is this many times the data's scale ‖y‖/‖u‖ is named as the cause of
+#: :func:`_failure_reason`: a best point whose δ is this many times the data's scale ‖y‖/‖u‖ is named as the cause of
 #: a failure (healthy records: δ 0.01–10 of that scale)
 _FAR_START = 1e6
 
 
-def _no_start_reason(P, cert: Certificate, out: SolverOutput) -> str:
+def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
     """Why a structured solve failed, where the data show it: it never took a step because its start, a ridge fit of
     the impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it);
     or its best point's δ is :data:`_FAR_START` times the data's scale (its Newton systems are then singular in
@@ -360,7 +360,7 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
             warnings.warn(
                 f"{what}: structured backend stopped with status '{out.status.value}'"
                 + (f"; the certified bracket has relative gap {gap:.3g}" if np.isfinite(gap) else "")
-                + _no_start_reason(P, cert, out)
+                + _failure_reason(P, cert, out)
                 + (f"; {out.stats['reason']}" if out.stats.get("reason") else ""),
                 SolverWarning,
                 stacklevel=4,
