@@ -46,7 +46,7 @@ w = 60).  Structure used:
 
 * **Warm starts** (``warm=``, :meth:`_ColumnBarrier.warm`).  Every centred point is recorded (impulses, δ,
   relative gap ``ν/(tδ)``, slacks); a related problem (window advanced by k samples: old columns k… are the
-  new columns 0…; or another σ) resumes from the last recorded point at gap ≥ 0.1 (chosen by the front end),
+  new columns 0…; or another σ) resumes from the last recorded point at gap ≥ 0.3 (chosen by the front end),
   made strictly feasible, at that gap's t.  Later points hug the boundaries and stalled after the data moved
   (measured at (20, 400): 60 Newton steps at λ² ≈ 3 after a one-sample advance); a resumed path that still
   stalls, or whose centrings stop converging twice (:data:`_WARM_MAX_STAGNATIONS`), is re-solved cold.  (The
