@@ -270,24 +270,25 @@ def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
     cvxpy's answer was not certified either (its noise 1.9 σ√N).  Which of the two holds the data cannot say."""
     ratio = cert.noise_norm / cert.noise_bound if cert.noise_bound > 0 else float("nan")
     steps = out.stats.get("newton")
-    f = P.column_form(scaled=False)
+    scale = _data_scale(P)
+    no_start = steps == 0 and ratio > 1.0
+    if not (no_start or (cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6)):
+        return ""
+    f = P.column_form(scaled=False)  # only where there is a reason to give: it costs the regressor's SVD
     ls = float(np.linalg.norm(f.project(f.B))) / np.sqrt(P.n_noise)  # σ at which δ = 0
     larger = f"(at the least-squares residual rms, {ls:.3g}, δ = 0)"
-    if steps == 0 and ratio > 1.0:
+    if no_start:
         return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at "
                 f"{ratio:.3g} σ√N. Either the δ that explains these data within σ is astronomically large (an input "
                 f"that excites few frequencies makes T(u) singular in floating point), or σ is below what the fit "
                 f"resolves in floating point. A larger σ gives a start {larger}; backend='cvxpy' is a second route")
-    scale = _data_scale(P)
-    if cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6:
-        # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
-        where = ("at its first Newton step, from a start" if steps == 0 else
-                 f"after {steps} Newton step{'s' if steps != 1 else ''}, at a point")
-        return (f"; it stopped {where} whose δ is {cert.upper_bound:.3g}, {cert.upper_bound / scale:.2g} times the "
-                f"data's scale ‖y‖/‖u‖: the input makes T(u) singular in floating point, and the Newton system with "
-                f"it. The δ that explains these data within σ may be that large. A larger σ helps {larger}, and so "
-                f"does an input that excites more frequencies; backend='cvxpy' is a second route")
-    return ""
+    # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
+    where = ("at its first Newton step, from a start" if steps == 0 else
+             f"after {steps} Newton step{'s' if steps != 1 else ''}, at a point")
+    return (f"; it stopped {where} whose δ is {cert.upper_bound:.3g}, {cert.upper_bound / scale:.2g} times the "
+            f"data's scale ‖y‖/‖u‖: the input makes T(u) singular in floating point, and the Newton system with "
+            f"it. The δ that explains these data within σ may be that large. A larger σ helps {larger}, and so "
+            f"does an input that excites more frequencies; backend='cvxpy' is a second route")
 
 
 def _crossed_bounds(P, cert: Certificate) -> str:

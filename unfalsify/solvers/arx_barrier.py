@@ -487,12 +487,8 @@ class _ArxBarrier:
                     break
                 a *= 0.5
             else:  # no decrease along the Newton direction: the precise routes once, then the reason
-                if not self._precise:
-                    self._precise = True
-                    continue
-                self.reason = ("the barrier method's line search found no decrease in 40 halvings of a Newton step (its "
-                               "Newton systems lost their digits); method='primal_dual' is the second route")
-                raise Stop("failed")
+                self._escalate("the barrier method's line search found no decrease in 40 halvings of a Newton step")
+                continue
             if a == 1.0:  # the full step was accepted: try longer ones while f_t decreases
                 phin = sn.phi(t)
                 for _ex in range(6):
@@ -520,13 +516,17 @@ class _ArxBarrier:
         if not (short or long):
             return
         self._stalled = 0
+        why = (f"{_STALL_STEPS} Newton steps in a row were cut below 1e-6 of their length" if short else
+               f"a centring took {taken} Newton steps")
+        self._escalate(f"the barrier method stalled: {why}")
+
+    def _escalate(self, what: str) -> None:
+        """The answer to a stall: the precise routes from here on if the solve is not on them yet, else stop it
+        ``failed`` with the reason ``what`` (kept on :attr:`reason`)."""
         if not self._precise:
             self._precise = True
             return
-        why = (f"{_STALL_STEPS} Newton steps in a row were cut below 1e-6 of their length" if short else
-               f"a centring took {taken} Newton steps")
-        self.reason = (f"the barrier method stalled: {why} (its Newton systems lost their digits); "
-                       f"method='primal_dual' is the second route")
+        self.reason = f"{what} (its Newton systems lost their digits); method='primal_dual' is the second route"
         raise Stop("failed")
 
     def upper(self, s: _State) -> float:

@@ -647,6 +647,11 @@ class _ColumnSystem:
         X[:, np.arange(m), np.arange(m)] += cc
         E = _spd_inverse(X, self.chunks, out=take(G.shape))
         del X
+        return self._woodbury_parts(E)
+
+    def _woodbury_parts(self, E):
+        """The capacitance ``Σ_k q_k q_kᵀ ⊗ E_k`` of the stack E as its product, Kronecker preconditioner and
+        deflation (what :meth:`_lowrank_correction` takes)."""
         Cmul = self._capacitance(E)
         return Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks)
 
@@ -731,8 +736,7 @@ class _ColumnSystem:
         rhs = self.f.apply_T(B0)[..., None]
         tol = min(max(1e-2 * self.f.rho / max(float(np.linalg.norm(B0)), np.finfo(float).tiny), 1e-12), 1e-4)
         try:
-            Cmul = self._capacitance(E)
-            woodbury = (Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks))
+            woodbury = self._woodbury_parts(E)
             Y = solve(rhs)
             H = (Y + self._lowrank_correction(woodbury, solve, rhs, Y, tol))[..., 0]
         except np.linalg.LinAlgError:

@@ -203,16 +203,14 @@ def cold_impulses(svd, B0: np.ndarray, target: float, *, projected_fit=None, top
     below the trigger and keep the plain fit, where the projected one (measured at (50, 500)) cost 4 s and saved
     no Newton step.
     """
-    U, s, Vt = svd
-    beta = coordinates(U, B0)
-    H = impulses(s, Vt, beta, ridge_lambda(s, beta, target))
+    H = ridge_fit(svd, B0, target)
     if projected_fit is None:
         return H
     size = np.linalg.norm(H, axis=0)
     if not size.max() > OUTLIER * np.median(size):
         return H
     # from the scale of T(u)ᵀT(u) down: a small λ makes the projected solve ill-conditioned (slow, inexact)
-    found = ridge_search(projected_fit, target, float(np.mean(s * s)))
+    found = ridge_search(projected_fit, target, float(np.mean(svd[1] ** 2)))
     if found is None:
         return H
     return found[0] if top(found[0]) < top(H) else H
