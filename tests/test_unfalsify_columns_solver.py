@@ -381,10 +381,65 @@ def test_deflated_cg_solves_the_same_system_in_fewer_iterations():
     for name, defl in [("plain", None), ("deflated", sc._deflation(Cmul, W))]:
         s = sc._ColumnBarrier.__new__(sc._ColumnBarrier)
         s.cg_tol, s.cg_maxiter, s.far, s.cg_iters = 1e-12, 500, False, 0
-        X = s._pcg(Cmul, lambda Y: Y, B, defl)
+        X, converged = s._pcg(Cmul, lambda Y: Y, B, defl)
+        assert converged
         np.testing.assert_allclose(X, ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max())
         counts[name] = s.cg_iters
     assert counts["deflated"] < counts["plain"]
+
+
+def _capacitance_rhs(B):
+    """(p, m, r) stacks in the vec_F order of :func:`_spd_capacitance`'s dense matrix, one column each."""
+    return B.transpose(0, 2, 1).reshape(B.shape[0], -1).T
+
+
+def test_dense_capacitance_solve_equals_the_assembled_system():
+    rng = np.random.default_rng(3)
+    Q, E, dense, _ = _spd_capacitance(rng)
+    m, r = E.shape[1], Q.shape[1]
+    B = rng.standard_normal((2, m, r))
+    X = sc._dense_capacitance_solve(E, Q, B)
+    np.testing.assert_allclose(dense @ _capacitance_rhs(X), _capacitance_rhs(B), rtol=0,
+                               atol=1e-9 * np.abs(B).max())
+    # a capacitance with a null direction (Q of rank r − 1): the solution of the consistent part, finite
+    Qs = Q.copy()
+    Qs[:, -1] = Qs[:, 0]
+    dense_s = sum(np.kron(np.outer(Qs[k], Qs[k]), E[k]) for k in range(Qs.shape[0]))
+    Bs = (dense_s @ _capacitance_rhs(B)).T.reshape(2, r, m).transpose(0, 2, 1)
+    Xs = sc._dense_capacitance_solve(E, Qs, Bs)
+    assert np.all(np.isfinite(Xs))
+    np.testing.assert_allclose(dense_s @ _capacitance_rhs(Xs), _capacitance_rhs(Bs), rtol=0,
+                               atol=1e-8 * np.abs(Bs).max())
+
+
+@pytest.mark.parametrize("fallback", [True, False])
+def test_cg_stopped_at_the_capacitance_order_is_redone_densely(fallback, monkeypatch):
+    # CG converges within the capacitance's order in exact arithmetic; a solve stopped short of convergence (here
+    # after one iteration) is redone by the dense capacitance, and the Newton solve equals the assembled one.  Without
+    # the fallback the truncated CG leaves a wrong solve: the check fails, so it can.
+    i, j = 3, 20
+    s, p = _barrier(False, i, j)
+    monkeypatch.setattr(sc, "_DENSE_CAPACITANCE", 10**6 if fallback else 0)
+    s.cg_maxiter = 1
+    S11, S21, S22 = p.blocks()
+    G, _ = sc._chunked_hessian(S11, S21, S22)
+    g_noise = s.f.apply_T(p.r)
+    R = np.random.default_rng(0).standard_normal((i, j, 2))
+    X, _ = s._solve_h(G, 2 * s.wn / p.psi, 4 * s.wn / p.psi**2, g_noise, R)
+    n = i * j
+    M = np.zeros((n, n))
+    for k in range(j):
+        M[k * i:(k + 1) * i, k * i:(k + 1) * i] = toeplitz_matrix(s.f.U[:, k])
+    D = np.zeros((n, n))
+    for k in range(j):
+        D[k * i:(k + 1) * i, k * i:(k + 1) * i] = G[k]
+    gv = g_noise.ravel(order="F")
+    A = D + (2 * s.wn / p.psi) * M.T @ np.kron(np.eye(j) - s.Q @ s.Q.T, np.eye(i)) @ M \
+        + (4 * s.wn / p.psi**2) * np.outer(gv, gv)
+    ref = np.linalg.solve(A, R.reshape(n, 2, order="F"))
+    close = np.allclose(X.reshape(n, 2, order="F"), ref, rtol=1e-6, atol=1e-8 * np.abs(ref).max())
+    assert close == fallback
+    assert (s.dense_solves > 0) == fallback
 
 
 def test_deflation_declines_a_singular_coarse_matrix():
