@@ -40,6 +40,7 @@ from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, delta_step, li
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
 from .start import cold_impulses, operator_svd
+from .wider_ball import tighten_lower
 
 __all__ = ["solve"]
 
@@ -341,12 +342,15 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
     A one-channel problem is solved as the 1 × 1 block form (impulses (i, j), as ``column_barrier``'s).
     ``workers`` is accepted for the front end's sake and unused (one thread)."""
     f = problem.column_form(scaled=True)
-    clock = Deadline()
+    clock = Deadline(time_limit)
     if not isinstance(f, BlockColumnForm):  # one channel: the same program as a 1 × 1 block form (a cross-check)
         f = BlockColumnForm(f.U, f.B, f.rho, n_inputs=1, n_outputs=1, basis_right=f.Qr)
     shape = (f.i, f.n_out, f.n_in, f.j) if not getattr(problem, "siso", False) else (f.i, f.j)
     if zero_answer(f):
         return unscaled(problem, np.zeros(shape), 0.0, "optimal", clock.elapsed())
     out = _BlockBarrier(f, tol=float(tol), time_limit=time_limit, progress=progress).run()
+    # a noise ball the barrier cannot resolve: the lower bound from larger balls (unfalsify.solvers.wider_ball)
+    out = tighten_lower(f, out, lambda g, tol_, left: _BlockBarrier(g, tol=tol_, time_limit=left, progress=False).run(),
+                        tol=float(tol), clock=clock)
     return unscaled(problem, out["H"].reshape(shape), out["upper"], out["status"], clock.elapsed(), V=out["V"],
-                    W=out["W"], stats={k: out[k] for k in ("newton", "outer") if k in out})
+                    W=out["W"], stats={k: out[k] for k in ("newton", "outer", "wider") if k in out})

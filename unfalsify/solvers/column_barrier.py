@@ -95,6 +95,7 @@ from .columns import ColumnForm
 from .displacement import displacement_hessian
 from .start import cold_impulses, coordinates, impulses, operator_svd, ridge_fit
 from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_gram_stack, toeplitz_stack
+from .wider_ball import tighten_lower
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
 
@@ -1198,10 +1199,10 @@ def check_workers(workers) -> int:
     return int(workers)
 
 
-def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunks, warm=None) -> dict:
+def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunks, warm=None, wider=True) -> dict:
     solver = _ColumnBarrier(form, tol=tol, time_limit=time_limit, progress=progress, mu=mu, noise_weight=noise_weight,
                             chunks=chunks)
-    clock = Deadline()
+    clock = Deadline(time_limit)
     t, note = None, None
     try:
         if warm is not None:
@@ -1214,6 +1215,7 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
             p = solver.start(B0)
         else:
             p, t = resumed
+
     except (KeyboardInterrupt, Stop) as exc:  # before the first point: no bracket but δ ≥ 0
         return dict(status="interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc), lower=0.0,
                     upper=float("nan"), H=getattr(solver, "start_H", np.zeros((form.m, form.j))), V=None, W=None,
@@ -1228,6 +1230,10 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
         wasted = out["newton"]
         out = _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks)
         out["warm_newton"] = wasted
+    elif wider:
+        # a noise ball the barrier cannot resolve: the lower bound from larger balls (unfalsify.solvers.wider_ball)
+        out = tighten_lower(form, out, lambda f, tol_, left: _solve(f, B0, tol_, left, False, mu, noise_weight, chunks,
+                                                                    wider=False), tol=tol, clock=clock)
     if note is not None:
         out.update(warm=note, warm_blend=solver.warm_blend)
     return out
@@ -1253,8 +1259,8 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
         warm = dict(warm_start, H=np.asarray(warm_start["H"], float) * (su / sy), d=float(warm_start["d"]) * su / sy)
     out = solve_columns_barrier(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
                                 workers=workers, warm=warm)
-    stats = {k: out[k] for k in ("newton", "outer", "cg", "cg_dense", "trials", "warm", "warm_blend", "warm_newton")
-             if k in out}
+    stats = {k: out[k] for k in ("newton", "outer", "cg", "cg_dense", "trials", "warm", "warm_blend", "warm_newton",
+                                 "wider") if k in out}
     if "state" in out:
         stats["state"] = dict(path=[dict(c, H=c["H"] * (sy / su), d=c["d"] * sy / su) for c in out["state"]["path"]])
     return unscaled(problem, out["H"], out["upper"], out["status"], clock.elapsed(), V=out["V"], W=out["W"],
