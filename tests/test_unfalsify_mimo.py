@@ -3,6 +3,8 @@
 Every MIMO answer is checked against an independent cvxpy formulation written here from the definitions
 (block Toeplitz matrices built by loops, the data relation written sample by sample), at small sizes.
 """
+import warnings
+
 import cvxpy as cp
 import numpy as np
 import pytest
@@ -374,3 +376,39 @@ def test_primal_norms_are_exact_above_the_lanczos_size():
     d, _ = P.evaluate_primal(H, L)
     dense = max(np.linalg.norm(block_toeplitz_matrix(H[..., k]), 2) for k in range(H.shape[-1]))
     assert d == dense                                              # the dense SVD, bit for bit
+
+
+
+@pytest.mark.parametrize("cc", [1e2, 1e6])
+def test_block_newton_solve_equals_the_assembled_system(cc):
+    # (G + c 𝓜ᵀP𝓜) X = R assembled densely from the operators, against the Woodbury route whose capacitance blocks are
+    # E_k = (cI + c²M_kG_k⁻¹M_kᵀ)⁻¹ (no cancellation); c where the assembled matrix is well conditioned
+    from unfalsify.solvers import block_barrier as bb
+    u, y, i, sigma = _mimo_data(2, 2, 0)
+    f = uf.SubspaceProblem.from_data(u, y, i, sigma).column_form(scaled=True)
+    s = bb._BlockBarrier(f, tol=1e-6, time_limit=None, progress=False)
+    G = bb._barrier_hessian(s.start().S, i, s.l, s.m)
+    R = np.random.default_rng(1).standard_normal((s.p, s.j, 2))
+    X = s._solve_lowrank(G, cc, R)
+    n = s.p * s.j
+
+    def apply(H):  # the Newton system's operator on H (p, j)
+        return np.einsum("kab,bk->ak", G, H) + cc * s._apply_T(f.project(s._apply(H)))
+
+    A = np.stack([apply(e.reshape(s.p, s.j)).ravel() for e in np.eye(n)], axis=1)
+    ref = np.linalg.solve(A, R.reshape(n, 2))
+    rounding = 100 * np.linalg.cond(A) * np.finfo(float).eps  # both solves are accurate to about cond(A)·eps
+    assert rounding < 1e-5
+    np.testing.assert_allclose(X.reshape(n, 2), ref, rtol=0, atol=rounding * np.abs(ref).max())
+
+
+def test_several_channels_with_sigma_far_inside_the_residual_are_certified():
+    # σ = 1e-8 × the least-squares rms: with the capacitance blocks c⁻¹I − M_kD_k⁻¹M_kᵀ (cancelling) this solve ended
+    # "failed" with its best δ 5.7 times the lower bound; by (cI + c²M_kG_k⁻¹M_kᵀ)⁻¹ it is certified
+    u, y, i, sigma = _mimo_data(2, 2, 0, i=4, j=40)
+    res = uf.subspace_unfalsify(u, y, i, 2e-8 * sigma, backend="structured", tol=1e-4, progress=False)
+    assert res.status == "optimal" and res.certificate.verify() and res.certificate.relative_gap <= 1e-4
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.SolverWarning)  # Clarabel's own point leaves the noise ball here
+        ref = uf.subspace_unfalsify(u, y, i, 2e-8 * sigma)
+    assert abs(ref.delta - res.delta) <= 1e-4 * res.delta
