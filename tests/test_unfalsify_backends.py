@@ -136,6 +136,26 @@ def test_an_optimal_status_whose_point_is_not_certified_is_warned():
     assert not cert_half.ok() and delta == out.delta
 
 
+def test_a_stopped_solve_whose_point_leaves_the_noise_ball_certifies_only_its_lower_bound():
+    # measured (fuzz): an ARX solve stopped `failed` with its point's noise at 1.0000049 σ√N once recomputed from the
+    # data (cond T(u) about 1e24), and the warning called its bracket certified.  Deterministically: a stopped
+    # structured answer for σ, certified against the same data at σ(1 − 1e-5).
+    from unfalsify._common import certify
+    from unfalsify.solvers import SolverStatus, run
+
+    u, y = servo_arx_data(40, 3)
+    sigma = 0.5 * uf.arx_least_squares(u, y, 2, 2)[1]
+    P, P_less = (uf.ArxProblem.from_data(u, y, 2, 2, s) for s in (sigma, sigma * (1 - 1e-5)))
+    out = dataclasses.replace(run("arx_barrier", P, tol=1e-6, progress=False), status=SolverStatus.TIME_LIMIT)
+    with pytest.warns(uf.SolverWarning, match="the certified bracket has relative gap"):
+        cert, delta = certify(P, out, "test")
+    assert cert.verify() and delta == out.delta
+    with pytest.warns(uf.SolverWarning, match=r"leaves the noise ball \(‖ξ‖ = 1\.0000\d+ σ√N\), so its δ .* is not "
+                                              r"certified; the lower bound .* is$"):
+        cert, delta = certify(P_less, out, "test")
+    assert not cert.verify() and np.isnan(delta)
+
+
 @pytest.mark.parametrize("method", ["barrier", "primal_dual"])
 def test_sigma_equal_to_the_least_squares_rms_gives_a_certified_zero(method):
     # ‖PB‖ on ρ up to rounding: δ = 0 with an empty interior, where the structured solvers had failed (fuzz run:
