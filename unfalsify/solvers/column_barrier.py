@@ -524,21 +524,69 @@ class _Deflation:
         return (Z2 - self._combine(self._solve(self.CW, Z2), self.W2)).reshape(Z.shape)
 
 
-def _dense_capacitance_solve(E: np.ndarray, Q: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``C⁺ B`` for the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` formed as an (mr × mr) matrix, B a stack (p, m, r).
+def _dense_capacitance_factor(E: np.ndarray, Q: np.ndarray):
+    """A factor of the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` formed as an (mr × mr) matrix (row-major (m, r) order).
 
-    The fallback of a CG solve that did not converge (:data:`_DENSE_CAPACITANCE`).  By the symmetric
-    eigendecomposition, the directions below ``mr·eps`` of the largest eigenvalue dropped: in the ill-conditioned
-    limit where CG fails (a noise ball at the data's rounding level, E_k inheriting cond T(u_k)), a Cholesky factor
-    would fail or need a shift, and those directions are the ones the rounding of C already leaves undetermined."""
+    Cholesky where C is numerically positive definite (its smallest pivot² above ``mr·eps`` of the largest diagonal
+    entry); else the symmetric eigendecomposition with the directions below ``mr·eps`` of the largest eigenvalue
+    dropped: in the ill-conditioned limit (a noise ball far inside the residual, E_k inheriting cond T(u_k)) those
+    are the directions the rounding of C already leaves undetermined."""
     j, m, r = E.shape[0], E.shape[1], Q.shape[1]
     QQ = (Q[:, :, None] * Q[:, None, :]).reshape(j, r * r)
+    # symmetric to rounding (each E_k is); LAPACK's potrf and syevd read one triangle, so no symmetrising pass (a
+    # strided transpose: 43 ms of 100 at order 1200)
     C = (E.reshape(j, m * m).T @ QQ).reshape(m, m, r, r).transpose(0, 2, 1, 3).reshape(m * r, m * r)
-    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    floor = m * r * np.finfo(float).eps * max(float(np.max(np.diag(C))), 0.0)
+    try:
+        L = np.linalg.cholesky(C)
+        if float(np.min(np.diag(L))) ** 2 > floor:
+            return ("cholesky", L)
+    except np.linalg.LinAlgError:
+        pass
+    w, V = np.linalg.eigh(C)
     keep = w > max(float(w[-1]), 0.0) * m * r * np.finfo(float).eps
-    Vk = V[:, keep]
-    X = Vk @ ((Vk.T @ B.reshape(B.shape[0], m * r).T) / w[keep, None])
+    return ("eigen", w[keep], V[:, keep])
+
+
+def _dense_capacitance_apply(factor, B: np.ndarray) -> np.ndarray:
+    """``C⁺ B`` for a stack B (p, m, r) by :func:`_dense_capacitance_factor`'s factor."""
+    rhs = B.reshape(B.shape[0], -1).T
+    if factor[0] == "cholesky":
+        X = scipy.linalg.cho_solve((factor[1], True), rhs)
+    else:
+        _, w, V = factor
+        X = V @ ((V.T @ rhs) / w[:, None])
     return X.T.reshape(B.shape)
+
+
+def _dense_capacitance_solve(E: np.ndarray, Q: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``C⁺ B`` for the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` formed densely, B a stack (p, m, r)."""
+    return _dense_capacitance_apply(_dense_capacitance_factor(E, Q), B)
+
+
+class _Capacitance:
+    """The capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` of one Newton system, for as many solves as use it (the primal–dual
+    method's predictor and corrector): for CG its product, Kronecker preconditioner and deflation, or its dense
+    factor, each built on first use."""
+
+    def __init__(self, system, E: np.ndarray):
+        self.system, self.E = system, E
+        self._cg = self._factor = None
+
+    def cg(self):
+        """``(Cmul, (A⁻¹, B⁻¹), deflation)`` (:meth:`_ColumnSystem._capacitance`, :func:`_kronecker_preconditioner`,
+        :func:`_deflation`)."""
+        if self._cg is None:
+            sys_ = self.system
+            Cmul = sys_._capacitance(self.E)
+            self._cg = (Cmul, _kronecker_preconditioner(sys_.Q, self.E), _deflation(Cmul, sys_.W, sys_.chunks))
+        return self._cg
+
+    def solve_dense(self, B: np.ndarray) -> np.ndarray:
+        """``C⁺ B`` by the dense factor (:func:`_dense_capacitance_factor`)."""
+        if self._factor is None:
+            self._factor = _dense_capacitance_factor(self.E, self.system.Q)
+        return _dense_capacitance_apply(self._factor, B)
 
 
 def _deflation(Cmul, W, chunks: _Chunks = _SERIAL):
@@ -613,7 +661,8 @@ class _ColumnSystem:
         self.Q = form.Qr if (form.Qr is not None and form.Qr.shape[1]) else None
         self.W = _common_impulse_basis(form.U, self.Q) if self.Q is not None else None
         self.cg_iters = 0
-        self.dense_solves = 0  # CG solves redone by the dense capacitance (_lowrank_correction)
+        self.dense_solves = 0  # capacitance solves by its dense factor (_lowrank_correction)
+        self.dense_capacitance = False  # from the first CG solve that cost more than the dense one: dense only
 
     def _resid(self, H):
         return self.f.project(self.f.B - self.f.apply(H))
@@ -678,10 +727,20 @@ class _ColumnSystem:
         return self._woodbury_parts(E)
 
     def _woodbury_parts(self, E):
-        """The capacitance ``Σ_k q_k q_kᵀ ⊗ E_k`` of the stack E as its product, Kronecker preconditioner and
-        deflation, and E itself (the dense fallback): what :meth:`_lowrank_correction` takes."""
-        Cmul = self._capacitance(E)
-        return Cmul, _kronecker_preconditioner(self.Q, E), _deflation(Cmul, self.W, self.chunks), E
+        """The capacitance ``Σ_k q_k q_kᵀ ⊗ E_k`` of the stack E, what :meth:`_lowrank_correction` takes
+        (:class:`_Capacitance`)."""
+        return _Capacitance(self, E)
+
+    def _dense_cheaper(self, iterations: int, rhs: int) -> bool:
+        """Whether ``iterations`` CG iterations on ``rhs`` right-hand sides cost more than forming and factoring the
+        capacitance densely.  Flop counts weighted by their measured rates (one core): a CG iteration's products,
+        ``4 m r j + 2 m² j`` per right-hand side, and its preconditioner and deflation about as much again, run at
+        about twice the rate of the dense route's ``j m² r²`` (forming C) and ``(mr)³/3`` (Cholesky).  Measured break-even
+        (iterations, 3 right-hand sides): 2 at (i, j) = (4, 60), 24–28 at (10, 200), 160–230 at (20, 400); this rule
+        gives 4, 32 and 172."""
+        m, j, r = self.m, self.j, self.Q.shape[1]
+        dense = j * m * m * r * r + (m * r) ** 3 / 3.0
+        return iterations * rhs * (4.0 * m * r * j + 2.0 * m * m * j) > dense
 
     def _lowrank_correction(self, woodbury, solve, rhs, Y, tol: float | None = None):
         """Woodbury: ``D⁻¹U C⁻¹ Uᵀ D⁻¹ rhs`` with C of :meth:`_woodbury` by PCG (relative residual ``tol``, default
@@ -692,18 +751,24 @@ class _ColumnSystem:
         stacks (p, m, r) (p right-hand sides); a product costs O(p m r j + p m² j) and C is never formed.
         """
         Q, Tu = self.Q, self.Tu
-        Cmul, (Ainv, Binv), deflation, E = woodbury
         YT = np.moveaxis(Y, 2, 0)  # (p, m, j)
         TuY = np.moveaxis(np.moveaxis(YT, 2, 0) @ _tr(Tu), 0, 2)  # column k: T(u_k) y_k
         Ut_b = TuY @ Q  # Uᵀ D⁻¹ rhs, (p, m, r)
         order = self.m * Q.shape[1]
-        # CG converges within the capacitance's order in exact arithmetic; beyond it, small systems go dense
-        dense = order <= _DENSE_CAPACITANCE
-        Z, converged = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, deflation, tol,
-                                 maxiter=min(self.cg_maxiter, order) if dense else self.cg_maxiter)
-        if dense and not converged:
-            Z = _dense_capacitance_solve(E, Q, Ut_b)
+        small = order <= _DENSE_CAPACITANCE
+        if small and self.dense_capacitance:
+            Z = woodbury.solve_dense(Ut_b)
             self.dense_solves += 1
+        else:
+            Cmul, (Ainv, Binv), deflation = woodbury.cg()
+            # CG converges within the capacitance's order in exact arithmetic; beyond it, small systems go dense
+            maxiter = min(self.cg_maxiter, order) if small else self.cg_maxiter
+            Z, iterations = self._pcg(Cmul, lambda X: Binv @ X @ Ainv, Ut_b, deflation, tol, maxiter=maxiter)
+            if small and (iterations >= maxiter or self._dense_cheaper(iterations, Ut_b.shape[0])):
+                self.dense_capacitance = True  # the solves of this path only get harder (the noise slack shrinks)
+                if iterations >= maxiter:
+                    Z = woodbury.solve_dense(Ut_b)
+                    self.dense_solves += 1
         UZ = np.moveaxis(Z @ Q.T, 2, 0) @ Tu  # (j, p, m): row form of T(u_k)ᵀ (Z Qᵀ)_k
         return solve(UZ.transpose(2, 0, 1))  # D_k⁻¹ (…) in the layout (m, j, p)
 
@@ -734,8 +799,8 @@ class _ColumnSystem:
     def _pcg(self, A, Minv, B, deflation: _Deflation | None = None, tol: float | None = None,
              maxiter: int | None = None):
         """Preconditioned CG on every right-hand side ``B[p]`` at once (relative residual ``tol``, default
-        :meth:`pcg_tol`), deflated by ``deflation`` if given; returns X and whether CG converged within ``maxiter``
-        (default ``cg_maxiter``) iterations."""
+        :meth:`pcg_tol`), deflated by ``deflation`` if given; returns X and the iterations taken (``maxiter``, default
+        ``cg_maxiter``, when CG did not converge)."""
         maxiter = self.cg_maxiter if maxiter is None else maxiter
         def dot(X, Y):
             return np.einsum("pmr,pmr->p", X, Y)[:, None, None]
@@ -745,7 +810,7 @@ class _ColumnSystem:
         X, iterations = pcg(A, Minv, B, tol=self.pcg_tol() if tol is None else tol, maxiter=maxiter,
                             start=start, project=project, dot=dot)
         self.cg_iters += iterations
-        return X, iterations < maxiter
+        return X, iterations
 
     # ---- cold start ----------------------------------------------------------------------------
     def _cold_impulses(self, svd, B0) -> np.ndarray:
