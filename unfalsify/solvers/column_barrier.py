@@ -32,9 +32,11 @@ w = 60).  Structure used:
   Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (``q_k`` row k of Q,
   ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
   conjugate gradients; C is never formed (products cost O(i r j)), memory O(j i²).  Up to an order i·r of
-  :data:`_DENSE_CAPACITANCE`, a CG solve still short of its tolerance after i·r iterations (the bound of exact
-  arithmetic; ill-conditioned C, e.g. a noise ball at the data's rounding level) is redone by an
-  eigendecomposition of C formed densely (:func:`_dense_capacitance_solve`).
+  :data:`_DENSE_CAPACITANCE`, C is formed and factored densely (:func:`_dense_capacitance_factor`) once a CG solve
+  has cost more than that (:meth:`_ColumnSystem._dense_cheaper`) or stopped short of its tolerance after i·r
+  iterations (the bound of exact arithmetic), and for the rest of the solve: a noise ball far inside the residual
+  makes C ill-conditioned and CG long (measured at (20, 400), σ = 0.01 × the least-squares rms: 88 000 CG
+  iterations and 53 s with CG alone, 4.2 s with the switch; at σ = ½ the rms CG stays, 13 iterations a solve).
 * **Steps.**  After each centring t grows by ``mu`` (5), and the centring at μt starts from the best (lowest
   ``f_{μt}``) of the centred point and the two predictions of
   :func:`~unfalsify.solvers.barrier.path_predictor` (the tangent linear in 1/t, and the Hermite cubic through the
@@ -597,11 +599,13 @@ def _deflation(Cmul, W, chunks: _Chunks = _SERIAL):
         return None
 
 
-#: Order m·r of the capacitance up to which a CG solve that reached ``cg_maxiter`` is redone densely
-#: (:func:`_dense_capacitance_solve`; an eigendecomposition of 1200 × 1200 takes about 0.3 s on one core).  Measured on a
+#: Order m·r of the capacitance up to which it is factored densely where CG costs more, or fails
+#: (:func:`_dense_capacitance_factor`: forming and factoring C at order 1200 takes about 0.1 s on one core, an
+#: eigendecomposition 0.3 s; at order 7500, (50, 500), the Cholesky factor alone would take about 5 s).  Measured on a
 #: fuzzed record (i, j) = (4, 38), L optimised, σ = 1e-10 against a least-squares rms of 7.6e-3: CG took a median of
 #: 449 iterations on a capacitance of order 48 (42 of 525 solves stopped at 2000), the solve 34.6 s and 521 Newton
-#: steps; with the fallback 0.9 s, and a tighter bracket (both end ``failed``: the noise ball is at the data's rounding).
+#: steps; with the dense route 4 s, and a tighter bracket (both end ``failed``: the noise ball is at the data's
+#: rounding).
 _DENSE_CAPACITANCE = 1200
 #: The route of the Newton steps: ``"current"``, or ``"former"`` (the FFT Hessian, the Gram by products, K⁻¹ at every
 #: trial point, the block inverse in the L-fixed Newton system, the path steps from the centred point itself: the
