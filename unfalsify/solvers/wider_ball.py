@@ -33,7 +33,7 @@ import numpy as np
 
 from .barrier import Deadline
 
-__all__ = ["SMALL_BALL", "tighten_lower", "with_rho"]
+__all__ = ["SMALL_BALL", "small_ball", "tighten_lower", "with_rho"]
 
 #: The first retry's noise budget, as a fraction of the least-squares residual ‖P B‖; retries are at least
 #: :data:`_FACTOR` times the failed solve's ρ, so a failed solve is retried where ρ < SMALL_BALL/_FACTOR × ‖P B‖.
@@ -45,6 +45,14 @@ _FACTOR = 10.0
 _RETRY_TOL = 0.1
 #: The statuses whose bracket this improves (a time limit or an interruption is the user's: no extra solve).
 _RETRIED = ("failed", "max_iter")
+
+
+def small_ball(form) -> bool:
+    """Whether the noise budget ρ of ``form`` is below ``SMALL_BALL/10`` of the least-squares residual ‖P B‖: where
+    :func:`tighten_lower` retries, and where the front end re-solves a failed one-channel barrier solve by the
+    primal–dual method."""
+    rho = float(form.rho)
+    return bool(rho > 0.0 and SMALL_BALL * float(np.linalg.norm(form.project(form.B))) > _FACTOR * rho)
 
 
 def with_rho(form, rho: float):
@@ -80,11 +88,10 @@ def tighten_lower(form, out: dict, solve_at, *, tol: float, clock: Deadline | No
     """
     if out.get("status") not in _RETRIED or not np.isfinite(out.get("upper", np.nan)):
         return out
-    reach = float(np.linalg.norm(form.project(form.B)))
-    rho = float(form.rho)
-    wide = SMALL_BALL * reach
-    if not (rho > 0.0 and wide > _FACTOR * rho):
+    if not small_ball(form):
         return out
+    rho = float(form.rho)
+    wide = SMALL_BALL * float(np.linalg.norm(form.project(form.B)))
     clock = clock if clock is not None else Deadline()
     out, tried = dict(out), []
     while wide > _FACTOR * rho:
