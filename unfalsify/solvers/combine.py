@@ -23,7 +23,7 @@ _NOISE_SLACK = 1e-6
 def best_of(problem, outputs, *, tol: float) -> SolverOutput:
     """The answer whose upper side is the smallest certified norm among ``outputs`` and whose lower side is the
     largest certified bound; status ``optimal`` if that bracket's relative gap is at most ``tol``, else the status of
-    the first output.  ``stats`` are the first output's, with ``combined``: one ``(status, lower, upper)`` per output
+    the last output.  ``stats`` are the first output's, with ``combined``: one ``(status, lower, upper)`` per output
     (data units) and which output gave each side.
 
     ``outputs`` are :class:`SolverOutput` of structured solvers (``bracketed``) for the same ``problem``.
@@ -39,7 +39,7 @@ def best_of(problem, outputs, *, tol: float) -> SolverOutput:
     a, b = int(np.argmin(uppers)), int(np.argmax(lowers))
     primal, dual = outputs[a], outputs[b]
     up, lo = uppers[a], lowers[b]
-    status = primal.status if a == 0 else outputs[0].status
+    status = outputs[-1].status  # the last solve's end (e.g. the time limit it ran into)
     if np.isfinite(up) and up - lo <= tol * up:
         status = SolverStatus.OPTIMAL
     stats = dict(outputs[0].stats,
