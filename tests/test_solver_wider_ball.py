@@ -116,3 +116,12 @@ def test_best_of_keeps_the_smaller_certified_norm_and_the_larger_bound():
     # the other order: the same bracket
     again = best_of(P, [tight, loose], tol=1e-6)
     assert P.evaluate_primal(again.impulses, again.params)[0] == min(up)
+
+
+def test_a_warm_start_on_the_small_ball_route_is_reported_unused():
+    # the same data at σ = 0.3 × the rms, then at 1e-9 × the rms from it: the primal–dual route has no warm start
+    u, y, sigma = _tiny_sigma_record(frac=1e-9)
+    near = uf.subspace_unfalsify(u, y, I, sigma * 3e8, backend="structured", tol=1e-4, progress=False)
+    again = uf.subspace_unfalsify(u, y, I, sigma, backend="structured", tol=1e-4, progress=False, warm_start=near)
+    assert again.start == "cold (warm start not used: a noise ball far inside the residual takes the primal–dual route)"
+    assert again.status == "optimal" and again.certificate.verify()

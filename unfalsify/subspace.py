@@ -359,10 +359,10 @@ def _small_ball_solve(P, options: dict, time_limit, tol) -> SolverOutput:
     the barrier method, keeping the best primal and dual points of the two (:func:`~unfalsify.solvers.combine.best_of`).
 
     There the barrier's noise term is far more curved than its LMIs and its Newton steps crawl.  Measured, servo data,
-    L optimised, tol 1e-4: at (i, j) = (4, 38) and σ = 1e-8 or 1e-9 × the rms the primal–dual method certified 8 of 8
-    records in 8–9 iterations (0.1 s) where the barrier took 150–470 Newton steps (3–10 s) and failed on 5; at
-    (20, 400) and σ = 1e-5 × the rms it certified in 21 iterations (5.9 s) where the barrier failed after 150 Newton
-    steps (191 s).  A warm start is not used on this route."""
+    L optimised, tol 1e-4: at (i, j) = (4, 38) and σ = 1e-8 or 1e-9 × the rms (seeds 0–7) the primal–dual method
+    certified 16 of 16 records in 8–9 iterations (≤ 0.1 s), where the barrier took 150–500 Newton steps and did not
+    certify 11; at (20, 400) and σ = 1e-5 × the rms it certified in 21 iterations (6–8 s), where the barrier crawled
+    until a 300 s time limit.  A warm start is not used on this route."""
     options = {k: v for k, v in options.items() if k != "warm_start"}
     first = run("column_pd", P, **options)
     if first.status == "optimal":
@@ -639,6 +639,8 @@ def subspace_unfalsify(
                 options["warm_start"] = state
         if name == "column_barrier" and small_ball(P.column_form(scaled=True)):
             out = _small_ball_solve(P, options, time_limit, tol)
+            if "warm_start" in options:
+                start = "cold (warm start not used: a noise ball far inside the residual takes the primal–dual route)"
         else:
             out = run(name, P, **options)
         note = out.stats.get("warm")
