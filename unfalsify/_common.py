@@ -291,6 +291,12 @@ def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
             f"does an input that excites more frequencies; backend='cvxpy' is a second route")
 
 
+def _outside_ball(cert: Certificate) -> bool:
+    """Whether the certificate's primal point, recomputed from the data, leaves the noise ball by more than rounding
+    (1e-6 of σ√N, :meth:`Certificate.verify`'s tolerance)."""
+    return bool(cert.noise_norm > cert.noise_bound * (1.0 + 1e-6))
+
+
 def _crossed_bounds(P, cert: Certificate) -> str:
     """Why the two sides of a certificate cross (lower above upper by more than 1e-9 relative), or "".
 
@@ -300,7 +306,7 @@ def _crossed_bounds(P, cert: Certificate) -> str:
     lo, up = cert.lower_bound, cert.upper_bound
     if not (np.isfinite(lo) and np.isfinite(up) and lo > up * (1.0 + 1e-9)):
         return ""
-    if not cert.noise_norm <= cert.noise_bound * (1.0 + 1e-6):
+    if _outside_ball(cert) or not np.isfinite(cert.noise_norm):
         return ""  # the primal point is outside the noise ball: its own warning says so, and it is not rounding
     scale = _data_scale(P)
     return (f"the certified bounds cross (lower {lo:.8g} > upper {up:.8g}, by {(lo - up) / up:.2g} relative): δ is "
@@ -356,7 +362,7 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     if out.bracketed:
         # a stopped solve's best point can leave the noise ball by rounding once the data are recomputed (measured: by
         # 5e-6 relative, cond T(u) about 1e24): then only the lower side is certified
-        outside = bool(cert.noise_norm > cert.noise_bound * (1.0 + 1e-6))
+        outside = _outside_ball(cert)
         if not out.status.keeps_bracket or not np.isfinite(cert.upper_bound) or (outside and out.status != "optimal"):
             delta = float("nan")
         if out.status != "optimal":

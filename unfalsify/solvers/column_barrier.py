@@ -561,11 +561,6 @@ def _dense_capacitance_apply(factor, B: np.ndarray) -> np.ndarray:
     return X.T.reshape(B.shape)
 
 
-def _dense_capacitance_solve(E: np.ndarray, Q: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``C⁺ B`` for the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` formed densely, B a stack (p, m, r)."""
-    return _dense_capacitance_apply(_dense_capacitance_factor(E, Q), B)
-
-
 class _Capacitance:
     """The capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` of one Newton system, for as many solves as use it (the primal–dual
     method's predictor and corrector): for CG its product, Kronecker preconditioner and deflation, or its dense
@@ -728,11 +723,6 @@ class _ColumnSystem:
         X[:, np.arange(m), np.arange(m)] += cc
         E = _spd_inverse(X, self.chunks, out=take(G.shape))
         del X
-        return self._woodbury_parts(E)
-
-    def _woodbury_parts(self, E):
-        """The capacitance ``Σ_k q_k q_kᵀ ⊗ E_k`` of the stack E, what :meth:`_lowrank_correction` takes
-        (:class:`_Capacitance`)."""
         return _Capacitance(self, E)
 
     def _dense_cheaper(self, iterations: int, rhs: int) -> bool:
@@ -843,7 +833,7 @@ class _ColumnSystem:
         rhs = self.f.apply_T(B0)[..., None]
         tol = min(max(1e-2 * self.f.rho / max(float(np.linalg.norm(B0)), np.finfo(float).tiny), 1e-12), 1e-4)
         try:
-            woodbury = self._woodbury_parts(E)
+            woodbury = _Capacitance(self, E)
             Y = solve(rhs)
             H = (Y + self._lowrank_correction(woodbury, solve, rhs, Y, tol))[..., 0]
         except np.linalg.LinAlgError:
@@ -1284,7 +1274,6 @@ def _solve(form, B0, tol, time_limit, progress, mu, noise_weight, chunks: _Chunk
             p = solver.start(B0)
         else:
             p, t = resumed
-
     except (KeyboardInterrupt, Stop) as exc:  # before the first point: no bracket but δ ≥ 0
         return dict(status="interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc), lower=0.0,
                     upper=float("nan"), H=getattr(solver, "start_H", np.zeros((form.m, form.j))), V=None, W=None,

@@ -49,8 +49,8 @@ _RETRIED = ("failed", "max_iter")
 
 def small_ball(form) -> bool:
     """Whether the noise budget ρ of ``form`` is below ``SMALL_BALL/10`` of the least-squares residual ‖P B‖: where
-    :func:`tighten_lower` retries, and where the front end re-solves a failed one-channel barrier solve by the
-    primal–dual method."""
+    :func:`tighten_lower` retries, and where the front end solves a one-channel problem by the primal–dual method
+    first."""
     rho = float(form.rho)
     return bool(rho > 0.0 and SMALL_BALL * float(np.linalg.norm(form.project(form.B))) > _FACTOR * rho)
 
