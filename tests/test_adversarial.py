@@ -3,6 +3,7 @@ judge catches a false certificate, and ``robust-adversarial --quick`` runs end t
 from __future__ import annotations
 
 import json
+import math
 from types import SimpleNamespace
 
 import control
@@ -157,14 +158,19 @@ def test_premise_ratio():
     assert r == float("inf") and "not stable" in why
 
 
-@pytest.mark.parametrize("plant", ["servo", "wide"])
+@pytest.mark.parametrize("plant", ["servo", "wide", "delayed"])
 def test_true_factors_for_the_coprime_judge(plant):
     """The judge's factors of the true plant reproduce it (second route: its frequency response), also when
-    aligned to a model's factors; the aligned perturbation's norm bounds the pointwise distance from above."""
+    aligned to a model's factors; the aligned perturbation's norm bounds the pointwise distance from above.
+    "delayed": a plant of order 9 above the model's horizon 4 (an input delay of 6 samples on a third-order plant; it
+    crashed the alignment, measured on the adversarial catalogue's seed 6)."""
     from experiments.lab.plants import servo
     from experiments.studies import mimo_pipeline, robust_pipeline as rp
 
-    P = servo() if plant == "servo" else mimo_pipeline.wide()
+    if plant == "delayed":
+        P = control.ss(third_order() * control.tf([1.0], [1.0] + [0.0] * 6, third_order().dt))
+    else:
+        P = servo() if plant == "servo" else mimo_pipeline.wide()
     m = P.ninputs
     w = np.array([0.05, 0.7, 2.0]) / P.dt
     G = np.moveaxis(np.asarray(P.horner(np.exp(1j * w * P.dt)), complex).reshape(1, m, -1), -1, 0)
@@ -201,6 +207,15 @@ def test_a_failing_fit_or_pipeline_is_recorded_not_raised(monkeypatch):
     monkeypatch.setattr(adv.uf, "robust_design_from_data", broken_pipeline)
     out = adv.run_case(case)
     assert out["verdict"] == "silent_failure" and "unexpected" in out["error"]
+    monkeypatch.undo()
+
+    def broken_ratio(*a, **k):
+        raise ValueError("matmul")
+
+    monkeypatch.setattr(adv, "result_premise_ratio", broken_ratio)  # the catalogue goes on (it crashed at seed 6)
+    out = adv.run_case(case)
+    assert out["verdict"] in adv.VERDICTS and math.isnan(out["premise_ratio"])
+    assert "not measured: ValueError: matmul" in out["premise_note"]
 
 
 @pytest.mark.slow

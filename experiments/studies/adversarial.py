@@ -579,7 +579,10 @@ def run_case(case: Case) -> dict:
     out.update(delta=float(rd.delta), certified=bool(rd.certified), reason=rd.reason,
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
-    out["premise_ratio"], out["premise_note"] = result_premise_ratio(rec.plant, rd)
+    try:
+        out["premise_ratio"], out["premise_note"] = result_premise_ratio(rec.plant, rd)
+    except Exception as exc:  # noqa: BLE001 - a measurement that fails is recorded; it never decides a verdict
+        out["premise_note"] = f"premise ratio not measured: {type(exc).__name__}: {exc}"
     if rd.reference_model is not None and rd.uncertainty == "additive":
         out["premise_ratio_ref"] = premise_ratio(rec.plant, rd.reference_model, rd.delta)[0]
     out["true"], out["verdict"] = judge_result(rd, rec.plant, out["warned"])

@@ -128,9 +128,10 @@ def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -
                     for j in range(sys.ninputs)])                                  # (m, n + 1)
     if like is not None:
         w = np.linspace(0.0, np.pi, points)
-        zi = np.exp(-1j * np.outer(w, np.arange(like.horizon + 1)))              # z^{−d}, d = 0 … i
+        zq = np.exp(-1j * np.outer(w, np.arange(like.horizon + 1)))              # Q's taps z^{−d}, d = 0 … i
+        zp = np.exp(-1j * np.outer(w, np.arange(den.size)))                      # the plant's, d = 0 … n (n > i too)
         Nh, Mh = like.response(w / like.dt)
-        rows = [(zi[:, :den.size] @ c)[:, None] * zi for c in (*num, den)]       # [N_j; M] Q as functions of Q
+        rows = [(zp @ c)[:, None] * zq for c in (*num, den)]                     # [N_j; M] Q as functions of Q
         target = [Nh[:, 0, j] for j in range(sys.ninputs)] + [Mh[:, 0, 0]]
         Aq, bq = np.vstack(rows), np.concatenate(target)
         q = np.linalg.lstsq(np.vstack([Aq.real, Aq.imag]), np.concatenate([bq.real, bq.imag]), rcond=None)[0]
