@@ -148,6 +148,20 @@ def test_verdicts_of_refusals():
     assert adv.verdict(False, False, None, RuntimeError("boom")) == "silent_failure"
 
 
+def test_summary_counts_certificates_on_an_untested_premise():
+    def run(verdict, certified, assumed):
+        return {"case": verdict, "group": "g", "excitation_kind": "prbs", "verdict": verdict, "certified": certified,
+                "premise_ratio": 1.0, "assumed": assumed}
+
+    results = [run("certified", True, ["input 0 takes the values {-1, 1} only"]), run("certified", True, []),
+               run("false_certificate", True, ["input 0 takes the values {-1, 1} only"]),
+               run("not_certified", False, ["input 0 takes the values {-1, 1} only"])]
+    summary = adv.summarise(results)
+    assert summary["certified_assuming"] == 2 and summary["false_certificates_assuming"] == 1
+    assert any("cannot test" in line and ": 2, of them false: 1" in line
+               for line in adv.summary_lines({**summary, "mode": "validation"}))
+
+
 def test_premise_ratio():
     P = third_order()
     assert adv.premise_ratio(P, P, 0.1)[0] == pytest.approx(0.0, abs=1e-9)

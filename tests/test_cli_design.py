@@ -70,6 +70,8 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
         res = uf.robust_design_from_data(u, y, 10, W1, W2, "auto", dt=dt, window=(0, 49))
     assert summary["certified"] == res.certified and summary["delta"] == res.delta
     assert summary["reason"] == res.reason
+    assert summary["assumed"] == list(res.assumed) and len(res.assumed) == 1  # a ±1 PRBS: linearity untestable
+    assert all(f"Assumed, not testable on these data: {a}." in md for a in res.assumed)
     K_npz, K_mat = load_controller(summary["controller_npz"]), load_controller(summary["controller_mat"])
     K = res.controller
     for mat in "ABCD":

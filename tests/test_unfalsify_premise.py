@@ -298,6 +298,29 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
     assert p.inconsistency < 1
     # the claim on the true plant
     assert uf.additive_robustness(P, r.controller).certifies(r.delta)
+    # a ±1 input cannot show a saturation: the result says what it assumes
+    assert len(r.assumed) == 1 and r.assumed == uf.untested_premises(d.u[:, 0])
+    assert "{-1, 1}" in r.assumed[0] and "linear at the amplitudes" in r.assumed[0]
+
+
+def test_untested_premises_from_the_input_levels():
+    """Two values, or 0 and ±a, per channel: a static input nonlinearity is invisible (stated); several
+    amplitudes: nothing to state.  Second route: a saturation at 80 % of a ±1 input is exactly the gain 0.8 there,
+    and not on a multilevel input."""
+    rng = np.random.default_rng(3)
+    binary, levels = np.sign(rng.standard_normal(300)), rng.choice([-1.0, -0.5, 0.5, 1.0], 300)
+    def sat(x):
+        return np.clip(x, -0.8, 0.8)
+    assert np.allclose(sat(binary), 0.8 * binary) and not np.allclose(sat(levels), 0.8 * levels)
+    assert len(uf.untested_premises(binary)) == 1
+    assert len(uf.untested_premises(0.3 + 0.2 * binary)) == 1           # two values, not symmetric
+    assert len(uf.untested_premises(np.where(binary > 0, 1.0, 0.0))) == 1  # {0, 1}
+    assert len(uf.untested_premises(rng.choice([-2.0, 0.0, 2.0], 300))) == 1
+    assert uf.untested_premises(levels) == () and uf.untested_premises(rng.standard_normal(300)) == ()
+    # the held-out record counts, and each channel is stated on its own
+    assert uf.untested_premises(binary, validation=(levels, levels)) == ()
+    two = uf.untested_premises(np.column_stack([binary, levels]))
+    assert len(two) == 1 and two[0].startswith("input 0 ")
 
 
 def test_a_window_too_short_for_the_premise_is_refused_with_the_fix():

@@ -88,6 +88,7 @@ The certificate's premise, tested on the data
    check_premise          -- δ of P̂'s output error (Thm 7.1) beside δ of (7.5), and P̂ against the data's frequency response
    PremiseTest            -- result of ``check_premise`` (``delta``, ``decided_by``, ``reason``)
    PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
+   untested_premises      -- what the certificate assumes that the data cannot test (a two-level input: linearity)
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
@@ -236,6 +237,7 @@ from .premise import (
     low_band_estimate,
     output_error_residual,
     output_error_unfalsify,
+    untested_premises,
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
                       coprime_factors, coprime_gap, coprime_unfalsify, error_gap)
@@ -311,6 +313,7 @@ __all__ = [
     "low_band_estimate",
     "output_error_residual",
     "output_error_unfalsify",
+    "untested_premises",
     "CoprimeFactors",
     "CoprimePremise",
     "CoprimeUnfalsification",

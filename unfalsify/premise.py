@@ -92,6 +92,7 @@ __all__ = [
     "check_premise",
     "ExcitationCheck",
     "check_excitation",
+    "untested_premises",
 ]
 
 #: input power spectrum below this fraction of its peak: the frequency is not excited.
@@ -1080,6 +1081,65 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
                        frf=frf, inconsistency=float(worst), reason="; ".join(reasons), plant_frf=plant_frf,
                        low_band=low, plant_low_band=plant_low)
+
+
+def untested_premises(u, validation=None) -> tuple[str, ...]:
+    """What the certificate assumes that these data cannot test, read off the inputs themselves.
+
+    The certificate speaks of an LTI plant.  Some departures from that the records show (the output-error and
+    frequency-response tests of :func:`check_premise`), but an input channel whose samples take only two values,
+    or only 0 and ±a, cannot show a static input nonlinearity at all: any function of the input is an affine
+    function of it on two points, and an odd one (a saturation, a dead zone) a gain on {−a, 0, a}.  Such data
+    are those of the gain ``f(a)/a`` times the linear plant, whatever the plant does at other amplitudes --
+    which the loop's own input will have.  Measured on the adversarial catalogue (a third-order plant behind a
+    saturation at 80 % of a ±1 PRBS): certified at every seed 2–9 with ``‖P − P̂‖∞/δ`` of 1.9–3.1 for the
+    small-signal plant, and the true loop short of its δ margin at four of them.
+
+    Parameters
+    ----------
+    u : array_like, shape (n,) or (n, m)
+        The input of the window.
+    validation : tuple of array_like, optional
+        ``(u_v, y_v)``, the held-out record: its input counts too.
+
+    Returns
+    -------
+    tuple of str
+        One statement per input channel that cannot show such a nonlinearity (empty when every channel takes
+        several amplitudes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> prbs = np.sign(rng.standard_normal(200))
+    >>> len(untested_premises(prbs)), untested_premises(rng.standard_normal(200))
+    (1, ())
+    >>> print(untested_premises(prbs)[0][:60])
+    input 0 takes the values {-1, 1} only: a static input nonlin
+    """
+    u = np.asarray(u, float)
+    u = u.reshape(u.shape[0], -1)
+    if validation is not None:
+        uv = np.asarray(validation[0], float)
+        u = np.vstack([u, uv.reshape(uv.shape[0], -1)])
+    out = []
+    for ch in range(u.shape[1]):
+        x = u[:, ch]
+        scale = float(np.max(np.abs(x))) if x.size else 0.0
+        if not scale > 0.0:
+            continue  # a silent channel: the excitation tests refuse it
+        values = np.unique(np.round(x / (scale * 1e-9)) * (scale * 1e-9))
+        magnitudes = np.unique(np.abs(values[values != 0.0]))
+        if values.size > 2 and magnitudes.size > 1:
+            continue
+        shown = ", ".join(f"{v:.4g}" for v in values)
+        out.append(f"input {ch} takes the values {{{shown}}} only: a static input nonlinearity (a saturation or a "
+                   "dead zone, a gain that depends on the amplitude) acts on such data as a linear gain, so no test "
+                   "on them can see it; the certificate assumes the plant linear at the amplitudes the loop will "
+                   "use (data with several input amplitudes, e.g. a multilevel PRBS or Gaussian noise, would show "
+                   "such a nonlinearity in the output error)")
+    return tuple(out)
 
 
 def _low_bins(n: int, nperseg: int, inputs: int = 1) -> int:

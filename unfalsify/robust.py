@@ -66,7 +66,8 @@ from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_ch
                       tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .model import predictor_model
-from .premise import ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise
+from .premise import (ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise,
+                      untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from synthesis.results import result
 
@@ -306,6 +307,10 @@ class RobustDesignResult:
     additive_reason : str
         Why ``uncertainty="auto"`` left the additive form (the data refute its premise); ``''`` otherwise.
         :attr:`reason` repeats it when the coprime form does not certify either.
+    assumed : tuple of str
+        What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input
+        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone).  Not a refusal: a
+        certified loop with a non-empty ``assumed`` holds for the plant only as far as these statements do.
     """
 
     unfalsification: SubspaceResult
@@ -331,6 +336,7 @@ class RobustDesignResult:
     uncertainty: str = "additive"
     coprime: CoprimePremise | None = None
     additive_reason: str = ""
+    assumed: tuple = ()
 
     @property
     def controller(self) -> control.StateSpace:
@@ -714,6 +720,10 @@ def robust_design_from_data(
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
+    What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`): an input with
+    two values, or 0 and ±a, shows no static input nonlinearity (a saturation acts on it as a gain), so the
+    certificate then assumes the plant linear at the amplitudes the loop will use.
+
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
     certifies in the family ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)``, ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)ε``, around the FIR factors
@@ -897,7 +907,8 @@ def robust_design_from_data(
         model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
-        uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason)
+        uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
+        assumed=untested_premises(u, validation))
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,

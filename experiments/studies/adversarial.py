@@ -579,6 +579,7 @@ def run_case(case: Case) -> dict:
     out.update(delta=float(rd.delta), certified=bool(rd.certified), reason=rd.reason,
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
+    out["assumed"] = list(getattr(rd, "assumed", ()))
     try:
         out["premise_ratio"], out["premise_note"] = result_premise_ratio(rec.plant, rd)
     except Exception as exc:  # noqa: BLE001 - a measurement that fails is recorded; it never decides a verdict
@@ -644,7 +645,11 @@ def summarise(results: list[dict]) -> dict:
             "false_certificates": counts["false_certificate"], "silent_failures": counts["silent_failure"],
             "false_certificate_cases": [r["case"] for r in results if r["verdict"] == "false_certificate"],
             "silent_failure_cases": [r["case"] for r in results if r["verdict"] == "silent_failure"],
-            "max_premise_ratio_certified": max(finite) if finite else float("nan")}
+            "max_premise_ratio_certified": max(finite) if finite else float("nan"),
+            # certified on a premise the data cannot test (RobustDesignResult.assumed: a two-level input)
+            "certified_assuming": sum(bool(r["certified"] and r.get("assumed")) for r in results),
+            "false_certificates_assuming": sum(bool(r["verdict"] == "false_certificate" and r.get("assumed"))
+                                               for r in results)}
 
 
 TITLE = "§7.4 certificate against an adversarial catalogue, judged on the true plant"
@@ -691,6 +696,9 @@ def summary_lines(summary: dict) -> list[str]:
              f"silent failures: {summary['silent_failures']} (must be 0)"
              + (f": {', '.join(summary['silent_failure_cases'])}" if summary["silent_failure_cases"] else ""),
              "verdicts: " + ", ".join(f"{k} {v}" for k, v in summary["verdicts"].items() if v)]
+    if "certified_assuming" in summary:
+        lines.append(f"certified on a premise the data cannot test (result.assumed: a two-level input): "
+                     f"{summary['certified_assuming']}, of them false: {summary['false_certificates_assuming']}")
     return lines
 
 

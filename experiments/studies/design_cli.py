@@ -429,7 +429,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     rep.section("Verdict", f"**{verdict}** for δ = {_fmt(res.delta)}."
                 + (f"\n\nReason: {res.reason}" if res.reason else
                    "\n\nThe loop is stable on P̂ and P̂_ref, small gain is proven for δ, the step tracks, and "
-                   "the held-out data do not falsify the premise."))
+                   "the held-out data do not falsify the premise.")
+                + "".join(f"\n\nAssumed, not testable on these data: {a}." for a in res.assumed))
     rep.section("The loop on P̂",
                 f"Controller (inputs [r; y], output u, {res.controller.nstates} states): `{npz.name}`, "
                 f"`{mat.name}` (synthesis.load_controller reads either).  Final value of the unit step on "
@@ -442,6 +443,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "y": rec.y_columns[0] if rec.l == 1 else list(rec.y_columns),
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
+        "assumed": list(res.assumed),
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
         "delta_output_error": float(res.delta_output_error),
         "delta_lower_bound": float(cert.lower_bound), "delta_upper_bound": float(cert.upper_bound),
@@ -473,7 +475,8 @@ def run(opts) -> dict:
 def summary_lines(summary: dict) -> list[str]:
     """The verdict, δ and the controller files, for the CLI's closing summary."""
     verdict = "certified" if summary["certified"] else f"NOT certified: {summary['reason']}"
-    return [f"δ = {summary['delta']:.4g} ({summary['decided_by']}); {verdict}",
+    assumed = [f"assumed, not testable on these data: {a}" for a in summary.get("assumed", ())]
+    return [f"δ = {summary['delta']:.4g} ({summary['decided_by']}); {verdict}", *assumed,
             f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
 
 
