@@ -74,7 +74,7 @@ import scipy.stats
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal
 
-from ._common import channel_pair, siso_pair
+from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 
