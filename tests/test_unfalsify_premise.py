@@ -253,7 +253,7 @@ def _lowpass(n, wc, seed):
     return x / x.std()
 
 
-def _pipeline(u_fit, y_fit, held, i=10, j=30):
+def _pipeline(u_fit, y_fit, held, i=10, j=30, category=uf.NotCertifiedWarning):
     W = design_weights()
     pred = synthesis.fit_predictor(u_fit, y_fit, i)
     n = 2 * i + j - 1
@@ -264,7 +264,7 @@ def _pipeline(u_fit, y_fit, held, i=10, j=30):
         r = uf.robust_design_from_data(u_fit[:n], y_fit[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred,
                                        dt=0.1, predictor_for=lambda h: synthesis.fit_predictor(u_fit, y_fit, h),
                                        search=uf.DesignSearch(horizons=(2 * i,)), validation=held)
-    return r, [w for w in log if issubclass(w.category, uf.NotCertifiedWarning)]
+    return r, [w for w in log if issubclass(w.category, category)]
 
 
 @pytest.mark.slow
@@ -298,8 +298,10 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
     assert p.inconsistency < 1
     # the claim on the true plant
     assert uf.additive_robustness(P, r.controller).certifies(r.delta)
-    # a ±1 input cannot show a saturation: the result says what it assumes
+    # a ±1 input cannot show a saturation: the result says what it assumes, and warns
     assert len(r.assumed) == 1 and r.assumed == uf.untested_premises(d.u[:, 0])
+    _, untested = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), category=uf.UntestedPremiseWarning)
+    assert len(untested) == 1 and "cannot test: input 0 takes the values {-1, 1}" in str(untested[0].message)
     assert "{-1, 1}" in r.assumed[0] and "linear at the amplitudes" in r.assumed[0]
 
 

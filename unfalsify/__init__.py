@@ -135,6 +135,7 @@ Errors and warnings
    UnknownSolverError     -- a ``backend=``/``method=`` the solver registry does not know (lists the valid names)
    NotCertifiedError      -- ``require_certified=True`` and no design of the search certifies
    NotCertifiedWarning    -- the pipeline could not certify the loop it returns (with the reason)
+   UntestedPremiseWarning -- the loop is certified on a premise the data cannot test (``result.assumed``)
    FewDataWarning         -- the (7.5) window has few columns for the predictor it estimates
    LongSolveWarning       -- the (7.5) solve is estimated to take long (with the estimate and the fix)
    IllConditionedWarning  -- cond T(u) > 1e8: the literal Chapter 7 quantities are meaningless
@@ -252,6 +253,7 @@ from .robust import (
     LongSolveWarning,
     NotCertifiedError,
     NotCertifiedWarning,
+    UntestedPremiseWarning,
     RobustDesignResult,
     SearchRecord,
     additive_channel,
@@ -330,6 +332,7 @@ __all__ = [
     "solve_estimate",
     "NotCertifiedError",
     "NotCertifiedWarning",
+    "UntestedPremiseWarning",
     "RobustDesignResult",
     "SearchRecord",
     "additive_channel",

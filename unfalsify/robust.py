@@ -100,6 +100,11 @@ class NotCertifiedWarning(UserWarning):
     """The §7.4 pipeline could not certify the loop it returns (the reason is in the message)."""
 
 
+class UntestedPremiseWarning(UserWarning):
+    """The loop is certified, but on a premise these data cannot test (``result.assumed``, with the fix: e.g. an input
+    of two levels shows no saturation)."""
+
+
 class NotCertifiedError(UnfalsificationError):
     """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""
 
@@ -720,9 +725,10 @@ def robust_design_from_data(
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
-    What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`): an input with
-    two values, or 0 and ±a, shows no static input nonlinearity (a saturation acts on it as a gain), so the
-    certificate then assumes the plant linear at the amplitudes the loop will use.
+    What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a
+    certified loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a, shows no static
+    input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the plant linear at the
+    amplitudes the loop will use.
 
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
@@ -899,6 +905,10 @@ def robust_design_from_data(
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
+    assumed = untested_premises(u, validation)
+    if rec.certified and assumed:
+        warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
+                      UntestedPremiseWarning, stacklevel=2)
     g_nom = synthesis.gamma_min(chosen.predictor, W1, W2, causal=chosen.causal, dt=dt)
     return RobustDesignResult(
         unfalsification=unf, design=chosen, delta=delta, w3_gain=float(c), w3_rule=design.w3_rule,
@@ -908,7 +918,7 @@ def robust_design_from_data(
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=untested_premises(u, validation))
+        assumed=assumed)
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
