@@ -50,7 +50,10 @@ COMMANDS: dict[str, tuple] = {
                            "drifting, nonlinear data), judged on the true plant",
                            ((("--only",), dict(dest="only", default=None, metavar="TEXT",
                                                help="run only the cases whose name contains TEXT "
-                                                    "(comma-separated: any of them)")),)),
+                                                    "(comma-separated: any of them)")),
+                            (("--untested",), dict(dest="untested", choices=("warn", "refuse"), default="warn",
+                                                   help="CertificateOptions(untested=...): certify on a premise the "
+                                                        "data cannot test (warn, the default) or refuse")))),
     "mimo-pipeline": ("experiments.studies.mimo_pipeline", "run",
                       "§7.4 certificate for plants with several inputs and outputs (2 × 2, 2 × 1, 1 × 2) under white, "
                       "low-pass, silent-channel and collinear excitation, judged on the true plant"),

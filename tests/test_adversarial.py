@@ -162,6 +162,18 @@ def test_summary_counts_certificates_on_an_untested_premise():
                for line in adv.summary_lines({**summary, "mode": "validation"}))
 
 
+def test_untested_refuse_reaches_the_pipeline():
+    """``--untested refuse``: the white-PRBS control case (certified by default) is refused, naming the fix."""
+    from experiments.cli import main
+
+    case = next(c for c in adv.catalogue() if c.name == "excitation/third_order/prbs")
+    strict = adv.run_case(case, "refuse")
+    assert not strict["certified"] and strict["verdict"] == "not_certified" and strict["assumed"]
+    assert "cannot test the premise" in strict["reason"]
+    with pytest.raises(SystemExit):
+        main(["robust-adversarial", "--untested", "ignore"])
+
+
 def test_premise_ratio():
     P = third_order()
     assert adv.premise_ratio(P, P, 0.1)[0] == pytest.approx(0.0, abs=1e-9)

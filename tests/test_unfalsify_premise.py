@@ -253,7 +253,7 @@ def _lowpass(n, wc, seed):
     return x / x.std()
 
 
-def _pipeline(u_fit, y_fit, held, i=10, j=30, category=uf.NotCertifiedWarning):
+def _pipeline(u_fit, y_fit, held, i=10, j=30, category=uf.NotCertifiedWarning, **kw):
     W = design_weights()
     pred = synthesis.fit_predictor(u_fit, y_fit, i)
     n = 2 * i + j - 1
@@ -263,7 +263,7 @@ def _pipeline(u_fit, y_fit, held, i=10, j=30, category=uf.NotCertifiedWarning):
         warnings.simplefilter("always")
         r = uf.robust_design_from_data(u_fit[:n], y_fit[:n], i, W["W11"], W["W21"], 0.5 * rms, predictor=pred,
                                        dt=0.1, predictor_for=lambda h: synthesis.fit_predictor(u_fit, y_fit, h),
-                                       search=uf.DesignSearch(horizons=(2 * i,)), validation=held)
+                                       search=uf.DesignSearch(horizons=(2 * i,)), validation=held, **kw)
     return r, [w for w in log if issubclass(w.category, category)]
 
 
@@ -303,6 +303,27 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
     _, untested = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), category=uf.UntestedPremiseWarning)
     assert len(untested) == 1 and "cannot test: input 0 takes the values {-1, 1}" in str(untested[0].message)
     assert "{-1, 1}" in r.assumed[0] and "linear at the amplitudes" in r.assumed[0]
+
+
+def test_untested_refuse_names_the_fix_and_several_amplitudes_certify():
+    """``CertificateOptions(untested="refuse")``: a ±1 PRBS is refused with the fix; the same plant excited at several
+    amplitudes (uniform levels) certifies in that mode, with nothing assumed and no warning."""
+    P = third_order()
+    strict = uf.CertificateOptions(untested="refuse")
+    d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    held = collect_data(P, prbs(500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
+    r, warned = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), certificate=strict)
+    assert not r.certified and len(warned) == 1 and r.assumed
+    assert "cannot test the premise" in r.reason and "several amplitudes" in r.reason
+    rng = np.random.default_rng(7)
+    levels = lambda n: rng.uniform(-1.0, 1.0, (n, 1))  # noqa: E731
+    d = collect_data(P, levels(1000), process_noise=0.05, sensor_noise=0.05, seed=100)
+    held = collect_data(P, levels(500), process_noise=0.05, sensor_noise=0.05, seed=101)
+    r, untested = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), certificate=strict,
+                            category=uf.UntestedPremiseWarning)
+    assert r.certified and r.assumed == () and not untested, r.reason
+    with pytest.raises(DataError, match="unknown untested 'ignore'"):
+        uf.CertificateOptions(untested="ignore")
 
 
 def test_untested_premises_from_the_input_levels():

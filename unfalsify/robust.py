@@ -388,6 +388,14 @@ class RobustDesignResult:
         return self.certified
 
 
+def _untested_reason(assumed: tuple) -> str:
+    """The refusal of ``CertificateOptions(untested="refuse")`` (``''`` when the data test every premise)."""
+    if not assumed:
+        return ""
+    return ("these data cannot test the premise (CertificateOptions(untested='refuse')): " + "; ".join(assumed)
+            + "; excite with several amplitudes, or certify with untested='warn' on that assumption")
+
+
 def _with_form(reason: str, additive_reason: str) -> str:
     """A coprime-form refusal, with why the additive form was left before it."""
     if not reason or not additive_reason:
@@ -891,8 +899,10 @@ def robust_design_from_data(
     cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
                                            ref_model)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
-    premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason)
-                               if r)
+    assumed = untested_premises(u, validation)
+    untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
+    premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason,
+                                           untested_reason) if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
     if premise_reason or judge.missing is not None:
         search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
@@ -905,7 +915,6 @@ def robust_design_from_data(
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
-    assumed = untested_premises(u, validation)
     if rec.certified and assumed:
         warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
                       UntestedPremiseWarning, stacklevel=2)
@@ -1245,6 +1254,8 @@ class DesignOptions:
 
 #: the uncertainty families a loop can be certified for (``CertificateOptions.uncertainty``)
 UNCERTAINTY_FORMS = ("auto", "additive", "coprime")
+#: what a premise the data cannot test does (``CertificateOptions.untested``)
+UNTESTED_RULES = ("warn", "refuse")
 
 
 @dataclass(frozen=True)
@@ -1272,6 +1283,13 @@ class CertificateOptions:
         (:mod:`unfalsify.coprime`), finite for an integrating plant, whose ``‖P − P̂‖∞`` is infinite.
         ``"auto"`` (default): additive, and the coprime form when the data refute the additive premise
         (each form's premise is tested in its own terms; the result says which one certified).
+    untested : {"warn", "refuse"}
+        What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values,
+        or 0 and ±a, shows no saturation or dead zone).  ``"warn"`` (default): the loop is certified on that
+        assumption, which ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not
+        certified, the reason names the fix (several input amplitudes).  Measured on the adversarial catalogue's
+        saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"`` certifies fail the true-plant
+        judge.
     """
 
     margin: float = CERTIFICATE_MARGIN
@@ -1280,11 +1298,15 @@ class CertificateOptions:
     reference_horizon: int | None = None
     require_reference: bool = True
     uncertainty: str = "auto"
+    untested: str = "warn"
 
     def __post_init__(self):
         if self.uncertainty not in UNCERTAINTY_FORMS:
             raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
                             f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")
+        if self.untested not in UNTESTED_RULES:
+            raise DataError(f"unknown untested {self.untested!r}; use one of "
+                            f"{', '.join(repr(u) for u in UNTESTED_RULES)}")
 
 
 @dataclass(frozen=True)
