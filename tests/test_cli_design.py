@@ -89,6 +89,12 @@ def test_text_output_names_verdict_and_paths(design_run, capsys):
     assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "certified" in text.lower() and "controller.npz" in text and "design.md" in text
+    assert "assumed, not testable on these data: input 0 takes the values {-1, 1}" in text  # a ±1 PRBS record
+    # --untested refuse: the same record refused, the fix named
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--untested", "refuse", "--json",
+                 "--out", str(tmp / "strict")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert not summary["certified"] and "several amplitudes" in summary["reason"]
 
 
 def _bad(tmp_path, capsys, argv):

@@ -204,8 +204,9 @@ def _select(path: Path, extra: dict):
     return u, y, t, variable
 
 
-def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto"):
-    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning.
+def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn"):
+    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested`` is
+    :attr:`unfalsify.CertificateOptions.untested`.
 
     Returns
     -------
@@ -217,7 +218,8 @@ def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = uf.robust_design_from_data(_channels(u), _channels(y), horizon, W1, W2, sigma, dt=dt, window=window)
+        res = uf.robust_design_from_data(_channels(u), _channels(y), horizon, W1, W2, sigma, dt=dt, window=window,
+                                         certificate=uf.CertificateOptions(untested=untested))
     return res, [f"{w.category.__name__}: {w.message}" for w in caught]
 
 
@@ -467,7 +469,8 @@ def run(opts) -> dict:
     W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l)
     window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
     horizon = ex["horizon"]
-    res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma)
+    res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
+                                untested=ex.get("untested") or "warn")
     return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
                          weights_text=weights_text, t_start=t_start)
 
@@ -499,4 +502,7 @@ OPTIONS = (
                           help="W1 and W2 saved with synthesis.save_controller (.npz or .mat each)")),
     (("--w1",), dict(dest="w1", default=None, metavar="DC,FREQ,MAG,HF", help="W1 = makeweight(DC, (FREQ, MAG), HF, dt)")),
     (("--w2",), dict(dest="w2", default=None, metavar="DC,FREQ,MAG,HF", help="W2 = makeweight(DC, (FREQ, MAG), HF, dt)")),
+    (("--untested",), dict(dest="untested", choices=("warn", "refuse"), default="warn",
+                           help="a premise the record cannot test (a two-level input shows no saturation): certify "
+                                "on it and say so (warn, the default) or refuse")),
 )
