@@ -314,8 +314,9 @@ class RobustDesignResult:
         :attr:`reason` repeats it when the coprime form does not certify either.
     assumed : tuple of str
         What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input
-        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone).  Not a refusal: a
-        certified loop with a non-empty ``assumed`` holds for the plant only as far as these statements do.
+        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone).  A loop certified with a
+        non-empty ``assumed`` holds for the plant only as far as these statements do; with
+        ``CertificateOptions(untested="refuse")`` a non-empty ``assumed`` refuses the certificate instead.
     """
 
     unfalsification: SubspaceResult
