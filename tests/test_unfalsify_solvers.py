@@ -214,11 +214,12 @@ def test_no_import_circles(package):
 
 def test_arx_barrier_counts_its_trial_factorisations():
     """ARX results carry the solver's counts: every Newton step factorises K at least once (its accepted point),
-    the line searches and path steps more; cvxpy keeps none."""
+    the line searches and path steps more; cvxpy keeps none (only the excess of a point moved into the noise
+    ball, ``into_ball``, when its point lay outside)."""
     rng = np.random.default_rng(8)
     u = rng.standard_normal(120)
     y = np.convolve(u, [0.0, 0.8, 0.3])[:120] + 0.05 * rng.standard_normal(120)
     res = uf.arx_unfalsify(u, y, 1, 2, 0.03, backend="structured", progress=False)
     stats = res.solver_stats
     assert stats["newton"] >= 1 and stats["trials"] >= stats["newton"] + 1 and stats["outer"] >= 1
-    assert uf.arx_unfalsify(u[:40], y[:40], 1, 2, 0.03, solver="CLARABEL").solver_stats == {}
+    assert set(uf.arx_unfalsify(u[:40], y[:40], 1, 2, 0.03, solver="CLARABEL").solver_stats) <= {"into_ball"}

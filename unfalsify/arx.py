@@ -75,7 +75,7 @@ from synthesis import DataError
 from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_resolution, check_sigma,
-                      rms_or_one)
+                      into_ball, rms_or_one)
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
 from .solvers.arx_barrier import ArxBlockForm
@@ -579,6 +579,7 @@ def arx_unfalsify(
         options = dict(tol=float(tol), time_limit=time_limit, progress=progress)
     out = run(name, P, **options)
     what = f"ARX unfalsification ({'' if P.siso else f'{P.n_outputs}×{P.n_inputs}, '}n={P.n})"
+    out = into_ball(P, out)
     cert, delta = certify(P, out, what)
     xi = P.noise(out.impulses, out.params)
     return ArxResult(delta=delta, theta=out.params, noise=xi, impulse=out.impulses, status=out.status.value,

@@ -50,7 +50,7 @@ from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
 from synthesis.validation import as_signal, check_horizon
 
-from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_resolution, check_sigma,
+from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_resolution, check_sigma, into_ball,
                       rms_or_one)
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -646,6 +646,7 @@ def subspace_unfalsify(
         note = out.stats.get("warm")
         if note is not None and note != "used":
             start = f"cold (warm start not used: {note})"
+        out = into_ball(P, out)
         cert, delta = certify(P, out, f"subspace unfalsification ({'' if P.siso else f'{l}×{m}, '}i={i}, j={j})")
         L = out.params
         w = i * (m + l)  # columns of L_w
