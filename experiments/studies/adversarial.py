@@ -47,6 +47,11 @@ certified, 4 of them false certificates, all with low-pass noise excitation --
 and ``rate_order/first_order/lowpass<0.05`` (stable, step error 0.33; ratio 195); no silent
 failures.  Of the 25 certificates the judge upheld, 14 had a premise ratio above 1.25 (up to 19) and
 one (the open-loop-unstable plant) an infinite one: the premise failed without the loop failing.
+
+At ten seeds (the final code of 2026-11-27, with ``validation=``): 189 of 470 certified, 5 false certificates,
+every one on a ±1 PRBS -- the 80 % input saturation at seeds 4, 5, 7 and 9 (a two-level input shows it as a gain:
+``result.assumed`` says so) and the gain drift at seed 4.  With ``--untested refuse``
+(``CertificateOptions(untested="refuse")``): 33 certified, none false.
 """
 from __future__ import annotations
 
