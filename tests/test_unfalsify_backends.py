@@ -188,7 +188,7 @@ def test_a_conic_point_just_outside_the_noise_ball_is_moved_inside(case, steepes
     from unfalsify._common import certify, into_ball
     from unfalsify.solvers import run
 
-    monkeypatch.setattr(_common, "_BALL_STEEPEST", steepest)  # 0: the least-squares direction alone
+    monkeypatch.setattr(_common, "_BALL_STEEPEST", steepest)  # 0: the ridge step alone
     if case.startswith("arx"):
         if case == "arx":
             u, y = servo_arx_data(40, 3)
@@ -218,16 +218,16 @@ def test_a_conic_point_just_outside_the_noise_ball_is_moved_inside(case, steepes
     exact = run(solver, P_less, tol=1e-9, progress=False)
     ref, _ = certify(P_less, exact, "test")
     assert ref.lower_bound <= cert.upper_bound
-    if steepest:  # the least-squares direction alone reaches too, at a cost (measured ×5 in δ for the ARX record)
+    if steepest:  # the ridge step alone reaches too, at a cost
         assert cert.upper_bound <= ref.upper_bound * (1 + 1e-3)
     assert into_ball(P, out) is out and into_ball(P_less, dataclasses.replace(out, bracketed=True)).stats == out.stats
 
 
 @pytest.mark.parametrize("case", ["arx", "subspace", "subspace 2x2"])
-def test_least_squares_impulses_fit_every_column(case):
-    """The direction of :func:`into_ball` that reaches where steepest descent cannot: ``M_k d_k = r_k`` for square
-    (one channel) and wide (two inputs) maps; second route, the maps applied by the form itself."""
-    from unfalsify._common import _least_squares_impulses
+def test_ridge_step_fits_every_column(case):
+    """The step of :func:`into_ball` that reaches where steepest descent cannot, at target 0: ``M_k d_k = r_k`` for
+    square (one channel) and wide (two inputs) maps; second route, the maps applied by the form itself."""
+    from unfalsify._common import _ridge_step
 
     if case == "arx":
         u, y = servo_arx_data(40, 3)
@@ -235,7 +235,7 @@ def test_least_squares_impulses_fit_every_column(case):
     else:
         form = _subspace_problem(4, 30, 2, channels=(2, 2) if "2x2" in case else (1, 1)).column_form(scaled=False)
     R = np.random.default_rng(0).standard_normal(form.B.shape)
-    D = _least_squares_impulses(form, R)
+    D = _ridge_step(form, R, 0.0, form.apply_T(R).shape)
     assert D.shape == form.apply_T(R).shape
     assert np.allclose(form.apply(D), R, atol=1e-9 * np.abs(R).max())
 

@@ -13,6 +13,7 @@ from synthesis.validation import as_signal
 
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
+from .solvers.start import operator_svd, ridge_fit
 
 __all__ = [
     "BACKENDS",
@@ -294,9 +295,10 @@ def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
 #: Fraction of the noise budget σ√N a point pulled into the ball keeps free (:func:`into_ball`): far above the
 #: rounding of the recomputed noise (1e-15), far below the certificate's tolerance (1e-6).
 _BALL_SLACK = 1e-9
-#: Line steps :func:`into_ball` takes before it gives up, the first :data:`_BALL_STEEPEST` along the steepest descent.
-_BALL_STEPS = 8
+#: Line steps along the steepest descent of the noise that :func:`into_ball` takes before the ridge step.
 _BALL_STEEPEST = 2
+#: Largest number of impulse entries per column for which :func:`_ridge_step` forms the columns' maps.
+_BALL_DENSE = 2000
 
 
 def into_ball(P, out: SolverOutput) -> SolverOutput:
@@ -308,8 +310,9 @@ def into_ball(P, out: SolverOutput) -> SolverOutput:
     an upper bound 1.1e-6 below the structured solver's certified lower bound.  The noise ``ξ(H) = P(B − H̃)`` is
     affine in the impulses (P the projection onto the complement of the model directions: the parameters refitted
     to H), so along a direction D it is a quadratic in the step, solved for ``(1 − 1e-9)σ√N`` in closed form.  D is
-    first ``M*ξ`` (``M``: H ↦ H̃, the steepest descent of the noise: the smallest rise of δ where it reaches), then
-    the least-squares ``M⁺ξ`` column by column, which reaches wherever ``T(u_k)`` has full row rank (measured: a record
+    ``M*ξ`` (``M``: H ↦ H̃, the steepest descent of the noise: the smallest rise of δ where it reaches); where it does
+    not, one ridge step of the barrier solvers' start (:func:`~unfalsify.solvers.start.ridge_fit`: the smallest
+    impulses whose columns fit ξ to that noise) reaches wherever ``T(u_k)`` has full row rank (measured: a record
     with cond T(u) = 5e7 whose noise the steepest descent could not lower by 5e-6).  The parameters are refitted to
     the new impulses (``problem.params_for``), and the certificate recomputes both from the data.  A point already
     inside, a point from a structured solver (inside by construction), or one no step brings inside (returned
@@ -329,15 +332,24 @@ def into_ball(P, out: SolverOutput) -> SolverOutput:
     excess = float(np.linalg.norm(r)) / bound - 1.0
     if not excess > 0.0:
         return out
-    for step in range(_BALL_STEPS):
-        D = form.apply_T(r) if step < _BALL_STEEPEST else _least_squares_impulses(form, r)
-        if D is None:
+
+    def inside(r) -> bool:
+        return float(np.linalg.norm(r)) <= target * (1.0 + _BALL_SLACK / 2)
+
+    for _ in range(_BALL_STEEPEST):
+        H, r = _step_to(form, H, r, form.apply_T(r), target)
+        if inside(r):
             break
-        H, r = _step_to(form, H, r, D, target)
-        if float(np.linalg.norm(r)) <= target * (1.0 + _BALL_SLACK / 2):
-            H_out = H.reshape(H0.shape)
-            return replace(out, impulses=H_out, params=P.params_for(H_out), stats={**out.stats, "into_ball": excess})
-    return out
+    else:
+        D = _ridge_step(form, r, target, H.shape)
+        if D is None:
+            return out
+        H = H + D
+        r = form.project(form.B - form.apply(H))
+        if not inside(r):
+            return out
+    H_out = H.reshape(H0.shape)
+    return replace(out, impulses=H_out, params=P.params_for(H_out), stats={**out.stats, "into_ball": excess})
 
 
 def _step_to(form, H, r, D, target):
@@ -352,15 +364,10 @@ def _step_to(form, H, r, D, target):
     return H, form.project(form.B - form.apply(H))
 
 
-#: Largest number of impulse entries per column for which :func:`_least_squares_impulses` forms the columns' maps.
-_BALL_DENSE = 2000
-
-
-def _least_squares_impulses(form, R):
-    """``D`` with ``M_k d_k`` the least-squares fit of ``R``'s column k (minimum norm), the maps ``M_k`` formed
-    from the form's own products with unit impulses (one product per impulse entry, every column at once); None
-    above :data:`_BALL_DENSE` entries."""
-    shape = form.apply_T(R).shape
+def _ridge_step(form, R, target: float, shape):
+    """The ridge impulses D (``shape``) whose columns fit R's, ``Σ_k ‖r_k − M_k d_k‖² = target²`` with one λ
+    (:func:`~unfalsify.solvers.start.ridge_fit`), the maps ``M_k`` formed from the form's own products with unit
+    impulses (one product per impulse entry, every column at once); None above :data:`_BALL_DENSE` entries."""
     p, j = int(np.prod(shape[:-1])), shape[-1]
     if p > _BALL_DENSE:
         return None
@@ -370,9 +377,7 @@ def _least_squares_impulses(form, R):
         E[e] = 1.0
         columns.append(form.apply(E.reshape(shape)).reshape(-1, j))
     M = np.stack(columns, axis=-1).transpose(1, 0, 2)  # (j, rows, p)
-    rhs = R.reshape(-1, j).T[:, :, None]  # (j, rows, 1)
-    D = (np.linalg.pinv(M) @ rhs)[:, :, 0]  # (j, p)
-    return D.T.reshape(shape)
+    return ridge_fit(operator_svd(M), R.reshape(-1, j), target * target).reshape(shape)
 
 
 def _outside_ball(cert: Certificate) -> bool:
