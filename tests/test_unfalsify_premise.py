@@ -425,18 +425,18 @@ def test_steady_state_tracking_is_checked_across_the_certified_ball():
 
 
 def test_size_guard_refuses_what_cannot_fit_and_warns_about_long_solves(prbs_record, monkeypatch):
-    import unfalsify.robust as robust
+    import unfalsify.cost as cost
 
     # the estimate reproduces the measurements it was fitted to, within a factor 2
     assert 96 < uf.solve_estimate(100, 1000, "structured")[0] < 390
     assert uf.solve_estimate(64, 200, "cvxpy")[1] > 23.6e9 / 2  # killed for memory at 23.6 GB
     P, u, y = prbs_record
     W = design_weights()
-    monkeypatch.setattr(robust, "_memory_available", lambda: 1e6)  # 1 MB: nothing fits
+    monkeypatch.setattr(cost, "_memory_available", lambda: 1e6)  # 1 MB: nothing fits
     with pytest.raises(DataError, match="GB available"):
         uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49))
-    monkeypatch.setattr(robust, "_memory_available", lambda: 24.0 * 2 ** 30)
-    monkeypatch.setattr(robust, "LONG_SOLVE_SECONDS", 0.0)
+    monkeypatch.setattr(cost, "_memory_available", lambda: 24.0 * 2 ** 30)
+    monkeypatch.setattr(cost, "LONG_SOLVE_SECONDS", 0.0)
     with pytest.warns(uf.LongSolveWarning, match="estimated at"):
         uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False)
 

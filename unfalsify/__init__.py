@@ -79,7 +79,8 @@ Robust design from data (§7.4)
    estimate_delta         -- step 1 alone: window checks and δ of (7.5)
    SearchRecord           -- one design tried by the search and why it failed
    additive_weight_fixed_point -- the W3 gain ``c = (1 + margin) δ γ(c)``
-   solve_estimate         -- rough time and memory of a (7.5) solve, which the pipeline checks before solving
+   solve_estimate         -- rough time and memory of a (7.5) solve, which subspace_unfalsify checks before solving
+   arx_solve_estimate     -- the same for (7.4) by the cvxpy backend, which arx_unfalsify checks before solving
    predictor_model        -- the data-based model P̂: ARX model of the predictor's first block row
 
 The certificate's premise, tested on the data
@@ -250,7 +251,6 @@ from .robust import (
     EstimationOptions,
     estimate_delta,
     FewDataWarning,
-    LongSolveWarning,
     NotCertifiedError,
     NotCertifiedWarning,
     UntestedPremiseWarning,
@@ -260,8 +260,9 @@ from .robust import (
     additive_robustness,
     additive_weight_fixed_point,
     robust_design_from_data,
-    solve_estimate,
 )
+from .cost import arx_solve_estimate, solve_estimate
+from .exceptions import LongSolveWarning
 
 __all__ = [
     "BACKENDS",
@@ -330,6 +331,7 @@ __all__ = [
     "FewDataWarning",
     "LongSolveWarning",
     "solve_estimate",
+    "arx_solve_estimate",
     "NotCertifiedError",
     "NotCertifiedWarning",
     "UntestedPremiseWarning",

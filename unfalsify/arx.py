@@ -76,6 +76,7 @@ from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_resolution, check_sigma,
                       into_ball, rms_or_one)
+from .cost import _guard_arx
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
 from .solvers.arx_barrier import ArxBlockForm
@@ -507,7 +508,9 @@ def arx_unfalsify(
     Raises
     ------
     DataError
-        Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0.
+        Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0; a cvxpy
+        solve whose estimated memory (:func:`~unfalsify.arx_solve_estimate`) exceeds half the memory available
+        (the message names ``backend="structured"``).
     UnknownSolverError
         Unknown ``backend`` or ``method`` (a ``ValueError``; the message lists the valid names), or
         ``method="bracket"`` with several channels (the message names ``method="barrier"``).
@@ -524,6 +527,8 @@ def arx_unfalsify(
         backend, ``bracket``/``time_limit``/``interrupted``, where δ is the certified upper bound).
     IllConditionedWarning
         ``form="thesis"`` with ``cond T(u) > COND_WARN``.
+    LongSolveWarning
+        A cvxpy solve estimated above :data:`unfalsify.cost.LONG_SOLVE_SECONDS` (60 s: above n ≈ 80 on one channel).
 
     Examples
     --------
@@ -572,6 +577,7 @@ def arx_unfalsify(
             stacklevel=2,
         )
     if name == "cvxpy":
+        _guard_arx(P.n, (P.n_inputs, P.n_outputs))
         options = dict(form=form, solver=solver, solver_options=solver_options)
     elif name == "bracket":  # no tolerance: the bracket's gap is what it is, and reported
         options = dict(time_limit=time_limit, progress=progress)

@@ -1,9 +1,9 @@
 """Exceptions and warnings of :mod:`unfalsify` (as python-control's ``exception.py``).
 
 Every class is also importable from ``unfalsify`` itself, where users find them.  The pipeline's own
-warnings (``LongSolveWarning``, ``NotCertifiedWarning``, ``NotCertifiedError``) still live in
-:mod:`unfalsify.robust` while that module is being reworked; they move here with it (``FewDataWarning`` has: the
-subspace program warns with it too).
+warnings (``NotCertifiedWarning``, ``UntestedPremiseWarning``, ``NotCertifiedError``) still live in
+:mod:`unfalsify.robust` while that module is being reworked; they move here with it (``FewDataWarning`` and
+``LongSolveWarning`` have: the front ends of (7.4) and (7.5) warn with them too).
 """
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ __all__ = [
     "IllConditionedWarning",
     "SolverWarning",
     "FewDataWarning",
+    "LongSolveWarning",
 ]
 
 
@@ -44,3 +45,7 @@ class SolverWarning(UserWarning):
 class FewDataWarning(UserWarning):
     """The (7.5) window has few columns for the predictor it estimates: δ is then optimistic (with no more columns than
     the rank of ``[W_p; U_f]``, and L optimised, it is 0 whatever the data)."""
+
+
+class LongSolveWarning(UserWarning):
+    """A (7.4) or (7.5) solve is estimated to take long (the message gives the estimate and how to shorten it)."""

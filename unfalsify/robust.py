@@ -78,8 +78,6 @@ __all__ = [
     "estimate_delta",
     "DesignSearch",
     "FewDataWarning",
-    "LongSolveWarning",
-    "solve_estimate",
     "NotCertifiedError",
     "NotCertifiedWarning",
     "SearchRecord",
@@ -107,81 +105,6 @@ class UntestedPremiseWarning(UserWarning):
 
 class NotCertifiedError(UnfalsificationError):
     """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""
-
-
-class LongSolveWarning(UserWarning):
-    """The (7.5) solve is estimated to take long (the message gives the estimate and how to shorten it)."""
-
-
-#: estimated seconds of a (7.5) solve above which :class:`LongSolveWarning` is issued
-LONG_SOLVE_SECONDS = 60.0
-
-
-def solve_estimate(horizon: int, columns: int, backend: str, channels: tuple[int, int] = (1, 1)
-                   ) -> tuple[float, float]:
-    """Rough wall time (s) and peak memory (bytes) of a (7.5) solve, from our measurements.
-
-    One input and one output, structured backend, 2 cores: 1.0, 4.1, 21 and 193 s and 0.13, 0.19, 0.69
-    and 2.5 GB at (i, j) = (10, 200), (20, 400), (50, 500), (100, 1000) -- fitted as ``1 + 1.9e-6·j·i^2.5`` s
-    and ``0.15 GB + 48 stacks of j·i² doubles``.  cvxpy/Clarabel: 5.9 s at (10, 200), 97 s at (20, 400),
-    killed above 23.6 GB at (64, 200) -- ``5.9·(j/200)·(i/10)^4`` s and ``2·j·(i(2i+1))²`` bytes (the dense PSD
-    cones).  Several channels (``channels = (m, l)``), measured on 2 × 2 data: structured 11 s at (10, 200)
-    and 341 s, 1.1 GB at (20, 400) -- ``11·(j/200)·(i/10)^4·(ml/4)²`` s and ``0.15 GB + 185 stacks of
-    j·i²·ml doubles``; cvxpy 73 s at (10, 200) -- the SISO estimate times ``(ml)^1.8`` s and ``(ml)²`` bytes.
-    Estimates, not promises: they decide a warning or a refusal before the solve.
-
-    Examples
-    --------
-    >>> t, mem = solve_estimate(10, 200, "structured")             # i = 10, j = 200
-    >>> round(t, 2), round(mem / 1e9, 2)                           # seconds, GB
-    (1.12, 0.16)
-    >>> t, mem = solve_estimate(10, 200, "cvxpy")
-    >>> round(t, 2), round(mem / 1e9, 3)
-    (5.9, 0.018)
-    >>> t, mem = solve_estimate(20, 400, "structured", channels=(2, 2))    # the 2 × 2 measurement
-    >>> round(t), round(mem / 1e9, 1)
-    (352, 1.1)
-    """
-    i, j = int(horizon), int(columns)
-    ml = int(channels[0]) * int(channels[1])
-    if ml > 1:
-        if backend == "structured":
-            return 11.0 * (j / 200.0) * (i / 10.0) ** 4 * (ml / 4.0) ** 2, 1.5e8 + 185 * 8.0 * j * i * i * ml
-        t, mem = solve_estimate(i, j, backend)
-        return t * ml ** 1.8, mem * ml ** 2
-    if backend == "structured":
-        return 1.0 + 1.9e-6 * j * i ** 2.5, 1.5e8 + 48 * 8.0 * j * i * i
-    return 5.9 * (j / 200.0) * (i / 10.0) ** 4, 2.0 * j * (i * (2 * i + 1)) ** 2
-
-
-def _memory_available() -> float:
-    """Bytes of memory available now (``MemAvailable``), or 24 GiB when it cannot be read."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except OSError:
-        pass
-    return 24.0 * 2 ** 30
-
-
-def _guard_size(i: int, j: int, backend: str, channels: tuple[int, int] = (1, 1)) -> None:
-    """Refuse a (7.5) solve that cannot fit in memory; warn about one that will take long."""
-    seconds, memory = solve_estimate(i, j, backend, channels)
-    other = "cvxpy" if backend == "structured" else "structured"
-    alt_s, alt_m = solve_estimate(i, j, other, channels)
-    if memory > 0.5 * _memory_available():
-        raise DataError(
-            f"the (7.5) solve at (i, j) = ({i}, {j}) with backend={backend!r} needs about {memory / 2 ** 30:.1f} GB, "
-            f"more than half the {_memory_available() / 2 ** 30:.1f} GB available: use a shorter window (fewer "
-            f"columns j) or a smaller horizon" + (f", or backend={other!r} (about {alt_m / 2 ** 30:.1f} GB)"
-                                                   if alt_m < memory else ""))
-    if seconds > LONG_SOLVE_SECONDS:
-        warnings.warn(
-            f"the (7.5) solve at (i, j) = ({i}, {j}) with backend={backend!r} is estimated at {seconds:.0f} s "
-            f"and {memory / 2 ** 30:.1f} GB" + (f" (backend={other!r}: about {alt_s:.0f} s)" if alt_s < seconds else "")
-            + "; a shorter window (fewer columns j) is faster", LongSolveWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
@@ -973,7 +896,6 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
     sigma = check_sigma(sigma)
     backend = opts.backend or ("structured" if opts.form == "conditioned" else "cvxpy")
     _check_window(u, y, i, sigma, predictor)
-    _guard_size(i, np.asarray(u).shape[0] - 2 * i + 1, backend, _channels(u, y))
     return subspace_unfalsify(u, y, i, sigma, form=opts.form, predictor=predictor, solver=opts.solver,
                               solver_options=opts.solver_options, backend=backend)
 

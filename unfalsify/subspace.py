@@ -52,6 +52,7 @@ from synthesis.validation import as_signal, check_horizon
 
 from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_resolution, check_sigma, into_ball,
                       rms_or_one)
+from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
 from .solvers.base import SolverOutput, one_blas_thread
@@ -547,7 +548,9 @@ def subspace_unfalsify(
     ------
     DataError
         NaN/inf, lengths, time along axis 1 (the message names ``u.T``), bad horizon / too few samples,
-        σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular).
+        σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular); a solve
+        whose estimated memory (:func:`~unfalsify.solve_estimate`) exceeds half the memory available (the message
+        names a shorter window, and the other backend where it needs less).
     UnknownSolverError
         Unknown backend or method (a ``ValueError``; the message lists the valid names), several channels with
         ``executor=`` (the message names ``backend="cvxpy"``) or with ``method="primal_dual"`` (the message names
@@ -564,6 +567,8 @@ def subspace_unfalsify(
     -----
     SolverWarning, IllConditionedWarning
         As for :func:`unfalsify.arx_unfalsify`.
+    LongSolveWarning
+        A solve estimated above :data:`unfalsify.cost.LONG_SOLVE_SECONDS` (60 s; :func:`~unfalsify.solve_estimate`).
 
     Examples
     --------
@@ -623,6 +628,8 @@ def subspace_unfalsify(
                 FewDataWarning,
                 stacklevel=2,
             )
+        if executor is None:  # a split solve's cost is its executor's, per column block
+            _guard_subspace(i, j, "cvxpy" if name == "cvxpy" else "structured", (m, l))
         if executor is not None:
             if predictor is None or form != "conditioned":
                 raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
