@@ -125,3 +125,29 @@ def test_a_warm_start_on_the_small_ball_route_is_reported_unused():
     again = uf.subspace_unfalsify(u, y, I, sigma, backend="structured", tol=1e-4, progress=False, warm_start=near)
     assert again.start == "cold (warm start not used: a noise ball far inside the residual takes the primal–dual route)"
     assert again.status == "optimal" and again.certificate.verify()
+
+
+def test_a_failed_solve_inside_a_small_ball_says_so_and_names_the_fix():
+    from unfalsify._common import Certificate, _failure_reason
+    from unfalsify.solvers import SolverOutput, SolverStatus
+
+    def reason(P, status="failed"):
+        H = np.zeros(P.Uf.shape)
+        out = SolverOutput(delta=1.0, impulses=H, params=np.zeros((I, 3 * I)), status=SolverStatus(status),
+                           solve_time=0.0, bracketed=True, stats={"newton": 31})
+        bound = P.sigma * np.sqrt(P.n_noise)
+        cert = Certificate(delta=1.0, upper_bound=1.0, lower_bound=0.5, noise_norm=0.9 * bound, noise_bound=bound,
+                           sigma=P.sigma, n_noise=P.n_noise, problem=P)
+        return _failure_reason(P, cert, out)
+
+    u, y, sigma = _tiny_sigma_record(frac=1e-8)
+    i = I
+    why = reason(SubspaceProblem.from_data(u, y, i, sigma))
+    assert "1e-08 of the least-squares residual rms" in why and "A larger σ certifies" in why
+    # second route: the residual rms that the message names is the least-squares fit's, computed here by lstsq
+    A, _, Yf = uf.subspace_data(u, y, i)
+    L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
+    assert f"{np.sqrt(np.mean((Yf - L @ A) ** 2)):.3g}" in why
+    # not where the ball is ordinary, and not for a time limit (the user's stop)
+    assert reason(SubspaceProblem.from_data(u, y, i, sigma * 1e7)) == ""
+    assert reason(SubspaceProblem.from_data(u, y, i, sigma), status="time_limit") == ""

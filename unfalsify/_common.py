@@ -14,6 +14,7 @@ from synthesis.validation import as_signal
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
 from .solvers.start import operator_svd, ridge_fit
+from .solvers.wider_ball import small_ball
 
 __all__ = [
     "BACKENDS",
@@ -272,8 +273,9 @@ _FAR_START = 1e6
 def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
     """Why a structured solve failed, where the data show it: it never took a step because its start, a ridge fit of
     the impulses, left the noise ball (every point a barrier or primal–dual method accepts lies strictly inside it);
-    or its best point's δ is :data:`_FAR_START` times the data's scale (its Newton systems are then singular in
-    floating point).
+    its best point's δ is :data:`_FAR_START` times the data's scale (its Newton systems are then singular in
+    floating point); or the noise ball lies far inside the least-squares residual
+    (:func:`~unfalsify.solvers.wider_ball.small_ball`), where the noise term's curvature swamps the barrier's.
 
     Measured on fuzzed records: multisine and low-pass inputs with σ a percent of the least-squares residual, where
     cond T(u) reaches 1e18 and the δ that explains the data is astronomically large; and a record with σ = 1e-10
@@ -283,11 +285,21 @@ def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
     steps = out.stats.get("newton")
     scale = _data_scale(P)
     no_start = steps == 0 and ratio > 1.0
-    if not (no_start or (cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6)):
+    far = cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6
+    lost = out.status in ("failed", "max_iter") and ratio <= 1.0 + 1e-6
+    if not (no_start or far or lost):
         return ""
     f = P.column_form(scaled=False)  # only where there is a reason to give: it costs the regressor's SVD
     ls = float(np.linalg.norm(f.project(f.B))) / np.sqrt(P.n_noise)  # σ at which δ = 0
     larger = f"(at the least-squares residual rms, {ls:.3g}, δ = 0)"
+    if not (no_start or far):
+        if not small_ball(f):
+            return ""
+        # measured: 1 × 2 data at σ = 1e-8 of the residual rms, the Newton decrement stuck at 22, then not finite
+        return (f"; σ is {P.sigma / ls:.2g} of the least-squares residual rms {ls:.3g}: a noise ball this far inside "
+                f"the residual makes the noise term's curvature swamp the barrier's, and the Newton systems lose their "
+                f"digits (the lower bound is raised by solves at larger balls, solver_stats['wider']). A larger σ "
+                f"certifies; backend='cvxpy' is a second route")
     if no_start:
         return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at "
                 f"{ratio:.3g} σ√N. Either the δ that explains these data within σ is astronomically large (an input "
