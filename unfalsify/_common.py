@@ -13,6 +13,7 @@ from synthesis.validation import as_signal
 
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
+from .solvers.base import NOISE_RTOL
 from .solvers.start import operator_svd, ridge_fit
 from .solvers.wider_ball import small_ball
 
@@ -229,7 +230,7 @@ class Certificate:
         noise_ok = self.noise_norm - self.noise_bound <= rtol * self.noise_bound
         return bool(norm_ok and noise_ok)
 
-    def verify(self, rtol: float = 1e-6) -> bool:
+    def verify(self, rtol: float = NOISE_RTOL) -> bool:
         """Recompute both bounds from the data and the stored points alone; True if they match.
 
         Checks: the primal noise is within ``σ√N`` (to ``rtol``), ``max_k ‖T(h_k)‖₂`` equals
@@ -404,8 +405,8 @@ def _ridge_step(form, R, target: float, shape):
 
 def _outside_ball(cert: Certificate) -> bool:
     """Whether the certificate's primal point, recomputed from the data, leaves the noise ball by more than rounding
-    (1e-6 of σ√N, :meth:`Certificate.verify`'s tolerance)."""
-    return bool(cert.noise_norm > cert.noise_bound * (1.0 + 1e-6))
+    (:data:`~unfalsify.solvers.base.NOISE_RTOL` of σ√N, :meth:`Certificate.verify`'s tolerance)."""
+    return bool(cert.noise_norm > cert.noise_bound * (1.0 + NOISE_RTOL))
 
 
 def _crossed_bounds(P, cert: Certificate) -> str:

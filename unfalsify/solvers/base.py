@@ -87,6 +87,10 @@ class SolverOutput:
     stats: dict = field(default_factory=dict)
 
 
+#: Relative slack of every noise check: a point whose noise, recomputed from the data, exceeds σ√N by less than this
+#: is inside the ball up to rounding (the default tolerance of ``Certificate.verify``).
+NOISE_RTOL = 1e-6
+
 #: Relative slack of :func:`zero_answer`: far above the rounding of ``‖PB‖`` (1e-15), far below the certificate's
 #: noise tolerance (1e-6).
 _ZERO_SLACK = 1e-12

@@ -12,12 +12,9 @@ import dataclasses
 
 import numpy as np
 
-from .base import SolverOutput, SolverStatus
+from .base import NOISE_RTOL, SolverOutput, SolverStatus
 
 __all__ = ["best_of"]
-
-#: Relative slack of the noise check: a point's noise recomputed from the data may exceed σ√N by rounding.
-_NOISE_SLACK = 1e-6
 
 
 def best_of(problem, outputs, *, tol: float) -> SolverOutput:
@@ -33,7 +30,7 @@ def best_of(problem, outputs, *, tol: float) -> SolverOutput:
     uppers, lowers = [], []
     for out in outputs:
         up, noise = problem.evaluate_primal(out.impulses, out.params)
-        inside = bool(np.isfinite(up) and noise <= bound * (1.0 + _NOISE_SLACK))
+        inside = bool(np.isfinite(up) and noise <= bound * (1.0 + NOISE_RTOL))
         uppers.append(up if inside else np.inf)
         lowers.append(problem.evaluate_dual(out.dual_v, out.dual_W) if out.dual_v is not None else 0.0)
     a, b = int(np.argmin(uppers)), int(np.argmax(lowers))
