@@ -64,10 +64,10 @@ def arx_solve_estimate(n: int, channels: tuple[int, int] = (1, 1)) -> tuple[floa
     """Rough wall time (s) and peak memory (bytes) of a (7.4) solve by the cvxpy backend (Clarabel).
 
     The program has one LMI of order ``d = n(m + l)`` (``channels = (m, l)``), whose PSD cone of dimension
-    ``s = d(d + 1)/2`` Clarabel scales densely.  Measured (2 cores, Clarabel 0.11, noise ball at half the
-    residual): one channel, 1.4, 11 and 43 s and 0.26, 0.65 and 1.84 GB at n = 40, 60, 80; 2 × 1 data, 7.9 s
-    and 0.44 GB at n = 40; 2 × 2 data, 8.4 s and 0.58 GB at n = 30 -- fitted as ``11·(s/7260)^2.6`` s and
-    ``0.17 GB + 10·s²`` bytes (the multichannel points lie below the fit).  The structured backend's memory
+    ``s = d(d + 1)/2`` Clarabel scales densely.  Measured (2 cores, one solve per process, σ half the noise):
+    one channel, 1.4, 11 and 43 s and 0.26, 0.65 and 1.84 GB at n = 40, 60, 80; two inputs and one output,
+    7.9 s and 0.44 GB at n = 40; 2 × 2 data, 8.4 s and 0.58 GB at n = 30 -- fitted as ``11·(s/7260)^2.6`` s
+    and ``0.17 GB + 10·s²`` bytes (the multichannel points lie below the fit).  The structured backend's memory
     grows like n², not n⁴, and it certifies n = 10⁴ on one channel.
 
     Examples
