@@ -143,7 +143,7 @@ def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
     sig_s = P.sigma / sy
     Tu_s = toeplitz_matrix(us)
     p = Phi_s.shape[1]
-    theta = cp.Variable(p, name="theta")
+    theta = cp.Variable(p, name="theta") if p else None  # cvxpy 1.7 (pip's choice on Python 3.10) refuses shape (0,)
     delta = cp.Variable(name="delta")
     e = (Phi_s @ theta + Y_s) if p else cp.Constant(Y_s)
     if form == "conditioned":
