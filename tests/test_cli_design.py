@@ -72,6 +72,9 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     assert summary["reason"] == res.reason
     assert summary["assumed"] == list(res.assumed) and len(res.assumed) == 1  # a ±1 PRBS: linearity untestable
     assert all(f"Assumed, not testable on these data: {a}." in md for a in res.assumed)
+    # time invariance tested on the whole record (record mode), as the pipeline's own result says
+    assert summary["invariance_p_value"] == res.invariance.p_value and res.invariance.samples == len(u)
+    assert "Chow's test" in md
     K_npz, K_mat = load_controller(summary["controller_npz"]), load_controller(summary["controller_mat"])
     K = res.controller
     for mat in "ABCD":

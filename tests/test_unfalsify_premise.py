@@ -396,6 +396,34 @@ def test_record_mode_fits_holds_out_and_certifies_without_a_lambda(prbs_record):
     assert r.premise.output_error.residual.size == 500 - 10
 
 
+def test_record_mode_tests_time_invariance_on_the_whole_record(prbs_record):
+    P, u, y = prbs_record
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.NotCertifiedWarning)
+        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False)
+    assert r.invariance is not None and r.invariance.samples == 1500 and not r.invariance.rejected
+    # second route: the public test on the same record
+    assert r.invariance.p_value == uf.check_time_invariance(u, y).p_value
+    # the same plant, its input gain drifting 0.6 → 1.4 over the record: refused, whatever δ covers
+    u0 = prbs(1500, seed=0)
+    d = collect_data(P, np.linspace(0.6, 1.4, 1500) * u0, process_noise=0.05, sensor_noise=0.05, seed=100)
+    with pytest.warns(uf.NotCertifiedWarning, match="not that of one time-invariant plant"):
+        drift = uf.robust_design_from_data(u0, d.y[:, 0], 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49))
+    assert not drift.certified and drift.invariance.rejected and "time-invariant" in drift.reason
+    assert len(drift.search) == 1  # no design can fix the data: no search
+    # without window=, the longest record the pipeline has is the validation record (500 samples)
+    pred = synthesis.fit_predictor(u[:1000], y[:1000], 10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.NotCertifiedWarning)
+        held = uf.robust_design_from_data(u[:49], y[:49], 10, W["W11"], W["W21"], "auto", predictor=pred, dt=P.dt,
+                                          validation=(u[1000:], y[1000:]), search=False)
+        short = uf.robust_design_from_data(u[:49], y[:49], 10, W["W11"], W["W21"], "auto", predictor=pred, dt=P.dt,
+                                           search=False)
+    assert held.invariance.samples == 500
+    assert short.invariance is None and "too short to test time invariance" in short.invariance_note
+
+
 def test_record_mode_auto_window_and_bad_windows(prbs_record):
     P, u, y = prbs_record
     W = design_weights()

@@ -90,6 +90,9 @@ The certificate's premise, tested on the data
    PremiseTest            -- result of ``check_premise`` (``delta``, ``decided_by``, ``reason``)
    PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
    untested_premises      -- what the certificate assumes that the data cannot test (a two-level input: linearity)
+   check_time_invariance  -- is the record that of one time-invariant plant? (Chow's test on ARX fits of its segments)
+   InvarianceTest         -- result of ``check_time_invariance``
+   TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
@@ -262,6 +265,7 @@ from .robust import (
     robust_design_from_data,
 )
 from .cost import arx_solve_estimate, solve_estimate
+from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance
 from .exceptions import LongSolveWarning
 
 __all__ = [
@@ -332,6 +336,9 @@ __all__ = [
     "LongSolveWarning",
     "solve_estimate",
     "arx_solve_estimate",
+    "check_time_invariance",
+    "InvarianceTest",
+    "TIME_INVARIANCE_LEVEL",
     "NotCertifiedError",
     "NotCertifiedWarning",
     "UntestedPremiseWarning",

@@ -65,6 +65,7 @@ from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
                       tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
+from .invariance import InvarianceTest, check_time_invariance
 from .model import predictor_model
 from .premise import (ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise,
                       untested_premises)
@@ -240,6 +241,13 @@ class RobustDesignResult:
         channel with two values, or 0 and ±a, cannot show a saturation or a dead zone).  A loop certified with a
         non-empty ``assumed`` holds for the plant only as far as these statements do; with
         ``CertificateOptions(untested="refuse")`` a non-empty ``assumed`` refuses the certificate instead.
+    invariance : InvarianceTest or None
+        Chow's test of time invariance (:func:`unfalsify.check_time_invariance`) on the longest record the
+        pipeline has: the whole record with ``window=``, else the validation record, else the window.  A rejection
+        refuses the certificate (``premise_reason``).  None where that record is too short
+        (``invariance_note`` says so).
+    invariance_note : str
+        Why time invariance was not tested (``''`` when it was).
     """
 
     unfalsification: SubspaceResult
@@ -266,6 +274,8 @@ class RobustDesignResult:
     coprime: CoprimePremise | None = None
     additive_reason: str = ""
     assumed: tuple = ()
+    invariance: InvarianceTest | None = None
+    invariance_note: str = ""
 
     @property
     def controller(self) -> control.StateSpace:
@@ -276,7 +286,7 @@ class RobustDesignResult:
     def certified(self) -> bool:
         """The returned loop is certified on P̂ and on P̂_ref (stable, proven small gain, performance floor)
         and the data do not falsify the premise (output error, frequency response, excitation where the
-        loop is sensitive, persistence of excitation)."""
+        loop is sensitive, persistence of excitation, time invariance over the record)."""
         return not self.reason
 
     @property
@@ -747,8 +757,8 @@ def robust_design_from_data(
 
     The steps can be run one by one: :func:`estimate_delta` (data checks and δ of (7.5)),
     :func:`unfalsify.predictor_model` (P̂), :func:`unfalsify.check_premise` (δ of the output error, the
-    frequency-response tests), :func:`unfalsify.certify_loop` and :func:`unfalsify.check_excitation`
-    (the loop).
+    frequency-response tests), :func:`unfalsify.check_time_invariance` (one plant over the record),
+    :func:`unfalsify.certify_loop` and :func:`unfalsify.check_excitation` (the loop).
     Returns
     -------
     RobustDesignResult
@@ -799,6 +809,7 @@ def robust_design_from_data(
     search = _search_family(search)
     if not isinstance(premise if premise is not None else PremiseOptions(), PremiseOptions):
         raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
+    whole = (u, y) if window is not None else None
     if window is not None:
         u, y, validation, predictor, predictor_for = _record_mode(u, y, horizon, window, validation, predictor,
                                                                   predictor_for)
@@ -825,8 +836,10 @@ def robust_design_from_data(
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     assumed = untested_premises(u, validation)
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
+    invariance, invariance_note = _time_invariance(whole or _longest(u, y, validation))
     premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason,
-                                           untested_reason) if r)
+                                           untested_reason, invariance.reason if invariance is not None else "")
+                               if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
     if premise_reason or judge.missing is not None:
         search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
@@ -851,7 +864,22 @@ def robust_design_from_data(
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=assumed)
+        assumed=assumed, invariance=invariance, invariance_note=invariance_note)
+
+
+def _longest(u, y, validation) -> tuple:
+    """The longer of the window and the validation record."""
+    if validation is not None and np.shape(validation[0])[0] > np.shape(u)[0]:
+        return tuple(validation)
+    return u, y
+
+
+def _time_invariance(record) -> tuple[InvarianceTest | None, str]:
+    """:func:`check_time_invariance` of ``(u, y)``, or None and why it could not run (a record too short)."""
+    try:
+        return check_time_invariance(*record), ""
+    except DataError as exc:
+        return None, f"time invariance not tested: {exc}"
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,

@@ -419,6 +419,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         ["δ of P̂'s output error (Theorem 7.1, held out)", _fmt(res.delta_output_error)],
         ["δ designed and certified for (the larger)", _fmt(res.delta)],
         ["decided by", prem.decided_by if prem is not None else "—"],
+        ["time invariance over the record (Chow's test, p-value)", _invariance_text(res)],
         ["peak gain of P̂ (frequency grid), for scale", _fmt(numbers["model_peak_gain"])],
     ])
     rep.section("Design search", "Every design tried, in order; the first certified one is returned.")
@@ -446,6 +447,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "assumed": list(res.assumed),
+        "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
         "delta_output_error": float(res.delta_output_error),
         "delta_lower_bound": float(cert.lower_bound), "delta_upper_bound": float(cert.upper_bound),
@@ -457,6 +459,15 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     }
     return finish_report(rep, summary, out, name, warn_log=warned, figures=figs, t_start=t_start,
                          warnings_heading="Warnings raised")
+
+
+def _invariance_text(res) -> str:
+    """The time-invariance test's p-value, order and samples, or why it did not run."""
+    inv = getattr(res, "invariance", None)
+    if inv is None:
+        return getattr(res, "invariance_note", "") or "—"
+    verdict = "rejected" if inv.rejected else "not rejected"
+    return f"{inv.p_value:.3g} ({verdict} at {inv.level:g}; ARX({inv.order}), {inv.samples} samples)"
 
 
 def run(opts) -> dict:

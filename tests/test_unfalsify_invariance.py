@@ -1,0 +1,101 @@
+"""Chow's test of time invariance on ARX fits of a record's segments (unfalsify.invariance)."""
+import pickle
+
+import numpy as np
+import pytest
+import scipy.signal
+import scipy.stats
+
+import unfalsify as uf
+from synthesis import DataError
+from unfalsify.invariance import _regression
+
+
+def _arx_record(n, seed, gain=(1.0, 1.0), noise=0.1):
+    """y(t) = 0.7 y(t−1) + g(t)·0.5 u(t−1) + e(t), e white: an exact ARX(1) record, its gain ramping g0 → g1."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    g = np.linspace(gain[0], gain[1], n)
+    y = scipy.signal.lfilter([0.0, 0.5], [1.0, -0.7], g * u + noise / 0.5 * np.roll(rng.standard_normal(n), -1))
+    return u, y
+
+
+def test_the_statistic_equals_the_interaction_regression_of_the_textbook_chow_test():
+    # second route: the unrestricted model as one regression with every regressor interacted with the segment
+    u, y = _arx_record(600, 0, gain=(0.8, 1.2))
+    t = uf.check_time_invariance(u, y, order=3)
+    Phi = _regression(u[:, None], y[:, None], 3)
+    target = y[3:]
+    half = np.arange(Phi.shape[0]) >= (Phi.shape[0] + 1) // 2
+    full = np.hstack([Phi * ~half[:, None], Phi * half[:, None]])
+    rss = lambda X: float(np.sum((target - X @ np.linalg.lstsq(X, target, rcond=None)[0]) ** 2))  # noqa: E731
+    r0, r1 = rss(Phi), rss(full)
+    d1, d2 = Phi.shape[1], Phi.shape[0] - full.shape[1]
+    F = (r0 - r1) / d1 / (r1 / d2)
+    assert t.dof == (d1, d2)
+    assert t.statistic == pytest.approx(F, rel=1e-9)
+    assert t.p_value == pytest.approx(scipy.stats.f.sf(F, d1, d2), rel=1e-9)
+
+
+def test_p_values_of_time_invariant_records_are_uniform():
+    # exact ARX(1) data with white errors: under the null hypothesis F has the F distribution, so about 5 % of
+    # p-values fall below 0.05 and the p-values are uniform (Kolmogorov–Smirnov)
+    p = np.array([uf.check_time_invariance(*_arx_record(400, s), order=2).p_value for s in range(200)])
+    assert 2 <= np.sum(p < 0.05) <= 20
+    assert scipy.stats.kstest(p, "uniform").pvalue > 1e-3
+
+
+def test_a_drifting_gain_is_detected_and_the_reason_names_the_fix():
+    u, y = _arx_record(1500, 1, gain=(0.6, 1.4))
+    t = uf.check_time_invariance(u, y)
+    assert t.rejected and t.p_value < 1e-6 and t.order == 16 and t.segments == 2 and t.samples == 1500
+    assert "not that of one time-invariant plant" in t.reason and "Use a record over which" in t.reason
+    same = uf.check_time_invariance(*_arx_record(1500, 1))
+    assert not same.rejected and same.reason == ""
+
+
+def test_an_output_error_plant_with_the_default_order_is_not_flagged():
+    # coloured equation error (sensor noise on an output-error plant): a long ARX model whitens it
+    flagged = 0
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        u = rng.standard_normal(1500)
+        y = scipy.signal.lfilter([0.0, 0.2, 0.1], [1.0, -1.5, 0.7], u) + 0.1 * rng.standard_normal(1500)
+        flagged += uf.check_time_invariance(u, y).rejected
+    assert flagged <= 1
+
+
+def test_several_channels_bonferroni_and_the_output_named():
+    rng = np.random.default_rng(3)
+    n = 2000
+    U = rng.standard_normal((n, 2))
+    g = np.linspace(0.5, 1.5, n)
+    Y = np.column_stack([scipy.signal.lfilter([0.0, 0.5], [1.0, -0.6], U[:, 0] + 0.3 * U[:, 1]),
+                         scipy.signal.lfilter([0.0, 0.5], [1.0, -0.6], g * U[:, 1])]) + 0.05 * rng.standard_normal((n, 2))
+    t = uf.check_time_invariance(U, Y)
+    assert t.rejected and "(output 1)" in t.reason
+    Y[:, 1] = scipy.signal.lfilter([0.0, 0.5], [1.0, -0.6], U[:, 1]) + 0.05 * rng.standard_normal(n)
+    assert not uf.check_time_invariance(U, Y).rejected
+
+
+def test_bad_input_raises_data_error_naming_the_fix():
+    u, y = _arx_record(30, 0)
+    with pytest.raises(DataError, match="too short to test time invariance"):
+        uf.check_time_invariance(u, y)
+    u, y = _arx_record(400, 0)
+    with pytest.raises(DataError, match="segments"):
+        uf.check_time_invariance(u, y, segments=1)
+    with pytest.raises(DataError, match="level"):
+        uf.check_time_invariance(u, y, level=0.0)
+    with pytest.raises(DataError, match="order"):
+        uf.check_time_invariance(u, y, order=0)
+    with pytest.raises(DataError, match="smaller order"):
+        uf.check_time_invariance(u, y, order=150)
+
+
+def test_the_result_is_frozen_and_pickles():
+    t = uf.check_time_invariance(*_arx_record(400, 0))
+    back = pickle.loads(pickle.dumps(t))
+    assert back.p_value == t.p_value and back.reason == t.reason
+    with pytest.raises(AttributeError):
+        t.p_value = 0.0
