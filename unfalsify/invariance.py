@@ -25,6 +25,12 @@ drifting plants gave 1e-3 or less (18 of them below 1e-6).  The default order is
 that leaves ten rows per parameter in each segment, and at least 8 (a shorter record is refused, unless ``order``
 is given).  On the last 600 samples alone (order 14) no LTI record fell below 1e-3 and 4 of the 20 drifting ones
 did: a test of time invariance needs the whole record.
+
+False rejections at 1e-3 on LTI records built to be hard (1500 samples, 50 records each, white, ±1 PRBS and
+low-pass inputs): none for a pole at 0.995, a resonance at 0.05 rad/sample with radius 0.99, AR(0.99) process
+noise, random stable plants of order 4 and 8, or a signal-to-noise ratio of 1; the p-values there lay above
+0.009.  Heavy-tailed noise (Student t with 3 degrees of freedom) gave 1 of 50 for each input (p about 1e-4): the
+F test assumes Gaussian-like errors, and one large outlier weighs on one segment.  2 × 2 records: 1 of 50 (5e-4).
 """
 from __future__ import annotations
 
