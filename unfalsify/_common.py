@@ -215,11 +215,9 @@ class Certificate:
         """A δ this small is rounding of 0: ``1e-12 ‖y‖/‖u‖`` of the problem's data (the gain scale in δ's units;
         1e-300 without the problem).  A conic solver's zero answer leaves impulses of norm 1e-23 (measured): with a
         purely relative test a reported δ = 0 is then never attained."""
-        u, y = getattr(self.problem, "u", None), getattr(self.problem, "y", None)
-        if u is None or y is None:
+        if getattr(self.problem, "u", None) is None or getattr(self.problem, "y", None) is None:
             return 1e-300
-        nu = float(np.linalg.norm(u))
-        return max(1e-12 * float(np.linalg.norm(y)) / nu, 1e-300) if nu > 0 else 1e-300
+        return max(1e-12 * _data_scale(self.problem), 1e-300)
 
     def ok(self, rtol: float = 1e-5) -> bool:
         """True when the norm bound holds to ``rtol`` relative to δ and the noise bound to ``rtol``
@@ -285,34 +283,35 @@ def _failure_reason(P, cert: Certificate, out: SolverOutput) -> str:
     ratio = cert.noise_norm / cert.noise_bound if cert.noise_bound > 0 else float("nan")
     steps = out.stats.get("newton")
     scale = _data_scale(P)
+    inside = ratio <= 1.0 + NOISE_RTOL
     no_start = steps == 0 and ratio > 1.0
-    far = cert.upper_bound > _FAR_START * scale and ratio <= 1.0 + 1e-6
-    lost = out.status in ("failed", "max_iter") and ratio <= 1.0 + 1e-6
+    far = cert.upper_bound > _FAR_START * scale and inside
+    lost = out.status in ("failed", "max_iter") and inside
     if not (no_start or far or lost):
         return ""
     f = P.column_form(scaled=False)  # only where there is a reason to give: it costs the regressor's SVD
     ls = float(np.linalg.norm(f.project(f.B))) / np.sqrt(P.n_noise)  # σ at which δ = 0
     larger = f"(at the least-squares residual rms, {ls:.3g}, δ = 0)"
-    if not (no_start or far):
-        if not small_ball(f):
-            return ""
-        # measured: 1 × 2 data at σ = 1e-8 of the residual rms, the Newton decrement stuck at 22, then not finite
-        return (f"; σ is {P.sigma / ls:.2g} of the least-squares residual rms {ls:.3g}: a noise ball this far inside "
-                f"the residual makes the noise term's curvature swamp the barrier's, and the Newton systems lose their "
-                f"digits (the lower bound is raised by solves at larger balls, solver_stats['wider']). A larger σ "
-                f"certifies; backend='cvxpy' is a second route")
     if no_start:
         return (f"; it found no strictly feasible start: its ridge fit of the impulses leaves the noise at "
                 f"{ratio:.3g} σ√N. Either the δ that explains these data within σ is astronomically large (an input "
                 f"that excites few frequencies makes T(u) singular in floating point), or σ is below what the fit "
                 f"resolves in floating point. A larger σ gives a start {larger}; backend='cvxpy' is a second route")
-    # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
-    where = ("at its first Newton step, from a start" if steps == 0 else
-             f"after {steps} Newton step{'s' if steps != 1 else ''}, at a point")
-    return (f"; it stopped {where} whose δ is {cert.upper_bound:.3g}, {cert.upper_bound / scale:.2g} times the "
-            f"data's scale ‖y‖/‖u‖: the input makes T(u) singular in floating point, and the Newton system with "
-            f"it. The δ that explains these data within σ may be that large. A larger σ helps {larger}, and so "
-            f"does an input that excites more frequencies; backend='cvxpy' is a second route")
+    if far:
+        # measured: (7.5) with L fixed and a window starting with a small sample, δ₀ = 3e14 on data of scale 2.6
+        where = ("at its first Newton step, from a start" if steps == 0 else
+                 f"after {steps} Newton step{'s' if steps != 1 else ''}, at a point")
+        return (f"; it stopped {where} whose δ is {cert.upper_bound:.3g}, {cert.upper_bound / scale:.2g} times the "
+                f"data's scale ‖y‖/‖u‖: the input makes T(u) singular in floating point, and the Newton system with "
+                f"it. The δ that explains these data within σ may be that large. A larger σ helps {larger}, and so "
+                f"does an input that excites more frequencies; backend='cvxpy' is a second route")
+    if not small_ball(f):
+        return ""
+    # measured: 1 × 2 data at σ = 1e-8 of the residual rms, the Newton decrement stuck at 22, then not finite
+    return (f"; σ is {P.sigma / ls:.2g} of the least-squares residual rms {ls:.3g}: a noise ball this far inside "
+            f"the residual makes the noise term's curvature swamp the barrier's, and the Newton systems lose their "
+            f"digits (the lower bound is raised by solves at larger balls, solver_stats['wider']). A larger σ "
+            f"certifies; backend='cvxpy' is a second route")
 
 
 #: Fraction of the noise budget σ√N a point pulled into the ball keeps free (:func:`into_ball`): far above the
