@@ -8,7 +8,6 @@ import scipy.stats
 
 import unfalsify as uf
 from synthesis import DataError
-from unfalsify.invariance import _regression
 
 
 def _arx_record(n, seed, gain=(1.0, 1.0), noise=0.1):
@@ -24,7 +23,8 @@ def test_the_statistic_equals_the_interaction_regression_of_the_textbook_chow_te
     # second route: the unrestricted model as one regression with every regressor interacted with the segment
     u, y = _arx_record(600, 0, gain=(0.8, 1.2))
     t = uf.check_time_invariance(u, y, order=3)
-    Phi = _regression(u[:, None], y[:, None], 3)
+    n = len(u)  # the lagged regressors written out: y(t−1..t−3), u(t−1..t−3) for t = 3 … n−1
+    Phi = np.column_stack([y[3 - d : n - d] for d in (1, 2, 3)] + [u[3 - d : n - d] for d in (1, 2, 3)])
     target = y[3:]
     half = np.arange(Phi.shape[0]) >= (Phi.shape[0] + 1) // 2
     full = np.hstack([Phi * ~half[:, None], Phi * half[:, None]])

@@ -42,6 +42,8 @@ import scipy.stats
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal
 
+from .arx import arx_regressor
+
 __all__ = ["InvarianceTest", "check_time_invariance", "TIME_INVARIANCE_LEVEL"]
 
 #: Default level of :func:`check_time_invariance`: a p-value below it rejects time invariance.
@@ -99,13 +101,6 @@ def _default_order(n: int, channels: int, segments: int) -> int:
     """The largest order up to 16 leaving :data:`_ROWS_PER_PARAMETER` rows per parameter in each segment."""
     rows = n // segments
     return int(min(_MAX_ORDER, rows // (_ROWS_PER_PARAMETER * channels + 1)))
-
-
-def _regression(u: np.ndarray, y: np.ndarray, p: int) -> np.ndarray:
-    """Rows ``[y(t−1) … y(t−p), u(t−1) … u(t−p)]`` (every channel) for t = p … n−1."""
-    n = y.shape[0]
-    lags = [y[p - d : n - d] for d in range(1, p + 1)] + [u[p - d : n - d] for d in range(1, p + 1)]
-    return np.hstack(lags)
 
 
 def _rss_rank(Phi: np.ndarray, target: np.ndarray) -> tuple[float, int]:
@@ -192,7 +187,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     if segments * (p * (l + m) + 1) > n - p:
         raise DataError(f"order {p} leaves fewer rows than parameters in {segments} segments of {n} samples: use a "
                         "smaller order (or the default)")
-    Phi = _regression(u, y, p)
+    Phi = arx_regressor(u, y, p, p)[0][p:]  # rows whose whole past lies in the record
     tests = [_chow(Phi, y[p:, c], segments) for c in range(l)]
     worst = min(range(l), key=lambda c: tests[c][1])
     F, pv, dof = tests[worst]
