@@ -463,9 +463,9 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
 
 def _invariance_text(res) -> str:
     """The time-invariance test's p-value, order and samples, or why it did not run."""
-    inv = getattr(res, "invariance", None)
+    inv = res.invariance
     if inv is None:
-        return getattr(res, "invariance_note", "") or "—"
+        return res.invariance_note or "—"
     verdict = "rejected" if inv.rejected else "not rejected"
     return f"{inv.p_value:.3g} ({verdict} at {inv.level:g}; ARX({inv.order}), {inv.samples} samples)"
 
