@@ -93,6 +93,17 @@ def test_bad_input_raises_data_error_naming_the_fix():
         uf.check_time_invariance(u, y, order=150)
 
 
+def test_min_record_length_is_the_shortest_record_tested_by_default():
+    for outputs, inputs in ((1, 1), (1, 2), (2, 2)):
+        need = uf.min_record_length(outputs, inputs)
+        rng = np.random.default_rng(outputs + inputs)
+        u, y = rng.standard_normal((need, inputs)), rng.standard_normal((need, outputs))
+        assert uf.check_time_invariance(u, y).order == 8
+        with pytest.raises(DataError, match=f"need {need} samples"):
+            uf.check_time_invariance(u[:-1], y[:-1])
+    assert uf.min_record_length(1, 1, segments=3) == 3 * uf.min_record_length(1, 1) // 2
+
+
 def test_the_result_is_frozen_and_pickles():
     t = uf.check_time_invariance(*_arx_record(400, 0))
     back = pickle.loads(pickle.dumps(t))

@@ -422,6 +422,44 @@ def test_record_mode_tests_time_invariance_on_the_whole_record(prbs_record):
                                            search=False)
     assert held.invariance.samples == 500
     assert short.invariance is None and "too short to test time invariance" in short.invariance_note
+    # what the short record cannot test is stated with what the prbs cannot (linearity), and nothing more when tested
+    assert held.assumed == uf.untested_premises(u[:49], (u[1000:], y[1000:]))
+    assert short.assumed[:-1] == uf.untested_premises(u[:49])
+    assert short.assumed[-1].startswith("one time-invariant plant made the data") and "(49 samples)" in short.assumed[-1]
+    assert f"needs {uf.min_record_length(1, 1)}" in short.assumed[-1] and "validation=" in short.assumed[-1]
+
+
+def test_an_untested_time_invariance_warns_when_certified_and_refuses_on_request():
+    """A window alone cannot show a plant that changed during the experiment: a certificate on it warns
+    (UntestedPremiseWarning naming the fix) and ``untested="refuse"`` refuses it; a validation record long enough
+    for the test lifts that statement.  (A FIR plant under Gaussian input: linearity is testable, only time
+    invariance is not.)"""
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(800)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:800] + 0.01 * rng.standard_normal(800)
+    W1 = synthesis.makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
+    W2 = synthesis.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    need = uf.min_record_length(1, 1)
+
+    def run(validation=None, **kw):
+        with warnings.catch_warnings(record=True) as log:
+            warnings.simplefilter("always")
+            r = uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, validation=validation,
+                                           predictor=synthesis.fit_predictor(u, y, 3),
+                                           predictor_for=lambda h: synthesis.fit_predictor(u, y, h), **kw)
+        return r, [str(w.message) for w in log if issubclass(w.category, uf.UntestedPremiseWarning)]
+
+    short, untested = run()
+    assert short.certified, short.reason
+    assert len(short.assumed) == 1 and short.assumed[0].startswith("one time-invariant plant made the data")
+    assert "(45 samples)" in short.assumed[0] and f"needs {need}" in short.assumed[0]
+    assert len(untested) == 1 and short.assumed[0] in untested[0]
+    strict, _ = run(certificate=uf.CertificateOptions(untested="refuse"))
+    assert not strict.certified and "cannot test the premise" in strict.reason and "validation=" in strict.reason
+    # a validation record of exactly the length the test needs: tested, nothing assumed, no warning
+    tested, untested = run(validation=(u[45:45 + need], y[45:45 + need]))
+    assert tested.invariance is not None and tested.invariance.samples == need
+    assert tested.certified and tested.assumed == () and not untested
 
 
 def test_record_mode_auto_window_and_bad_windows(prbs_record):

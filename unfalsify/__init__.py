@@ -93,6 +93,7 @@ The certificate's premise, tested on the data
    check_time_invariance  -- is the record that of one time-invariant plant? (Chow's test on ARX fits of its segments)
    InvarianceTest         -- result of ``check_time_invariance``
    TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
+   min_record_length      -- the shortest record ``check_time_invariance`` tests at its default order
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
@@ -265,7 +266,7 @@ from .robust import (
     robust_design_from_data,
 )
 from .cost import arx_solve_estimate, solve_estimate
-from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance
+from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 from .exceptions import LongSolveWarning
 
 __all__ = [
@@ -337,6 +338,7 @@ __all__ = [
     "solve_estimate",
     "arx_solve_estimate",
     "check_time_invariance",
+    "min_record_length",
     "InvarianceTest",
     "TIME_INVARIANCE_LEVEL",
     "NotCertifiedError",

@@ -44,7 +44,7 @@ from synthesis.validation import DataError, as_signal
 
 from .arx import arx_regressor
 
-__all__ = ["InvarianceTest", "check_time_invariance", "TIME_INVARIANCE_LEVEL"]
+__all__ = ["InvarianceTest", "check_time_invariance", "min_record_length", "TIME_INVARIANCE_LEVEL"]
 
 #: Default level of :func:`check_time_invariance`: a p-value below it rejects time invariance.
 TIME_INVARIANCE_LEVEL = 1e-3
@@ -101,6 +101,18 @@ def _default_order(n: int, channels: int, segments: int) -> int:
     """The largest order up to 16 leaving :data:`_ROWS_PER_PARAMETER` rows per parameter in each segment."""
     rows = n // segments
     return int(min(_MAX_ORDER, rows // (_ROWS_PER_PARAMETER * channels + 1)))
+
+
+def min_record_length(outputs: int, inputs: int, segments: int = 2) -> int:
+    """Shortest record :func:`check_time_invariance` tests at its default order (8, ten rows per parameter in each of
+    ``segments`` segments).
+
+    Examples
+    --------
+    >>> min_record_length(1, 1), min_record_length(2, 2)
+    (336, 656)
+    """
+    return int(segments * _MIN_ORDER * (_ROWS_PER_PARAMETER * (outputs + inputs) + 1))
 
 
 def _rss_rank(Phi: np.ndarray, target: np.ndarray) -> tuple[float, int]:
@@ -176,7 +188,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     segments = int(segments)
     p = _default_order(n, l + m, segments) if order is None else order
     if order is None and p < _MIN_ORDER:
-        need = segments * _MIN_ORDER * (_ROWS_PER_PARAMETER * (l + m) + 1)
+        need = min_record_length(l, m, segments)
         raise DataError(f"a record of {n} samples is too short to test time invariance with {l} output(s) and {m} "
                         f"input(s): {segments} segments of ten rows per parameter of an ARX({_MIN_ORDER}) model need "
                         f"{need} samples (a shorter model leaves coloured equation errors, which the test reads as "

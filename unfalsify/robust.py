@@ -58,14 +58,14 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis.validation import DataError, check_horizon
+from synthesis.validation import DataError, as_signal, check_horizon
 
 from ._common import channel_pair, check_sigma
 from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
                       tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
-from .invariance import InvarianceTest, check_time_invariance
+from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
 from .premise import (ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise,
                       untested_premises)
@@ -238,7 +238,8 @@ class RobustDesignResult:
         :attr:`reason` repeats it when the coprime form does not certify either.
     assumed : tuple of str
         What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input
-        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone).  A loop certified with a
+        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone; and one time-invariant plant
+        when ``invariance`` is None: no record given is long enough to test it).  A loop certified with a
         non-empty ``assumed`` holds for the plant only as far as these statements do; with
         ``CertificateOptions(untested="refuse")`` a non-empty ``assumed`` refuses the certificate instead.
     invariance : InvarianceTest or None
@@ -670,7 +671,9 @@ def robust_design_from_data(
     What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a
     certified loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a, shows no static
     input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the plant linear at the
-    amplitudes the loop will use.
+    amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for
+    one input and one output) cannot show a plant that changes during the experiment, so the certificate then
+    assumes one time-invariant plant.
 
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
@@ -834,9 +837,10 @@ def robust_design_from_data(
     cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
                                            ref_model)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
-    assumed = untested_premises(u, validation)
+    record = whole or _longest(u, y, validation)
+    invariance, invariance_note = _time_invariance(record)
+    assumed = untested_premises(u, validation) + (_untested_invariance(*record) if invariance is None else ())
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
-    invariance, invariance_note = _time_invariance(whole or _longest(u, y, validation))
     premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason,
                                            untested_reason, invariance.reason if invariance is not None else "")
                                if r)
@@ -880,6 +884,17 @@ def _time_invariance(record) -> tuple[InvarianceTest | None, str]:
         return check_time_invariance(*record), ""
     except DataError as exc:
         return None, f"time invariance not tested: {exc}"
+
+
+def _untested_invariance(u, y) -> tuple[str]:
+    """The statement for ``assumed`` when the longest record is too short for :func:`check_time_invariance`."""
+    u, y = as_signal(u, "u"), as_signal(y, "y")
+    n, m, l = u.shape[0], u.shape[1], y.shape[1]
+    need = min_record_length(l, m)
+    return (f"one time-invariant plant made the data: the longest record given ({n} samples) is too short for the "
+            f"test of time invariance, which needs {need} with {l} output(s) and {m} input(s), so a plant or noise "
+            f"that changed during the experiment would go unseen (pass validation=(u_v, y_v) of {need} samples or "
+            "more, or the whole record with window=)",)
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
@@ -1236,9 +1251,10 @@ class CertificateOptions:
         (each form's premise is tested in its own terms; the result says which one certified).
     untested : {"warn", "refuse"}
         What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values,
-        or 0 and ±a, shows no saturation or dead zone).  ``"warn"`` (default): the loop is certified on that
-        assumption, which ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not
-        certified, the reason names the fix (several input amplitudes).  Measured on the adversarial catalogue's
+        or 0 and ±a, shows no saturation or dead zone; records too short for :func:`unfalsify.check_time_invariance`
+        show no change of the plant).  ``"warn"`` (default): the loop is certified on that assumption, which
+        ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not certified, the
+        reason names the fix (several input amplitudes; a longer validation record).  Measured on the adversarial catalogue's
         saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"`` certifies fail the true-plant
         judge.
     """
