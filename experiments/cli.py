@@ -53,7 +53,12 @@ COMMANDS: dict[str, tuple] = {
                                                     "(comma-separated: any of them)")),
                             (("--untested",), dict(dest="untested", choices=("warn", "refuse"), default="warn",
                                                    help="CertificateOptions(untested=...): certify on a premise the "
-                                                        "data cannot test (warn, the default) or refuse")))),
+                                                        "data cannot test (warn, the default) or refuse")),
+                            (("--protocol",), dict(dest="protocol", choices=("validation", "record"), default="validation",
+                                                   help="what the pipeline is given: the window, a predictor fitted "
+                                                        "on the first 60 %% and the last 40 %% held out "
+                                                        "(validation, the default), or the whole record with "
+                                                        "window= (record)")))),
     "mimo-pipeline": ("experiments.studies.mimo_pipeline", "run",
                       "§7.4 certificate for plants with several inputs and outputs (2 × 2, 2 × 1, 1 × 2) under white, "
                       "low-pass, silent-channel and collinear excitation, judged on the true plant"),

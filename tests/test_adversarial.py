@@ -289,3 +289,34 @@ def test_held_out_data_reach_the_pipeline_when_it_takes_validation(monkeypatch):
     monkeypatch.setattr(adv.uf, "robust_design_from_data", without)
     out = adv.run_case(case)
     assert out["mode"].startswith("baseline") and "validation" not in seen["kwargs"]
+
+
+def test_record_protocol_gives_the_pipeline_the_whole_record_and_the_window(monkeypatch):
+    """``--protocol record``: the record, fitting part then held-out part, with ``window=`` the (7.5) window; no
+    predictor, predictor_for or validation from the catalogue (the pipeline fits and holds out itself)."""
+    case = adv.catalogue()[0]
+    seen = {}
+
+    def record_mode(u, y, horizon, W1, W2, sigma, **kwargs):
+        seen.update(u=u, y=y, sigma=sigma, kwargs=kwargs)
+        raise DataError("stop here: use a fake")
+
+    monkeypatch.setattr(adv.uf, "robust_design_from_data", record_mode)
+    out = adv.run_case(case, protocol="record")
+    assert out["mode"] == "record (window=)" and out["verdict"] == "refused_by_error"
+    rec = adv.make_record(case)
+    np.testing.assert_array_equal(seen["u"], np.concatenate([rec.fit[0], rec.held_out[0]]))
+    np.testing.assert_array_equal(seen["y"], np.concatenate([rec.fit[1], rec.held_out[1]]))
+    assert seen["sigma"] == "auto" and seen["kwargs"]["window"] == (0, 2 * case.i + case.j - 1)
+    assert not {"predictor", "predictor_for", "validation"} & set(seen["kwargs"])
+    with pytest.raises(DataError, match="unknown protocol"):
+        adv.run_case(case, protocol="window")
+
+
+def test_record_protocol_refuses_the_drift_the_held_out_part_cannot_show():
+    """The catalogue's false certificate at ``drift/third_order`` seed 4 (validation protocol: its 600 held-out
+    samples do not show the drift) is refused in record mode by the time-invariance test on the whole record."""
+    case = next(c for c in adv.catalogue(4) if c.name.startswith("drift/third_order"))
+    out = adv.run_case(case, protocol="record")
+    assert not out["certified"] and out["verdict"] == "not_certified"
+    assert "not that of one time-invariant plant" in out["reason"]

@@ -532,12 +532,24 @@ def _fit(u, y, h):
     return pred, [f"{w.category.__name__}: {w.message}" for w in log]
 
 
-def run_case(case: Case, untested: str = "warn") -> dict:
+#: What :func:`run_case` gives the pipeline: ``"validation"`` (the window, a predictor fitted on the fitting part and
+#: the held-out part as ``validation=``) or ``"record"`` (the whole record, ``window=`` the same window).
+PROTOCOLS = ("validation", "record")
+
+
+def run_case(case: Case, untested: str = "warn", protocol: str = "validation") -> dict:
     """One adversarial run: simulate, fit, call the pipeline, judge on the true plant; a JSON-ready dict.
+
+    ``protocol`` (:data:`PROTOCOLS`): ``"validation"`` fits the predictors on the fitting part itself and gives the
+    pipeline the window, ``predictor_for`` and the held-out part; ``"record"`` gives it the whole record and
+    ``window=(0, 2i + j − 1)``, so that the pipeline fits on the first two thirds, holds out the last third and
+    tests time invariance on the whole record (σ ``"auto"``: half the residual rms on the window, the same rule).
 
     Never raises for what the data do to the fit or the pipeline: those are recorded (``error``,
     ``fit_warnings``, ``warnings``) and given a verdict.
     """
+    if protocol not in PROTOCOLS:
+        raise DataError(f"unknown protocol {protocol!r}; use one of {PROTOCOLS}")
     rec = make_record(case)
     dt = case.dt
     W = design_weights(dt)
@@ -549,7 +561,7 @@ def run_case(case: Case, untested: str = "warn") -> dict:
     out = {"case": case.name, "group": case.group, "plant": case.plant, "excitation": case.excitation.label,
            "excitation_kind": case.excitation.kind, "noise": case.noise.label, "i": i, "j": j, "dt": dt,
            "n_fit": len(u_fit), "n_held_out": len(u_hold), "judge_note": rec.judge_note,
-           "mode": "validation" if validation_supported() else "baseline (no validation=)",
+           "mode": _mode(protocol),
            "delta": float("nan"), "sigma": float("nan"), "certified": False, "warned": False, "reason": "",
            "error": "", "fit_warnings": [], "warnings": [], "premise_ratio": float("nan"), "premise_note": "",
            "premise_ratio_ref": float("nan"), "true": None, "seconds": 0.0}
@@ -569,11 +581,16 @@ def run_case(case: Case, untested: str = "warn") -> dict:
         kwargs["certificate"] = uf.CertificateOptions(untested=untested)
     if validation_supported():
         kwargs["validation"] = (u_hold, y_hold)
+    args = (u_fit[:n], y_fit[:n], i, W1, W2, sigma)
+    if protocol == "record":
+        kwargs = {k: v for k, v in kwargs.items() if k not in ("predictor", "predictor_for", "validation")}
+        kwargs["window"] = (0, n)
+        args = (np.concatenate([u_fit, u_hold]), np.concatenate([y_fit, y_hold]), i, W1, W2, "auto")
     rd, error = None, None
     with warnings.catch_warnings(record=True) as log:
         warnings.simplefilter("always")
         try:
-            rd = uf.robust_design_from_data(u_fit[:n], y_fit[:n], i, W1, W2, sigma, **kwargs)
+            rd = uf.robust_design_from_data(*args, **kwargs)
         except Exception as exc:  # noqa: BLE001 - every exception is classified by verdict()
             error = exc
             out["error"] = f"{type(exc).__name__}: {exc}"
@@ -585,6 +602,8 @@ def run_case(case: Case, untested: str = "warn") -> dict:
         out["verdict"] = verdict(False, out["warned"], None, error)
         out["reason"] = out["error"]
         return out
+    if protocol == "record":
+        out["sigma"] = float(rd.unfalsification.sigma)  # the pipeline's own "auto" on its own predictor
     out.update(delta=float(rd.delta), certified=bool(rd.certified), reason=rd.reason,
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
@@ -669,18 +688,19 @@ def run(opts) -> dict:
     cases = quick_catalogue(opts.seed) if opts.quick else catalogue(opts.seed)
     only = (getattr(opts, "extra", None) or {}).get("only")
     untested = (getattr(opts, "extra", None) or {}).get("untested") or "warn"
+    protocol = (getattr(opts, "extra", None) or {}).get("protocol") or "validation"
     if only:
         wanted = [w for w in only.split(",") if w]
         cases = tuple(c for c in cases if any(w in c.name for w in wanted))
     out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    mode = "validation" if validation_supported() else "baseline (no validation=)"
+    mode = _mode(protocol)
     intro = _intro(mode)
     live = LiveTable(out, "robust_adversarial", TITLE, _HEADERS, intro=intro)
     results = []
     for case in tqdm(cases, desc="robust-adversarial", unit="run", leave=False):
-        results.append(run_case(case, untested))
+        results.append(run_case(case, untested, protocol))
         live.add(_row(results[-1]), record=results[-1])
     summary = {"quick": bool(opts.quick), "only": only or "", "mode": mode, "untested": untested,
                **summarise(results), "cases": results}
@@ -697,6 +717,12 @@ def run(opts) -> dict:
     return finish_report(rep, summary, out, "robust_adversarial", t_start=t_start)
 
 
+def _mode(protocol: str) -> str:
+    if protocol == "record":
+        return "record (window=)"
+    return "validation" if validation_supported() else "baseline (no validation=)"
+
+
 def summary_lines(summary: dict) -> list[str]:
     """Key numbers of a run, for the CLI and the report."""
     lines = [f"mode: {summary['mode']}" + (f", untested={summary['untested']}" if "untested" in summary else ""),
@@ -707,19 +733,29 @@ def summary_lines(summary: dict) -> list[str]:
              + (f": {', '.join(summary['silent_failure_cases'])}" if summary["silent_failure_cases"] else ""),
              "verdicts: " + ", ".join(f"{k} {v}" for k, v in summary["verdicts"].items() if v)]
     if "certified_assuming" in summary:
-        lines.append(f"certified on a premise the data cannot test (result.assumed: a two-level input): "
+        lines.append(f"certified on a premise the data cannot test (result.assumed): "
                      f"{summary['certified_assuming']}, of them false: {summary['false_certificates_assuming']}")
     return lines
 
 
 def _intro(mode: str) -> str:
+    if mode.startswith("record"):
+        return (
+            f"Pipeline mode: **{mode}**. Each case simulates a record and gives it whole to "
+            "`unfalsify.robust_design_from_data` with `window=(0, 2i + j − 1)` and σ 'auto' (0.5 × the residual rms "
+            "on the window): the pipeline fits the predictors on the first two thirds, holds out the last third "
+            "for the premise test and tests time invariance on the whole record; the design search is over "
+            "horizon 2i. " + _JUDGED)
     return (
         f"Pipeline mode: **{mode}**. Each case simulates a record, fits the least-squares predictor on its "
         "first 60 % (horizon i), computes δ by (7.5) on the first 2i + j − 1 samples with σ = 0.5 × the "
         "residual rms there, and runs `unfalsify.robust_design_from_data` with the design search over horizon "
-        "2i (and `validation=` the held-out 40 % when the pipeline accepts it). Independently of the pipeline, "
-        "the returned loop is judged on the true plant ('judged on' names it when it is not the data's plant: "
-        "the midpoint of a drifting gain, the linear part of a nonlinearity): stability, δ‖K(I+PK)⁻¹‖∞ "
-        "(proven bound), a unit step, and the size-δ perturbations δz⁻¹, −δ and a phase-aligned all-pass. "
-        "‖P−P̂‖∞/δ is the premise the certificate rests on (≤ 1.25 for the certificate's claim to cover P); "
-        "inf when P or P̂ is not stable. A false certificate is a certified loop the judge fails.")
+        "2i (and `validation=` the held-out 40 % when the pipeline accepts it). " + _JUDGED)
+
+
+_JUDGED = (
+    "Independently of the pipeline, the returned loop is judged on the true plant ('judged on' names it when it is "
+    "not the data's plant: the midpoint of a drifting gain, the linear part of a nonlinearity): stability, δ‖K(I+PK)⁻¹‖∞ "
+    "(proven bound), a unit step, and the size-δ perturbations δz⁻¹, −δ and a phase-aligned all-pass. "
+    "‖P−P̂‖∞/δ is the premise the certificate rests on (≤ 1.25 for the certificate's claim to cover P); "
+    "inf when P or P̂ is not stable. A false certificate is a certified loop the judge fails.")
