@@ -244,6 +244,30 @@ def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
     assert not far.ok and "differs from P̂" in far.reason
 
 
+def test_delta_margin_evidence_refuses_only_what_the_data_show():
+    """P̂ = 4 (static), the data's model error D̂ = −3 (so the plant is 1), u = 2(r − y): the loop is stable on every
+    plant in the disks and small-gain certifies δ = 2 on P̂ (δ|M̂| = 4/9), but on the plant δ|M_P| = 4/3.  Refused
+    with δ = 2 where the disks are tight, not with δ = 1, nor where the disks are too wide to show it."""
+    P_hat = control.ss([], [], [], [[4.0]], 1.0)
+    K = control.ss([], [], [], [[2.0, -2.0]], 1.0)
+    # second route: M_P straight from the plant P = P̂ + D̂ = 1
+    M_P = abs(float(np.real(control.dcgain(uf.additive_channel(control.ss([], [], [], [[1.0]], 1.0), K)))))
+    assert M_P == pytest.approx(2.0 / 3.0, rel=1e-12)
+    exact = uf.check_excitation(P_hat, K, _fake_frf(0.0, response=-3.0), delta=2.0)
+    assert exact.margin == pytest.approx(2.0 * M_P, rel=1e-12)
+    bad = uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0), delta=2.0)
+    assert bad.worst < 1 and not bad.ok and "δ margin" in bad.reason and "refit" in bad.reason
+    assert bad.margin == pytest.approx(2.0 * (2.0 / 9.0) / (1.0 / 3.0 + 0.01 * 2.0 / 9.0), rel=1e-9)
+    assert bad.margin <= exact.margin  # the disk's best case: evidence, never more than the centre's value
+    fine = uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0), delta=1.0)
+    assert fine.ok and fine.reason == "" and fine.margin == pytest.approx(bad.margin / 2.0, rel=1e-12)
+    wide = uf.check_excitation(P_hat, K, _fake_frf(1.0, response=-3.0), delta=2.0)  # r = 1: best case δ|M_P| = 0.8
+    assert wide.ok and wide.margin == pytest.approx(0.8, rel=1e-9)
+    assert np.isnan(uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0)).margin)  # not asked
+    with pytest.raises(DataError, match="delta"):
+        uf.check_excitation(P_hat, K, _fake_frf(0.01), delta=-1.0)
+
+
 # ---- the pipeline ---------------------------------------------------------------------------------------
 
 def _lowpass(n, wc, seed):

@@ -236,6 +236,23 @@ def test_low_band_evidence_looks_in_the_direction_the_loop_sees():
         uf.check_excitation(P, K, _fake(np.zeros((9, 1, 2)), np.full(9, 0.01)))
 
 
+def test_delta_margin_evidence_mimo_is_the_largest_singular_value_on_the_plant():
+    """P̂ = 4I, D̂ = diag(−3, 0) (the plant is diag(1, 4)), C_y = −2I: δ·σ̄(M_P) = δ·2/3 on the first channel,
+    where σ̄(M̂) is only 2/9; the low-band estimate alone carries the evidence here (the Welch D̂ is 0)."""
+    P_hat = control.ss([], [], [], 4.0 * np.eye(2), 1.0)
+    K = control.ss([], [], [], np.hstack([2.0 * np.eye(2), -2.0 * np.eye(2)]), 1.0)
+    M_P = uf.additive_channel(control.ss([], [], [], np.diag([1.0, 4.0]), 1.0), K)
+    sigma = float(np.linalg.norm(np.real(control.dcgain(M_P)), 2))  # second route: the plant's own map
+    welch = _fake(np.zeros((9, 2, 2)), np.full(9, 0.01))
+    low = _fake(np.tile(np.diag([-3.0, 0.0]), (3, 1, 1)), np.zeros(3), low=True)
+    ex = uf.check_excitation(P_hat, K, welch, low, delta=2.0)
+    assert sigma == pytest.approx(2.0 / 3.0, rel=1e-12)
+    assert ex.margin == pytest.approx(2.0 * sigma, rel=1e-9) and not ex.ok and "δ margin" in ex.reason
+    assert uf.check_excitation(P_hat, K, welch, low, delta=1.0).ok
+    with pytest.raises(DataError, match="no factors"):
+        uf.check_excitation(P_hat, K, welch, low, delta=1.0, factors=object())
+
+
 def test_check_excitation_mimo_path_on_siso_data_gives_the_siso_numbers():
     rng = np.random.default_rng(6)
     u = rng.standard_normal(2048)

@@ -1183,16 +1183,22 @@ class ExcitationCheck:
     reason : str
         ``''`` when ok; otherwise the band, the input's power there (MIMO: the input channel with the
         least power) and the fix.
+    margin : float
+        With ``delta`` given: the data's evidence against the δ margin on the plant,
+        ``max δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over the Welch and low-band frequencies (≥ 1 refuses:
+        every plant in the confidence disks has ``δ·σ̄(K(I+PK)⁻¹) ≥ 1`` there); NaN when not computed.
     """
 
     ok: bool
     worst: float
     frequency: float
     reason: str
+    margin: float = float("nan")
 
 
 def check_excitation(model, controller, frf: FrequencyResponseEstimate,
-                     low_band: LowBandEstimate | None = None, *, factors=None) -> ExcitationCheck:
+                     low_band: LowBandEstimate | None = None, *, factors=None,
+                     delta: float | None = None) -> ExcitationCheck:
     """Check that the data determine the plant where the loop ``(P̂, K)`` is sensitive.
 
     At each Welch frequency the confidence disk ``|(P − P̂) − D̂| ≤ r`` must lie where the loop is
@@ -1215,6 +1221,20 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     not fault.  A test on the spectral radius ``ρ(DM̂)`` would be sharper still, but eigenvalues of
     non-normal matrices have no perturbation bound linear in ``r``.
 
+    **The δ margin on the plant** (``delta`` given, additive form).  The certificate sizes the loop for δ around
+    P̂; on the plant itself the map an additive perturbation sees is ``M_P = (I − M̂D)⁻¹M̂``, ``D = P − P̂``.  Where
+    the data *show* that every plant in the disks has ``δ·σ̄(M_P) ≥ 1``, the loop is refused.  With
+    ``Ẑ = (I − M̂D̂)⁻¹M̂``, the map on the plant at the disk's centre, and ``D = D̂ + E``, ``‖E‖₂ ≤ r``: ``M_P = Ẑ(I + EM_P)``,
+    so ``σ̄(M_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, and the evidence is ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)) ≥ 1`` (SISO:
+    ``δ|M̂|/(|1 − M̂D̂| + r|M̂|)``, the best case over the disk exactly), at the Welch and the low-band frequencies
+    alike (evidence refuses, uncertainty does not).  Measured on the
+    adversarial catalogue, ten seeds, both protocols (940 runs, 370 certified without this test, 10 of them false): it
+    refuses one loop, a false certificate (a low-pass input at 0.15 of Nyquist, P̂'s DC gain 4.4 against the plant's
+    1, δ = 2.9 from the output error, the true loop's δ·‖M_P‖∞ = 2.6; evidence 1.24 at the lowest frequencies), and
+    none of the 360 loops the true-plant judge passed (the largest evidence among those, 0.70).  The disks' worst
+    case instead of their best (refusing on uncertainty) would have refused 82 of those 360 at the Welch
+    frequencies alone.
+
     Parameters
     ----------
     model : control.StateSpace
@@ -1232,6 +1252,9 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         rows of :func:`unfalsify.coprime_channel`).  Since ``I − PC_y = M̂⁻¹(M̂ − N̂C_y)(I − (M̂ − N̂C_y)⁻¹RC_y)``,
         the same test is the frequency-wise condition of the loop, and it stays finite at an integrating P̂'s
         pole, where ``P − P̂`` and its estimate are unbounded.
+    delta : float, optional
+        The certified additive δ: also test the δ margin on the plants the data allow (above).  Not with
+        ``factors``.
 
     Returns
     -------
@@ -1240,7 +1263,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     Raises
     ------
     DataError
-        The estimates' channels differ from the model's.
+        The estimates' channels differ from the model's; ``delta`` negative, or given with ``factors``.
 
     Examples
     --------
@@ -1268,6 +1291,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex.ok, "u[:, 1]" in ex.reason
     (False, True)
     """
+    if delta is not None and (factors is not None or not delta >= 0):
+        raise DataError(f"delta must be a number ≥ 0 of the additive form (no factors=), got {delta!r}")
     if factors is None:
         M, norm = additive_channel(model, controller), "K(I+P̂K)⁻¹"
     else:
@@ -1309,8 +1334,10 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         welch = np.concatenate([np.zeros(low_band.frequency.size, bool), welch])
     k = int(np.argmax(bound))
     worst = float(bound[k])
+    margin, margin_reason = (float("nan"), "") if delta is None else _margin_evidence(M, frf, low_band, float(delta))
     if worst < 1.0:
-        return ExcitationCheck(ok=True, worst=worst, frequency=float(freq[k]), reason="")
+        return ExcitationCheck(ok=not margin_reason, worst=worst, frequency=float(freq[k]), reason=margin_reason,
+                               margin=margin)
     bad = bound >= 1.0
     unit = _unit(frf.dt)
     band = _bands(freq, bad, unit)
@@ -1328,7 +1355,60 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         why = (f"at {band} the data's frequency response differs from P̂ by more than the loop tolerates "
                f"({test} = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
                "richer or longer record, or raise the horizon")
-    return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why)
+    return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why, margin=margin)
+
+
+def _margin_evidence(M, frf: FrequencyResponseEstimate, low_band: LowBandEstimate | None,
+                     delta: float) -> tuple[float, str]:
+    """The largest evidence ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))`` against the δ margin (:func:`check_excitation`) over the Welch
+    and low-band frequencies, and why it refuses (``''`` below 1)."""
+    parts = [(frf.frequency, _margin_ratio(M, frf.response, frf.radius, frf.frequency, frf.resolution, frf.dt, delta))]
+    if low_band is not None:
+        spacing = 2.0 * np.pi / (low_band.samples * low_band.dt)
+        parts.append((low_band.frequency, _margin_ratio(M, low_band.response, low_band.radius, low_band.frequency,
+                                                        spacing, low_band.dt, delta)))
+    freq = np.concatenate([f for f, _ in parts])
+    ratio = np.concatenate([r for _, r in parts])
+    if not ratio.size:
+        return float("nan"), ""
+    k = int(np.argmax(ratio))
+    worst = float(ratio[k])
+    if worst < 1.0:
+        return worst, ""
+    unit = _unit(frf.dt)
+    return worst, (f"the data show that the plant lacks the δ margin the loop is certified for: at {freq[k]:.3g} {unit} "
+                   f"every plant within the confidence disks has δ·σ̄(K(I+PK)⁻¹) ≥ {worst:.3g} (δ = {delta:.4g}; "
+                   f"bound δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)), Ẑ = (I − M̂D̂)⁻¹M̂), so P̂ is wrong where the loop's margin is decided: refit "
+                   "P̂ where the data show it wrong (a longer horizon, a longer or richer record), which also lowers δ")
+
+
+def _margin_ratio(M, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
+                  delta: float, points: int = 9) -> np.ndarray:
+    """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over its ± half ``spacing``; 0 where
+    ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − M̂D̂`` is singular (σ̄(Ẑ) infinite).  ``M`` is ``M̂``
+    (m × l), ``response`` ``D̂`` (F,) or (F, l, m)."""
+    offsets = np.linspace(-0.5, 0.5, points) * spacing
+    omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
+    Mz = np.asarray(M(np.exp(1j * omega.reshape(-1) * dt), squeeze=False), complex)  # (m, l, F·points)
+    Mz = np.moveaxis(Mz, -1, 0).reshape(omega.shape + Mz.shape[:2])  # (F, points, m, l)
+    D = np.asarray(response, complex).reshape(frequency.size, Mz.shape[3], Mz.shape[2])
+    known = np.all(np.isfinite(D), axis=(1, 2)) & np.isfinite(radius)
+    D = np.where(known[:, None, None], D, 0.0)
+    X = np.eye(Mz.shape[2]) - Mz @ D[:, None]  # (F, points, m, m)
+    s = np.linalg.svd(X, compute_uv=False)
+    singular = ~(s[..., -1] > s[..., 0] * 1e-14)
+    X = np.where(singular[..., None, None], np.eye(Mz.shape[2]), X)  # solved below, then set to inf
+    gain = np.where(singular, np.inf, np.linalg.norm(np.linalg.solve(X, Mz), ord=2, axis=(2, 3)))
+    r = np.where(known, radius, 0.0)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain))
+    return np.where(known, ratio.max(axis=1), 0.0)
+    X = np.eye(Mz.shape[2]) - Mz @ D[:, None]  # (F, points, m, m)
+    s = np.linalg.svd(X, compute_uv=False)
+    singular = ~(s[..., -1] > s[..., 0] * 1e-14)
+    X = np.where(singular[..., None, None], np.eye(Mz.shape[2]), X)  # solved below, then set to inf
+    gain = np.where(singular, np.inf, np.linalg.norm(np.linalg.solve(X, Mz), ord=2, axis=(2, 3)))
+    r = np.where(known, radius, 0.0)[:, None]
 
 
 def _shape(est) -> tuple[int, int]:

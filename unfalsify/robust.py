@@ -1043,7 +1043,7 @@ class _LoopJudge:
         ref = (certify_loop(self.ref_model, d.controller, self.delta, **self.cert_opts)
                if self.ref_model is not None else self.missing)
         cert = certify_loop(self.model, d.controller, self.delta, **self.cert_opts)
-        exc = (check_excitation(self.model, d.controller, prem.frf, prem.low_band)
+        exc = (check_excitation(self.model, d.controller, prem.frf, prem.low_band, delta=self.delta)
                if prem.frf is not None and cert.stable else None)
         gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
         track = (_steady_state_reason(self.model, d.controller, (1.0 + self.margin) * self.delta, self.floor, gain)
