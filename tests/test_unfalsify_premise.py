@@ -319,6 +319,10 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
     assert p.decided_by == ("output error (Theorem 7.1)" if r.delta_output_error > r.delta_subspace
                             else "subspace (7.5)")
     assert r.excitation is not None and r.excitation.ok and r.excitation.worst < 1
+    # the δ margin on the plants the data allow was tested, with the pipeline's δ (second route: the public check)
+    assert 0 < r.excitation.margin < 1
+    again = uf.check_excitation(r.model, r.controller, p.frf, p.low_band, delta=r.delta)
+    assert again.margin == pytest.approx(r.excitation.margin, rel=1e-12)
     assert p.inconsistency < 1
     # the claim on the true plant
     assert uf.additive_robustness(P, r.controller).certifies(r.delta)
