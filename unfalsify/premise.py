@@ -628,6 +628,14 @@ def _bin_peak(sys, frequency: np.ndarray, spacing: float, dt: float, points: int
     return np.abs(_siso_response(sys, omega.reshape(-1), dt)).reshape(omega.shape).max(axis=1)
 
 
+def _bin_response(sys, frequency: np.ndarray, spacing: float, dt: float, points: int) -> np.ndarray:
+    """``sys`` (p × q) at ``points`` frequencies across each frequency ± half the ``spacing``: (F, points, p, q)."""
+    offsets = np.linspace(-0.5, 0.5, points) * spacing
+    omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
+    z = np.asarray(sys(np.exp(1j * omega.reshape(-1) * dt), squeeze=False), complex)  # (p, q, F·points)
+    return np.moveaxis(z, -1, 0).reshape(omega.shape + z.shape[:2])
+
+
 def _bin_loop_gain(sys, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
                    sign: float, points: int = 9) -> tuple[np.ndarray, np.ndarray]:
     """MIMO ``max_bin (σ̄(D̂ M̂) + sign·r·σ̄(M̂))`` and ``max_bin σ̄(M̂)`` over each frequency ± half the ``spacing``.
@@ -636,10 +644,7 @@ def _bin_loop_gain(sys, response: np.ndarray, radius: np.ndarray, frequency: np.
     ``D`` with ``‖D − D̂‖₂ ≤ r`` has ``σ̄(D̂M̂) − r·σ̄(M̂) ≤ σ̄(D M̂) ≤ σ̄(D̂M̂) + r·σ̄(M̂)``: sign +1 bounds the
     loop gain of the perturbation from above, −1 from below.  NaN where ``D̂`` is NaN.
     """
-    offsets = np.linspace(-0.5, 0.5, points) * spacing
-    omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
-    Mz = np.asarray(sys(np.exp(1j * omega.reshape(-1) * dt), squeeze=False), complex)  # (m, l, F·points)
-    Mz = np.moveaxis(Mz, -1, 0).reshape(omega.shape + Mz.shape[:2])  # (F, points, m, l)
+    Mz = _bin_response(sys, frequency, spacing, dt, points)
     gain_M = np.linalg.norm(Mz, ord=2, axis=(2, 3))
     known = np.all(np.isfinite(response), axis=(1, 2))
     D = np.where(known[:, None, None], response, 0.0)  # NaN would stop the SVD; those rows are set NaN below
@@ -1387,10 +1392,7 @@ def _margin_ratio(M, response: np.ndarray, radius: np.ndarray, frequency: np.nda
     """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over its ± half ``spacing``; 0 where
     ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − M̂D̂`` is singular (σ̄(Ẑ) infinite).  ``M`` is ``M̂``
     (m × l), ``response`` ``D̂`` (F,) or (F, l, m)."""
-    offsets = np.linspace(-0.5, 0.5, points) * spacing
-    omega = np.clip(frequency[:, None] + offsets[None, :], 0.0, np.pi / dt)
-    Mz = np.asarray(M(np.exp(1j * omega.reshape(-1) * dt), squeeze=False), complex)  # (m, l, F·points)
-    Mz = np.moveaxis(Mz, -1, 0).reshape(omega.shape + Mz.shape[:2])  # (F, points, m, l)
+    Mz = _bin_response(M, frequency, spacing, dt, points)
     D = np.asarray(response, complex).reshape(frequency.size, Mz.shape[3], Mz.shape[2])
     known = np.all(np.isfinite(D), axis=(1, 2)) & np.isfinite(radius)
     D = np.where(known[:, None, None], D, 0.0)
@@ -1403,12 +1405,6 @@ def _margin_ratio(M, response: np.ndarray, radius: np.ndarray, frequency: np.nda
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain))
     return np.where(known, ratio.max(axis=1), 0.0)
-    X = np.eye(Mz.shape[2]) - Mz @ D[:, None]  # (F, points, m, m)
-    s = np.linalg.svd(X, compute_uv=False)
-    singular = ~(s[..., -1] > s[..., 0] * 1e-14)
-    X = np.where(singular[..., None, None], np.eye(Mz.shape[2]), X)  # solved below, then set to inf
-    gain = np.where(singular, np.inf, np.linalg.norm(np.linalg.solve(X, Mz), ord=2, axis=(2, 3)))
-    r = np.where(known, radius, 0.0)[:, None]
 
 
 def _shape(est) -> tuple[int, int]:

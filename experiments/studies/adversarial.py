@@ -54,6 +54,12 @@ every one on a ±1 PRBS -- the 80 % input saturation at seeds 4, 5, 7 and 9 (a t
 (``CertificateOptions(untested="refuse")``): 33 certified, none false.  The time-invariance test added since
 (:func:`unfalsify.check_time_invariance`, on the 600 held-out samples this protocol gives the pipeline) refuses one
 more, ``drift/resonant`` at seed 4 (its loop had passed the judge): 188 certified, the same 5 false.
+
+``protocol="record"`` (``--protocol record``: the whole record with ``window=``, as ``python -m experiments design``
+runs a data file), seeds 0–9: 182 certified, 5 false before the δ-margin evidence of
+:func:`unfalsify.check_excitation`, 181 and 4 with it -- the saturation at seeds 7 and 9, and two loops short of
+the tracking floor on the true plant (``noise/third_order/drift`` seed 0, 0.1003; ``fourth_order_50hz/prbs`` seed
+1, 0.125), whose P̂ misses the plant's low-frequency gain.
 """
 from __future__ import annotations
 
