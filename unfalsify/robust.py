@@ -839,7 +839,8 @@ def robust_design_from_data(
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
     invariance, invariance_note = _time_invariance(record)
-    assumed = untested_premises(u, validation) + (_untested_invariance(*record) if invariance is None else ())
+    assumed = untested_premises(u, validation) + (_untested_invariance(*record, whole is not None)
+                                                   if invariance is None else ())
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
     premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason,
                                            untested_reason, invariance.reason if invariance is not None else "")
@@ -886,15 +887,17 @@ def _time_invariance(record) -> tuple[InvarianceTest | None, str]:
         return None, f"time invariance not tested: {exc}"
 
 
-def _untested_invariance(u, y) -> tuple[str]:
-    """The statement for ``assumed`` when the longest record is too short for :func:`check_time_invariance`."""
+def _untested_invariance(u, y, whole: bool) -> tuple[str]:
+    """The statement for ``assumed`` when the longest record is too short for :func:`check_time_invariance`
+    (``whole``: it is the whole record of record mode, so only a longer experiment helps)."""
     u, y = as_signal(u, "u"), as_signal(y, "y")
     n, m, l = u.shape[0], u.shape[1], y.shape[1]
     need = min_record_length(l, m)
+    fix = (f"record at least {need} samples" if whole else
+           f"pass validation=(u_v, y_v) of {need} samples or more, or the whole record with window=")
     return (f"one time-invariant plant made the data: the longest record given ({n} samples) is too short for the "
             f"test of time invariance, which needs {need} with {l} output(s) and {m} input(s), so a plant or noise "
-            f"that changed during the experiment would go unseen (pass validation=(u_v, y_v) of {need} samples or "
-            "more, or the whole record with window=)",)
+            f"that changed during the experiment would go unseen ({fix})",)
 
 
 def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
