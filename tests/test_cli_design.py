@@ -75,6 +75,12 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     # time invariance tested on the whole record (record mode), as the pipeline's own result says
     assert summary["invariance_p_value"] == res.invariance.p_value and res.invariance.samples == len(u)
     assert "Chow's test" in md
+    # the returned loop against the data: the excitation check's numbers, the δ-margin evidence among them
+    ex = res.excitation
+    assert res.certified and res.uncertainty == "additive" and ex.ok and 0 < ex.margin < 1  # tested, and passed
+    for key, value in (("excitation_worst", ex.worst if ex else None), ("margin_evidence", ex.margin if ex else None)):
+        assert summary[key] == (value if value is not None and np.isfinite(value) else None), key
+    assert "evidence that the plant lacks the δ margin" in md
     K_npz, K_mat = load_controller(summary["controller_npz"]), load_controller(summary["controller_mat"])
     K = res.controller
     for mat in "ABCD":
