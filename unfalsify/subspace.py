@@ -628,16 +628,16 @@ def subspace_unfalsify(
                 FewDataWarning,
                 stacklevel=2,
             )
-        if executor is None:  # a split solve's cost is its executor's, per column block
-            _guard_subspace(i, j, "cvxpy" if name == "cvxpy" else "structured", (m, l))
-        if executor is not None:
+        if executor is not None:  # a split solve's cost is its executor's, per column block: no guard here
             if predictor is None or form != "conditioned":
                 raise DataError("executor= splits (7.5) by columns, which needs the predictor fixed and "
                                 "form='conditioned': pass predictor=... (e.g. synthesis.fit_predictor(u, y, i))")
             name, backend, options = "split", "split", dict(executor=executor)
         elif name == "cvxpy":
+            _guard_subspace(i, j, "cvxpy", (m, l))
             options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
         else:
+            _guard_subspace(i, j, "structured", (m, l))
             options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
         start = "cold"
         if warm_start is not None:

@@ -577,21 +577,20 @@ def run_case(case: Case, untested: str = "warn", protocol: str = "validation") -
     except Exception as exc:  # noqa: BLE001 - a failed fit is a finding to record, not a crash
         out.update(error=f"{type(exc).__name__}: {exc}", verdict="fit_failed", reason="predictor fit failed")
         return out
-    A, _, Yf = uf.subspace_data(u_fit[:n], y_fit[:n], i)
-    rms = float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
-    sigma = 0.5 * rms
-    out["sigma"] = sigma
-    kwargs = dict(predictor=pred, dt=dt, predictor_for=lambda h: synthesis.fit_predictor(u_fit, y_fit, h),
-                  search=uf.DesignSearch(horizons=(2 * i,)))
+    kwargs = dict(dt=dt, search=uf.DesignSearch(horizons=(2 * i,)))
     if untested != "warn":  # the pipeline's default otherwise (and the catalogue runs on revisions without it)
         kwargs["certificate"] = uf.CertificateOptions(untested=untested)
-    if validation_supported():
-        kwargs["validation"] = (u_hold, y_hold)
-    args = (u_fit[:n], y_fit[:n], i, W1, W2, sigma)
     if protocol == "record":
-        kwargs = {k: v for k, v in kwargs.items() if k not in ("predictor", "predictor_for", "validation")}
         kwargs["window"] = (0, n)
         args = (np.concatenate([u_fit, u_hold]), np.concatenate([y_fit, y_hold]), i, W1, W2, "auto")
+    else:
+        A, _, Yf = uf.subspace_data(u_fit[:n], y_fit[:n], i)
+        rms = float(np.linalg.norm(Yf - np.hstack([pred.Lw, pred.Lu]) @ A) / np.sqrt(Yf.size))
+        out["sigma"] = 0.5 * rms
+        kwargs.update(predictor=pred, predictor_for=lambda h: synthesis.fit_predictor(u_fit, y_fit, h))
+        if validation_supported():
+            kwargs["validation"] = (u_hold, y_hold)
+        args = (u_fit[:n], y_fit[:n], i, W1, W2, out["sigma"])
     rd, error = None, None
     with warnings.catch_warnings(record=True) as log:
         warnings.simplefilter("always")

@@ -409,6 +409,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                 f"rms of y − P̂u (P̂ simulated from rest): {_fmt(numbers['oe_rms_fit'])} on the fitting part, "
                 f"{_fmt(numbers['oe_rms_held_out'])} on the held-out part (rms of y: {_fmt(numbers['y_rms'])}).")
     rep.figure(figs[1], "Measured output against P̂u, and the output error")
+    excitation_worst, margin_evidence = _excitation_number(res, "worst"), _excitation_number(res, "margin")
     rep.section("δ")
     rep.table(["quantity", "value"], [
         ["σ (admissible rms noise of (7.5))" + (" — auto: half the window's residual rms" if sigma_arg == "auto"
@@ -420,10 +421,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         ["δ designed and certified for (the larger)", _fmt(res.delta)],
         ["decided by", prem.decided_by if prem is not None else "—"],
         ["time invariance over the record (Chow's test, p-value)", _invariance_text(res)],
-        ["loop against the data: (|P − P̂| estimate + r)·|K(I+P̂K)⁻¹|, worst (< 1 needed)",
-         _fmt(_excitation_number(res, "worst"))],
-        ["loop against the data: evidence that the plant lacks the δ margin (< 1 needed)",
-         _fmt(_excitation_number(res, "margin"))],
+        ["loop against the data: (|P − P̂| estimate + r)·|K(I+P̂K)⁻¹|, worst (< 1 needed)", _fmt(excitation_worst)],
+        ["loop against the data: evidence that the plant lacks the δ margin (< 1 needed)", _fmt(margin_evidence)],
         ["peak gain of P̂ (frequency grid), for scale", _fmt(numbers["model_peak_gain"])],
     ])
     rep.section("Design search", "Every design tried, in order; the first certified one is returned.")
@@ -452,7 +451,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "assumed": list(res.assumed),
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
-        "excitation_worst": _excitation_number(res, "worst"), "margin_evidence": _excitation_number(res, "margin"),
+        "excitation_worst": excitation_worst, "margin_evidence": margin_evidence,
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
         "delta_output_error": float(res.delta_output_error),
         "delta_lower_bound": float(cert.lower_bound), "delta_upper_bound": float(cert.upper_bound),
@@ -469,7 +468,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
 def _excitation_number(res, name: str):
     """``res.excitation.<name>`` of the returned loop, or None where the check did not run (an unstable loop) or
     does not give it (the δ margin in coprime form)."""
-    value = getattr(res.excitation, name, None) if res.excitation is not None else None
+    value = getattr(res.excitation, name, None)  # getattr(None, ...) is None too: no check ran
     return float(value) if value is not None and np.isfinite(value) else None
 
 
