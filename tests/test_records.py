@@ -134,3 +134,60 @@ def test_errors_name_the_problem_and_the_fix(tmp_path, signals):
     with pytest.raises(FileNotFoundError):
         load_record(tmp_path / "absent.csv", u=0, y=1, dt=1)
     assert issubclass(RecordError, DataError) and issubclass(RecordError, ValueError)
+
+
+def test_decimal_commas_are_read_when_the_separator_is_not_a_comma(tmp_path, signals):
+    t, u, y = signals
+    plain = load_record(_write_csv(tmp_path / "dot.csv", ["t", "u1", "u2", "y"], [t, u, y]), u=["u1", "u2"],
+                        y="y", t="t")
+    text = (tmp_path / "dot.csv").read_text().replace(",", ";").replace(".", ",")  # a comma-decimal locale's export
+    (tmp_path / "comma.csv").write_text(text)
+    rec = load_record(tmp_path / "comma.csv", u=["u1", "u2"], y="y", t="t")
+    np.testing.assert_array_equal(rec.u, plain.u)
+    np.testing.assert_array_equal(rec.y, plain.y)
+    assert rec.dt == plain.dt
+    assert load_record(tmp_path / "comma.csv", u=["u1", "u2"], y="y", t="t", decimal=",").n == plain.n
+    hint = r"'u1', data row 0: '0,3455\d*' is not a number; decimal commas\? pass decimal=','"
+    with pytest.raises(RecordError, match=hint):
+        load_record(tmp_path / "comma.csv", u=["u1", "u2"], y="y", t="t", decimal=".")
+    with pytest.raises(RecordError, match="decimal must be"):
+        load_record(tmp_path / "comma.csv", u="u1", y="y", t="t", decimal="dot")
+    with pytest.raises(RecordError, match="needs another field separator"):
+        load_record(tmp_path / "dot.csv", u="u1", y="y", t="t", decimal=",")
+
+
+def test_one_column_cannot_serve_two_signals(tmp_path, signals):
+    t, u, y = signals
+    path = _write_csv(tmp_path / "r.csv", ["t", "u1", "u2", "y"], [t, u, y])
+    with pytest.raises(RecordError, match="column 1 is selected both as u= and as y="):
+        load_record(path, u="u1", y="u1", t="t")
+    with pytest.raises(RecordError, match="column 3 is selected both as u= and as y="):
+        load_record(path, u=[1, -1], y=3, t="t")  # -1 is column 3
+    with pytest.raises(RecordError, match="column 0 is selected both as u= and as t="):
+        load_record(path, u="t", y="y", t="t")
+    with pytest.raises(RecordError, match="twice in u="):
+        load_record(path, u=["u1", "u1"], y="y", t="t")
+    np.savez(tmp_path / "r.npz", u=u, y=y)
+    with pytest.raises(RecordError, match="'u' is selected both as u= and as y="):
+        load_record(tmp_path / "r.npz", u="u", y="u", dt=0.05)
+    dup = _write_csv(tmp_path / "dup.csv", ["t", "u", "u", "y"], [t, u, y])
+    with pytest.raises(RecordError, match=r"2 columns named 'u' \(columns \[1, 2\]\); select u= by integer index"):
+        load_record(dup, u="u", y="y", t="t")
+    assert load_record(dup, u=[1, 2], y="y", t="t").m == 2  # by index it is unambiguous
+
+
+def test_files_the_readers_cannot_parse_raise_record_errors(tmp_path):
+    # MATLAB's v7.3 files are HDF5 behind a 128-byte header whose version field is 0x0200
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116) + bytes(8) + b"\x00\x02IM"
+    (tmp_path / "v73.mat").write_bytes(header + b"\x89HDF\r\n\x1a\n" + bytes(256))
+    with pytest.raises(RecordError, match=r"v7\.3 \(HDF5\).*'-v7'"):
+        load_record(tmp_path / "v73.mat", u="u", y="y", dt=1)
+    (tmp_path / "junk.mat").write_bytes(bytes(300))
+    with pytest.raises(RecordError, match="cannot read .* as a MATLAB file"):
+        load_record(tmp_path / "junk.mat", u="u", y="y", dt=1)
+    np.savez(tmp_path / "objects.npz", u=np.array([object()] * 3), y=np.ones(3))
+    with pytest.raises(RecordError, match=r"as NPZ .*numpy\.savez"):
+        load_record(tmp_path / "objects.npz", u="u", y="y", dt=1)
+    (tmp_path / "junk.npz").write_bytes(b"not a zip archive")
+    with pytest.raises(RecordError, match="as NPZ"):
+        load_record(tmp_path / "junk.npz", u="u", y="y", dt=1)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import csv
 import numbers
+import re
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -90,7 +92,7 @@ def _as_list(sel, what: str):
 
 
 # ---------------------------------------------------------------------------------------------- CSV
-def _read_csv(path: Path, delimiter: str | None):
+def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
     text = path.read_text(encoding="utf-8-sig")
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
@@ -103,10 +105,19 @@ def _read_csv(path: Path, delimiter: str | None):
     rows = [[c.strip() for c in r] for r in csv.reader(lines, delimiter=delimiter, skipinitialspace=True)]
     if delimiter == " ":
         rows = [[c for c in r if c] for r in rows]
+    if decimal is None:
+        decimal = _guess_decimal(rows, delimiter)
+    elif decimal not in (".", ","):
+        raise RecordError(f"decimal must be '.' or ',', got {decimal!r}")
+    if decimal == "," and delimiter == ",":
+        raise RecordError("decimal=',' needs another field separator than ','; pass delimiter=';' (or the file's)")
+
+    def number(cell):
+        return float(cell.replace(",", ".") if decimal == "," else cell)
 
     def numeric(cell):
         try:
-            float(cell)
+            number(cell)
             return True
         except ValueError:
             return False
@@ -124,17 +135,35 @@ def _read_csv(path: Path, delimiter: str | None):
                               "every row needs one value per column")
         for c, cell in enumerate(row):
             try:
-                data[r, c] = float(cell) if cell != "" else np.nan
+                data[r, c] = number(cell) if cell != "" else np.nan
             except ValueError:
                 col = repr(header[c]) if header is not None else f"column {c}"
-                raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number; "
+                hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
+                        else "")
+                raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
                                   "fix the file or drop that column") from None
     return header, data
+
+
+#: A number written with a decimal comma (``-1,25``, ``3,0e-4``), as spreadsheets in many locales export it.
+_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+([eE][+-]?\d+)?")
+
+
+def _guess_decimal(rows, delimiter: str) -> str:
+    """``","`` when the separator is not a comma and every field of the last row is a number with a decimal comma
+    or an integer (a spreadsheet's export in a comma-decimal locale), else ``"."``."""
+    if delimiter == "," or not rows:
+        return "."
+    last = [c for c in rows[-1] if c]
+    commas = [bool(_DECIMAL_COMMA.fullmatch(c)) for c in last]
+    plain = [bool(re.fullmatch(r"[+-]?\d+", c)) for c in last]
+    return "," if any(commas) and all(a or b for a, b in zip(commas, plain)) else "."
 
 
 def _pick_columns(table: np.ndarray, header, sel, what: str, path: Path):
     names = []
     cols = []
+    picked = []
     for s in sel:
         if isinstance(s, str):
             if header is None:
@@ -143,6 +172,10 @@ def _pick_columns(table: np.ndarray, header, sel, what: str, path: Path):
             if s not in header:
                 raise RecordError(f"{str(path)!r} has no column {s!r} (columns: {', '.join(header)}); "
                                   f"pass {what}= one of them or an integer index")
+            if header.count(s) > 1:
+                where = [c for c, name in enumerate(header) if name == s]
+                raise RecordError(f"{str(path)!r} has {len(where)} columns named {s!r} (columns {where}); select "
+                                  f"{what}= by integer index or rename them")
             k = header.index(s)
         else:
             k = int(s)
@@ -152,17 +185,45 @@ def _pick_columns(table: np.ndarray, header, sel, what: str, path: Path):
             k %= table.shape[1]
         cols.append(table[:, k])
         names.append(header[k] if header is not None else f"column {k}")
-    return np.column_stack(cols), names
+        picked.append(k)
+    return np.column_stack(cols), names, picked
+
+
+def _check_distinct(selected: dict, path: Path) -> None:
+    """Each column (or array) serves one role: ``selected`` maps a role (``"u"``, ``"y"``, ``"t"``) to the columns it
+    picked.  The same column as input and output (or twice in one role) is a slip that would fit a plant ``y = u``."""
+    seen = {}
+    for role, picked in selected.items():
+        for k in picked:
+            if k in seen:
+                name = f"column {k}" if isinstance(k, int) else repr(k)
+                other = seen[k]
+                twice = f"twice in {role}=" if other == role else f"both as {other}= and as {role}="
+                raise RecordError(f"{str(path)!r}: {name} is selected {twice}; each signal needs its own column")
+            seen[k] = role
 
 
 # ---------------------------------------------------------------------------------------------- arrays
 def _read_arrays(path: Path, fmt: str) -> dict:
     if fmt == ".npz":
-        with np.load(path, allow_pickle=False) as f:
-            return {k: f[k] for k in f.files}
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                return {k: f[k] for k in f.files}
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            # allow_pickle=False refuses object arrays (ValueError): a record holds numbers only
+            raise RecordError(f"cannot read {str(path)!r} as NPZ ({exc}); save the signals as numeric arrays with "
+                              "numpy.savez(path, u=u, y=y)") from None
     from scipy.io import loadmat
-
-    return {k: v for k, v in loadmat(path).items() if not k.startswith("__")}
+    from scipy.io.matlab import MatReadError
+    try:
+        arrays = loadmat(path)
+    except NotImplementedError:  # scipy's answer to MATLAB's HDF5-based format
+        raise RecordError(f"{str(path)!r} is a MATLAB v7.3 (HDF5) file, which scipy does not read; save it again "
+                          "from MATLAB with save(file, 'u', 'y', '-v7'), or export the signals as CSV") from None
+    except (MatReadError, OSError, ValueError, TypeError, EOFError) as exc:
+        raise RecordError(f"cannot read {str(path)!r} as a MATLAB file ({exc}); save it from MATLAB with "
+                          "save(file, 'u', 'y', '-v7'), or export the signals as CSV") from None
+    return {k: v for k, v in arrays.items() if not k.startswith("__")}
 
 
 def _key(arrays: dict, key, what: str, path: Path):
@@ -195,7 +256,7 @@ def _check_finite(arr: np.ndarray, names, path: Path, what: str):
 
 
 def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, delimiter: str | None = None,
-                rtol: float = 1e-6) -> Record:
+                decimal: str | None = None, rtol: float = 1e-6) -> Record:
     """Read an input/output record from a ``.csv`` (or ``.txt``), ``.npz`` or ``.mat`` file.
 
     Parameters
@@ -218,6 +279,10 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         ``y``, ``t`` are then its column indices.
     delimiter : str, optional
         CSV field separator (default: guessed from the first line among ``, ; tab space``).
+    decimal : {'.', ','}, optional
+        CSV decimal mark.  Default: ``','`` when the separator is not a comma and the last row's
+        numbers are written with decimal commas (``0,25;1,5``, a spreadsheet's export in many
+        locales), else ``'.'``.
     rtol : float
         Relative tolerance of the uniformity check of the time column.
 
@@ -229,10 +294,12 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     Raises
     ------
     RecordError
-        Unknown file ending; a missing column, key or variable (the message lists what there
-        is); NaN, empty or infinite values (which column, first row); channels of different
-        lengths; a non-uniform or decreasing time column; ``t`` and ``dt`` that disagree; no
-        sample time at all; a matrix with time along axis 1.
+        Unknown file ending; a file its reader cannot parse (a MATLAB v7.3 file, a damaged NPZ);
+        a missing column, key or variable (the message lists what there is); a column name the
+        header holds twice; one column selected for two signals (e.g. as ``u`` and ``y``); NaN,
+        empty or infinite values (which column, first row); channels of different lengths; a
+        non-uniform or decreasing time column; ``t`` and ``dt`` that disagree; no sample time at
+        all; a matrix with time along axis 1.
 
     Examples
     --------
@@ -277,7 +344,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         if fmt in (".csv", ".txt"):
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
-            header, table = _read_csv(path, delimiter)
+            header, table = _read_csv(path, delimiter, decimal)
         else:
             arrays = _read_arrays(path, fmt)
             if variable not in arrays:
@@ -295,9 +362,11 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             bad = [s for s in u_sel + y_sel + (t_sel or []) if isinstance(s, str)]
             if bad:
                 raise RecordError(f"with variable={variable!r} select columns by integer index, not by name {bad[0]!r}")
-        U, u_names = _pick_columns(table, header, u_sel, "u", path)
-        Y, y_names = _pick_columns(table, header, y_sel, "y", path)
-        T = _pick_columns(table, header, t_sel, "t", path)[0][:, 0] if t_sel else None
+        U, u_names, u_cols = _pick_columns(table, header, u_sel, "u", path)
+        Y, y_names, y_cols = _pick_columns(table, header, y_sel, "y", path)
+        T, _, t_cols = _pick_columns(table, header, t_sel, "t", path) if t_sel else (None, None, [])
+        T = None if T is None else T[:, 0]
+        _check_distinct({"u": u_cols, "y": y_cols, "t": t_cols}, path)
         if variable is not None:
             u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
             y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
@@ -322,6 +391,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                                   f"{[p.shape[0] for p in parts]}; cut them to a common length")
             return np.hstack(parts), names
 
+        _check_distinct({"u": u_sel, "y": y_sel, "t": t_sel or []}, path)
         U, u_names = gather(u_sel, "u")
         Y, y_names = gather(y_sel, "y")
         T = None
