@@ -268,6 +268,38 @@ def test_delta_margin_evidence_refuses_only_what_the_data_show():
         uf.check_excitation(P_hat, K, _fake_frf(0.01), delta=-1.0)
 
 
+def _static_factors(n_gain: float) -> uf.CoprimeFactors:
+    """FIR factors of the static plant ``n_gain`` (M̂ = 1, N̂ = n_gain; horizon 1 with zero second taps)."""
+    return uf.CoprimeFactors(N=np.array([[[n_gain]], [[0.0]]]), M=np.array([[[1.0]], [[0.0]]]), dt=1.0)
+
+
+def test_epsilon_margin_evidence_in_coprime_form_is_the_plants_own_channel():
+    """Coprime form: P̂ = 4 with factors (M̂, N̂) = (1, 4), the data's R̂ = M̂P − N̂ = −3 (the plant is 1), u = 2(r − y).
+    The plant factored as (M̂, N̂ + R) = (1, 1) has the channel [C_y; I](M̂ − (N̂ + R)C_y)⁻¹ = [−2/3; 1/3], σ̄ = √5/3,
+    where P̂'s own channel has σ̄ = √5/9; with a disk of radius r the evidence is ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u)), Ẑ_u = −2/3."""
+    K = control.ss([], [], [], [[2.0, -2.0]], 1.0)
+    F = _static_factors(4.0)
+    P_hat = F.model()
+    # second route: the channel of the plant's own factors, by coprime_channel
+    H_P = np.real(control.dcgain(uf.coprime_channel(_static_factors(1.0), K))).reshape(2)
+    assert H_P == pytest.approx([-2.0 / 3.0, 1.0 / 3.0], rel=1e-12)
+    sigma = float(np.linalg.norm(H_P))
+    exact = uf.check_excitation(P_hat, K, _fake_frf(0.0, response=-3.0), factors=F, delta=2.0)
+    assert exact.margin == pytest.approx(2.0 * sigma, rel=1e-12)
+    bad = uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0), factors=F, delta=2.0)
+    assert bad.margin == pytest.approx(2.0 * sigma / (1.0 + 0.01 * abs(H_P[0])), rel=1e-9)
+    assert not bad.ok and "ε margin" in bad.reason and "(M̂, N̂ + R)" in bad.reason and "refit" in bad.reason
+    assert bad.worst < 1  # the frequency-wise loop test alone passes: only the margin refuses
+    fine = uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0), factors=F, delta=1.0)
+    assert fine.ok and fine.margin == pytest.approx(bad.margin / 2.0, rel=1e-12)
+    # no model error: the evidence is P̂'s own channel, ε·σ̄(H)
+    H = np.real(control.dcgain(uf.coprime_channel(F, K))).reshape(2)
+    zero = uf.check_excitation(P_hat, K, _fake_frf(0.0, response=0.0), factors=F, delta=2.0)
+    assert zero.ok and zero.margin == pytest.approx(2.0 * float(np.linalg.norm(H)), rel=1e-12)
+    with pytest.raises(DataError, match="ε of the coprime-factor form"):
+        uf.check_excitation(P_hat, K, _fake_frf(0.01), factors=F, delta=-1.0)
+
+
 # ---- the pipeline ---------------------------------------------------------------------------------------
 
 def _lowpass(n, wc, seed):

@@ -249,8 +249,8 @@ def test_delta_margin_evidence_mimo_is_the_largest_singular_value_on_the_plant()
     assert sigma == pytest.approx(2.0 / 3.0, rel=1e-12)
     assert ex.margin == pytest.approx(2.0 * sigma, rel=1e-9) and not ex.ok and "δ margin" in ex.reason
     assert uf.check_excitation(P_hat, K, welch, low, delta=1.0).ok
-    with pytest.raises(DataError, match="no factors"):
-        uf.check_excitation(P_hat, K, welch, low, delta=1.0, factors=object())
+    with pytest.raises(DataError, match="delta must be a number ≥ 0"):
+        uf.check_excitation(P_hat, K, welch, low, delta=float("nan"))
 
 
 def test_check_excitation_mimo_path_on_siso_data_gives_the_siso_numbers():

@@ -1245,6 +1245,13 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     case instead of their best (refusing on uncertainty) would have refused 82 of those 360 at the Welch
     frequencies alone.
 
+    **The ε margin in coprime-factor form** (``factors`` and ``delta`` = ε given).  The data estimate
+    ``R = M̂P − N̂``, so ``(M̂, N̂ + R)`` is a factorisation of the plant, and a perturbation of those factors sees
+    ``H_P = H(I − R H_u)⁻¹`` with ``H = [C_y; I](M̂ − N̂C_y)⁻¹`` the coprime channel and ``H_u`` its ``u`` rows.  With
+    ``Ẑ = H(I − R̂H_u)⁻¹`` and ``R = R̂ + E``, ``H_P = Ẑ(I − EẐ_u)⁻¹``, so ``σ̄(H_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` and the
+    evidence is ``ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` (the additive one is the case ``H = H_u = M̂``).  A coprime margin belongs
+    to a factorisation; this one is the factorisation the data measure, with ``M̂`` kept.
+
     Parameters
     ----------
     model : control.StateSpace
@@ -1263,8 +1270,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         the same test is the frequency-wise condition of the loop, and it stays finite at an integrating P̂'s
         pole, where ``P − P̂`` and its estimate are unbounded.
     delta : float, optional
-        The certified additive δ: also test the δ margin on the plants the data allow (above).  Not with
-        ``factors``.
+        The certified δ (or ε with ``factors``): also test that margin on the plants the data allow (above).
 
     Returns
     -------
@@ -1273,7 +1279,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     Raises
     ------
     DataError
-        The estimates' channels differ from the model's; ``delta`` negative, or given with ``factors``.
+        The estimates' channels differ from the model's; ``delta`` negative or not a number.
 
     Examples
     --------
@@ -1301,12 +1307,15 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex.ok, "u[:, 1]" in ex.reason
     (False, True)
     """
-    if delta is not None and (factors is not None or not delta >= 0):
-        raise DataError(f"delta must be a number ≥ 0 of the additive form (no factors=), got {delta!r}")
+    if delta is not None and not delta >= 0:
+        what = "ε of the coprime-factor form" if factors is not None else "δ of the additive form"
+        raise DataError(f"delta must be a number ≥ 0 ({what}), got {delta!r}")
     if factors is None:
-        M, norm = additive_channel(model, controller), "K(I+P̂K)⁻¹"
+        H = M = additive_channel(model, controller)
+        norm = "K(I+P̂K)⁻¹"
     else:
-        M, norm = coprime_channel(factors, controller)[: model.ninputs, :], "K(M̂+N̂K)⁻¹"
+        H = coprime_channel(factors, controller)
+        M, norm = H[: model.ninputs, :], "K(M̂+N̂K)⁻¹"
     mimo = frf.response.ndim == 3 or (low_band is not None and low_band.response.ndim == 3)
     if not mimo:
         freq, dist, radius = frf.frequency, np.abs(frf.response), frf.radius
@@ -1344,7 +1353,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         welch = np.concatenate([np.zeros(low_band.frequency.size, bool), welch])
     k = int(np.argmax(bound))
     worst = float(bound[k])
-    margin, margin_reason = (float("nan"), "") if delta is None else _margin_evidence(M, frf, low_band, float(delta))
+    margin, margin_reason = ((float("nan"), "") if delta is None else
+                             _margin_evidence(H, model.ninputs, frf, low_band, float(delta), factors is not None))
     if worst < 1.0:
         return ExcitationCheck(ok=not margin_reason, worst=worst, frequency=float(freq[k]), reason=margin_reason,
                                margin=margin)
@@ -1368,14 +1378,16 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why, margin=margin)
 
 
-def _margin_evidence(M, frf: FrequencyResponseEstimate, low_band: LowBandEstimate | None,
-                     delta: float) -> tuple[float, str]:
-    """The largest evidence ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))`` against the δ margin (:func:`check_excitation`) over the Welch
-    and low-band frequencies, and why it refuses (``''`` below 1)."""
-    parts = [(frf.frequency, _margin_ratio(M, frf.response, frf.radius, frf.frequency, frf.resolution, frf.dt, delta))]
+def _margin_evidence(H, m: int, frf: FrequencyResponseEstimate, low_band: LowBandEstimate | None,
+                     delta: float, coprime: bool = False) -> tuple[float, str]:
+    """The largest evidence ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` against the δ (or ε) margin (:func:`check_excitation`) over
+    the Welch and low-band frequencies, and why it refuses (``''`` below 1).  ``H`` is the perturbation's channel
+    (``M̂``, or the coprime ``[C_y; I](M̂ − N̂C_y)⁻¹``) and its first ``m`` rows the ``u`` rows."""
+    parts = [(frf.frequency, _margin_ratio(H, m, frf.response, frf.radius, frf.frequency, frf.resolution, frf.dt,
+                                           delta))]
     if low_band is not None:
         spacing = 2.0 * np.pi / (low_band.samples * low_band.dt)
-        parts.append((low_band.frequency, _margin_ratio(M, low_band.response, low_band.radius, low_band.frequency,
+        parts.append((low_band.frequency, _margin_ratio(H, m, low_band.response, low_band.radius, low_band.frequency,
                                                         spacing, low_band.dt, delta)))
     freq = np.concatenate([f for f, _ in parts])
     ratio = np.concatenate([r for _, r in parts])
@@ -1386,29 +1398,44 @@ def _margin_evidence(M, frf: FrequencyResponseEstimate, low_band: LowBandEstimat
     if worst < 1.0:
         return worst, ""
     unit = _unit(frf.dt)
-    return worst, (f"the data show that the plant lacks the δ margin the loop is certified for: at {freq[k]:.3g} {unit} "
-                   f"every plant within the confidence disks has δ·σ̄(K(I+PK)⁻¹) ≥ {worst:.3g} (δ = {delta:.4g}; "
-                   f"bound δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)), Ẑ = (I − M̂D̂)⁻¹M̂), so P̂ is wrong where the loop's margin is decided: refit "
-                   "P̂ where the data show it wrong (a longer horizon, a longer or richer record), which also lowers δ")
+    if coprime:
+        what = (f"ε·σ̄([K; I](M̂ + (N̂ + R)K)⁻¹) ≥ {worst:.3g} in the factors (M̂, N̂ + R) of the plant, R = M̂P − N̂ "
+                f"(ε = {delta:.4g}; bound ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u)), Ẑ = H(I − R̂H_u)⁻¹, H the coprime channel)")
+    else:
+        what = (f"δ·σ̄(K(I+PK)⁻¹) ≥ {worst:.3g} (δ = {delta:.4g}; bound δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)), "
+                "Ẑ = (I − M̂D̂)⁻¹M̂)")
+    size = "ε" if coprime else "δ"
+    return worst, (f"the data show that the plant lacks the {size} margin the loop is certified for: at {freq[k]:.3g} "
+                   f"{unit} every plant within the confidence disks has {what}, so P̂ is wrong where the loop's margin "
+                   f"is decided: refit P̂ where the data show it wrong (a longer horizon, a longer or richer record), "
+                   f"which also lowers {size}")
 
 
-def _margin_ratio(M, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
-                  delta: float, points: int = 9) -> np.ndarray:
-    """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over its ± half ``spacing``; 0 where
-    ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − M̂D̂`` is singular (σ̄(Ẑ) infinite).  ``M`` is ``M̂``
-    (m × l), ``response`` ``D̂`` (F,) or (F, l, m)."""
-    Mz = _bin_response(M, frequency, spacing, dt, points)
-    D = np.asarray(response, complex).reshape(frequency.size, Mz.shape[3], Mz.shape[2])
+def _margin_ratio(H, m: int, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float,
+                  dt: float, delta: float, points: int = 9) -> np.ndarray:
+    """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))``, ``Ẑ = H(I − D̂H_u)⁻¹`` (``H_u``, ``Ẑ_u`` the first ``m`` rows),
+    over its ± half ``spacing``; 0 where ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − D̂H_u`` is
+    singular (σ̄(Ẑ) infinite).  ``H`` is ``M̂`` (m × l: then ``Ẑ = Ẑ_u = (I − M̂D̂)⁻¹M̂``) or the coprime channel
+    ((m + l) × l), ``response`` ``D̂`` (F,) or (F, l, m).
+
+    Why: the plant closes ``v = D H_u v`` around the channel, so a perturbation of the plant sees
+    ``H_P = H(I − D H_u)⁻¹``; with ``D = D̂ + E`` that is ``Ẑ(I − E Ẑ_u)⁻¹``, hence ``Ẑ = H_P(I − E Ẑ_u)`` and
+    ``σ̄(H_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` for every ``‖E‖₂ ≤ r``."""
+    Hz = _bin_response(H, frequency, spacing, dt, points)  # (F, points, rows, l)
+    l = Hz.shape[3]
+    D = np.asarray(response, complex).reshape(frequency.size, l, m)
     known = np.all(np.isfinite(D), axis=(1, 2)) & np.isfinite(radius)
     D = np.where(known[:, None, None], D, 0.0)
-    X = np.eye(Mz.shape[2]) - Mz @ D[:, None]  # (F, points, m, m)
+    X = np.eye(l) - D[:, None] @ Hz[:, :, :m, :]  # (F, points, l, l)
     s = np.linalg.svd(X, compute_uv=False)
     singular = ~(s[..., -1] > s[..., 0] * 1e-14)
-    X = np.where(singular[..., None, None], np.eye(Mz.shape[2]), X)  # solved below, then set to inf
-    gain = np.where(singular, np.inf, np.linalg.norm(np.linalg.solve(X, Mz), ord=2, axis=(2, 3)))
+    X = np.where(singular[..., None, None], np.eye(l), X)  # solved below, then set to inf
+    Z = np.swapaxes(np.linalg.solve(np.swapaxes(X, -1, -2), np.swapaxes(Hz, -1, -2)), -1, -2)  # H X⁻¹
+    gain = np.where(singular, np.inf, np.linalg.norm(Z, ord=2, axis=(2, 3)))
+    gain_u = np.where(singular, np.inf, np.linalg.norm(Z[:, :, :m, :], ord=2, axis=(2, 3)))
     r = np.where(known, radius, 0.0)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain))
+        ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain_u))
     return np.where(known, ratio.max(axis=1), 0.0)
 
 

@@ -1062,7 +1062,7 @@ class _LoopJudge:
         """
         b = self.ball
         cert = certify_loop(self.model, d.controller, b.eps, factors=b.factors, **self.cert_opts)
-        exc = (check_excitation(self.model, d.controller, b.frf, b.low_band, factors=b.factors)
+        exc = (check_excitation(self.model, d.controller, b.frf, b.low_band, factors=b.factors, delta=b.eps)
                if b.frf is not None and cert.stable else None)
         track = (_coprime_tracking_reason(b, d.controller, (1.0 + self.margin) * b.eps, self.floor)
                  if cert.stable else "")

@@ -276,6 +276,8 @@ def run_case(plant: str, seed: int, i: int, j: int, sigma_ratio: float = 0.5) ->
         "bounded_real_model": _rechecked(rd.certificate),
         "bounded_real_reference": _rechecked(rd.reference_certificate),
         "model_step_error": (rd.certificate.step.final_error if rd.certificate.step else float("inf")),
+        # the data's evidence against the loop's δ (or ε) margin on the plant (check_excitation(..., delta=))
+        "margin_evidence": (float(rd.excitation.margin) if rd.excitation is not None else float("nan")),
         "true": robust, "nominal_true": nominal, "seconds": seconds,
         "invariant_holds": bool((not rd.certified and warned) or
                                 (rd.certified and robust["stable"] and robust["tracks"] and robust["survives"])),
