@@ -255,6 +255,8 @@ def test_quick_runs_end_to_end(tmp_path, capsys):
         assert key in summary
     assert summary["runs"] == len(adv.quick_catalogue())
     assert all(c["verdict"] in adv.VERDICTS for c in summary["cases"])
+    # every certified loop had its δ (ε) margin tested against the data, and the data did not refute it
+    assert all(0.0 <= c["margin_evidence"] < 1.0 for c in summary["cases"] if c.get("certified"))
     folder = tmp_path / "robust_adversarial"
     for ext in ("md", "json", "csv"):
         assert (folder / f"robust_adversarial.{ext}").exists()

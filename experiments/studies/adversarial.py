@@ -613,6 +613,8 @@ def run_case(case: Case, untested: str = "warn", protocol: str = "validation") -
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
     out["assumed"] = list(getattr(rd, "assumed", ()))
+    # the data's evidence against the returned loop's δ (ε) margin on the plant: NaN where it was not measured
+    out["margin_evidence"] = float(rd.excitation.margin) if rd.excitation is not None else float("nan")
     try:
         out["premise_ratio"], out["premise_note"] = result_premise_ratio(rec.plant, rd)
     except Exception as exc:  # noqa: BLE001 - a measurement that fails is recorded; it never decides a verdict
