@@ -185,3 +185,22 @@ def test_check_coprime_premise_grows_with_the_model_error():
     distance, _ = uf.coprime_distance(biased, plant)
     assert distance > 5 * uf.coprime_distance(F, plant)[0]
     assert not bad.ok or (bad.epsilon > 0.5 * distance and bad.epsilon > 2 * good.epsilon)
+
+
+def test_hand_made_factors_are_checked():
+    """The realisations read M[0] = I and a degree of at least 1: factors that break either raise, naming the fix."""
+    N, M = np.array([[[0.0]], [[0.1]]]), np.array([[[1.0]], [[-1.0]]])
+    with pytest.raises(DataError, match=r"M\[0\] = I.*divide both factors"):
+        uf.CoprimeFactors(N=2.0 * N, M=2.0 * M, dt=1.0)  # the same plant, but the realisation would read M[0] = 1
+    with pytest.raises(DataError, match="degree i ≥ 1.*pad"):
+        uf.CoprimeFactors(N=N[:1], M=M[:1], dt=1.0)
+    with pytest.raises(DataError, match=r"shape \(i \+ 1, l, m\)"):
+        uf.CoprimeFactors(N=N[:, 0], M=M, dt=1.0)
+    with pytest.raises(DataError, match="NaN"):
+        uf.CoprimeFactors(N=np.array([[[0.0]], [[np.nan]]]), M=M, dt=1.0)
+    with pytest.raises(DataError, match="dt must be"):
+        uf.CoprimeFactors(N=N, M=M, dt=0.0)
+    F = uf.CoprimeFactors(N=N.tolist(), M=M, dt=1)  # lists and an integer dt are taken as arrays and a float
+    assert F.N.dtype == float and F.dt == 1.0 and F.horizon == 1
+    z = np.exp(0.5j)
+    assert complex(F.model()(z)) == pytest.approx(0.1 / (z - 1.0), rel=1e-12)  # the integrator 0.1/(z − 1)

@@ -42,6 +42,7 @@ input did not excite; :func:`unfalsify.check_excitation` checks the loop there.
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -84,6 +85,27 @@ class CoprimeFactors:
     N: np.ndarray
     M: np.ndarray
     dt: float
+
+    def __post_init__(self):
+        # the realisations (model, equation) read M[0] = I and degree ≥ 1 without looking: check them here, so that
+        # hand-made factors cannot give a silently wrong P̂
+        N, M = np.asarray(self.N, dtype=float), np.asarray(self.M, dtype=float)
+        if N.ndim != 3 or M.ndim != 3 or M.shape[1] != M.shape[2] or N.shape[:2] != M.shape[:2]:
+            raise DataError(f"coprime factors need N of shape (i + 1, l, m) and M of shape (i + 1, l, l), got "
+                            f"{np.shape(self.N)} and {np.shape(self.M)}")
+        if N.shape[0] < 2:
+            raise DataError("coprime factors need degree i ≥ 1 (at least two taps); pad a static factor with a zero "
+                            "tap, e.g. N = np.concatenate([N, np.zeros_like(N)])")
+        if not (np.all(np.isfinite(N)) and np.all(np.isfinite(M))):
+            raise DataError("coprime factors have NaN or infinite taps")
+        if not np.allclose(M[0], np.eye(M.shape[1]), rtol=0.0, atol=1e-12):
+            raise DataError(f"coprime factors need M[0] = I (M̂(∞) = I), got M[0] = {M[0].tolist()}; divide both "
+                            "factors on the left by M[0]")
+        if not (isinstance(self.dt, numbers.Real) and np.isfinite(self.dt) and self.dt > 0):
+            raise DataError(f"dt must be a positive finite sample time, got {self.dt!r}")
+        object.__setattr__(self, "N", N)
+        object.__setattr__(self, "M", M)
+        object.__setattr__(self, "dt", float(self.dt))
 
     @property
     def horizon(self) -> int:
