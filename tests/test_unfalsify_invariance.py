@@ -102,6 +102,11 @@ def test_min_record_length_is_the_shortest_record_tested_by_default():
         with pytest.raises(DataError, match=f"need {need} samples"):
             uf.check_time_invariance(u[:-1], y[:-1])
     assert uf.min_record_length(1, 1, segments=3) == 3 * uf.min_record_length(1, 1) // 2
+    assert uf.min_record_length(np.int64(2), np.int64(2)) == uf.min_record_length(2, 2)
+    for bad in (dict(outputs=0, inputs=1), dict(outputs=1.5, inputs=1), dict(outputs=True, inputs=1),
+                dict(outputs=1, inputs=-1), dict(outputs="1", inputs=1), dict(outputs=1, inputs=1, segments=1)):
+        with pytest.raises(DataError, match="must be an integer ≥"):
+            uf.min_record_length(**bad)
 
 
 def test_the_result_is_frozen_and_pickles():

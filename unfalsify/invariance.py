@@ -39,6 +39,7 @@ it worse (2–3 of 200).  A false rejection refuses a certificate; it never issu
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -116,8 +117,21 @@ def min_record_length(outputs: int, inputs: int, segments: int = 2) -> int:
     --------
     >>> min_record_length(1, 1), min_record_length(2, 2)
     (336, 656)
+    >>> min_record_length(1, 1, segments=1)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: segments must be an integer ≥ 2, got 1
     """
+    outputs, inputs = _count(outputs, "outputs", 1), _count(inputs, "inputs", 1)
+    segments = _count(segments, "segments", 2)
     return int(segments * _MIN_ORDER * (_ROWS_PER_PARAMETER * (outputs + inputs) + 1))
+
+
+def _count(value, name: str, least: int) -> int:
+    """``value`` as an int ≥ ``least`` (an integer type, not a bool), else ``DataError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+        raise DataError(f"{name} must be an integer ≥ {least}, got {value!r}")
+    return int(value)
 
 
 def _rss_rank(Phi: np.ndarray, target: np.ndarray) -> tuple[float, int]:
@@ -186,11 +200,9 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     y = as_signal(y, "y", n=u.shape[0])
     n, m = u.shape
     l = y.shape[1]
-    if int(segments) != segments or segments < 2:
-        raise DataError(f"segments must be an integer ≥ 2, got {segments!r}")
+    segments = _count(segments, "segments", 2)
     if not 0.0 < float(level) < 1.0:
         raise DataError(f"level must lie in (0, 1), got {level!r}")
-    segments = int(segments)
     p = _default_order(n, l + m, segments) if order is None else order
     if order is None and p < _MIN_ORDER:
         need = min_record_length(l, m, segments)
@@ -198,7 +210,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
                         f"input(s): {segments} segments of ten rows per parameter of an ARX({_MIN_ORDER}) model need "
                         f"{need} samples (a shorter model leaves coloured equation errors, which the test reads as "
                         "change); pass a longer record, or order= to test with a shorter model anyway")
-    if int(p) != p or p < 1:
+    if isinstance(p, bool) or not isinstance(p, numbers.Integral) or p < 1:
         raise DataError(f"order must be a positive integer, got {order!r}")
     p = int(p)
     if segments * (p * (l + m) + 1) > n - p:
