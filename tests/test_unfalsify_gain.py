@@ -154,6 +154,12 @@ def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
         uf.deconvolve([1.0, 1.0, 1.0], [0.0, 1.0], exact=True)
     with pytest.raises(DataError, match="same length"):
         uf.deconvolve([], [])
+    # NaN, complex, object arrays and several channels had been read silently (NaN out, imaginary parts dropped)
+    for u, match in (([1.0, np.nan, 1.0], "NaN"), (np.array([1.0, 2.0, 3.0]) + 1j, "complex"),
+                     (np.array([None, None, None]), "NaN"), (np.ones((3, 2)), "one channel"), ("abc", "numeric")):
+        with pytest.raises(DataError, match=match):
+            uf.deconvolve(u, [1.0, 2.0, 3.0])
+    assert uf.deconvolve([2.0, 1.0], [[2.0], [3.0]]).tolist() == [1.0, 1.0]  # a column (n, 1) is one channel
     for n in (2, 5):  # the method is checked for every size (n < 3 used to fall through to dense)
         with pytest.raises(ValueError, match="unknown method"):
             uf.toeplitz_norm(np.ones(n), method="svd")

@@ -244,6 +244,33 @@ def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
     assert not far.ok and "differs from P̂" in far.reason
 
 
+def test_a_constant_input_is_named_not_divided_by():
+    """A constant input leaves no power once the Welch segments are detrended: the check refuses and says so (it had
+    raised ZeroDivisionError while wording the reason)."""
+    P = control.ss(control.tf([0.5], [1, -0.5], 1.0))
+    K = control.ss([], [], [], [[0.4, -0.4]], 1.0)
+    frf = uf.frequency_response_estimate(np.ones(512), 0.01 * np.random.default_rng(0).standard_normal(512))
+    assert not np.any(frf.input_psd > 0)
+    ex = uf.check_excitation(P, K, frf)
+    assert not ex.ok and "no power at any frequency (it is constant)" in ex.reason
+
+
+def test_low_band_variance_from_the_svd_is_never_negative():
+    """The local polynomial fit's variance is a diagonal entry of (XᴴX)⁻¹: from the SVD of X it equals the inverse
+    where X is well conditioned (second route: numpy's inverse) and stays ≥ 0 where it is not (a ramp input, whose
+    inverse had rounded to a negative variance and raised in math.sqrt)."""
+    from unfalsify.premise import _inverse_gram
+
+    X = np.random.default_rng(1).standard_normal((40, 6)) + 1j * np.random.default_rng(2).standard_normal((40, 6))
+    np.testing.assert_allclose(_inverse_gram(X, [0, 3]), np.linalg.inv(X.conj().T @ X)[np.ix_([0, 3], [0, 3])],
+                               rtol=1e-10)
+    n = 400
+    ramp = np.arange(n, dtype=float)
+    y = np.convolve(ramp, [0.0, 0.5, 0.3])[:n] + 0.01 * np.random.default_rng(3).standard_normal(n)
+    low = uf.low_band_estimate(ramp, y, 1.0, bins=4)
+    assert np.all(low.radius >= 0) and not np.any(np.isnan(low.radius))
+
+
 def test_delta_margin_evidence_refuses_only_what_the_data_show():
     """P̂ = 4 (static), the data's model error D̂ = −3 (so the plant is 1), u = 2(r − y): the loop is stable on every
     plant in the disks and small-gain certifies δ = 2 on P̂ (δ|M̂| = 4/9), but on the plant δ|M_P| = 4/3.  Refused

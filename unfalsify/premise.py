@@ -595,8 +595,17 @@ def _local_fit(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[com
         return complex(np.nan), float("inf")
     s2 = float(np.sum(np.abs(Y - X @ theta) ** 2)) / dof
     # Ĝ(at) is theta[0]; its variance is s² times the (0, 0) entry of (XᴴX)⁻¹
-    var = float(np.real(np.linalg.inv(X.conj().T @ X)[0, 0]))
+    var = float(np.real(_inverse_gram(X, [0])[0, 0]))
     return complex(theta[0]), math.sqrt(scipy.stats.f.ppf(1.0 - alpha, 2, 2 * dof) * s2 * var)
+
+
+def _inverse_gram(X: np.ndarray, rows) -> np.ndarray:
+    """``(XᴴX)⁻¹`` restricted to ``rows`` × ``rows``, from the SVD of X: ``V_r Σ⁻² V_rᴴ`` is Hermitian positive
+    semidefinite whatever the conditioning (``inv(XᴴX)`` squares cond X, and on a ramp input its rounding gave a
+    negative variance)."""
+    _, sv, Vh = np.linalg.svd(X, full_matrices=False)
+    Vr = Vh.conj().T[rows, :] / sv
+    return Vr @ Vr.conj().T
 
 
 def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[np.ndarray, float]:
@@ -614,7 +623,7 @@ def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tupl
     dof = W - X.shape[1]
     s2 = np.sum(np.abs(Y - X @ theta) ** 2, axis=0) / dof  # per output
     at0 = np.arange(m) * d  # the response at the bin: each input's constant term
-    C = np.linalg.inv(X.conj().T @ X)[np.ix_(at0, at0)]
+    C = _inverse_gram(X, at0)
     lam = float(np.linalg.eigvalsh(0.5 * (C + C.conj().T))[-1])
     fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2 * dof)
     return theta[at0, :].T.copy(), math.sqrt(lam * m * fq * float(np.sum(s2)))
@@ -1466,6 +1475,8 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
     if not np.any(bad):
         return ""
     if frf.input_psd.ndim == 1:
+        if not float(np.max(frf.input_psd)) > 0.0:  # a constant input: nothing left once each segment is detrended
+            return ": the input has no power at any frequency (it is constant)"
         level = 10.0 * np.log10(max(float(np.min(frf.input_psd[bad])), 1e-300) / float(np.max(frf.input_psd)))
         return f": the input's power there is down to {level:.0f} dB below its peak"
     j, level = _weakest_input(frf, bad)

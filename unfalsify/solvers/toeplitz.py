@@ -42,6 +42,7 @@ from scipy.linalg import lapack as _lapack
 from scipy.sparse.linalg import LinearOperator, eigsh, svds
 
 from synthesis import DataError
+from synthesis.validation import as_signal
 
 __all__ = [
     "toeplitz_matrix",
@@ -236,9 +237,13 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
     >>> deconvolve(u, y, exact=True).tolist()
     [0.0, 2.0, 1.0, 0.0]
     """
-    u = np.asarray(u, dtype=float).reshape(-1)
-    y = np.asarray(y, dtype=float).reshape(-1)
-    if u.size == 0 or u.size != y.size:
+    if np.size(u) == 0 or np.size(y) == 0:
+        raise DataError(f"u and y must be non-empty and of the same length, got {np.size(u)} and {np.size(y)} samples")
+    u, y = as_signal(u, "u"), as_signal(y, "y")  # real, finite, time along axis 0 (one channel each)
+    if u.shape[1] != 1 or y.shape[1] != 1:
+        raise DataError(f"deconvolve takes one channel each, got u of shape {u.shape} and y of shape {y.shape}")
+    u, y = u[:, 0], y[:, 0]
+    if u.size != y.size:
         raise DataError(f"u and y must be non-empty and of the same length, got {u.size} and {y.size} samples")
     if u[0] == 0.0:
         raise DataError(
