@@ -376,7 +376,8 @@ def common_dt(*weights) -> float | bool:
     """
     dts = []
     for W in weights:
-        if W is None or W.nstates == 0:
+        # scalars and matrices (static weights, as as_weight takes them) have no sample time to agree on
+        if not isinstance(W, control.InputOutputSystem) or getattr(W, "nstates", 0) == 0:
             continue
         if W.dt is not True:
             dts.append(float(W.dt))

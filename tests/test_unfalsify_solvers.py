@@ -65,6 +65,18 @@ def test_unknown_names_raise_our_value_error_listing_the_valid_ones():
         solvers.run("arx_barrier", _subspace(fixed=True))
 
 
+@pytest.mark.parametrize("options, match", [
+    (dict(tol=-1.0), "tol must be a relative gap in \\(0, 1\\)"), (dict(tol=0.0), "tol must"), (dict(tol=1.5), "tol must"),
+    (dict(tol="1e-6"), "tol must"), (dict(tol=True), "tol must"),
+    (dict(time_limit=-1.0), "time_limit must be None or a number"), (dict(time_limit="60"), "time_limit must"),
+])
+def test_stopping_rules_are_checked_before_a_solve(options, match):
+    # a negative tolerance can never be met: the solve had ended 'failed' without saying why
+    for name, problem in (("arx_barrier", _arx()), ("column_barrier", _subspace(fixed=True))):
+        with pytest.raises(sy.DataError, match=match):
+            solvers.run(name, problem, progress=False, **options)
+
+
 @pytest.mark.parametrize("name, problem, options", [
     ("cvxpy", "arx", {}),
     ("arx_barrier", "arx", dict(progress=False)),

@@ -131,6 +131,8 @@ def test_common_dt():
         common_dt(a, b)
     assert common_dt(a, as_weight(1.0, "W")) == 0.1
     assert common_dt(as_weight(1.0, "W")) is True
+    # raw static weights (a number, a matrix), as the §7.4 pipeline receives them, have no sample time either
+    assert common_dt(a, 5, np.eye(2), None) == 0.1 and common_dt(2.0) is True
 
 
 def test_tustin_refuses_boolean_sample_time():

@@ -582,7 +582,7 @@ def arx_unfalsify(
     elif name == "bracket":  # no tolerance: the bracket's gap is what it is, and reported
         options = dict(time_limit=time_limit, progress=progress)
     else:
-        options = dict(tol=float(tol), time_limit=time_limit, progress=progress)
+        options = dict(tol=tol, time_limit=time_limit, progress=progress)
     out = run(name, P, **options)
     what = f"ARX unfalsification ({'' if P.siso else f'{P.n_outputs}×{P.n_inputs}, '}n={P.n})"
     out = into_ball(P, out)

@@ -638,7 +638,7 @@ def subspace_unfalsify(
             options = dict(form=form, solver=solver, solver_options=solver_options, eliminate_L=eliminate_L)
         else:
             _guard_subspace(i, j, "structured", (m, l))
-            options = dict(tol=float(tol), time_limit=time_limit, progress=progress, workers=workers)
+            options = dict(tol=tol, time_limit=time_limit, progress=progress, workers=workers)
         start = "cold"
         if warm_start is not None:
             state, start = _warm_state(warm_start, P, name)

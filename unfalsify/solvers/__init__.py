@@ -47,6 +47,10 @@ or ``bracket`` (``method="bracket"``) for (7.4), ``column_barrier`` (``method="b
 """
 from __future__ import annotations
 
+import numbers
+
+from synthesis.validation import DataError
+
 from ..exceptions import UnknownSolverError
 from . import arx_barrier, arx_pd, block_barrier, bracket, column_barrier, column_pd, cvxpy_models, split
 from .base import SolverOutput, SolverStatus
@@ -137,4 +141,16 @@ def run(name: str, problem, **options) -> SolverOutput:
             "(several inputs or outputs) use backend='cvxpy' or backend='structured'"
             + (" without executor=" if name == "split" else "")
             + f" (the solvers that take several channels: {_names(n for n in CHANNELS if problem.program in PROGRAMS[n])})")
+    _check_stopping(options)
     return SOLVERS[name](problem, **options)
+
+
+def _check_stopping(options: dict) -> None:
+    """``tol`` a relative gap in (0, 1) and ``time_limit`` None or a number ≥ 0, where given: a negative tolerance
+    can never be met (the solve ended 'failed' without saying why)."""
+    tol = options.get("tol")
+    if tol is not None and (isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not 0.0 < tol < 1.0):
+        raise DataError(f"tol must be a relative gap in (0, 1), e.g. 1e-6, got {tol!r}")
+    limit = options.get("time_limit")
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, numbers.Real) or not limit >= 0.0):
+        raise DataError(f"time_limit must be None or a number of seconds ≥ 0, got {limit!r}")
