@@ -13,6 +13,7 @@ rebuilds the controller.  An unspecified discrete sample time (``dt=True``) is s
 """
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +95,9 @@ def save_controller(path, sys, *, name: str | None = None) -> Path:
     """
     import control
 
+    if isinstance(path, control.InputOutputSystem):  # save_controller(K, "K.npz"): numpy's order is file first
+        raise InputTypeError(f"save_controller(path, sys) takes the file first, got a {type(path).__name__} as path; "
+                             "call save_controller('K.npz', K)")
     path = Path(path)
     fmt = _format(path)
     sys = to_state_space(sys, "sys")
@@ -134,6 +138,30 @@ def _names(raw, key: str, count: int, path: Path) -> list[str] | None:
     return names
 
 
+def _read_file(path: Path, fmt: str) -> dict:
+    """The variables of a ``.npz`` or ``.mat`` file; what numpy or scipy cannot read raises ControllerFileError."""
+    if fmt == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                return {k: f[k] for k in f.files}
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise ControllerFileError(f"cannot read {str(path)!r} as NPZ ({exc}); write it with "
+                                      "synthesis.save_controller") from None
+    from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
+
+    try:
+        data = loadmat(path)
+    except NotImplementedError:  # scipy's answer to MATLAB's HDF5-based format
+        raise ControllerFileError(f"{str(path)!r} is a MATLAB v7.3 (HDF5) file, which scipy does not read; save it "
+                                  "from MATLAB with save(file, 'A', 'B', 'C', 'D', 'Ts', '-v7')") from None
+    except (MatReadError, OSError, ValueError, TypeError, EOFError) as exc:
+        raise ControllerFileError(f"cannot read {str(path)!r} as a MATLAB file ({exc}); save it from MATLAB with "
+                                  "save(file, 'A', 'B', 'C', 'D', 'Ts', '-v7'), or with synthesis.save_controller") \
+            from None
+    return {k: v for k, v in data.items() if not k.startswith("__")}
+
+
 def load_controller(path):
     """Read a system written by :func:`save_controller` (or by hand: see the module docstring).
 
@@ -151,8 +179,9 @@ def load_controller(path):
     Raises
     ------
     ControllerFileError
-        Unknown ending; a missing variable (the message lists what the file has); matrices whose
-        shapes do not fit together; NaN/inf entries; a wrong number of signal names.
+        Unknown ending; a file numpy or scipy cannot read (a MATLAB v7.3 file, a damaged archive); a
+        missing variable (the message lists what the file has); matrices whose shapes do not fit
+        together; NaN/inf entries; a wrong number of signal names.
     FileNotFoundError
         No such file.
 
@@ -174,13 +203,7 @@ def load_controller(path):
     fmt = _format(path)
     if not path.exists():
         raise FileNotFoundError(f"no controller file {str(path)!r}")
-    if fmt == ".npz":
-        with np.load(path, allow_pickle=False) as f:
-            data = {k: f[k] for k in f.files}
-    else:
-        from scipy.io import loadmat
-
-        data = {k: v for k, v in loadmat(path).items() if not k.startswith("__")}
+    data = _read_file(path, fmt)
     if "dt" not in data and "Ts" in data:
         data["dt"] = data["Ts"]
     missing = [k for k in (*_MATRICES, "dt") if k not in data]

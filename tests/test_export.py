@@ -115,3 +115,19 @@ def test_errors_name_the_fix(tmp_path, controller):
     with pytest.raises(synthesis.ControllerFileError, match="InputName has 2 name"):
         synthesis.load_controller(tmp_path / "names.npz")
     assert issubclass(synthesis.ControllerFileError, synthesis.DataError)
+
+
+def test_swapped_arguments_and_unreadable_files_name_the_fix(tmp_path, controller):
+    with pytest.raises(synthesis.InputTypeError, match=r"takes the file first.*save_controller\('K.npz', K\)"):
+        synthesis.save_controller(controller, tmp_path / "K.npz")  # numpy's order is the file first
+    (tmp_path / "junk.npz").write_bytes(b"not an archive")
+    with pytest.raises(synthesis.ControllerFileError, match="cannot read .* as NPZ"):
+        synthesis.load_controller(tmp_path / "junk.npz")
+    (tmp_path / "junk.mat").write_bytes(bytes(200))
+    with pytest.raises(synthesis.ControllerFileError, match="cannot read .* as a MATLAB file.*'-v7'"):
+        synthesis.load_controller(tmp_path / "junk.mat")
+    # MATLAB's v7.3 files are HDF5 behind a 128-byte header whose version field is 0x0200
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116) + bytes(8) + b"\x00\x02IM"
+    (tmp_path / "v73.mat").write_bytes(header + b"\x89HDF\r\n\x1a\n" + bytes(256))
+    with pytest.raises(synthesis.ControllerFileError, match=r"v7\.3 \(HDF5\).*'-v7'"):
+        synthesis.load_controller(tmp_path / "v73.mat")
