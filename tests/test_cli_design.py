@@ -142,6 +142,16 @@ def test_missing_file_and_bad_window_are_input_errors(design_run, tmp_path, caps
     assert "START:LEN" in err
 
 
+def test_a_record_with_too_few_columns_names_the_option(tmp_path, capsys):
+    t, u, _, _ = _record()
+    path = tmp_path / "one_signal.csv"
+    path.write_text("t,u\n" + "\n".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(t, u)) + "\n")
+    err = _bad(tmp_path, capsys, ["design", str(path), "--horizon", "10", "--out", str(tmp_path)])
+    assert "leaves no column for --u and --y" in err  # it had raised IndexError
+    err = _bad(tmp_path, capsys, ["design", str(path), "--horizon", "10", "--u", "u", "--out", str(tmp_path)])
+    assert "leaves no column for --y" in err and "pass --y" in err
+
+
 def test_mimo_record_names_the_options(tmp_path, capsys):
     t, u, y, _ = _record()
     path = tmp_path / "mimo.csv"

@@ -197,6 +197,11 @@ def _select(path: Path, extra: dict):
             taken = [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
             free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
             pick = (lambda k: names[k]) if names else (lambda k: k)
+            if len(free) < (u is None) + (y is None):
+                missing = " and ".join(f"--{w}" for w, sel in (("u", u), ("y", y)) if sel is None)
+                cols = ", ".join(names) if names else f"{width} columns"
+                raise RecordError(f"{str(path)!r} ({cols}) leaves no column for {missing} once the others are "
+                                  f"taken; pass {missing} (names or 0-based indices)")
             if u is None:
                 u, free = pick(free[0]), free[1:]
             if y is None:
