@@ -253,6 +253,25 @@ def test_delta_margin_evidence_mimo_is_the_largest_singular_value_on_the_plant()
         uf.check_excitation(P_hat, K, welch, low, delta=float("nan"))
 
 
+def test_epsilon_margin_evidence_mimo_is_the_plants_own_coprime_channel():
+    """2 × 2 coprime form: P̂ = 4I as factors (M̂, N̂) = (I, 4I), R̂ = diag(−3, 0) (the plant diag(1, 4)), C_y = −2I.
+    With a zero radius the evidence is ε·σ̄ of the coprime channel of the plant's factors (I, diag(1, 4)), computed
+    by coprime_channel (the second route); with radius r it is ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))."""
+    def factors(N0):
+        return uf.CoprimeFactors(N=np.stack([N0, np.zeros((2, 2))]), M=np.stack([np.eye(2), np.zeros((2, 2))]), dt=1.0)
+
+    F = factors(4.0 * np.eye(2))
+    K = control.ss([], [], [], np.hstack([2.0 * np.eye(2), -2.0 * np.eye(2)]), 1.0)
+    H_P = np.real(control.dcgain(uf.coprime_channel(factors(np.diag([1.0, 4.0])), K)))  # (4, 2): u rows, y rows
+    sigma, sigma_u = np.linalg.norm(H_P, 2), np.linalg.norm(H_P[:2], 2)
+    R = np.tile(np.diag([-3.0, 0.0]), (9, 1, 1))
+    exact = uf.check_excitation(F.model(), K, _fake(R, np.zeros(9)), factors=F, delta=1.0)
+    assert exact.margin == pytest.approx(sigma, rel=1e-9)
+    ex = uf.check_excitation(F.model(), K, _fake(R, np.full(9, 0.05)), factors=F, delta=2.0)
+    assert ex.margin == pytest.approx(2.0 * sigma / (1.0 + 0.05 * sigma_u), rel=1e-9)
+    assert not ex.ok and "ε margin" in ex.reason
+
+
 def test_check_excitation_mimo_path_on_siso_data_gives_the_siso_numbers():
     rng = np.random.default_rng(6)
     u = rng.standard_normal(2048)
