@@ -144,10 +144,21 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--quick", action="store_true", help="small sizes, for tests and smoke runs")
         s.add_argument("--json", action="store_true", help="print the summary as JSON")
         s.add_argument("--out", type=Path, default=Path("results"), help="output folder (default: results/)")
-        s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+        s.add_argument("--seed", type=_seed, default=0, help="random seed, an integer ≥ 0 (default: 0)")
         for flags, kwargs in extra:
             _add_option(s, flags, kwargs)
     return p
+
+
+def _seed(text: str) -> int:
+    """``--seed``: an integer ≥ 0 (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid seed {text!r}: give an integer ≥ 0") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"invalid seed {value}: give an integer ≥ 0")
+    return value
 
 
 def output_dir(out: Path, command: str) -> Path:

@@ -245,6 +245,15 @@ def test_a_failing_fit_or_pipeline_is_recorded_not_raised(monkeypatch):
 
 
 @pytest.mark.slow
+def test_bad_only_and_seed_end_the_run_as_input_errors(tmp_path, capsys):
+    from experiments.cli import main
+
+    for argv, message in ((["--only", "no-such-case"], "matches no case"), (["--seed", "-1", "--quick"], "invalid seed")):
+        with pytest.raises(SystemExit) as stop:
+            main(["robust-adversarial", *argv, "--out", str(tmp_path)])
+        assert stop.value.code == 2 and message in capsys.readouterr().err  # it had run 0 cases / raised ValueError
+
+
 def test_quick_runs_end_to_end(tmp_path, capsys):
     from experiments.cli import main
 

@@ -91,6 +91,9 @@ __all__ = ["Excitation", "Noise", "Case", "Record", "ADVERSARIAL_PLANTS", "excit
            "quick_catalogue", "make_record", "run_case", "judge", "judge_result", "verdict", "premise_ratio", "run",
            "summary_lines", "VERDICTS"]
 
+#: what ends a run as bad input (``cli.main``): an ``--only`` that matches no case; each case records its own errors
+INPUT_ERRORS = (DataError,)
+
 VERDICTS = ("certified", "false_certificate", "not_certified", "refused_by_error", "refused_without_fix",
             "silent_failure", "fit_failed")
 
@@ -698,7 +701,11 @@ def run(opts) -> dict:
     protocol = (getattr(opts, "extra", None) or {}).get("protocol") or "validation"
     if only:
         wanted = [w for w in only.split(",") if w]
-        cases = tuple(c for c in cases if any(w in c.name for w in wanted))
+        matched = tuple(c for c in cases if any(w in c.name for w in wanted))
+        if not matched:
+            raise DataError(f"--only {only!r} matches no case of the catalogue; give parts of case names, e.g. "
+                            f"--only lowpass,drift (cases: {', '.join(c.name for c in cases[:6])}, …)")
+        cases = matched
     out = Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
