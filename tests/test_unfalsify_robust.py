@@ -228,3 +228,23 @@ def test_option_objects_and_the_earlier_keywords_give_the_same_pipeline(setup):
                                    **common)
     with pytest.raises(DataError, match="w3_rule"):
         uf.DesignOptions(w3_rule="inverse")
+
+
+def test_noise_free_data_are_refused_with_one_reason():
+    """A noise-free record fits the window to rounding: σ must lie below the residual rms and its budget above
+    rounding, which cannot both hold.  Both σ='auto' and a given σ had refused with fixes that contradicted each
+    other ("pass sigma > 2.3e-14", then "sigma must be below 5.7e-15"); one reason now says what is wrong."""
+    rng = np.random.default_rng(0)
+    n = 400
+    u = np.sign(rng.standard_normal(n))
+    y = np.convolve(u, [0.0, 0.5, 0.3, 0.1])[:n]  # an FIR plant, no noise
+    W = control.tf([1.0, 0.2], [1.0, -0.5], 1.0)
+    for sigma in ("auto", 1e-6):
+        with pytest.raises(DataError, match="fits this window to rounding.*add sensor noise"):
+            uf.robust_design_from_data(u, y, 5, W, W, sigma, window=(0, 49))
+    # a little noise makes the same record usable: the refusal is about rounding, not about the plant
+    noisy = y + 1e-3 * rng.standard_normal(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rd = uf.robust_design_from_data(u, noisy, 5, W, W, "auto", window=(0, 49))
+    assert np.isfinite(rd.delta) and rd.delta >= 0

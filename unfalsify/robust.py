@@ -60,7 +60,7 @@ import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis.validation import DataError, as_signal, check_horizon
 
-from ._common import channel_pair, check_sigma
+from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
 from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
                       tracking_floors)
@@ -571,20 +571,22 @@ def _positive_real(value, name: str, *, above: float = 0.0, allow_equal: bool = 
     return float(value)
 
 
-def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int]:
-    """rms of ``Y_f − L [W_p; U_f]`` on the window (L: the given predictor, or least squares on the window)."""
+def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, float]:
+    """rms of ``R = Y_f − L [W_p; U_f]`` on the window (L: the given predictor, or least squares on the window), the
+    regressors and columns of ``[W_p; U_f]``, and ``‖R‖_F/‖Y_f‖_F``."""
     A, _, Yf = subspace_data(u, y, i)
     if predictor is not None:
         R = Yf - np.hstack([predictor.Lw, predictor.Lu]) @ A
     else:
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         R = Yf - L @ A
-    return float(np.linalg.norm(R) / np.sqrt(R.size)), A.shape[0], A.shape[1]
+    relative = float(np.linalg.norm(R)) / max(float(np.linalg.norm(Yf)), np.finfo(float).tiny)
+    return float(np.linalg.norm(R) / np.sqrt(R.size)), A.shape[0], A.shape[1], relative
 
 
 def _check_window(u, y, i: int, sigma: float, predictor) -> None:
     """Refuse or flag windows that make δ meaningless (before any LMI is solved)."""
-    rms, rows, j = _window_residual_rms(u, y, i, predictor)
+    rms, rows, j, relative = _window_residual_rms(u, y, i, predictor)
     if predictor is None:
         if j <= rows:
             raise DataError(
@@ -596,6 +598,13 @@ def _check_window(u, y, i: int, sigma: float, predictor) -> None:
                 f"the window has j = {j} < 3 × {rows} columns for the {rows} regressors of the predictor estimated "
                 "on it: the fit absorbs much of the noise and δ is optimistic. Use a longer window or pass a "
                 "predictor fitted on a longer record (predictor=...)", FewDataWarning, stacklevel=3)
+    if not relative > NOISE_RESOLUTION:
+        # σ must lie below the residual rms and its budget above rounding: both cannot hold, so say why once
+        raise DataError(
+            f"the model fits this window to rounding (residual {relative:.2g} of the data, rms {rms:.3g}): noise-free "
+            "data leave neither a model error to unfalsify nor a noise level to set σ by, and δ = 0 for every σ. "
+            "Use a record with noise (in a simulation, add sensor noise, e.g. 1e-3 of the output's rms) or the "
+            "record of a real experiment")
     if not sigma < rms:
         raise DataError(
             f"sigma = {sigma:.4g} is not below the residual rms {rms:.4g} of the model on this window: every "
