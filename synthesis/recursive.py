@@ -83,7 +83,7 @@ class RecursivePredictor:
 
     def __init__(self, horizon: int, m: int, l: int, *, window=None, track: str = "gram", rcond=None):
         if track not in ("gram", "factor"):
-            raise ValueError(f"unknown track {track!r}; use 'gram' or 'factor'")
+            raise DataError(f"unknown track {track!r}; use 'gram' or 'factor'")
         self.horizon = check_horizon(horizon)
         for name, v in (("m", m), ("l", l)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -236,7 +236,7 @@ class RecursivePredictor:
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:
-        arr = np.asarray(x, dtype=float) if not isinstance(x, np.ndarray) else x
+        arr = np.asarray(x) if not isinstance(x, np.ndarray) else x  # as_signal checks the type (a str is no sample)
         if np.ndim(arr) == 0:
             arr = np.reshape(arr, (1,))
         if np.ndim(arr) == 1 and width > 1 and np.size(arr) == width:

@@ -139,8 +139,10 @@ def test_bad_arguments():
     u, y = _data(5, 50, 2, 1)
     with pytest.raises(DataError, match="window"):
         RecursivePredictor.from_data(u, y, 3, window=0)
-    with pytest.raises(ValueError, match="track"):
+    with pytest.raises(DataError, match="track"):
         RecursivePredictor.from_data(u, y, 3, track="qr")
+    with pytest.raises(DataError, match="numeric"):  # a string is no sample (it had raised numpy's ValueError)
+        RecursivePredictor.from_data(u, y, 3).push("a", np.zeros(1))
     with pytest.raises(DataError, match="too few samples"):
         RecursivePredictor.from_data(u[:5], y[:5], 3)
     rp = RecursivePredictor.from_data(u, y, 3)
