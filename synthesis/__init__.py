@@ -107,6 +107,7 @@ Data helpers and saving
    NoiseEstimate          -- result of ``estimate_noise``
    save_controller        -- write a controller to ``.npz`` or ``.mat`` (A, B, C, D, dt, signal names)
    load_controller        -- read it back as a ``control.StateSpace``
+   read_variables         -- the variables of an ``.npz`` or ``.mat`` file (unreadable files named, with the fix)
    CONTROLLER_FORMATS     -- the file suffixes ``save_controller`` writes
    ControllerFileError    -- a controller file that cannot be written or read (the message names the fix)
 
@@ -277,7 +278,7 @@ from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 from .noise import NoiseEstimate, estimate_noise
-from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, save_controller
+from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, read_variables, save_controller
 from .subspace_id import SubspaceModel, subspace_id
 from .arx_id import ArxModel, arx_id
 from .horizon import HorizonCandidate, HorizonChoice, choose_horizon
@@ -351,6 +352,7 @@ __all__ = [
     "CONTROLLER_FORMATS",
     "save_controller",
     "load_controller",
+    "read_variables",
     # module-level public helpers
     "hankel_order",
     "common_dt",

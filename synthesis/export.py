@@ -22,7 +22,7 @@ from .exceptions import ControllerFileError
 
 from ._validation import DataError, InputTypeError, to_state_space
 
-__all__ = ["ControllerFileError", "save_controller", "load_controller", "CONTROLLER_FORMATS"]
+__all__ = ["ControllerFileError", "save_controller", "load_controller", "read_variables", "CONTROLLER_FORMATS"]
 
 #: File name endings :func:`save_controller` and :func:`load_controller` understand.
 CONTROLLER_FORMATS = (".npz", ".mat")
@@ -138,27 +138,65 @@ def _names(raw, key: str, count: int, path: Path) -> list[str] | None:
     return names
 
 
-def _read_file(path: Path, fmt: str) -> dict:
-    """The variables of a ``.npz`` or ``.mat`` file; what numpy or scipy cannot read raises ControllerFileError."""
+def read_variables(path, *, error: type = ControllerFileError) -> dict:
+    """The variables of a NumPy ``.npz`` archive or a MATLAB ``.mat`` file, by name (MATLAB's ``__header__``-style
+    entries left out).
+
+    Object arrays are refused (``allow_pickle=False``: a file of numbers needs no code to load).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A ``.npz`` or ``.mat`` file (the ending chooses the reader).
+    error : type
+        The ``DataError`` subclass to raise (:class:`ControllerFileError` by default).
+
+    Returns
+    -------
+    dict
+        Variable name → array.
+
+    Raises
+    ------
+    error
+        An ending other than ``.npz`` or ``.mat``; a file numpy or scipy cannot read (a damaged archive, a MATLAB
+        v7.3 file, which is HDF5), with how to save it again.
+    FileNotFoundError
+        No such file.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "run.npz"
+    >>> np.savez(path, u=np.zeros(3), y=np.ones(3))
+    >>> sorted(read_variables(path))
+    ['u', 'y']
+    """
+    path = Path(path)
+    fmt = path.suffix.lower()
+    if fmt not in (".npz", ".mat"):
+        raise error(f"cannot read {str(path)!r} as NPZ or MAT: its ending is {fmt or '(none)'!r}")
+    if not path.exists():
+        raise FileNotFoundError(f"no file {str(path)!r}")
     if fmt == ".npz":
         try:
             with np.load(path, allow_pickle=False) as f:
                 return {k: f[k] for k in f.files}
         except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            raise ControllerFileError(f"cannot read {str(path)!r} as NPZ ({exc}); write it with "
-                                      "synthesis.save_controller") from None
+            raise error(f"cannot read {str(path)!r} as NPZ ({exc}); save numeric arrays with numpy.savez(file, "
+                        "name=array, …)") from None
     from scipy.io import loadmat
     from scipy.io.matlab import MatReadError
 
     try:
         data = loadmat(path)
     except NotImplementedError:  # scipy's answer to MATLAB's HDF5-based format
-        raise ControllerFileError(f"{str(path)!r} is a MATLAB v7.3 (HDF5) file, which scipy does not read; save it "
-                                  "from MATLAB with save(file, 'A', 'B', 'C', 'D', 'Ts', '-v7')") from None
+        raise error(f"{str(path)!r} is a MATLAB v7.3 (HDF5) file, which scipy does not read; save it again from "
+                    "MATLAB with save(file, …, '-v7')") from None
     except (MatReadError, OSError, ValueError, TypeError, EOFError) as exc:
-        raise ControllerFileError(f"cannot read {str(path)!r} as a MATLAB file ({exc}); save it from MATLAB with "
-                                  "save(file, 'A', 'B', 'C', 'D', 'Ts', '-v7'), or with synthesis.save_controller") \
-            from None
+        raise error(f"cannot read {str(path)!r} as a MATLAB file ({exc}); save it from MATLAB with "
+                    "save(file, …, '-v7')") from None
     return {k: v for k, v in data.items() if not k.startswith("__")}
 
 
@@ -200,10 +238,10 @@ def load_controller(path):
     import control
 
     path = Path(path)
-    fmt = _format(path)
+    _format(path)  # an ending other than .npz/.mat: ControllerFileError naming both
     if not path.exists():
         raise FileNotFoundError(f"no controller file {str(path)!r}")
-    data = _read_file(path, fmt)
+    data = read_variables(path)
     if "dt" not in data and "Ts" in data:
         data["dt"] = data["Ts"]
     missing = [k for k in (*_MATRICES, "dt") if k not in data]

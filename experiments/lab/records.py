@@ -10,12 +10,12 @@ from __future__ import annotations
 import csv
 import numbers
 import re
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from synthesis.export import read_variables
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal, check_sample_time
 
@@ -205,25 +205,7 @@ def _check_distinct(selected: dict, path: Path) -> None:
 
 # ---------------------------------------------------------------------------------------------- arrays
 def _read_arrays(path: Path, fmt: str) -> dict:
-    if fmt == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as f:
-                return {k: f[k] for k in f.files}
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            # allow_pickle=False refuses object arrays (ValueError): a record holds numbers only
-            raise RecordError(f"cannot read {str(path)!r} as NPZ ({exc}); save the signals as numeric arrays with "
-                              "numpy.savez(path, u=u, y=y)") from None
-    from scipy.io import loadmat
-    from scipy.io.matlab import MatReadError
-    try:
-        arrays = loadmat(path)
-    except NotImplementedError:  # scipy's answer to MATLAB's HDF5-based format
-        raise RecordError(f"{str(path)!r} is a MATLAB v7.3 (HDF5) file, which scipy does not read; save it again "
-                          "from MATLAB with save(file, 'u', 'y', '-v7'), or export the signals as CSV") from None
-    except (MatReadError, OSError, ValueError, TypeError, EOFError) as exc:
-        raise RecordError(f"cannot read {str(path)!r} as a MATLAB file ({exc}); save it from MATLAB with "
-                          "save(file, 'u', 'y', '-v7'), or export the signals as CSV") from None
-    return {k: v for k, v in arrays.items() if not k.startswith("__")}
+    return read_variables(path, error=RecordError)
 
 
 def _key(arrays: dict, key, what: str, path: Path):
