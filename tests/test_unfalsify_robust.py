@@ -248,3 +248,20 @@ def test_noise_free_data_are_refused_with_one_reason():
         warnings.simplefilter("ignore")
         rd = uf.robust_design_from_data(u, noisy, 5, W, W, "auto", window=(0, 49))
     assert np.isfinite(rd.delta) and rd.delta >= 0
+
+
+def test_a_predictor_without_persistent_excitation_skips_the_coprime_form():
+    """No form certifies a predictor whose input is not persistently exciting, so "auto" does not spend the coprime
+    premise's solves on it (a constant input had taken 49 s, 33 of them there, before the same refusal)."""
+    rng = np.random.default_rng(0)
+    n = 300
+    y = 0.02 * rng.standard_normal(n)
+    W = control.tf([1.0, 0.2], [1.0, -0.5], 1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rd = uf.robust_design_from_data(np.ones(n), y, 5, W, W, 0.01)
+        explicit = uf.robust_design_from_data(np.ones(n), y, 5, W, W, 0.01,
+                                              certificate=uf.CertificateOptions(uncertainty="coprime"))
+    assert not rd.certified and rd.uncertainty == "additive" and rd.coprime is None
+    assert "not persistently exciting" in rd.reason
+    assert not explicit.certified and explicit.coprime is not None  # asked for by name: still computed

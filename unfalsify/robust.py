@@ -843,15 +843,16 @@ def robust_design_from_data(
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
     space = _DesignSpace(u, y, pred, predictor, predictor_for, W1, W2, delta, design, dt)
     ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
+    persistence = _persistence_reason(pred, u, i, "predictor of P̂")
     cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
-                                           ref_model)
+                                           ref_model, persistence)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
     invariance, invariance_note = _time_invariance(record)
     assumed = untested_premises(u, validation) + (_untested_invariance(*record, whole is not None)
                                                    if invariance is None else ())
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
-    premise_reason = "; ".join(r for r in (form_reason, _persistence_reason(pred, u, i, "predictor of P̂"), ref_reason,
+    premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason,
                                            untested_reason, invariance.reason if invariance is not None else "")
                                if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
@@ -1107,13 +1108,15 @@ class _CoprimeBall:
 
 
 def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u, y, unf, validation, premise,
-                  space: "_DesignSpace", ref_model):
+                  space: "_DesignSpace", ref_model, persistence: str = ""):
     """``(coprime premise or None, ball or None, premise reason)``: which form the loop is certified in.
 
     ``"auto"`` moves to the coprime form only when the data refute the additive premise and do not refute the
-    coprime one; otherwise the additive verdict stands, with the coprime form's reason beside it.
+    coprime one; otherwise the additive verdict stands, with the coprime form's reason beside it.  A predictor whose
+    data are not persistently exciting (``persistence``, a reason) certifies in neither form, so ``"auto"`` does not
+    spend the coprime premise's solves on it (measured: 33 of 49 s for a constant input).
     """
-    if options.uncertainty == "additive" or (options.uncertainty == "auto" and not prem.reason):
+    if options.uncertainty == "additive" or (options.uncertainty == "auto" and (not prem.reason or persistence)):
         return None, None, prem.reason
     opts = premise or PremiseOptions()
     factors = coprime_factors(pred, float(model.dt))
