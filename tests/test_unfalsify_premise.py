@@ -612,3 +612,15 @@ def test_a_predictor_fitted_on_barely_enough_columns_is_warned():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", uf.NotCertifiedWarning)
             uf.robust_design_from_data(u, y, i, W["W11"], W["W21"], "auto", predictor=pred, dt=P.dt, search=False)
+
+
+def test_estimates_check_their_arguments():
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, [0.0, 0.5])[:600]
+    for kw, match in ((dict(nperseg=1), "nperseg must be an integer ≥ 4"),  # had raised ZeroDivisionError
+                      (dict(nperseg=32.5), "nperseg must be an integer"), (dict(dt=0.0), "dt must be a positive")):
+        with pytest.raises(DataError, match=match):
+            uf.frequency_response_estimate(u, y, **kw)
+    with pytest.raises(DataError, match="bins must be an integer"):
+        uf.low_band_estimate(u, y, 1.0, bins=2.5)

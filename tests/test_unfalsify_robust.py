@@ -265,3 +265,32 @@ def test_a_predictor_without_persistent_excitation_skips_the_coprime_form():
     assert not rd.certified and rd.uncertainty == "additive" and rd.coprime is None
     assert "not persistently exciting" in rd.reason
     assert not explicit.certified and explicit.coprime is not None  # asked for by name: still computed
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: uf.CertificateOptions(margin=-1.0), "margin must be"),
+    (lambda: uf.CertificateOptions(tracking_floor=-0.1), "tracking_floor must be"),
+    (lambda: uf.CertificateOptions(tracking_floor=(0.1, float("nan"))), "tracking_floor must be"),
+    (lambda: uf.CertificateOptions(step_samples=4), "step_samples must be"),
+    (lambda: uf.CertificateOptions(reference_horizon=0), "horizon must be"),
+    (lambda: uf.CertificateOptions(require_reference="yes"), "require_reference must be"),
+    (lambda: uf.DesignSearch(gamma_ratios=(0.5,)), "gamma_ratios"),
+    (lambda: uf.DesignSearch(w3_factors=(0.0,)), "w3_factors"),
+    (lambda: uf.DesignSearch(causal=(0,)), "causal"),
+    (lambda: uf.DesignSearch(horizons=5), "horizons must be a tuple"),
+    (lambda: uf.PremiseOptions(confidence=1.5), "confidence must lie in"),
+    (lambda: uf.PremiseOptions(samples=0), "samples must be an integer"),
+    (lambda: uf.PremiseOptions(nperseg=2.5), "nperseg must be an integer"),
+    (lambda: uf.PremiseOptions(tol=0.0), "tol must be"),
+    (lambda: uf.PremiseOptions(sigma=-1.0), "sigma must be None"),
+])
+def test_option_objects_check_their_fields_when_made(make, match):
+    # they had been accepted and failed (or not) at the first solve that read them
+    with pytest.raises(DataError, match=match):
+        make()
+
+
+def test_valid_option_objects_are_unchanged():
+    assert uf.CertificateOptions(tracking_floor=(0.1, np.inf)).tracking_floor == (0.1, np.inf)
+    assert uf.DesignSearch(horizons=(5, np.int64(10))).horizons == (5, 10)
+    assert uf.PremiseOptions(time_limit=None, nperseg=64).nperseg == 64

@@ -68,6 +68,7 @@ proven.
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -146,6 +147,42 @@ class PremiseOptions:
     tol: float = 1e-4
     time_limit: float = 60.0
     coprime_samples: int = 200
+
+    def __post_init__(self):
+        # checked where the options are made, not at the first solve that reads them
+        if self.sigma is not None and (isinstance(self.sigma, bool) or not isinstance(self.sigma, numbers.Real)
+                                       or not (np.isfinite(self.sigma) and self.sigma > 0)):
+            raise DataError(f"sigma must be None (estimated) or a finite number > 0, got {self.sigma!r}")
+        _check_confidence(self.confidence)
+        for name, least, optional in (("nperseg", 4, True), ("samples", 1, False), ("burn_in", 0, True),
+                                      ("taps", 1, True), ("coprime_samples", 1, False)):
+            value = getattr(self, name)
+            if not (optional and value is None):
+                _check_count(value, name, least)
+        if isinstance(self.tol, bool) or not isinstance(self.tol, numbers.Real) or not 0.0 < self.tol < 1.0:
+            raise DataError(f"tol must be a relative gap in (0, 1), got {self.tol!r}")
+        if self.time_limit is not None and (isinstance(self.time_limit, bool) or
+                                            not isinstance(self.time_limit, numbers.Real) or not self.time_limit > 0):
+            raise DataError(f"time_limit must be None or a number of seconds > 0, got {self.time_limit!r}")
+
+
+def _check_confidence(confidence) -> float:
+    if isinstance(confidence, bool) or not isinstance(confidence, numbers.Real) or not 0.0 < confidence < 1.0:
+        raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
+    return float(confidence)
+
+
+def _check_count(value, name: str, least: int) -> int:
+    """``value`` as an int ≥ ``least`` (an integer type, not a bool), else ``DataError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+        raise DataError(f"{name} must be an integer ≥ {least}, got {value!r}")
+    return int(value)
+
+
+def _check_dt(dt) -> float:
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt > 0):
+        raise DataError(f"dt must be a positive finite sample time, got {dt!r}")
+    return float(dt)
 
 
 @result
@@ -335,8 +372,10 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     >>> bool(np.all(np.linalg.norm(est.response - G, ord=2, axis=(1, 2)) <= est.radius))
     True
     """
-    if not (0.0 < confidence < 1.0):
-        raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
+    _check_confidence(confidence)
+    dt = _check_dt(dt)
+    if nperseg is not None:
+        nperseg = _check_count(nperseg, "nperseg", 4)
     first = _record_pair(u, y)
     m, l = first[0].shape[1], first[1].shape[1]
     pairs = [first] + [_record_pair(us, ys, f"segments[{k}] ", m, l) for k, (us, ys) in enumerate(segments)]
@@ -552,13 +591,13 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     >>> bool(np.all(np.linalg.norm(est.response - [[2.0, -1.0]], ord=2, axis=(1, 2)) <= est.radius))
     True
     """
-    if not (0.0 < confidence < 1.0):
-        raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
+    _check_confidence(confidence)
+    dt = _check_dt(dt)
     u, y = _record_pair(u, y)
     n, m, l = u.shape[0], u.shape[1], y.shape[1]
-    K = int(bins)
+    K = _check_count(bins, "bins", 1)
     need = 2 * (m + 1) * (_LPM_DEGREE + 1)
-    W = _lpm_window(m) if window is None else int(window)
+    W = _lpm_window(m) if window is None else _check_count(window, "window", 1)
     if W < need:
         raise DataError(f"window={window!r} is too small for {m} input(s): a local fit has (m + 1)·(degree + 1) = "
                         f"{need // 2} complex parameters and needs as many residual degrees of freedom; pass "

@@ -136,6 +136,20 @@ class DesignSearch:
     causal: tuple = (False, True)
     horizons: tuple = ()
 
+    def __post_init__(self):
+        for name in ("gamma_ratios", "w3_factors", "causal", "horizons"):
+            if isinstance(getattr(self, name), (str, bytes)) or not np.iterable(getattr(self, name)):
+                raise DataError(f"{name} must be a tuple, got {getattr(self, name)!r}")
+        for r in self.gamma_ratios:
+            _positive_real(r, "each of gamma_ratios", above=1.0)
+        for f in self.w3_factors:
+            _positive_real(f, "each of w3_factors")
+        for c in self.causal:
+            if not isinstance(c, (bool, np.bool_)):
+                raise DataError(f"causal must hold True/False values, got {c!r}")
+        for h in self.horizons:
+            check_horizon(h)
+
 
 @result
 @dataclass(frozen=True)
@@ -1283,6 +1297,19 @@ class CertificateOptions:
     untested: str = "warn"
 
     def __post_init__(self):
+        _positive_real(self.margin, "margin", allow_equal=True)
+        floors = np.atleast_1d(np.asarray(self.tracking_floor, dtype=object))
+        if floors.size == 0 or any(isinstance(f, bool) or not isinstance(f, numbers.Real) or not f >= 0
+                                   for f in floors.ravel()):
+            raise DataError(f"tracking_floor must be a number ≥ 0 (inf: not tracked) or one per output channel, got "
+                            f"{self.tracking_floor!r}")
+        if isinstance(self.step_samples, bool) or not isinstance(self.step_samples, numbers.Integral) or \
+                self.step_samples < 8:
+            raise DataError(f"step_samples must be an integer >= 8, got {self.step_samples!r}")
+        if self.reference_horizon is not None:
+            check_horizon(self.reference_horizon)
+        if not isinstance(self.require_reference, (bool, np.bool_)):
+            raise DataError(f"require_reference must be True or False, got {self.require_reference!r}")
         if self.uncertainty not in UNCERTAINTY_FORMS:
             raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
                             f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")
