@@ -23,6 +23,7 @@ import math
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from ._validation import DataError
 from .exceptions import DowndateError
 
 __all__ = ["cholupdate", "choldowndate", "DowndateError"]
@@ -32,11 +33,11 @@ def _prepare(L, x, lower: bool, overwrite: bool):
     L = np.asarray(L, dtype=float)
     x = np.asarray(x, dtype=float).reshape(-1)
     if L.ndim != 2 or L.shape[0] != L.shape[1]:
-        raise ValueError(f"the Cholesky factor must be a square matrix, got shape {L.shape}")
+        raise DataError(f"the Cholesky factor must be a square matrix, got shape {L.shape}")
     if x.size != L.shape[0]:
-        raise ValueError(f"x must have {L.shape[0]} entries to match the factor, got {x.size}")
+        raise DataError(f"x must have {L.shape[0]} entries to match the factor, got {x.size}")
     if not (np.all(np.isfinite(L)) and np.all(np.isfinite(x))):
-        raise ValueError("the factor and x must be finite (no NaN/inf)")
+        raise DataError("the factor and x must be finite (no NaN/inf)")
     # Work on Rt, an upper-triangular view whose rows are the columns of the lower factor.
     if overwrite and L.flags.writeable:
         W = L

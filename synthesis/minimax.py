@@ -320,7 +320,7 @@ def _gains(sd: _Saddle, gamma: float, route: str = "auto"):
     for tests).  Then ``u_opt = −R⁻¹ Qᵀ (M_d d_wc + M_x x)``.
     """
     if route not in _D_ROUTES:
-        raise ValueError(f"unknown route {route!r}; use one of {_D_ROUTES}")
+        raise DataError(f"unknown route {route!r}; use one of {_D_ROUTES}")
     nd, nx = sd.X.shape[1], sd.QtMx.shape[1]
     if np.isinf(gamma) or nd == 0:
         d_gain, route = np.zeros((nd, nx)), "none"

@@ -509,7 +509,7 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     ((4, 8), (4, 4), 12)
     """
     if method not in ("cholesky", "qr", "lstsq"):
-        raise ValueError(f"unknown method {method!r}; use 'cholesky', 'qr' or 'lstsq'")
+        raise DataError(f"unknown method {method!r}; use 'cholesky', 'qr' or 'lstsq'")
     if dt is not None:
         dt = check_sample_time(dt, "dt", allow_true=False)
     u = as_signal(u, "u")

@@ -78,3 +78,26 @@ def test_predictor_dt_reaches_the_robust_pipeline():
     pred = synthesis.fit_predictor(u, y, 4, dt=0.2)
     with pytest.raises(synthesis.WeightError, match="data's is 0.2"):
         uf.robust_design_from_data(u[:40], y[:40], 4, W1, W2, 0.005, predictor=pred, search=False)
+
+
+@pytest.mark.parametrize("call", [
+    "ex.prbs(0)",
+    "ex.white_noise(10, sigma=-1.0)",
+    "ex.collect_data(ex.servo(), np.r_[1.0, np.nan])",
+    "ex.collect_data(ex.servo(), np.ones(10), sensor_noise=-1.0)",
+    "ex.resonant(zeta=2.0)",
+    "sy.cholupdate(np.eye(2), np.ones(3))",
+    "sy.fit_predictor(np.random.default_rng(0).standard_normal(100), np.zeros(100), 3, method='svd')",
+    "uf.toeplitz_norm(np.ones(4), method='svd')",
+    "uf.solvers.resolve('subspace', 'cvxpy', 'primal_dual')",
+    "uf.subspace_unfalsify(np.ones(60), np.ones(60), 3, 0.1, backend='structured', form='thesis')",
+])
+def test_bad_input_raises_the_toolkits_error_not_a_plain_value_error(call):
+    """Every bad input names its problem through the toolkit's ValueError subclass (DataError), including the
+    experiments' signal and simulation helpers and the option strings of the solvers (they had raised plain
+    ValueError)."""
+    import experiments as ex
+    import unfalsify as uf
+
+    with pytest.raises(DataError):
+        eval(call, {"ex": ex, "sy": synthesis, "uf": uf, "np": np})

@@ -109,7 +109,7 @@ def rms_or_one(x: np.ndarray) -> float:
 def check_form(form: str) -> str:
     """``form`` of (7.4)/(7.5): ``"conditioned"`` or ``"thesis"`` (raises ValueError otherwise)."""
     if form not in ("conditioned", "thesis"):
-        raise ValueError(f"unknown form {form!r}; use 'conditioned' (default) or 'thesis'")
+        raise DataError(f"unknown form {form!r}; use 'conditioned' (default) or 'thesis'")
     return form
 
 

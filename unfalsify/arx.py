@@ -558,14 +558,14 @@ def arx_unfalsify(
     form = check_form(form)
     name = resolve("arx", backend, method)
     if backend == "structured" and form != "conditioned":
-        raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
+        raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")
     if free_rows and form != "conditioned":
-        raise ValueError("free_rows needs form='conditioned'")
+        raise DataError("free_rows needs form='conditioned'")
     P = ArxProblem.from_data(u, y, na, nb, sigma, free_rows=free_rows)
     if not P.siso:
         shape = f"{P.n_outputs}×{P.n_inputs}"
         if form != "conditioned":
-            raise ValueError(f"form='thesis' is written for one channel; with {shape} data use form='conditioned'")
+            raise DataError(f"form='thesis' is written for one channel; with {shape} data use form='conditioned'")
         if name not in CHANNELS:  # method="bracket"
             raise UnknownSolverError(f"method={method!r} solves single-channel data only; for {shape} data use "
                                      "method='barrier' (or backend='cvxpy')")

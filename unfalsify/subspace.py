@@ -592,11 +592,11 @@ def subspace_unfalsify(
     form = check_form(form)
     name = resolve("subspace", backend, method)
     if backend == "structured" and form != "conditioned":
-        raise ValueError("backend='structured' solves the conditioned form; use form='conditioned'")
+        raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")
     if form == "thesis" and eliminate_L:
-        raise ValueError("eliminate_L applies to form='conditioned' only")
+        raise DataError("eliminate_L applies to form='conditioned' only")
     if predictor is not None and eliminate_L:
-        raise ValueError("eliminate_L and a fixed predictor exclude each other")
+        raise DataError("eliminate_L and a fixed predictor exclude each other")
     workers = check_workers(workers)
     # the structured solvers' set-up and certificate as well as the solve: BLAS held to one thread (one_blas_thread)
     structured = executor is None and name in ("column_barrier", "block_barrier", "column_pd")
@@ -604,7 +604,7 @@ def subspace_unfalsify(
         P = SubspaceProblem.from_data(u, y, horizon, sigma, predictor=predictor)
         i, j, m, l = P.horizon, P.n_columns, P.n_inputs, P.n_outputs
         if not P.siso and form != "conditioned":
-            raise ValueError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
+            raise DataError(f"form='thesis' is written for one channel; with {m} input(s) and {l} output(s) use "
                              "form='conditioned'")
         if not P.siso and name == "column_barrier":
             name = "block_barrier"  # the structured solver for several channels

@@ -22,6 +22,8 @@ import control as ct
 import numpy as np
 from scipy.linalg import block_diag
 
+from synthesis.validation import DataError
+
 __all__ = [
     "servo",
     "three_disk",
@@ -161,7 +163,7 @@ def three_disk(
     elif output in nums:
         chosen = {output: nums[output]}
     else:
-        raise ValueError(f"output must be one of 'y1', 'y2', 'y3', 'all'; got {output!r}")
+        raise DataError(f"output must be one of 'y1', 'y2', 'y3', 'all'; got {output!r}")
     sys = modal_ss(chosen, params.poles(), name=f"three_disk_{output}")
     return sys if continuous else zoh(sys, dt)
 
@@ -197,7 +199,7 @@ def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, conti
     10.0
     """
     if not (0 < zeta < 1 and omega > 0):
-        raise ValueError(f"need 0 < zeta < 1 and omega > 0, got zeta={zeta!r}, omega={omega!r}")
+        raise DataError(f"need 0 < zeta < 1 and omega > 0, got zeta={zeta!r}, omega={omega!r}")
     sys = modal_ss({"y": np.array([omega * omega])}, damped_pair(zeta, omega), name="resonant")
     return sys if continuous else zoh(sys, dt)
 
@@ -281,7 +283,7 @@ def zoh(sys: ct.StateSpace, dt: float) -> ct.StateSpace:
     (0.1, 'lag_zoh', 0.904837)
     """
     if not np.isscalar(dt) or not np.isfinite(dt) or dt <= 0:
-        raise ValueError(f"dt must be a positive sample time in seconds, got {dt!r}")
+        raise DataError(f"dt must be a positive sample time in seconds, got {dt!r}")
     return ct.c2d(sys, float(dt), method="zoh", name=sys.name + "_zoh")
 
 

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 import control
 import numpy as np
 
-from synthesis import tustin
+from synthesis import DataError, tustin
 
 from .plants import SERVO_DT, servo
 from .signals import prbs, step
@@ -130,7 +130,7 @@ class ServoData:
     def first(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The first ``n`` samples ``(u, y)`` (the thesis uses one data set for every design)."""
         if n > self.n:
-            raise ValueError(f"asked for {n} samples of a data set of {self.n}; generate a longer one "
+            raise DataError(f"asked for {n} samples of a data set of {self.n}; generate a longer one "
                              f"with servo_data({n}, seed={self.seed})")
         return self.u[:n], self.y[:n]
 

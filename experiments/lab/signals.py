@@ -10,12 +10,14 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import max_len_seq
 
+from synthesis.validation import DataError
+
 __all__ = ["prbs", "white_noise", "step_sequence", "step"]
 
 
 def _check_length(n, name: str = "n") -> int:
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"{name} must be a positive integer number of samples, got {n!r}")
+        raise DataError(f"{name} must be a positive integer number of samples, got {n!r}")
     return int(n)
 
 
@@ -55,9 +57,9 @@ def prbs(n: int, nbits: int | None = None, *, amplitude: float = 1.0, seed=None)
     if nbits is None:
         nbits = max(2, int(np.ceil(np.log2(n + 1))))
     if isinstance(nbits, bool) or not isinstance(nbits, (int, np.integer)) or not 2 <= nbits <= 32:
-        raise ValueError(f"nbits must be an integer in [2, 32], got {nbits!r}")
+        raise DataError(f"nbits must be an integer in [2, 32], got {nbits!r}")
     if not np.isfinite(amplitude) or amplitude <= 0:
-        raise ValueError(f"amplitude must be positive, got {amplitude!r}")
+        raise DataError(f"amplitude must be positive, got {amplitude!r}")
     state = None
     if seed is not None:
         rng = np.random.default_rng(seed)
@@ -87,7 +89,7 @@ def white_noise(n: int, sigma: float = 1.0, channels: int | None = None, *, seed
     """
     n = _check_length(n)
     if not np.isfinite(sigma) or sigma < 0:
-        raise ValueError(f"sigma must be >= 0, got {sigma!r}")
+        raise DataError(f"sigma must be >= 0, got {sigma!r}")
     rng = np.random.default_rng(seed)
     shape = (n,) if channels is None else (n, _check_length(channels, "channels"))
     return sigma * rng.standard_normal(shape)
@@ -120,7 +122,7 @@ def step_sequence(n: int, levels, hold: int) -> np.ndarray:
     hold = _check_length(hold, "hold")
     lv = np.asarray(levels, dtype=float)
     if lv.ndim == 0 or lv.shape[0] == 0 or not np.all(np.isfinite(lv)):
-        raise ValueError("levels must be a non-empty finite array of step values")
+        raise DataError("levels must be a non-empty finite array of step values")
     idx = (np.arange(n) // hold) % lv.shape[0]
     return lv[idx]
 
@@ -137,7 +139,7 @@ def step(n: int, at: int = 0, amplitude: float = 1.0) -> np.ndarray:
     """
     n = _check_length(n)
     if not 0 <= at < n:
-        raise ValueError(f"step time at={at} must lie in [0, n)")
+        raise DataError(f"step time at={at} must lie in [0, n)")
     r = np.zeros(n)
     r[at:] = amplitude
     return r

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from synthesis.validation import as_discrete_system
+from synthesis.validation import DataError, as_discrete_system
 
 __all__ = [
     "AlgebraicLoopError",
@@ -129,7 +129,7 @@ def _check_same_dt(a, b, what: str) -> None:
     if a.dt is True or b.dt is True:
         return
     if not np.isclose(float(a.dt), float(b.dt), rtol=1e-9, atol=0.0):
-        raise ValueError(f"{what}: sample times differ ({a.dt} vs {b.dt}); use one sample time")
+        raise DataError(f"{what}: sample times differ ({a.dt} vs {b.dt}); use one sample time")
 
 
 def _signal(x, name: str, width: int, n: int | None = None) -> np.ndarray:
@@ -137,20 +137,20 @@ def _signal(x, name: str, width: int, n: int | None = None) -> np.ndarray:
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] == 0:
-        raise ValueError(f"{name} must have shape (n,) or (n, {width}) with time along axis 0, got {np.shape(x)}")
+        raise DataError(f"{name} must have shape (n,) or (n, {width}) with time along axis 0, got {np.shape(x)}")
     if arr.shape[1] != width:
-        raise ValueError(f"{name} has {arr.shape[1]} channel(s), the system needs {width}")
+        raise DataError(f"{name} has {arr.shape[1]} channel(s), the system needs {width}")
     if n is not None and arr.shape[0] != n:
-        raise ValueError(f"{name} has {arr.shape[0]} samples, expected {n}")
+        raise DataError(f"{name} has {arr.shape[0]} samples, expected {n}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or infinite values")
+        raise DataError(f"{name} contains NaN or infinite values")
     return arr
 
 
 def _noise(rng, sigma, n: int, width: int, name: str) -> np.ndarray:
     sigma = float(sigma)
     if not np.isfinite(sigma) or sigma < 0:
-        raise ValueError(f"{name} standard deviation must be >= 0, got {sigma!r}")
+        raise DataError(f"{name} standard deviation must be >= 0, got {sigma!r}")
     if sigma == 0:
         return np.zeros((n, width))
     return sigma * rng.standard_normal((n, width))
@@ -164,7 +164,7 @@ def _plant_matrices(plant, perturbation):
         Dl = as_discrete_system(perturbation, "perturbation")
         _check_same_dt(P, Dl, "plant and perturbation")
         if (Dl.ninputs, Dl.noutputs) != (P.ninputs, P.noutputs):
-            raise ValueError(
+            raise DataError(
                 f"perturbation must have the plant's size ({P.noutputs}x{P.ninputs}), got {Dl.noutputs}x{Dl.ninputs}")
         n1, n2 = A.shape[0], Dl.nstates
         A = np.block([[A, np.zeros((n1, n2))], [np.zeros((n2, n1)), np.asarray(Dl.A, float)]])
@@ -179,7 +179,7 @@ def _initial_state(x0, n: int, name: str) -> np.ndarray:
         return np.zeros(n)
     x = np.asarray(x0, dtype=float).reshape(-1)
     if x.size != n or not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} must be {n} finite values, got shape {np.shape(x0)}")
+        raise DataError(f"{name} must be {n} finite values, got shape {np.shape(x0)}")
     return x.copy()
 
 
@@ -392,7 +392,7 @@ def _controller_parts(P, controller):
     K = as_discrete_system(controller, "controller")
     _check_same_dt(P, K, "plant and controller")
     if K.noutputs != m:
-        raise ValueError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")
+        raise DataError(f"controller has {K.noutputs} output(s), the plant {m} input(s)")
     n = K.nstates
     Ac, Bc, Cc, Dc = (np.asarray(M, float).reshape(shape) for M, shape in
                       ((K.A, (n, n)), (K.B, (n, K.ninputs)), (K.C, (m, n)), (K.D, (m, K.ninputs))))
@@ -400,7 +400,7 @@ def _controller_parts(P, controller):
         return Ac, Bc[:, :l], Bc[:, l:], Cc, Dc[:, :l], Dc[:, l:]
     if K.ninputs == l:  # error feedback u = K (r − y)
         return Ac, Bc, -Bc, Cc, Dc, -Dc
-    raise ValueError(f"controller must have inputs [r; y] ({2 * l}) or e = r - y ({l}); it has {K.ninputs}")
+    raise DataError(f"controller must have inputs [r; y] ({2 * l}) or e = r - y ({l}); it has {K.ninputs}")
 
 
 def closed_loop_system(plant, controller):
@@ -506,7 +506,7 @@ def closed_loop_adaptive(plant, adaptive, r, **kwargs) -> ClosedLoopResult:
     """
     for attr in ("control", "observe", "history"):
         if not hasattr(adaptive, attr):
-            raise ValueError(f"adaptive controller needs a {attr!r} attribute (use synthesis.AdaptiveHinf)")
+            raise DataError(f"adaptive controller needs a {attr!r} attribute (use synthesis.AdaptiveHinf)")
     start = adaptive.samples_seen
     n_updates_before = len(adaptive.history)
     res = closed_loop(plant, adaptive, r, **kwargs)

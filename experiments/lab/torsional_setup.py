@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import control as ct
 
+from synthesis.validation import DataError
+
 from .plants import THREE_DISK_DT
 
 __all__ = ["WeightSpec", "NONCOLLOCATED", "COLLOCATED", "torsional_weights"]
@@ -121,7 +123,7 @@ def torsional_weights(kind: str, dt: float = THREE_DISK_DT) -> tuple[ct.StateSpa
     """
     specs = {"noncollocated": NONCOLLOCATED, "collocated": COLLOCATED}
     if kind not in specs:
-        raise ValueError(f"unknown weight set {kind!r}; use one of {sorted(specs)}")
+        raise DataError(f"unknown weight set {kind!r}; use one of {sorted(specs)}")
     return specs[kind].discrete(dt)
 
 

@@ -194,7 +194,7 @@ class Excitation:
             return x / np.sqrt(np.mean(x * x))
         if self.kind == "multisine":
             return _multisine(n, self.band, self.lines)
-        raise ValueError(f"unknown excitation kind {self.kind!r}")
+        raise DataError(f"unknown excitation kind {self.kind!r}")
 
 
 def _multisine(n: int, band, lines: int) -> np.ndarray:
@@ -203,7 +203,7 @@ def _multisine(n: int, band, lines: int) -> np.ndarray:
     grid = np.arange(1, n // 2)
     inside = grid[(grid / n >= lo) & (grid / n <= hi)]
     if inside.size == 0:
-        raise ValueError(f"no DFT line of a {n}-sample record in the band {band}")
+        raise DataError(f"no DFT line of a {n}-sample record in the band {band}")
     if lines and lines < inside.size:
         inside = inside[np.round(np.linspace(0, inside.size - 1, lines)).astype(int)]
     K = inside.size

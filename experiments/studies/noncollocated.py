@@ -36,6 +36,8 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
+from synthesis.validation import DataError
+
 from ..lab import simulate
 from ..lab.plants import THREE_DISK_DT as DT
 from ..lab.report import Report, save_figure, write_csv, write_json
@@ -87,7 +89,7 @@ def step_metrics(t, y, r: float = 1.0, settle_fraction: float = 0.25) -> dict:
     t = np.asarray(t, float).reshape(-1)
     y = np.asarray(y, float).reshape(-1)
     if t.shape != y.shape or t.size < 8:
-        raise ValueError("t and y must be 1-D arrays of the same length (>= 8 samples)")
+        raise DataError("t and y must be 1-D arrays of the same length (>= 8 samples)")
     nan = float("nan")
     tail = y[int((1 - settle_fraction) * y.size):]
     yf = float(np.mean(tail))
@@ -132,7 +134,7 @@ def closed_loop_system(plant: ct.StateSpace, controller: ct.StateSpace) -> ct.St
     closed loop; the construction is :func:`experiments.simulate.closed_loop_system`.
     """
     if np.any(np.asarray(plant.D) != 0):
-        raise ValueError("closed_loop_system needs a strictly proper plant (D = 0)")
+        raise DataError("closed_loop_system needs a strictly proper plant (D = 0)")
     return simulate.closed_loop_system(plant, controller)
 
 

@@ -119,7 +119,7 @@ def resolve(program: str, backend: str, method: str = "barrier") -> str:
         raise UnknownSolverError(f"unknown method {method!r}; use one of {_names(METHODS)}")
     if backend == "cvxpy":
         if method != "barrier":
-            raise ValueError(f"method={method!r} needs backend='structured'")
+            raise DataError(f"method={method!r} needs backend='structured'")
         return "cvxpy"
     name = _STRUCTURED.get((program, method))
     if name is None:

@@ -90,6 +90,8 @@ import sys
 import numpy as np
 import scipy.linalg
 
+from synthesis.validation import DataError
+
 from .barrier import (Deadline, PathAdvance, Stop, best_along, delta_step, linearised_dual, path_steps, pcg,
                       run_barrier)
 from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
@@ -1254,7 +1256,7 @@ def check_workers(workers) -> int:
     if workers is None:
         return max(1, os.cpu_count() or 1)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ValueError(f"workers must be a positive integer or None (all cores); got {workers!r}")
+        raise DataError(f"workers must be a positive integer or None (all cores); got {workers!r}")
     return int(workers)
 
 

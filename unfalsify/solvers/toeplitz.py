@@ -190,7 +190,7 @@ def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
     True
     """
     if method not in ("auto", "dense", "lanczos"):
-        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
+        raise DataError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
     h = np.asarray(h, dtype=float).reshape(-1)
     n = h.size
     if n == 0:
@@ -851,7 +851,7 @@ def block_toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float
     2.0
     """
     if method not in ("auto", "dense", "lanczos"):
-        raise ValueError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
+        raise DataError(f"unknown method {method!r}; use 'auto', 'dense' or 'lanczos'")
     if np.ndim(h) == 1:
         return toeplitz_norm(h, method=method, tol=tol)
     h = _markov(h)
