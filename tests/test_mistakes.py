@@ -91,6 +91,8 @@ def test_predictor_dt_reaches_the_robust_pipeline():
     "uf.toeplitz_norm(np.ones(4), method='svd')",
     "uf.solvers.resolve('subspace', 'cvxpy', 'primal_dual')",
     "uf.subspace_unfalsify(np.ones(60), np.ones(60), 3, 0.1, backend='structured', form='thesis')",
+    "uf.toeplitz_norm(np.r_[1.0, np.nan])",  # had raised numpy's LinAlgError (SVD did not converge)
+    "uf.untested_premises(np.r_[1.0, np.nan])",  # had returned () (every premise testable)
 ])
 def test_bad_input_raises_the_toolkits_error_not_a_plain_value_error(call):
     """Every bad input names its problem through the toolkit's ValueError subclass (DataError), including the

@@ -1177,11 +1177,9 @@ def untested_premises(u, validation=None) -> tuple[str, ...]:
     >>> print(untested_premises(prbs)[0][:60])
     input 0 takes the values {-1, 1} only: a static input nonlin
     """
-    u = np.asarray(u, float)
-    u = u.reshape(u.shape[0], -1)
+    u = as_signal(u, "u")  # real, finite, time along axis 0: NaN had made every channel look untestable-free
     if validation is not None:
-        uv = np.asarray(validation[0], float)
-        u = np.vstack([u, uv.reshape(uv.shape[0], -1)])
+        u = np.vstack([u, as_signal(validation[0], "validation u", width=u.shape[1])])
     out = []
     for ch in range(u.shape[1]):
         x = u[:, ch]

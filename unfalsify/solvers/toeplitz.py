@@ -195,6 +195,9 @@ def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
     n = h.size
     if n == 0:
         return 0.0
+    if not np.all(np.isfinite(h)):  # LAPACK's SVD would not converge; say which input is at fault
+        raise DataError(f"h contains {int(np.sum(~np.isfinite(h)))} NaN or infinite value(s); its Toeplitz norm is "
+                        "undefined: clean the impulse response first")
     scale = float(np.max(np.abs(h)))
     if scale == 0.0:
         return 0.0
