@@ -135,6 +135,7 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
    check_horizon          -- a prediction horizon i checked against the number of samples
    check_sample_time      -- a sample time checked (positive, finite, or ``True``)
    check_same_dt          -- two systems checked for one sample time
+   check_flag             -- a True/False option checked (a string such as "no" is refused, not read as True)
 
 Also in ``synthesis.results`` and ``synthesis.validation``.
 
@@ -243,7 +244,7 @@ from importlib.metadata import version as _version
 
 from .exceptions import DataError, InputTypeError
 from .results import result
-from .validation import as_discrete_system, as_signal, check_horizon, check_same_dt, check_sample_time
+from .validation import as_discrete_system, as_signal, check_flag, check_horizon, check_same_dt, check_sample_time
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -365,6 +366,7 @@ __all__ = [
     "check_horizon",
     "check_sample_time",
     "check_same_dt",
+    "check_flag",
     # identify-then-design baselines and the horizon from data
     "SubspaceModel",
     "subspace_id",

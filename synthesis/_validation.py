@@ -12,7 +12,7 @@ import numpy as np
 from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
-           "check_horizon", "check_level", "check_sample_time"]
+           "check_horizon", "check_level", "check_sample_time", "check_flag"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -278,3 +278,21 @@ def check_same_dt(a, b, name_a: str, name_b: str) -> None:
     raise DataError(
         f"{name_a} has sample time {da} but {name_b} has {db}; both must be discretised at the same sample "
         f"time (e.g. control.c2d(G, {db}, 'zoh') or synthesis.tustin(W, {db}))")
+
+
+def check_flag(value, name: str) -> bool:
+    """``value`` as a bool when it is one (Python's or numpy's), else ``DataError``: a string such as ``"no"`` is
+    truthy, and reading it as True would silently do the opposite of what was asked.
+
+    Examples
+    --------
+    >>> check_flag(True, "causal"), check_flag(np.bool_(False), "causal")
+    (True, False)
+    >>> check_flag("no", "causal")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: causal must be True or False, got 'no'
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise DataError(f"{name} must be True or False, got {value!r}")
+    return bool(value)

@@ -31,7 +31,7 @@ import control
 import numpy as np
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, check_level, check_sample_time
+from ._validation import DataError, check_flag, check_level, check_sample_time
 from .controller import WeightState, lti_controller
 from .minimax import _gains, _level, _saddle, _warn_near, minimax_gamma_min
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
@@ -283,6 +283,7 @@ def _map_plan(i, m, l, W1, W2, *, causal=False, uncertainty=None, dt=None) -> _M
     W1s, W2s, unc, dt = _weights(m, l, W1, W2, uncertainty, dt)
     kind = type(uncertainty) if unc else None
     zero_w, zero_u = np.zeros((i * l, i * (m + l))), np.zeros((i * l, i * m))
+    causal = check_flag(causal, "causal")
     template = _build_map(zero_w, zero_u, i, m, l, W1s, W2s, kind, unc, bool(causal))
     H1 = markov_toeplitz(W1s, i)
     H3 = markov_toeplitz(unc[0], i) if kind is Multiplicative else None
@@ -399,7 +400,8 @@ def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=
     Lw, Lu, i, m, l = _predictor_parts(pred)
     dt = _data_dt(pred, dt)
     W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty, dt)
-    return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc, bool(causal))
+    return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc,
+                      check_flag(causal, "causal"))
 
 
 def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> float:

@@ -103,3 +103,20 @@ def test_bad_input_raises_the_toolkits_error_not_a_plain_value_error(call):
 
     with pytest.raises(DataError):
         eval(call, {"ex": ex, "sy": synthesis, "uf": uf, "np": np})
+
+
+def test_true_false_options_refuse_strings():
+    """``causal="no"`` is a truthy string: it had designed the causal law, the opposite of what was asked."""
+    import control
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(200)
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:200] + 0.01 * rng.standard_normal(200)
+    pred = synthesis.fit_predictor(u, y, 4)
+    W = control.tf([1.0, 0.2], [1.0, -0.5], 1.0)
+    for call in (lambda: synthesis.gamma_min(pred, W, W, causal="no"),
+                 lambda: synthesis.hinf_design(pred, W, W, causal="no"),
+                 lambda: uf.DesignOptions(causal="no"), lambda: uf.DesignSearch(causal=("no",))):
+        with pytest.raises(DataError, match="causal must be True or False"):
+            call()
+    assert synthesis.gamma_min(pred, W, W, causal=np.bool_(True)) == synthesis.gamma_min(pred, W, W, causal=True)

@@ -58,7 +58,7 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis.validation import DataError, as_signal, check_horizon
+from synthesis.validation import DataError, as_signal, check_flag, check_horizon
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
 from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
@@ -145,8 +145,7 @@ class DesignSearch:
         for f in self.w3_factors:
             _positive_real(f, "each of w3_factors")
         for c in self.causal:
-            if not isinstance(c, (bool, np.bool_)):
-                raise DataError(f"causal must hold True/False values, got {c!r}")
+            check_flag(c, "each of causal")
         for h in self.horizons:
             check_horizon(h)
 
@@ -1241,6 +1240,7 @@ class DesignOptions:
     causal: bool = False
 
     def __post_init__(self):
+        check_flag(self.causal, "causal")
         if self.w3_rule not in ("small-gain", "thesis"):
             raise DataError(f"unknown w3_rule {self.w3_rule!r}; use 'small-gain' or 'thesis'")
         _positive_real(self.gamma_ratio, "gamma_ratio", above=1.0)
@@ -1308,8 +1308,7 @@ class CertificateOptions:
             raise DataError(f"step_samples must be an integer >= 8, got {self.step_samples!r}")
         if self.reference_horizon is not None:
             check_horizon(self.reference_horizon)
-        if not isinstance(self.require_reference, (bool, np.bool_)):
-            raise DataError(f"require_reference must be True or False, got {self.require_reference!r}")
+        check_flag(self.require_reference, "require_reference")
         if self.uncertainty not in UNCERTAINTY_FORMS:
             raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
                             f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")
