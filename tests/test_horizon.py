@@ -82,6 +82,8 @@ def test_bad_input_names_the_fix(nmp):
         sy.choose_horizon(d.u[:150], d.y[:150], W1, W2, dt=DT)
     with pytest.raises(sy.DataError, match="distinct integers"):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(10, 10.5))
+    with pytest.raises(sy.DataError, match="one or more"):  # no candidate at all had raised IndexError
+        sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=())
     with pytest.raises(sy.DataError, match="dt"):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=0)
 
