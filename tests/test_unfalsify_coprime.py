@@ -204,3 +204,15 @@ def test_hand_made_factors_are_checked():
     assert F.N.dtype == float and F.dt == 1.0 and F.horizon == 1
     z = np.exp(0.5j)
     assert complex(F.model()(z)) == pytest.approx(0.1 / (z - 1.0), rel=1e-12)  # the integrator 0.1/(z − 1)
+
+
+def test_coprime_distance_checks_the_plant():
+    """A continuous-time plant had been evaluated as if it were discrete (a number, no warning)."""
+    F = uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    with pytest.raises(DataError, match="continuous-time"):
+        uf.coprime_distance(F, control.tf([1.0], [1.0, 1.0]))
+    with pytest.raises(DataError, match="sample time 0.1"):
+        uf.coprime_distance(F, control.tf([0.1], [1.0, -1.0], 0.1))
+    with pytest.raises(DataError, match="2 × 2"):
+        uf.coprime_distance(F, control.ss([], [], [], np.eye(2), 1.0))
+    assert uf.coprime_distance(F, control.tf([0.1], [1.0, -1.0], 1.0))[0] == pytest.approx(0.0, abs=1e-12)

@@ -50,7 +50,7 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError
+from synthesis.validation import DataError, as_discrete_system
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -279,7 +279,13 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     >>> bool(d < 1e-12)
     True
     """
-    sys = control.ss(plant)
+    sys = control.ss(as_discrete_system(plant, "plant"))  # a continuous plant was read as if discrete
+    if sys.dt is not True and not np.isclose(float(sys.dt), factors.dt, rtol=1e-9, atol=0.0):
+        raise DataError(f"plant has sample time {sys.dt} but the factors {factors.dt}; compare systems at one sample "
+                        "time")
+    if (sys.noutputs, sys.ninputs) != (factors.outputs, factors.inputs):
+        raise DataError(f"plant is {sys.noutputs} × {sys.ninputs} but the factors {factors.outputs} × "
+                        f"{factors.inputs} (outputs × inputs)")
     nyq = np.pi / factors.dt
     w = np.concatenate([np.geomspace(1e-4 * nyq, nyq, points)])
     with np.errstate(divide="ignore", invalid="ignore"):
