@@ -42,7 +42,6 @@ input did not excite; :func:`unfalsify.check_excitation` checks the loop there.
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -50,7 +49,7 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system
+from synthesis.validation import DataError, as_discrete_system, check_sample_time
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -101,11 +100,9 @@ class CoprimeFactors:
         if not np.allclose(M[0], np.eye(M.shape[1]), rtol=0.0, atol=1e-12):
             raise DataError(f"coprime factors need M[0] = I (M̂(∞) = I), got M[0] = {M[0].tolist()}; divide both "
                             "factors on the left by M[0]")
-        if not (isinstance(self.dt, numbers.Real) and np.isfinite(self.dt) and self.dt > 0):
-            raise DataError(f"dt must be a positive finite sample time, got {self.dt!r}")
         object.__setattr__(self, "N", N)
         object.__setattr__(self, "M", M)
-        object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(self, "dt", float(check_sample_time(self.dt, "dt")))  # True (unspecified) reads as 1
 
     @property
     def horizon(self) -> int:

@@ -41,8 +41,9 @@ Noise-free records (simulations) leave residuals at the rounding level, where F 
 rounding and rounding errors that do not scale like noise had rejected noise-free LTI records (p = 6e-38 at 3000
 samples; 6e-21 with noise 1e-12 at 1000).  All fits of one test therefore share the pooled regressor's singular
 directions above 1e-8 of the largest (noisy records keep them all: of the adversarial catalogue's 470 records, seeds
-0–9, only the 40 low-band multisine ones changed, p 0.016–0.95 before and 0.056–0.99 after, none near the level), and residuals below ``1e3·eps·‖y‖`` count
-as exact fits: one model for the whole record (p = 1), or exact but different models for the segments (p = 0).
+0–9, only the 40 low-band multisine ones changed, p 0.016–0.95 before and 0.056–0.99 after, none near the level),
+and residuals below ``1e3·eps·‖y‖`` count as exact fits: one model for the whole record (p = 1), or exact but
+different models for the segments (p = 0).
 """
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ import scipy.stats
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal
 
+from ._common import check_count
 from .arx import arx_regressor
 
 __all__ = ["InvarianceTest", "check_time_invariance", "min_record_length", "TIME_INVARIANCE_LEVEL"]
@@ -136,16 +138,9 @@ def min_record_length(outputs: int, inputs: int, segments: int = 2) -> int:
     ...
     synthesis.exceptions.DataError: segments must be an integer ≥ 2, got 1
     """
-    outputs, inputs = _count(outputs, "outputs", 1), _count(inputs, "inputs", 1)
-    segments = _count(segments, "segments", 2)
+    outputs, inputs = check_count(outputs, "outputs", 1), check_count(inputs, "inputs", 1)
+    segments = check_count(segments, "segments", 2)
     return int(segments * _MIN_ORDER * (_ROWS_PER_PARAMETER * (outputs + inputs) + 1))
-
-
-def _count(value, name: str, least: int) -> int:
-    """``value`` as an int ≥ ``least`` (an integer type, not a bool), else ``DataError`` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
-        raise DataError(f"{name} must be an integer ≥ {least}, got {value!r}")
-    return int(value)
 
 
 def _pooled_coordinates(Phi: np.ndarray) -> np.ndarray:
@@ -235,7 +230,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     y = as_signal(y, "y", n=u.shape[0])
     n, m = u.shape
     l = y.shape[1]
-    segments = _count(segments, "segments", 2)
+    segments = check_count(segments, "segments", 2)
     if not 0.0 < float(level) < 1.0:
         raise DataError(f"level must lie in (0, 1), got {level!r}")
     p = _default_order(n, l + m, segments) if order is None else order

@@ -78,9 +78,9 @@ import scipy.signal
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal
+from synthesis.validation import DataError, as_signal, check_sample_time
 
-from ._common import channel_pair
+from ._common import channel_pair, check_count
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 
@@ -158,7 +158,7 @@ class PremiseOptions:
                                       ("taps", 1, True), ("coprime_samples", 1, False)):
             value = getattr(self, name)
             if not (optional and value is None):
-                _check_count(value, name, least)
+                check_count(value, name, least)
         if isinstance(self.tol, bool) or not isinstance(self.tol, numbers.Real) or not 0.0 < self.tol < 1.0:
             raise DataError(f"tol must be a relative gap in (0, 1), got {self.tol!r}")
         if self.time_limit is not None and (isinstance(self.time_limit, bool) or
@@ -172,17 +172,6 @@ def _check_confidence(confidence) -> float:
     return float(confidence)
 
 
-def _check_count(value, name: str, least: int) -> int:
-    """``value`` as an int ≥ ``least`` (an integer type, not a bool), else ``DataError`` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
-        raise DataError(f"{name} must be an integer ≥ {least}, got {value!r}")
-    return int(value)
-
-
-def _check_dt(dt) -> float:
-    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"dt must be a positive finite sample time, got {dt!r}")
-    return float(dt)
 
 
 @result
@@ -373,9 +362,9 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     True
     """
     _check_confidence(confidence)
-    dt = _check_dt(dt)
+    dt = check_sample_time(dt, "dt", allow_true=False)
     if nperseg is not None:
-        nperseg = _check_count(nperseg, "nperseg", 4)
+        nperseg = check_count(nperseg, "nperseg", 4)
     first = _record_pair(u, y)
     m, l = first[0].shape[1], first[1].shape[1]
     pairs = [first] + [_record_pair(us, ys, f"segments[{k}] ", m, l) for k, (us, ys) in enumerate(segments)]
@@ -592,12 +581,12 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     True
     """
     _check_confidence(confidence)
-    dt = _check_dt(dt)
+    dt = check_sample_time(dt, "dt", allow_true=False)
     u, y = _record_pair(u, y)
     n, m, l = u.shape[0], u.shape[1], y.shape[1]
-    K = _check_count(bins, "bins", 1)
+    K = check_count(bins, "bins", 1)
     need = 2 * (m + 1) * (_LPM_DEGREE + 1)
-    W = _lpm_window(m) if window is None else _check_count(window, "window", 1)
+    W = _lpm_window(m) if window is None else check_count(window, "window", 1)
     if W < need:
         raise DataError(f"window={window!r} is too small for {m} input(s): a local fit has (m + 1)·(degree + 1) = "
                         f"{need // 2} complex parameters and needs as many residual degrees of freedom; pass "

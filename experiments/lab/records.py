@@ -204,10 +204,6 @@ def _check_distinct(selected: dict, path: Path) -> None:
 
 
 # ---------------------------------------------------------------------------------------------- arrays
-def _read_arrays(path: Path, fmt: str) -> dict:
-    return read_variables(path, error=RecordError)
-
-
 def _key(arrays: dict, key, what: str, path: Path):
     if not isinstance(key, str):
         raise RecordError(f"{what}={key!r}: without variable= the entries of {str(path)!r} are selected by name "
@@ -328,7 +324,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
             header, table = _read_csv(path, delimiter, decimal)
         else:
-            arrays = _read_arrays(path, fmt)
+            arrays = read_variables(path, error=RecordError)
             if variable not in arrays:
                 raise RecordError(f"{str(path)!r} has no variable {variable!r} (it has: "
                                   f"{', '.join(sorted(arrays)) or 'nothing'}); pass variable= one of them")
@@ -353,7 +349,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
             y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
     else:
-        arrays = _read_arrays(path, fmt)
+        arrays = read_variables(path, error=RecordError)
 
         def gather(sel, what):
             parts, names = [], []
@@ -437,7 +433,7 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
         header, table = _read_csv(path, None)
         return header, table.shape[1]
     if variable is not None and fmt in (".npz", ".mat"):
-        arrays = _read_arrays(path, fmt)
+        arrays = read_variables(path, error=RecordError)
         if variable in arrays and np.ndim(arrays[variable]) == 2:
             return None, int(np.shape(arrays[variable])[1])
     return None, None
