@@ -341,6 +341,13 @@ def _check_nonnegative(v, name: str, allow_inf: bool = False) -> None:
         raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {v!r}")
 
 
+def _check_step_samples(step_samples) -> int:
+    """The length of the step run: an integer ≥ 8 (its last quarter is the tracking window)."""
+    if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
+        raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
+    return int(step_samples)
+
+
 def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     """The performance floor per output channel: one number for all, or one per channel.
 
@@ -437,8 +444,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     """
     for name, v in (("delta", delta), ("margin", margin)):
         _check_nonnegative(v, name)
-    if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
-        raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
+    _check_step_samples(step_samples)
     P, C, l = loop_parts(model, controller)
     floors = tracking_floors(tracking_floor, l)
     tracking_floor = float(floors[0]) if np.ndim(tracking_floor) == 0 else tuple(float(f) for f in floors)

@@ -1231,7 +1231,8 @@ class ExcitationCheck:
     margin : float
         With ``delta`` given: the data's evidence against the δ margin on the plant,
         ``max δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over the Welch and low-band frequencies (≥ 1 refuses:
-        every plant in the confidence disks has ``δ·σ̄(K(I+PK)⁻¹) ≥ 1`` there); NaN when not computed.
+        every plant in the confidence disks has ``δ·σ̄(K(I+PK)⁻¹) ≥ 1`` there); in coprime-factor form the same for
+        ε and the coprime channel (:func:`check_excitation`); NaN when not computed.
     """
 
     ok: bool
@@ -1467,7 +1468,8 @@ def _margin_ratio(H, m: int, response: np.ndarray, radius: np.ndarray, frequency
     X = np.where(singular[..., None, None], np.eye(l), X)  # solved below, then set to inf
     Z = np.swapaxes(np.linalg.solve(np.swapaxes(X, -1, -2), np.swapaxes(Hz, -1, -2)), -1, -2)  # H X⁻¹
     gain = np.where(singular, np.inf, np.linalg.norm(Z, ord=2, axis=(2, 3)))
-    gain_u = np.where(singular, np.inf, np.linalg.norm(Z[:, :, :m, :], ord=2, axis=(2, 3)))
+    # the additive channel is all u rows (Ẑ_u = Ẑ): its norm is the one just taken
+    gain_u = gain if Z.shape[2] == m else np.where(singular, np.inf, np.linalg.norm(Z[:, :, :m, :], ord=2, axis=(2, 3)))
     r = np.where(known, radius, 0.0)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain_u))

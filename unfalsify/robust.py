@@ -62,8 +62,8 @@ from synthesis.validation import DataError, as_signal, check_flag, check_horizon
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
 from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
-from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, additive_channel, certify_loop, closed_loop_ry,
-                      tracking_floors)
+from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, _check_step_samples, additive_channel,
+                      certify_loop, closed_loop_ry, tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
@@ -593,8 +593,8 @@ def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, floa
     else:
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         R = Yf - L @ A
-    relative = float(np.linalg.norm(R)) / max(float(np.linalg.norm(Yf)), np.finfo(float).tiny)
-    return float(np.linalg.norm(R) / np.sqrt(R.size)), A.shape[0], A.shape[1], relative
+    norm = float(np.linalg.norm(R))
+    return norm / np.sqrt(R.size), A.shape[0], A.shape[1], norm / max(float(np.linalg.norm(Yf)), np.finfo(float).tiny)
 
 
 def _check_window(u, y, i: int, sigma: float, predictor) -> None:
@@ -1303,9 +1303,7 @@ class CertificateOptions:
                                    for f in floors.ravel()):
             raise DataError(f"tracking_floor must be a number ≥ 0 (inf: not tracked) or one per output channel, got "
                             f"{self.tracking_floor!r}")
-        if isinstance(self.step_samples, bool) or not isinstance(self.step_samples, numbers.Integral) or \
-                self.step_samples < 8:
-            raise DataError(f"step_samples must be an integer >= 8, got {self.step_samples!r}")
+        _check_step_samples(self.step_samples)
         if self.reference_horizon is not None:
             check_horizon(self.reference_horizon)
         check_flag(self.require_reference, "require_reference")

@@ -472,7 +472,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
 
 def _excitation_number(res, name: str):
     """``res.excitation.<name>`` of the returned loop, or None where the check did not run (an unstable loop) or
-    does not give it (the δ margin in coprime form)."""
+    gave no number (NaN)."""
     value = getattr(res.excitation, name, None)  # getattr(None, ...) is None too: no check ran
     return float(value) if value is not None and np.isfinite(value) else None
 
