@@ -291,8 +291,9 @@ def test_delta_margin_evidence_refuses_only_what_the_data_show():
     wide = uf.check_excitation(P_hat, K, _fake_frf(1.0, response=-3.0), delta=2.0)  # r = 1: best case δ|M_P| = 0.8
     assert wide.ok and wide.margin == pytest.approx(0.8, rel=1e-9)
     assert np.isnan(uf.check_excitation(P_hat, K, _fake_frf(0.01, response=-3.0)).margin)  # not asked
-    with pytest.raises(DataError, match="delta"):
-        uf.check_excitation(P_hat, K, _fake_frf(0.01), delta=-1.0)
+    for bad_delta in (-1.0, "0.1", True, 1j):
+        with pytest.raises(DataError, match="delta must be a number"):
+            uf.check_excitation(P_hat, K, _fake_frf(0.01), delta=bad_delta)
 
 
 def _static_factors(n_gain: float) -> uf.CoprimeFactors:

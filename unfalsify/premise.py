@@ -1343,7 +1343,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex.ok, "u[:, 1]" in ex.reason
     (False, True)
     """
-    if delta is not None and not delta >= 0:
+    if delta is not None and (isinstance(delta, bool) or not isinstance(delta, numbers.Real) or not delta >= 0):
         what = "ε of the coprime-factor form" if factors is not None else "δ of the additive form"
         raise DataError(f"delta must be a number ≥ 0 ({what}), got {delta!r}")
     if factors is None:

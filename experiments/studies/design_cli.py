@@ -2,8 +2,8 @@
 
 The §7.4 workflow on a data file, with no simulator behind it:
 
-1. :func:`experiments.load_record` reads one input and one output channel (CSV, NPZ or MAT) and the
-   sample time (``--dt``, or the step of a time column ``--t``);
+1. :func:`experiments.load_record` reads the input and output channels (CSV, NPZ or MAT; ``--u`` and ``--y``
+   take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``);
 2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
    (``--sigma``), the predictors fitted on the first two thirds of the record and the premise of
    the certificate tested on the last third; the design search; the certificate of the loop;
