@@ -12,7 +12,7 @@ import numpy as np
 from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
-           "check_horizon", "check_level", "check_sample_time", "check_flag"]
+           "check_horizon", "check_level", "check_sample_time", "check_flag", "check_count"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -96,11 +96,7 @@ def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1
     ...
     synthesis.exceptions.DataError: too few samples for horizon i=10: n=15 gives j = n - 2i + 1 = -4 columns, need at least 1; collect at least 20 samples or reduce the horizon
     """
-    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
-        raise DataError(f"horizon must be an integer >= 1, got {horizon!r}")
-    i = int(horizon)
-    if i < 1:
-        raise DataError(f"horizon must be >= 1, got {i}")
+    i = check_count(horizon, "horizon", 1)
     if n_samples is not None:
         j = n_samples - 2 * i + 1
         if j < min_columns:
@@ -296,3 +292,21 @@ def check_flag(value, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise DataError(f"{name} must be True or False, got {value!r}")
     return bool(value)
+
+
+def check_count(value, name: str, least: int, *, error=DataError) -> int:
+    """``value`` as an int ≥ ``least`` (an integer type, Python's or numpy's, not a bool), else ``error`` naming
+    ``name``: a float such as ``5.0`` or ``5.5`` is refused, not rounded.
+
+    Examples
+    --------
+    >>> check_count(np.int64(3), "rows", 1)
+    3
+    >>> check_count(2.0, "rows", 1)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: rows must be an integer ≥ 1, got 2.0
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < least:
+        raise error(f"{name} must be an integer ≥ {least}, got {value!r}")
+    return int(value)

@@ -31,7 +31,7 @@ from scipy.linalg import matrix_balance
 from scipy.signal import lfilter
 
 from ._repr import result
-from ._validation import DataError, as_signal, check_sample_time
+from ._validation import DataError, as_signal, check_count, check_sample_time
 
 __all__ = ["ArxModel", "arx_id"]
 
@@ -144,10 +144,7 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
     u, y = u[:, 0], y[:, 0]
     N = u.size
     dt = True if dt is None else check_sample_time(dt, "dt")
-    for name, v, low in (("max_order", max_order, 1), ("delay", delay, 0)):
-        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < low:
-            raise DataError(f"{name} must be an integer >= {low}, got {v!r}")
-    max_order, delay = int(max_order), int(delay)
+    max_order, delay = check_count(max_order, "max_order", 1), check_count(delay, "delay", 0)
     if isinstance(order, str):
         if order not in ARX_CRITERIA:
             raise DataError(f"order must be one of {ARX_CRITERIA} or a positive integer, got {order!r}")

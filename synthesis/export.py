@@ -20,7 +20,7 @@ import numpy as np
 
 from .exceptions import ControllerFileError
 
-from ._validation import DataError, InputTypeError, to_state_space
+from ._validation import InputTypeError, to_state_space
 
 __all__ = ["ControllerFileError", "save_controller", "load_controller", "read_variables", "CONTROLLER_FORMATS"]
 

@@ -19,7 +19,7 @@ from scipy.linalg import lapack
 from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, as_signal, check_horizon, check_sample_time
+from ._validation import DataError, as_signal, check_count, check_horizon, check_sample_time
 from .hankel import hankel_gram
 from ._repr import result
 
@@ -158,9 +158,7 @@ def block_hankel(x: np.ndarray, rows: int, cols: int, start: int = 0) -> np.ndar
            [12., 13., 14.]])
     """
     x = as_signal(x, "x")
-    for name, v, low in (("rows", rows, 1), ("cols", cols, 1), ("start", start, 0)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-            raise DataError(f"{name} must be an integer >= {low}, got {v!r}")
+    rows, cols, start = check_count(rows, "rows", 1), check_count(cols, "cols", 1), check_count(start, "start", 0)
     k = x.shape[1]
     seg = x[start : start + rows + cols - 1]
     if seg.shape[0] < rows + cols - 1:

@@ -43,7 +43,7 @@ from scipy.linalg import blas
 
 from .exceptions import RefactorWarning
 
-from ._validation import DataError, as_signal, check_horizon
+from ._validation import DataError, as_signal, check_count, check_horizon
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .hankel import hankel_gram, hankel_order
 from .predictor import Predictor, _predictor_from_factor, _predictor_from_gram, _psd_cholesky, _resolve_rcond
@@ -85,10 +85,7 @@ class RecursivePredictor:
         if track not in ("gram", "factor"):
             raise DataError(f"unknown track {track!r}; use 'gram' or 'factor'")
         self.horizon = check_horizon(horizon)
-        for name, v in (("m", m), ("l", l)):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise DataError(f"{name} must be a positive integer, got {v!r}")
-        self.m, self.l = int(m), int(l)
+        self.m, self.l = check_count(m, "m", 1), check_count(l, "l", 1)
         if window is not None:
             if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
                 raise DataError(f"window must be None (growing) or a positive number of columns, got {window!r}")

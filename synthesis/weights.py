@@ -24,7 +24,7 @@ import numpy as np
 
 from .exceptions import WeightError
 
-from ._validation import DataError, as_discrete_system, check_horizon, to_state_space
+from ._validation import DataError, as_discrete_system, check_count, check_horizon, to_state_space
 
 __all__ = [
     "WeightError",
@@ -210,9 +210,7 @@ def diagonal_weight(*weights, channels: int | None = None) -> control.StateSpace
         if len(weights) != 1:
             raise WeightError(f"channels={channels!r} repeats one weight; got {len(weights)} weights: pass one weight "
                               "with channels=, or one weight per channel without it")
-        if isinstance(channels, bool) or not isinstance(channels, numbers.Integral) or channels < 1:
-            raise WeightError(f"channels must be a positive integer, got {channels!r}")
-        weights = weights * int(channels)
+        weights = weights * check_count(channels, "channels", 1, error=WeightError)
     dt = common_dt(*[w for w in weights if isinstance(w, (control.StateSpace, control.TransferFunction))])
     parts = [as_weight(w, f"weights[{k}]", dt=dt) for k, w in enumerate(weights)]
     for k, w in enumerate(parts):

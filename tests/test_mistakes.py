@@ -120,3 +120,21 @@ def test_true_false_options_refuse_strings():
         with pytest.raises(DataError, match="causal must be True or False"):
             call()
     assert synthesis.gamma_min(pred, W, W, causal=np.bool_(True)) == synthesis.gamma_min(pred, W, W, causal=True)
+
+
+@pytest.mark.parametrize("call, name", [
+    ("sy.block_hankel(np.arange(9.0), 2.0, 3)", "rows"),
+    ("sy.block_hankel(np.arange(9.0), 2, 3, start=np.True_)", "start"),
+    ("sy.RecursivePredictor(3, 1.5, 1)", "m"),
+    ("sy.arx_id(np.ones(50), np.ones(50), max_order=2.0)", "max_order"),
+    ("uf.arx_least_squares(np.ones(50), np.ones(50), 1.0, 2)", "na"),
+    ("uf.CertificateOptions(step_samples=100.0)", "step_samples"),
+    ("sy.diagonal_weight(control.tf([1.0], [1.0, -0.5], 1.0), channels=2.0)", "channels"),
+])
+def test_counts_refuse_floats_and_bools_with_one_message(call, name):
+    """Every count (rows, channels, orders, lengths) goes through one check, ``synthesis.validation.check_count``:
+    a float or a bool is refused with the same sentence, not rounded (they had five wordings)."""
+    import control
+
+    with pytest.raises(DataError, match=f"{name} must be an integer ≥ [0-9]+, got"):
+        eval(call, {"sy": synthesis, "uf": uf, "np": np, "control": control})

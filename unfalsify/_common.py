@@ -106,13 +106,6 @@ def rms_or_one(x: np.ndarray) -> float:
     return r if r > 0 else 1.0
 
 
-def check_count(value, name: str, least: int) -> int:
-    """``value`` as an int ≥ ``least`` (an integer type, not a bool), else ``DataError`` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
-        raise DataError(f"{name} must be an integer ≥ {least}, got {value!r}")
-    return int(value)
-
-
 def check_form(form: str) -> str:
     """``form`` of (7.4)/(7.5): ``"conditioned"`` or ``"thesis"`` (raises ValueError otherwise)."""
     if form not in ("conditioned", "thesis"):

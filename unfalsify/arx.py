@@ -72,6 +72,7 @@ import cvxpy as cp
 import numpy as np
 
 from synthesis import DataError
+from synthesis.validation import check_count
 from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_resolution, check_sigma,
@@ -181,9 +182,7 @@ class ArxResult:
 
 
 def _order(v, name: str) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
-        raise DataError(f"{name} must be an integer >= 0, got {v!r}")
-    return int(v)
+    return check_count(v, name, 0)
 
 
 def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:

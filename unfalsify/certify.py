@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system, check_same_dt
+from synthesis.validation import DataError, as_discrete_system, check_count, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
@@ -343,9 +343,7 @@ def _check_nonnegative(v, name: str, allow_inf: bool = False) -> None:
 
 def _check_step_samples(step_samples) -> int:
     """The length of the step run: an integer ≥ 8 (its last quarter is the tracking window)."""
-    if isinstance(step_samples, bool) or not isinstance(step_samples, (int, np.integer)) or step_samples < 8:
-        raise DataError(f"step_samples must be an integer >= 8, got {step_samples!r}")
-    return int(step_samples)
+    return check_count(step_samples, "step_samples", 8)
 
 
 def tracking_floors(tracking_floor, channels: int) -> np.ndarray:

@@ -47,16 +47,14 @@ different models for the segments (p = 0).
 """
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal
+from synthesis.validation import DataError, as_signal, check_count
 
-from ._common import check_count
 from .arx import arx_regressor
 
 __all__ = ["InvarianceTest", "check_time_invariance", "min_record_length", "TIME_INVARIANCE_LEVEL"]
@@ -240,9 +238,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
                         f"input(s): {segments} segments of ten rows per parameter of an ARX({_MIN_ORDER}) model need "
                         f"{need} samples (a shorter model leaves coloured equation errors, which the test reads as "
                         "change); pass a longer record, or order= to test with a shorter model anyway")
-    if isinstance(p, bool) or not isinstance(p, numbers.Integral) or p < 1:
-        raise DataError(f"order must be a positive integer, got {order!r}")
-    p = int(p)
+    p = check_count(p, "order", 1)
     if segments * (p * (l + m) + 1) > n - p:
         raise DataError(f"order {p} leaves fewer rows than parameters in {segments} segments of {n} samples: use a "
                         "smaller order (or the default)")

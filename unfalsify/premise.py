@@ -78,9 +78,9 @@ import scipy.signal
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_sample_time
+from synthesis.validation import DataError, as_signal, check_count, check_sample_time
 
-from ._common import channel_pair, check_count
+from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 
