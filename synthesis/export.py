@@ -239,9 +239,7 @@ def load_controller(path):
 
     path = Path(path)
     _format(path)  # an ending other than .npz/.mat: ControllerFileError naming both
-    if not path.exists():
-        raise FileNotFoundError(f"no controller file {str(path)!r}")
-    data = read_variables(path)
+    data = read_variables(path)  # FileNotFoundError for a missing file
     if "dt" not in data and "Ts" in data:
         data["dt"] = data["Ts"]
     missing = [k for k in (*_MATRICES, "dt") if k not in data]

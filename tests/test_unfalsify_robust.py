@@ -270,7 +270,12 @@ def test_a_predictor_without_persistent_excitation_skips_the_coprime_form():
 @pytest.mark.parametrize("make, match", [
     (lambda: uf.CertificateOptions(margin=-1.0), "margin must be"),
     (lambda: uf.CertificateOptions(tracking_floor=-0.1), "tracking_floor must be"),
-    (lambda: uf.CertificateOptions(tracking_floor=(0.1, float("nan"))), "tracking_floor must be"),
+    (lambda: uf.CertificateOptions(tracking_floor=(0.1, float("nan"))), "tracking_floor.* must be"),
+    # accepted before, refused only by the pipeline after δ had been solved:
+    (lambda: uf.CertificateOptions(tracking_floor=float("inf")), "tracking_floor must be a finite"),
+    (lambda: uf.CertificateOptions(tracking_floor=(np.inf, np.inf)), "at least one output must be tracked"),
+    (lambda: uf.CertificateOptions(tracking_floor=[[0.1, 0.2]]), "tracking_floor.* must be"),
+    (lambda: uf.CertificateOptions(tracking_floor=()), "tracking_floor is empty"),
     (lambda: uf.CertificateOptions(step_samples=4), "step_samples must be"),
     (lambda: uf.CertificateOptions(reference_horizon=0), "horizon must be"),
     (lambda: uf.CertificateOptions(require_reference="yes"), "require_reference must be"),
@@ -292,5 +297,6 @@ def test_option_objects_check_their_fields_when_made(make, match):
 
 def test_valid_option_objects_are_unchanged():
     assert uf.CertificateOptions(tracking_floor=(0.1, np.inf)).tracking_floor == (0.1, np.inf)
+    assert uf.tracking_floors(np.array(0.2), 2).tolist() == [0.2, 0.2]  # a 0-d array is a number
     assert uf.DesignSearch(horizons=(5, np.int64(10))).horizons == (5, 10)
     assert uf.PremiseOptions(time_limit=None, nperseg=64).nperseg == 64

@@ -377,10 +377,14 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     >>> tracking_floors([0.1, float("inf")], 2).tolist()          # output 1 not tracked
     [0.1, inf]
     """
-    if np.ndim(tracking_floor) == 0:
+    if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
+        if isinstance(tracking_floor, np.ndarray):
+            tracking_floor = tracking_floor.item()
         _check_nonnegative(tracking_floor, "tracking_floor")
         return np.full(int(channels), float(tracking_floor))
     floors = list(tracking_floor)
+    if not floors:
+        raise DataError("tracking_floor is empty: give one number for all output channels or one per channel")
     if len(floors) != int(channels):
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")

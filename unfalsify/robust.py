@@ -1298,11 +1298,9 @@ class CertificateOptions:
 
     def __post_init__(self):
         _positive_real(self.margin, "margin", allow_equal=True)
-        floors = np.atleast_1d(np.asarray(self.tracking_floor, dtype=object))
-        if floors.size == 0 or any(isinstance(f, bool) or not isinstance(f, numbers.Real) or not f >= 0
-                                   for f in floors.ravel()):
-            raise DataError(f"tracking_floor must be a number ≥ 0 (inf: not tracked) or one per output channel, got "
-                            f"{self.tracking_floor!r}")
+        floor = self.tracking_floor
+        # every check of the floors but their count, which the plant's outputs fix later
+        tracking_floors(floor, len(floor) if isinstance(floor, (list, tuple, np.ndarray)) and np.ndim(floor) else 1)
         _check_step_samples(self.step_samples)
         if self.reference_horizon is not None:
             check_horizon(self.reference_horizon)
