@@ -136,6 +136,7 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
    check_sample_time      -- a sample time checked (positive, finite, or ``True``)
    check_same_dt          -- two systems checked for one sample time
    check_flag             -- a True/False option checked (a string such as "no" is refused, not read as True)
+   check_count            -- a count (an integer ≥ a least value) checked (a float or a bool is refused, not rounded)
 
 Also in ``synthesis.results`` and ``synthesis.validation``.
 
@@ -244,7 +245,8 @@ from importlib.metadata import version as _version
 
 from .exceptions import DataError, InputTypeError
 from .results import result
-from .validation import as_discrete_system, as_signal, check_flag, check_horizon, check_same_dt, check_sample_time
+from .validation import (as_discrete_system, as_signal, check_count, check_flag, check_horizon, check_same_dt,
+                         check_sample_time)
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -367,6 +369,7 @@ __all__ = [
     "check_sample_time",
     "check_same_dt",
     "check_flag",
+    "check_count",
     # identify-then-design baselines and the horizon from data
     "SubspaceModel",
     "subspace_id",
