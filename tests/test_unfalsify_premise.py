@@ -259,7 +259,7 @@ def test_low_band_variance_from_the_svd_is_never_negative():
     """The local polynomial fit's variance is a diagonal entry of (XᴴX)⁻¹: from the SVD of X it equals the inverse
     where X is well conditioned (second route: numpy's inverse) and stays ≥ 0 where it is not (a ramp input, whose
     inverse had rounded to a negative variance and raised in math.sqrt)."""
-    from unfalsify.premise import _inverse_gram
+    from unfalsify.frequency_response import _inverse_gram
 
     X = np.random.default_rng(1).standard_normal((40, 6)) + 1j * np.random.default_rng(2).standard_normal((40, 6))
     np.testing.assert_allclose(_inverse_gram(X, [0, 3]), np.linalg.inv(X.conj().T @ X)[np.ix_([0, 3], [0, 3])],

@@ -9,8 +9,8 @@ import pytest
 
 import unfalsify as uf
 from synthesis._validation import DataError
-from unfalsify.premise import (_frf_inconsistency, _local_fit, _local_fit_mimo, _low_band_inconsistency, _mimo_welch,
-                               _record_pair)
+from unfalsify.frequency_response import _local_fit, _local_fit_mimo, _mimo_welch, _record_pair
+from unfalsify.premise import _frf_inconsistency, _low_band_inconsistency
 
 SHAPES = [(2, 2), (2, 1), (1, 2)]  # (l, m): outputs × inputs
 

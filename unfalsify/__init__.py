@@ -229,18 +229,14 @@ from .solvers.split import split_solve
 from .model import predictor_model
 from .certify import (LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, coprime_channel, loop_parts,
                       step_metrics, tracking_floors)
+from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
+                                 frequency_response_estimate, low_band_estimate)
+from .excitation import ExcitationCheck, check_excitation
 from .premise import (
-    EXCITATION_FLOOR,
-    ExcitationCheck,
-    FrequencyResponseEstimate,
-    LowBandEstimate,
     OutputErrorResult,
     PremiseOptions,
     PremiseTest,
-    check_excitation,
     check_premise,
-    frequency_response_estimate,
-    low_band_estimate,
     output_error_residual,
     output_error_unfalsify,
     untested_premises,

@@ -54,8 +54,9 @@ from synthesis.validation import DataError, as_discrete_system, check_sample_tim
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
-from .premise import (FrequencyResponseEstimate, LowBandEstimate, PremiseOptions, _bands, _fir_sigma,
-                      _low_bins, _unit, frequency_response_estimate, low_band_estimate)
+from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _unit, frequency_response_estimate,
+                                 low_band_estimate)
+from .premise import PremiseOptions, _fir_sigma, _low_bins
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]

@@ -67,8 +67,8 @@ from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, _check_step
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
-from .premise import (ExcitationCheck, PremiseOptions, PremiseTest, check_excitation, check_premise,
-                      untested_premises)
+from .excitation import ExcitationCheck, check_excitation
+from .premise import PremiseOptions, PremiseTest, check_premise, untested_premises
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from synthesis.results import result
 
