@@ -118,3 +118,22 @@ def test_round_trip_in_a_new_process(results, tmp_path):
         assert np.array_equal(got[f"{k}_step"], step)
         assert bool(got[f"{k}_readonly"])
     assert bool(got["problem_is_none"])
+
+
+def test_results_pickled_before_the_premise_split_still_load():
+    """The estimates and the excitation check lived in ``unfalsify.premise`` until it was split by object; a pickle
+    made then names that module (here rewritten into a protocol-0 stream, where module names are plain text)."""
+    import pickle
+
+    import unfalsify as uf
+
+    rng = np.random.default_rng(0)
+    made = [uf.ExcitationCheck(ok=False, worst=1.5, frequency=0.3, reason="why", margin=0.2),
+            uf.frequency_response_estimate(rng.standard_normal(512), rng.standard_normal(512)),
+            uf.low_band_estimate(rng.standard_normal(512), rng.standard_normal(512), bins=4)]
+    for obj in made:
+        stream = pickle.dumps(obj, protocol=0)
+        module = type(obj).__module__.encode()
+        assert module != b"unfalsify.premise" and module in stream
+        old = pickle.loads(stream.replace(module, b"unfalsify.premise"))
+        assert type(old) is type(obj) and old == obj

@@ -63,6 +63,7 @@ from synthesis.validation import DataError, as_signal, check_count
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
+from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _channels, _check_confidence,
                                  _lpm_window, _unit, frequency_response_estimate, low_band_estimate)
 
