@@ -218,7 +218,9 @@ plant; its radius 1/‖K(I+PK)⁻¹‖∞ is far below this δ, which is why the
 >>> rob.stable, round(rob.peak, 1), bool(sub.delta * rob.peak < 1)
 (True, 13.7, False)
 """
-from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError, UnknownSolverError
+from .exceptions import (FewDataWarning, IllConditionedWarning, LongSolveWarning, NotAtRestWarning, NotCertifiedError,
+                         NotCertifiedWarning, SolverWarning, UnfalsificationError, UnknownSolverError,
+                         UntestedPremiseWarning)
 from ._common import BACKENDS, COND_WARN, Certificate
 from .solvers import SOLVERS, SolverOutput, SolverStatus
 from .solvers.toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
@@ -227,8 +229,8 @@ from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .solvers.split import split_solve
 from .model import predictor_model
-from .certify import (LoopCertificate, StepMetrics, certify_loop, closed_loop_ry, coprime_channel, loop_parts,
-                      step_metrics, tracking_floors)
+from .certify import (LoopCertificate, StepMetrics, additive_channel, certify_loop, closed_loop_ry, coprime_channel,
+                      loop_parts, step_metrics, tracking_floors)
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
                                  frequency_response_estimate, low_band_estimate)
 from .excitation import ExcitationCheck, check_excitation
@@ -250,20 +252,14 @@ from .robust import (
     DesignSearch,
     EstimationOptions,
     estimate_delta,
-    FewDataWarning,
-    NotCertifiedError,
-    NotCertifiedWarning,
-    UntestedPremiseWarning,
     RobustDesignResult,
     SearchRecord,
-    additive_channel,
     additive_robustness,
     additive_weight_fixed_point,
     robust_design_from_data,
 )
 from .cost import arx_solve_estimate, solve_estimate
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
-from .exceptions import LongSolveWarning
 
 __all__ = [
     "BACKENDS",

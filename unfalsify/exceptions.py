@@ -1,9 +1,6 @@
 """Exceptions and warnings of :mod:`unfalsify` (as python-control's ``exception.py``).
 
-Every class is also importable from ``unfalsify`` itself, where users find them.  The pipeline's own
-warnings (``NotCertifiedWarning``, ``UntestedPremiseWarning``, ``NotCertifiedError``) still live in
-:mod:`unfalsify.robust` while that module is being reworked; they move here with it (``FewDataWarning`` and
-``LongSolveWarning`` have: the front ends of (7.4) and (7.5) warn with them too).
+Every class is also importable from ``unfalsify`` itself, where users find them.
 """
 from __future__ import annotations
 
@@ -15,6 +12,9 @@ __all__ = [
     "SolverWarning",
     "FewDataWarning",
     "LongSolveWarning",
+    "NotCertifiedWarning",
+    "UntestedPremiseWarning",
+    "NotCertifiedError",
 ]
 
 
@@ -49,3 +49,16 @@ class FewDataWarning(UserWarning):
 
 class LongSolveWarning(UserWarning):
     """A (7.4) or (7.5) solve is estimated to take long (the message gives the estimate and how to shorten it)."""
+
+
+class NotCertifiedWarning(UserWarning):
+    """The §7.4 pipeline could not certify the loop it returns (the reason is in the message)."""
+
+
+class UntestedPremiseWarning(UserWarning):
+    """The loop is certified, but on a premise these data cannot test (``result.assumed``, with the fix: e.g. an input
+    of two levels shows no saturation)."""
+
+
+class NotCertifiedError(UnfalsificationError):
+    """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""

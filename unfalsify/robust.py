@@ -61,7 +61,8 @@ from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
 from synthesis.validation import DataError, as_signal, check_flag, check_horizon
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
-from .exceptions import FewDataWarning, SolverWarning, UnfalsificationError
+from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
+                         UntestedPremiseWarning)
 from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, _check_step_samples, additive_channel,
                       certify_loop, closed_loop_ry, tracking_floors)
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
@@ -78,34 +79,17 @@ __all__ = [
     "EstimationOptions",
     "estimate_delta",
     "DesignSearch",
-    "FewDataWarning",
-    "NotCertifiedError",
-    "NotCertifiedWarning",
     "SearchRecord",
     "RobustDesignResult",
     "robust_design_from_data",
     "additive_weight_fixed_point",
     "AdditiveRobustness",
-    "additive_channel",
     "additive_robustness",
 ]
 
 
 #: Default relative margin of the loop certificate (see :func:`robust_design_from_data`).
 CERTIFICATE_MARGIN = 0.25
-
-
-class NotCertifiedWarning(UserWarning):
-    """The §7.4 pipeline could not certify the loop it returns (the reason is in the message)."""
-
-
-class UntestedPremiseWarning(UserWarning):
-    """The loop is certified, but on a premise these data cannot test (``result.assumed``, with the fix: e.g. an input
-    of two levels shows no saturation)."""
-
-
-class NotCertifiedError(UnfalsificationError):
-    """``require_certified=True`` and no design of the search certifies (the reason is in the message)."""
 
 
 @dataclass(frozen=True)
