@@ -120,20 +120,26 @@ def test_round_trip_in_a_new_process(results, tmp_path):
     assert bool(got["problem_is_none"])
 
 
-def test_results_pickled_before_the_premise_split_still_load():
-    """The estimates and the excitation check lived in ``unfalsify.premise`` until it was split by object; a pickle
-    made then names that module (here rewritten into a protocol-0 stream, where module names are plain text)."""
+def test_results_pickled_before_the_modules_were_split_still_load():
+    """The estimates and the excitation check lived in ``unfalsify.premise``, ``AdditiveRobustness`` in
+    ``unfalsify.robust``, until those modules were split by object; a pickle made then names the old module (here
+    rewritten into a protocol-0 stream, where module names are plain text)."""
     import pickle
+
+    import control
 
     import unfalsify as uf
 
     rng = np.random.default_rng(0)
-    made = [uf.ExcitationCheck(ok=False, worst=1.5, frequency=0.3, reason="why", margin=0.2),
-            uf.frequency_response_estimate(rng.standard_normal(512), rng.standard_normal(512)),
-            uf.low_band_estimate(rng.standard_normal(512), rng.standard_normal(512), bins=4)]
-    for obj in made:
+    P = control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 1.0)
+    K = control.ss([], [], [], [[0.5, -0.5]], 1.0)
+    made = [(uf.ExcitationCheck(ok=False, worst=1.5, frequency=0.3, reason="why", margin=0.2), "premise"),
+            (uf.frequency_response_estimate(rng.standard_normal(512), rng.standard_normal(512)), "premise"),
+            (uf.low_band_estimate(rng.standard_normal(512), rng.standard_normal(512), bins=4), "premise"),
+            (uf.additive_robustness(P, K), "robust")]
+    for obj, former in made:
         stream = pickle.dumps(obj, protocol=0)
-        module = type(obj).__module__.encode()
-        assert module != b"unfalsify.premise" and module in stream
-        old = pickle.loads(stream.replace(module, b"unfalsify.premise"))
+        module, then = type(obj).__module__.encode(), f"unfalsify.{former}".encode()
+        assert module != then and module in stream
+        old = pickle.loads(stream.replace(module, then))
         assert type(old) is type(obj) and old == obj

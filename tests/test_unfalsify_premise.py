@@ -571,7 +571,7 @@ def test_record_mode_auto_window_and_bad_windows(prbs_record):
 
 
 def test_steady_state_tracking_is_checked_across_the_certified_ball():
-    from unfalsify.robust import _steady_state_reason
+    from unfalsify.tracking import _steady_state_reason
 
     P = control.ss(control.tf([0.5], [1, -0.5], 1.0))  # DC gain 1
     K = control.ss([], [], [], [[0.5, -0.5]], 1.0)  # u = 0.5 (r − y): DC error 1/(1 + 0.5 p) at DC gain p

@@ -9,7 +9,7 @@ import pytest
 import synthesis as sy
 import unfalsify as uf
 from synthesis import DataError, WeightError
-from unfalsify import robust
+from unfalsify import robust, tracking
 
 
 def _mixing_plant(G, a=0.7, dt=1.0):
@@ -87,13 +87,13 @@ def test_tracking_floor_per_channel():
 def test_steady_state_across_the_ball_is_judged_per_channel():
     G = np.eye(2)
     P, K = _mixing_plant(G), _static_controller(4.0, 2, 2)
-    assert robust._steady_state_reason(P, K, 0.01, 0.25) == ""
-    why = robust._steady_state_reason(P, K, 0.01, [0.25, 0.1])
+    assert tracking._steady_state_reason(P, K, 0.01, 0.25) == ""
+    why = tracking._steady_state_reason(P, K, 0.01, [0.25, 0.1])
     assert "on output" in why and "steady-state tracking error" in why
     # the data's gain: with G_data = 0.2 I the loop leaves 1 − 0.8/1.8 on each channel
-    why = robust._steady_state_reason(P, K, 0.01, 0.25, data_gain=0.2 * np.eye(2))
+    why = tracking._steady_state_reason(P, K, 0.01, 0.25, data_gain=0.2 * np.eye(2))
     assert "low-frequency gain the data show" in why
-    np.testing.assert_allclose(robust._dc_errors_at_gain(K, 0.2 * np.eye(2), uf.tracking_floors(0.25, 2)),
+    np.testing.assert_allclose(tracking._dc_errors_at_gain(K, 0.2 * np.eye(2), uf.tracking_floors(0.25, 2)),
                                [1 - 0.8 / 1.8] * 2)
 
 
@@ -178,6 +178,6 @@ def test_untracked_outputs_of_a_tall_plant():
     cert = uf.certify_loop(P, K, 0.0, tracking_floor=[0.4, float("inf")])
     assert cert.certified and cert.tracks, cert.reason              # T(1) = 2/3 on output 0: error 1/3
     assert cert.step.output_errors([True, False])[0] == pytest.approx(1 / 3, abs=1e-6)
-    assert robust._steady_state_reason(P, K, 0.01, [0.4, float("inf")]) == ""
+    assert tracking._steady_state_reason(P, K, 0.01, [0.4, float("inf")]) == ""
     with pytest.raises(DataError, match="at least one output"):
         uf.tracking_floors([float("inf")] * 2, 2)

@@ -229,8 +229,8 @@ from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
 from .solvers.split import split_solve
 from .model import predictor_model
-from .certify import (LoopCertificate, StepMetrics, additive_channel, certify_loop, closed_loop_ry, coprime_channel,
-                      loop_parts, step_metrics, tracking_floors)
+from .certify import (AdditiveRobustness, LoopCertificate, StepMetrics, additive_channel, additive_robustness,
+                      certify_loop, closed_loop_ry, coprime_channel, loop_parts, step_metrics, tracking_floors)
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
                                  frequency_response_estimate, low_band_estimate)
 from .excitation import ExcitationCheck, check_excitation
@@ -245,19 +245,8 @@ from .premise import (
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
                       coprime_factors, coprime_gap, coprime_unfalsify, error_gap)
-from .robust import (
-    AdditiveRobustness,
-    CertificateOptions,
-    DesignOptions,
-    DesignSearch,
-    EstimationOptions,
-    estimate_delta,
-    RobustDesignResult,
-    SearchRecord,
-    additive_robustness,
-    additive_weight_fixed_point,
-    robust_design_from_data,
-)
+from .options import CertificateOptions, DesignOptions, DesignSearch, EstimationOptions
+from .robust import RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta, robust_design_from_data
 from .cost import arx_solve_estimate, solve_estimate
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 

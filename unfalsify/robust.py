@@ -48,7 +48,6 @@ import dataclasses
 import functools
 import itertools
 import math
-import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -57,81 +56,27 @@ import numpy as np
 from scipy.optimize import brentq
 
 import synthesis
-from synthesis import Additive, HinfDesign, NormBracket, hinf_norm
-from synthesis.validation import DataError, as_signal, check_flag, check_horizon
+from synthesis import Additive, HinfDesign
+from synthesis.validation import DataError, as_signal, check_horizon
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
-from .certify import (STEP_SAMPLES, TRACKING_FLOOR, LoopCertificate, _check_step_samples, additive_channel,
-                      certify_loop, closed_loop_ry, tracking_floors)
+from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
+from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
 from .excitation import ExcitationCheck, check_excitation
+from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
+                      _positive_real)
 from .premise import PremiseOptions, PremiseTest, check_premise, untested_premises
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
 
-__all__ = [
-    "DesignOptions",
-    "CertificateOptions",
-    "EstimationOptions",
-    "estimate_delta",
-    "DesignSearch",
-    "SearchRecord",
-    "RobustDesignResult",
-    "robust_design_from_data",
-    "additive_weight_fixed_point",
-    "AdditiveRobustness",
-    "additive_robustness",
-]
-
-
-#: Default relative margin of the loop certificate (see :func:`robust_design_from_data`).
-CERTIFICATE_MARGIN = 0.25
-
-
-@dataclass(frozen=True)
-class DesignSearch:
-    """The design family :func:`robust_design_from_data` searches when its first design does not certify.
-
-    Candidates are tried in order of increasing departure from the requested design (the sum
-    of the option indices below, the requested values first), and the first that certifies
-    (:func:`unfalsify.certify_loop`: nominal stability on P̂, proven small gain, performance
-    floor) is returned.
-
-    Attributes
-    ----------
-    gamma_ratios : tuple of float
-        Levels ``γ = ratio · γ_min_a`` (larger: less aggressive, closer to the LQ law).
-    w3_factors : tuple of float
-        Multipliers of the fixed-point W3 gain ``c`` (a larger ``W3 = cI`` penalises ``u`` in the
-        additive channel and widens the finite-horizon coverage ``c/γ``).
-    causal : tuple of bool
-        Strictly causal (Thm 3.1 family) and causal (Thm 3.2 family) laws.
-    horizons : tuple of int
-        Further horizons ``i`` (each needs a predictor: ``predictor_for(i)``, or a least-squares
-        fit on the given data when the pipeline estimates the predictor itself).
-    """
-
-    gamma_ratios: tuple = (1.1, 1.5, 2.0, 4.0, 10.0)
-    w3_factors: tuple = (1.0, 3.0, 10.0, 30.0)
-    causal: tuple = (False, True)
-    horizons: tuple = ()
-
-    def __post_init__(self):
-        for name in ("gamma_ratios", "w3_factors", "causal", "horizons"):
-            if isinstance(getattr(self, name), (str, bytes)) or not np.iterable(getattr(self, name)):
-                raise DataError(f"{name} must be a tuple, got {getattr(self, name)!r}")
-        for r in self.gamma_ratios:
-            _positive_real(r, "each of gamma_ratios", above=1.0)
-        for f in self.w3_factors:
-            _positive_real(f, "each of w3_factors")
-        for c in self.causal:
-            check_flag(c, "each of causal")
-        for h in self.horizons:
-            check_horizon(h)
+__all__ = ["estimate_delta", "SearchRecord", "RobustDesignResult", "robust_design_from_data",
+           "additive_weight_fixed_point"]
 
 
 @result
@@ -352,129 +297,6 @@ def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_
     return "; ".join(reasons)
 
 
-def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
-    """Why the loop's steady-state tracking error exceeds ``floor`` across the certified ball (``''`` if it does not).
-
-    The performance floor of :func:`certify_loop` is a step on P̂ alone; the certificate speaks of every
-    plant within ``radius`` of P̂.  At steady state the worst such plant is a static offset at either end
-    (the error ``|1 − T(1)|`` is a Möbius function of the DC gain, and the loop is stable across the
-    ball, so no pole lies between).  The loop must also track at ``data_gain``, the low-frequency gain the
-    data show (the plant's response at the record's lowest DFT frequency,
-    :attr:`unfalsify.PremiseTest.plant_low_band`): measured, a model with DC gain
-    −1694 where the record shows 1.3–1.7 passed every other test with a controller too weak to track the
-    real plant.
-
-    Several channels: the error of a static loop is ``max |I − T(1)|`` entrywise (each reference channel
-    stepped alone must reach its own output and leave the others), and the ball's static offsets tried are
-    ``±radius`` times the rank-one direction the loop is most sensitive to (the top singular pair of
-    ``M̂(1)``) and times the identity's first ``min(l, m)`` columns -- a test at those offsets, not a proof
-    over the whole matrix ball (for one channel the two ends are the whole ball).
-    """
-    if not radius > 0:
-        return ""
-    l = model.noutputs
-    floors = tracking_floors(floor, l)
-    tried = []
-    for E in _static_offsets(model, controller, radius):
-        try:
-            loop = closed_loop_ry(model + control.ss([], [], [], E, model.dt), controller)
-            A = np.asarray(loop.A, float)
-            if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
-                return (f"the loop is unstable with the static perturbation {_offset_text(E)} of P̂, inside the "
-                        f"certified ball of radius {radius:.4g}")
-            e = _tracked_errors(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), floors)
-        except (np.linalg.LinAlgError, ValueError):
-            e = np.full(l, np.inf)
-        tried.append((E, e))
-    worst, where, errs = _worst_excess(tried, floors)
-    if worst > 0:
-        k = int(np.argmax(errs - floors))
-        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the plant P̂ "
-                f"{_offset_text(where)} (a static offset inside the certified ball of radius {radius:.4g}): the loop "
-                "tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
-                "frequency (integral action) or reduce δ (a longer or richer record)")
-    return _data_gain_reason(model, controller, floors, data_gain)
-
-
-def _data_gain_reason(model, controller, floors: np.ndarray, data_gain) -> str:
-    """Why the loop does not track at ``data_gain``, the low-frequency gain the data show (``''`` when it does)."""
-    l = model.noutputs
-    if data_gain is None or not np.all(np.isfinite(data_gain)):
-        return ""
-    G = np.asarray(data_gain, complex).reshape(l, model.ninputs)
-    e = _dc_errors_at_gain(controller, G, floors)
-    if np.all(e <= floors):
-        return ""
-    k = int(np.argmax(e - floors))
-    dc = np.atleast_2d(control.dcgain(model)).real
-    return (f"steady-state tracking error {e[k]:.3g} > {floors[k]:g}{_output_text(k, l)} at the low-frequency gain the "
-            f"data show ({_gain_text(np.abs(G))}, the plant's response at the record's lowest DFT frequency) while "
-            f"P̂'s DC gain is {_gain_text(dc)}: P̂ is wrong where tracking is decided; "
-            "refit it (a longer horizon, a longer or richer record)")
-
-
-def _worst_excess(tried, floors: np.ndarray):
-    """``(excess, where, errors)`` of the ``(where, errors)`` pair whose errors exceed their floors most."""
-    worst, where, errs = -np.inf, None, None
-    for w, e in tried:
-        excess = np.nan_to_num(e - floors, nan=np.inf)
-        if not np.max(excess) <= worst:
-            worst, where, errs = float(np.max(excess)), w, e
-    return worst, where, errs
-
-
-def _tracked_errors(E: np.ndarray, floors: np.ndarray) -> np.ndarray:
-    """Per output, the largest steady error over the references that are tracked (finite floor)."""
-    return np.max(E[:, np.isfinite(floors)], axis=1)
-
-
-def _output_text(k: int, l: int) -> str:
-    return f" on output {k}" if l > 1 else ""
-
-
-def _static_offsets(model, controller, radius: float) -> list:
-    """The static perturbations of norm ``radius`` the steady-state check tries (see :func:`_steady_state_reason`)."""
-    l, m = model.noutputs, model.ninputs
-    if l == m == 1:
-        return [np.array([[-radius]]), np.array([[radius]])]
-    directions = [np.eye(l, m)]
-    try:
-        Md = np.atleast_2d(control.dcgain(additive_channel(model, controller)))  # m × l
-        if np.all(np.isfinite(Md)):
-            U, _, Vh = np.linalg.svd(Md)
-            directions.append(np.outer(Vh[0].conj(), U[:, 0].conj()).real)  # E = v₁u₁ᵀ: E·M̂(1) has gain σ₁
-    except (np.linalg.LinAlgError, ValueError):
-        pass
-    return [sign * radius * D / max(np.linalg.norm(D, 2), 1e-300) for D in directions for sign in (-1.0, 1.0)]
-
-
-def _offset_text(E) -> str:
-    E = np.atleast_2d(E)
-    return f"{float(E[0, 0]):+.4g}" if E.size == 1 else f"+ {np.array2string(E, precision=3)}"
-
-
-def _gain_text(G) -> str:
-    G = np.atleast_2d(G)
-    return f"{float(G[0, 0]):.4g}" if G.size == 1 else np.array2string(G, precision=3)
-
-
-def _dc_errors_at_gain(controller, p, floors: np.ndarray) -> np.ndarray:
-    """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m),
-    over the tracked references ``c`` (finite ``floors``)."""
-    G = np.atleast_2d(np.asarray(p, complex))
-    l = G.shape[0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        C = np.atleast_2d(np.asarray(control.dcgain(controller), complex))
-        cr, cy = C[:, :l], C[:, l:]
-        if not np.all(np.isfinite(cy)):  # integral action: T(1) = I
-            return np.zeros(l)
-        try:
-            T = np.linalg.solve(np.eye(l) - G @ cy, G @ cr)
-        except np.linalg.LinAlgError:
-            return np.full(l, np.inf)
-        return _tracked_errors(np.abs(np.eye(l) - T), floors)
-
-
 def _persistence_reason(pred, u, i: int, what: str) -> str:
     """Why the predictor's data are not persistently exciting (``''`` when they are).
 
@@ -558,14 +380,6 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
     if f(hi) == 0:
         return float(hi)
     return float(brentq(f, lo, hi, xtol=xtol * max(hi, 1.0), rtol=4 * np.finfo(float).eps))
-
-
-def _positive_real(value, name: str, *, above: float = 0.0, allow_equal: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or (
-            value < above if allow_equal else value <= above):
-        rel = ">=" if allow_equal else ">"
-        raise DataError(f"{name} must be a finite real number {rel} {above:g}, got {value!r}")
-    return float(value)
 
 
 def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, float]:
@@ -1132,54 +946,6 @@ def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u
     return cop, ball, cop.reason
 
 
-def _coprime_data_gain(factors, low_band):
-    """The plant's gain the data show at the lowest low-band frequency, ``M̂⁻¹(N̂ + R̂)`` (None without one)."""
-    if low_band is None or low_band.frequency.size == 0:
-        return None
-    Nw, Mw = factors.response(low_band.frequency[:1])
-    R = np.asarray(low_band.response[:1], complex).reshape(1, factors.outputs, factors.inputs)
-    try:
-        return np.linalg.solve(Mw[0], Nw[0] + R[0])
-    except np.linalg.LinAlgError:
-        return None
-
-
-def _coprime_static_gains(factors, radius: float, angles: int = 64) -> list:
-    """Static plants ``(M̂(1) + E_M)⁻¹(N̂(1) + E_N)`` with ``‖[E_N E_M]‖₂ = radius`` the tracking check tries.
-
-    One channel: the whole circle ``(E_N, E_M) = radius (cos θ, sin θ)`` at ``angles`` points (the DC gain
-    is a Möbius function of each, so the sampled extremes approach the ball's).  Several: the same circle
-    along ``[I_{l×m}  I_l]``, a test at those offsets, not a proof over the matrix ball.
-    """
-    N1, M1 = (X[0].real for X in factors.response(np.zeros(1)))
-    l, m = N1.shape
-    DN = np.eye(l, m) / max(np.linalg.norm(np.eye(l, m), 2), 1e-300)
-    gains = []
-    for t in np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False):
-        Mp = M1 + radius * np.sin(t) * np.eye(l)
-        if np.linalg.cond(Mp) > 1e12:
-            continue  # the family holds a plant with a pole at 1 here: its neighbours on the circle stand for it
-        gains.append(np.linalg.solve(Mp, N1 + radius * np.cos(t) * DN))
-    return gains
-
-
-def _coprime_tracking_reason(ball: _CoprimeBall, controller, radius: float, floor) -> str:
-    """:func:`_steady_state_reason` for the coprime family: the loop must track at every static plant of the ball."""
-    l = ball.factors.outputs
-    floors = tracking_floors(floor, l)
-    worst, where, errs = _worst_excess(((G, _dc_errors_at_gain(controller, G, floors))
-                                        for G in _coprime_static_gains(ball.factors, radius)), floors)
-    if worst > 0:
-        k = int(np.argmax(errs - floors))
-        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the static plant "
-                f"of gain {_gain_text(where)} inside the certified coprime-factor ball of radius {radius:.4g}: the "
-                "loop tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
-                "frequency (integral action) or reduce ε (a longer or richer record)")
-    if ball.data_gain is None:
-        return ""
-    return _data_gain_reason(ball.factors.model(), controller, floors, ball.data_gain)
-
-
 def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch | None, i: int):
     """``(design, c, record, records)``: the requested design, then the search's first certified one."""
     o = space.options
@@ -1199,151 +965,6 @@ def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch
         if rec.certified:
             return d, c, rec, records
     return first, c0, records[0], records
-
-
-@dataclass(frozen=True)
-class DesignOptions:
-    """The first design of :func:`robust_design_from_data` (step 4).
-
-    Attributes
-    ----------
-    gamma_ratio : float
-        ``γ = gamma_ratio · γ_min_a``.
-    margin : float
-        Relative margin of the W3 rule: the finite-horizon design covers ``(1 + margin) δ``.
-    w3_rule : {"small-gain", "thesis"}
-        ``"small-gain"``: ``W3 = c I`` with ``c = (1 + margin) δ γ(c)`` (module docstring).
-        ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only.
-    causal : bool
-        Causal law (Thm 3.2 variant).
-    """
-
-    gamma_ratio: float = 1.1
-    margin: float = 0.1
-    w3_rule: str = "small-gain"
-    causal: bool = False
-
-    def __post_init__(self):
-        check_flag(self.causal, "causal")
-        if self.w3_rule not in ("small-gain", "thesis"):
-            raise DataError(f"unknown w3_rule {self.w3_rule!r}; use 'small-gain' or 'thesis'")
-        _positive_real(self.gamma_ratio, "gamma_ratio", above=1.0)
-        _positive_real(self.margin, "margin", allow_equal=True)
-
-
-#: the uncertainty families a loop can be certified for (``CertificateOptions.uncertainty``)
-UNCERTAINTY_FORMS = ("auto", "additive", "coprime")
-#: what a premise the data cannot test does (``CertificateOptions.untested``)
-UNTESTED_RULES = ("warn", "refuse")
-
-
-@dataclass(frozen=True)
-class CertificateOptions:
-    """The loop certificate of :func:`robust_design_from_data` (step 5).
-
-    Attributes
-    ----------
-    margin : float
-        The certificate needs ``δ·‖K(I+P̂K)⁻¹‖∞ ≤ 1/(1 + margin)`` on P̂ and P̂_ref (default 0.25:
-        measured on four plants, the true loop's ``‖K(I+PK)⁻¹‖∞`` was within 10 % of the models').
-    tracking_floor, step_samples
-        Performance floor of :func:`unfalsify.certify_loop` (one number, or one per output channel).
-    reference_horizon : int or None
-        Horizon of the reference model ``P̂_ref`` on which every design must certify too (default
-        ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on the window when
-        no predictor is given and the window is long enough).
-    require_reference : bool
-        Without a reference model the loop is not certified (default): measured on an integrating
-        plant with a resonance (i = 10), certificates on P̂ alone failed on the true plant, while P̂ and
-        P̂_ref together never did on the plants tried.  ``False`` certifies on P̂ alone (weaker).
-    uncertainty : {"auto", "additive", "coprime"}
-        The family the loop is certified for.  ``"additive"``: ``P̂ + Δ``, ``‖Δ‖∞ ≤ (1 + margin)δ``.
-        ``"coprime"``: ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)``, ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)ε`` around P̂'s FIR factors
-        (:mod:`unfalsify.coprime`), finite for an integrating plant, whose ``‖P − P̂‖∞`` is infinite.
-        ``"auto"`` (default): additive, and the coprime form when the data refute the additive premise
-        (each form's premise is tested in its own terms; the result says which one certified).
-    untested : {"warn", "refuse"}
-        What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values,
-        or 0 and ±a, shows no saturation or dead zone; records too short for :func:`unfalsify.check_time_invariance`
-        show no change of the plant).  ``"warn"`` (default): the loop is certified on that assumption, which
-        ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not certified, the
-        reason names the fix (several input amplitudes; a longer validation record).  Measured on the adversarial catalogue's
-        saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"`` certifies fail the true-plant
-        judge.
-    """
-
-    margin: float = CERTIFICATE_MARGIN
-    tracking_floor: float | tuple = TRACKING_FLOOR
-    step_samples: int = STEP_SAMPLES
-    reference_horizon: int | None = None
-    require_reference: bool = True
-    uncertainty: str = "auto"
-    untested: str = "warn"
-
-    def __post_init__(self):
-        _positive_real(self.margin, "margin", allow_equal=True)
-        floor = self.tracking_floor
-        # every check of the floors but their count, which the plant's outputs fix later
-        tracking_floors(floor, len(floor) if isinstance(floor, (list, tuple, np.ndarray)) and np.ndim(floor) else 1)
-        _check_step_samples(self.step_samples)
-        if self.reference_horizon is not None:
-            check_horizon(self.reference_horizon)
-        check_flag(self.require_reference, "require_reference")
-        if self.uncertainty not in UNCERTAINTY_FORMS:
-            raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
-                            f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")
-        if self.untested not in UNTESTED_RULES:
-            raise DataError(f"unknown untested {self.untested!r}; use one of "
-                            f"{', '.join(repr(u) for u in UNTESTED_RULES)}")
-
-
-@dataclass(frozen=True)
-class EstimationOptions:
-    """How :func:`estimate_delta` solves (7.5), passed to :func:`unfalsify.subspace_unfalsify`.
-
-    Attributes
-    ----------
-    form : {"conditioned", "thesis"}
-    solver : str
-        cvxpy solver of the cvxpy backend.
-    solver_options : dict or None
-    backend : {"structured", "cvxpy"} or None
-        None: ``"structured"`` for the conditioned form (faster, O(i²j) memory), the cvxpy models otherwise.
-    """
-
-    form: str = "conditioned"
-    solver: str = "CLARABEL"
-    solver_options: dict | None = None
-    backend: str | None = None
-
-
-#: the keywords of earlier releases and the option field each sets
-_LEGACY = {
-    "gamma_ratio": ("design", "gamma_ratio"), "margin": ("design", "margin"), "w3_rule": ("design", "w3_rule"),
-    "causal": ("design", "causal"), "certificate_margin": ("certificate", "margin"),
-    "tracking_floor": ("certificate", "tracking_floor"), "step_samples": ("certificate", "step_samples"),
-    "reference_horizon": ("certificate", "reference_horizon"),
-    "require_reference": ("certificate", "require_reference"), "form": ("estimation", "form"),
-    "solver": ("estimation", "solver"), "solver_options": ("estimation", "solver_options"),
-    "backend": ("estimation", "backend"),
-}
-
-
-def _gather_options(design, certificate, estimation, legacy: dict):
-    """The three option objects, with the earlier releases' keywords applied to their fields."""
-    unknown = sorted(set(legacy) - set(_LEGACY))
-    if unknown:
-        raise TypeError(f"robust_design_from_data() got unexpected keyword argument(s) {', '.join(unknown)}")
-    groups = {"design": design or DesignOptions(), "certificate": certificate or CertificateOptions(),
-              "estimation": estimation or EstimationOptions()}
-    for name, kind in (("design", DesignOptions), ("certificate", CertificateOptions),
-                       ("estimation", EstimationOptions)):
-        if not isinstance(groups[name], kind):
-            raise DataError(f"{name} must be a {kind.__name__}, got {groups[name]!r}")
-    for key, value in legacy.items():
-        group, field = _LEGACY[key]
-        groups[group] = dataclasses.replace(groups[group], **{field: value})
-    return groups["design"], groups["certificate"], groups["estimation"]
 
 
 #: fraction of a record held out for the premise test in record mode (``window=``)
@@ -1454,75 +1075,3 @@ def _delta_of(unf: SubspaceResult) -> float:
             raise UnfalsificationError("(7.5) returned impulses that certify no finite δ; cannot size the uncertainty")
         delta = max(delta, float(cert.delta_certified))
     return delta
-
-
-@result
-@dataclass(frozen=True)
-class AdditiveRobustness:
-    """Additive-uncertainty robustness of a loop ``u = C_r r + C_y y``, ``y = P u``.
-
-    Attributes
-    ----------
-    spectral_radius : float
-        Of the nominal closed loop (stable when < 1).
-    peak : float
-        *Proven upper bound* of ``‖M‖∞``, ``M = (I − C_y P)⁻¹ C_y`` (= ``−K(I + PK)⁻¹`` with
-        ``K = −C_y``): the transfer an additive output perturbation sees (``bracket.upper``;
-        ∞ when the nominal loop is not stable).
-    bracket : NormBracket
-        ``lower ≤ ‖M‖∞ ≤ upper`` from :func:`synthesis.hinf_norm` (``lower`` attained at
-        ``bracket.frequency``).
-    """
-
-    spectral_radius: float
-    peak: float
-    bracket: NormBracket | None = None
-
-    @property
-    def stable(self) -> bool:
-        """Nominal closed loop stable (``spectral_radius < 1``)."""
-        return bool(self.spectral_radius < 1.0)
-
-    @property
-    def max_additive(self) -> float:
-        """Small-gain radius ``1/peak`` (proven side): every stable ``P_Δ`` with ``‖P_Δ‖∞ < 1/peak`` keeps the loop stable."""
-        return float(1.0 / self.peak) if self.peak > 0 else float("inf")
-
-    def certifies(self, delta: float) -> bool:
-        """``stable and δ·peak < 1`` with the proven upper bound (small-gain certificate for ``‖P_Δ‖∞ ≤ δ``)."""
-        return bool(self.stable and delta * self.peak < 1.0)
-
-
-def additive_robustness(plant, controller, *, tol: float = 1e-8, n_grid: int = 64) -> AdditiveRobustness:
-    """Nominal stability and a certified ``‖M‖∞``, ``M = (I − C_y P)⁻¹ C_y``, for a controller with inputs ``[r; y]``.
-
-    Parameters
-    ----------
-    plant, controller
-        As for :func:`additive_channel`.
-    tol : float
-        Relative gap of the norm bracket (:func:`synthesis.hinf_norm`).
-    n_grid : int
-        Starting grid of :func:`synthesis.hinf_norm` (pole angles added); the proof does not
-        depend on it.
-
-    Returns
-    -------
-    AdditiveRobustness
-        ``peak`` is the proven upper bound of ``‖M‖∞`` (∞ when the nominal loop is not stable),
-        ``bracket`` both sides.
-
-    Examples
-    --------
-    >>> import control
-    >>> P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)      # 0.1/(z − 1), an integrator
-    >>> K = control.ss([], [], [], [[2.0, -2.0]], 1.0)              # u = 2(r − y), inputs [r; y]
-    >>> rob = additive_robustness(P, K)                            # M = −2(z − 1)/(z − 0.8), peak 20/9 at z = −1
-    >>> rob.stable, round(rob.peak, 4), round(rob.spectral_radius, 6)
-    (True, 2.2222, 0.8)
-    >>> bool(rob.bracket.lower <= 20 / 9 <= rob.peak)
-    True
-    """
-    M = additive_channel(plant, controller)
-    br = hinf_norm(M, tol=tol, n_grid=n_grid)
-    return AdditiveRobustness(spectral_radius=float(br.spectral_radius), peak=float(br.upper), bracket=br)
