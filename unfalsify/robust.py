@@ -885,8 +885,8 @@ class _LoopJudge:
         cert = certify_loop(self.model, d.controller, b.eps, factors=b.factors, **self.cert_opts)
         exc = (check_excitation(self.model, d.controller, b.frf, b.low_band, factors=b.factors, delta=b.eps)
                if b.frf is not None and cert.stable else None)
-        track = (_coprime_tracking_reason(b, d.controller, (1.0 + self.margin) * b.eps, self.floor)
-                 if cert.stable else "")
+        track = (_coprime_tracking_reason(b.factors, b.data_gain, d.controller, (1.0 + self.margin) * b.eps,
+                                          self.floor) if cert.stable else "")
         ref = self.missing
         if self.ref_model is not None and b.ref_factors is not None:
             ref = certify_loop(self.ref_model, d.controller, b.eps, factors=b.ref_factors, **self.cert_opts)

@@ -11,15 +11,10 @@ last quarter of the step), which the step on P̂ and on the reference model deci
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import control
 import numpy as np
 
 from .certify import additive_channel, closed_loop_ry, tracking_floors
-
-if TYPE_CHECKING:
-    from .robust import _CoprimeBall
 
 
 def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
@@ -176,18 +171,19 @@ def _coprime_static_gains(factors, radius: float, angles: int = 64) -> list:
     return gains
 
 
-def _coprime_tracking_reason(ball: _CoprimeBall, controller, radius: float, floor) -> str:
-    """:func:`_steady_state_reason` for the coprime family: the loop must track at every static plant of the ball."""
-    l = ball.factors.outputs
+def _coprime_tracking_reason(factors, data_gain, controller, radius: float, floor) -> str:
+    """:func:`_steady_state_reason` for the coprime family around ``factors``: the loop must track at every static
+    plant of the ball and at the data's gain ``data_gain`` (None: not known)."""
+    l = factors.outputs
     floors = tracking_floors(floor, l)
     worst, where, errs = _worst_excess(((G, _dc_errors_at_gain(controller, G, floors))
-                                        for G in _coprime_static_gains(ball.factors, radius)), floors)
+                                        for G in _coprime_static_gains(factors, radius)), floors)
     if worst > 0:
         k = int(np.argmax(errs - floors))
         return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the static plant "
                 f"of gain {_gain_text(where)} inside the certified coprime-factor ball of radius {radius:.4g}: the "
                 "loop tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
                 "frequency (integral action) or reduce ε (a longer or richer record)")
-    if ball.data_gain is None:
+    if data_gain is None:
         return ""
-    return _data_gain_reason(ball.factors.model(), controller, floors, ball.data_gain)
+    return _data_gain_reason(factors.model(), controller, floors, data_gain)
