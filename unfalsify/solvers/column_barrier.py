@@ -162,11 +162,13 @@ class _StackPool:
     system time in a 55 s solve, and 43 s when the process allocator kept freed memory instead
     (``MALLOC_MMAP_MAX_=0``).  The pool keeps the stacks it made and gives one out again when its reference count
     shows that no point, view or temporary still uses it (a numpy view refers to its base), so a buffer is never
-    shared between two live arrays.  The pool lives as long as the solver; it is bypassed on the former route
-    (:func:`unfalsify.solvers.baselines.former_routes`) and for stacks below :data:`_POOL_FROM` bytes.
+    shared between two live arrays.  The pool lives as long as the solver; it is bypassed (``bypass=True``: the
+    solver's former route, :func:`unfalsify.solvers.baselines.former_routes`) and for stacks below
+    :data:`_POOL_FROM` bytes.
     """
 
-    def __init__(self):
+    def __init__(self, bypass: bool = False):
+        self.bypass = bool(bypass)
         self._stacks: dict[tuple, list[np.ndarray]] = {}
         self.made = 0  # stacks allocated (for tests and measurements)
         # the count of a stack nothing else holds, read the way take() reads it: interpreters differ in the
@@ -177,7 +179,7 @@ class _StackPool:
     def take(self, shape) -> np.ndarray:
         """An uninitialised C-ordered float stack of ``shape``: a free one of the pool, or a new one."""
         shape = tuple(int(n) for n in shape)
-        if 8 * int(np.prod(shape)) < _POOL_FROM or _STEP_ROUTE["route"] == "former":
+        if self.bypass or 8 * int(np.prod(shape)) < _POOL_FROM:
             return np.empty(shape)
         stacks = self._stacks.setdefault(shape, [])
         for k in range(len(stacks)):
@@ -187,6 +189,11 @@ class _StackPool:
         stacks.append(stack)
         self.made += 1
         return stack
+
+
+def _new_pool() -> _StackPool:
+    """A stack pool for one solve (bypassed on the former route)."""
+    return _StackPool(bypass=_STEP_ROUTE["route"] == "former")
 
 
 def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = False, out: np.ndarray | None = None):
@@ -317,7 +324,7 @@ class _Point:
         self.H, self.d, self.T, self.TtT = H, d, T, TtT
         self.logdet, self.r, self.psi = logdet, r, psi
         self.chunks = chunks
-        self.pool = pool if pool is not None else _StackPool()
+        self.pool = pool if pool is not None else _new_pool()
         self._blocks = None
         self._first = None  # (K⁻¹, S21, Σ tr K⁻¹, ⟨K⁻¹, TᵀT⟩, T*(S21))
         self._upper = None
@@ -653,7 +660,7 @@ class _ColumnSystem:
     def __init__(self, form: ColumnForm, *, cg_tol=1e-8, cg_maxiter=2000, chunks: _Chunks = _SERIAL):
         self.f = form
         self.chunks = chunks
-        self.pool = _StackPool()  # the stacks of the points and Newton steps, reused (page faults at (100, 1000))
+        self.pool = _new_pool()  # the stacks of the points and Newton steps, reused (page faults at (100, 1000))
         self.m, self.j = form.m, form.j
         self.cg_tol, self.cg_maxiter = cg_tol, cg_maxiter
         self.far = False  # the next Newton solve is far from the centre (inexact CG, see pcg_tol)
