@@ -6,6 +6,7 @@ import scipy.signal
 
 import unfalsify as uf
 from synthesis import fit_predictor
+from unfalsify.solvers import capacitance, stacks
 from unfalsify.solvers import column_barrier as sc
 from unfalsify.solvers.toeplitz import adjoint, corr_hessian, toeplitz_matrix
 from unfalsify.subspace import SubspaceProblem
@@ -378,7 +379,7 @@ def test_deflated_cg_solves_the_same_system_in_fewer_iterations():
     w, V = np.linalg.eigh(dense)
     W = V[:, :5].T.reshape(5, r, m).transpose(0, 2, 1)  # the five smallest eigenvectors, as (k, m, r)
     counts = {}
-    for name, defl in [("plain", None), ("deflated", sc._deflation(Cmul, W))]:
+    for name, defl in [("plain", None), ("deflated", capacitance._deflation(Cmul, W))]:
         s = sc._ColumnBarrier.__new__(sc._ColumnBarrier)
         s.cg_tol, s.cg_maxiter, s.far, s.cg_iters = 1e-12, 500, False, 0
         X, iterations = s._pcg(Cmul, lambda Y: Y, B, defl)
@@ -398,7 +399,7 @@ def test_dense_capacitance_solve_equals_the_assembled_system():
     Q, E, dense, _ = _spd_capacitance(rng)
     m, r = E.shape[1], Q.shape[1]
     B = rng.standard_normal((2, m, r))
-    X = sc._dense_capacitance_apply(sc._dense_capacitance_factor(E, Q), B)
+    X = capacitance._dense_capacitance_apply(capacitance._dense_capacitance_factor(E, Q), B)
     np.testing.assert_allclose(dense @ _capacitance_rhs(X), _capacitance_rhs(B), rtol=0,
                                atol=1e-9 * np.abs(B).max())
     # a capacitance with a null direction (Q of rank r − 1): the solution of the consistent part, finite
@@ -406,7 +407,7 @@ def test_dense_capacitance_solve_equals_the_assembled_system():
     Qs[:, -1] = Qs[:, 0]
     dense_s = sum(np.kron(np.outer(Qs[k], Qs[k]), E[k]) for k in range(Qs.shape[0]))
     Bs = (dense_s @ _capacitance_rhs(B)).T.reshape(2, r, m).transpose(0, 2, 1)
-    Xs = sc._dense_capacitance_apply(sc._dense_capacitance_factor(E, Qs), Bs)
+    Xs = capacitance._dense_capacitance_apply(capacitance._dense_capacitance_factor(E, Qs), Bs)
     assert np.all(np.isfinite(Xs))
     np.testing.assert_allclose(dense_s @ _capacitance_rhs(Xs), _capacitance_rhs(Bs), rtol=0,
                                atol=1e-8 * np.abs(Bs).max())
@@ -446,7 +447,7 @@ def test_deflation_declines_a_singular_coarse_matrix():
     rng = np.random.default_rng(1)
     _, E, _, Cmul = _spd_capacitance(rng)
     W = np.zeros((2, E.shape[1], 6))
-    assert sc._deflation(Cmul, W) is None
+    assert capacitance._deflation(Cmul, W) is None
 
 
 def test_chol_logdet_and_spd_inverse_match_numpy_and_reject_indefinite_or_nan():
@@ -474,7 +475,7 @@ def test_shifted_stacks_block_by_block_equal_the_whole_stack(monkeypatch):
     G = X @ np.swapaxes(X, 1, 2)
     shift = 1.1 * float(np.linalg.eigvalsh(G).max())
     K = shift * np.eye(6) - G
-    monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * 6 * 6 * 8)  # two columns a block
+    monkeypatch.setattr(stacks, "_BLOCK_BYTES", 2 * 6 * 6 * 8)  # two columns a block
     assert sc._chol_logdet(G, shift=shift) == pytest.approx(float(np.linalg.slogdet(K)[1].sum()), rel=1e-12)
     np.testing.assert_allclose(sc._spd_inverse(G, shift=shift), np.linalg.inv(K), rtol=1e-10, atol=1e-12)
     assert sc._chol_logdet(G, shift=0.5 * shift) is None
@@ -643,7 +644,7 @@ def test_toeplitz_stack_is_c_ordered_and_equals_each_matrix(m, j):
 def test_stack_pool_gives_a_stack_again_only_when_nothing_else_refers_to_it(monkeypatch):
     from unfalsify.solvers import baselines
 
-    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    monkeypatch.setattr(stacks, "_POOL_FROM", 0)
     pool = sc._StackPool()
     a = pool.take((3, 4, 4))
     b = pool.take((3, 4, 4))
@@ -662,7 +663,7 @@ def test_stack_pool_gives_a_stack_again_only_when_nothing_else_refers_to_it(monk
         former = sc._new_pool()
         assert former.bypass and former.take((3, 4, 4)) is not None and former.made == 0
     assert not sc._new_pool().bypass
-    monkeypatch.setattr(sc, "_POOL_FROM", 10**9)  # small stacks too
+    monkeypatch.setattr(stacks, "_POOL_FROM", 10**9)  # small stacks too
     assert pool.take((3, 4, 4)) is not None and pool.made == 4
 
 
@@ -679,8 +680,8 @@ def test_point_passes_in_blocks_on_threads_equal_the_dense_inverse_of_F(monkeypa
     T = toeplitz_stack(H)
     TtT = np.swapaxes(T, 1, 2) @ T
     d = 1.2 * float(np.sqrt(np.linalg.eigvalsh(TtT).max()))
-    monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * m * m * 8)
-    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    monkeypatch.setattr(stacks, "_BLOCK_BYTES", 2 * m * m * 8)
+    monkeypatch.setattr(stacks, "_POOL_FROM", 0)
     F = np.block([[d * np.broadcast_to(np.eye(m), T.shape), np.swapaxes(T, 1, 2)],
                   [T, d * np.broadcast_to(np.eye(m), T.shape)]])
     S = np.linalg.inv(F)
@@ -711,7 +712,7 @@ def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, thread
     executor = ThreadPoolExecutor(threads) if threads else None
     chunks = sc._Chunks(executor, threads, min_size=0) if threads else sc._SERIAL
     if threads:
-        monkeypatch.setattr(sc, "_BLOCK_BYTES", 2 * 4 * 4 * 8)
+        monkeypatch.setattr(stacks, "_BLOCK_BYTES", 2 * 4 * 4 * 8)
     fresh = sc._solve(f, B0, 1e-7, None, False, 5.0, None, chunks)
     taken, made = [], []
     take, init = sc._StackPool.take, sc._StackPool.__init__
@@ -724,7 +725,7 @@ def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, thread
         init(self, bypass)
         made.append(self)
 
-    monkeypatch.setattr(sc, "_POOL_FROM", 0)
+    monkeypatch.setattr(stacks, "_POOL_FROM", 0)
     monkeypatch.setattr(sc._StackPool, "take", counted)
     monkeypatch.setattr(sc._StackPool, "__init__", remembered)
     pooled = sc._solve(f, B0, 1e-7, None, False, 5.0, None, chunks)
@@ -734,8 +735,8 @@ def test_solve_from_pooled_stacks_equals_the_solve_from_fresh_ones(fixed, thread
     assert pooled["newton"] == fresh["newton"]
     assert pooled["upper"] == fresh["upper"] and pooled["lower"] == fresh["lower"]
     assert np.array_equal(pooled["H"], fresh["H"])
-    stacks = sum(pool.made for pool in made)
-    assert 0 < stacks < len(taken) / 5
+    n_made = sum(pool.made for pool in made)
+    assert 0 < n_made < len(taken) / 5
 
 
 @pytest.mark.parametrize("frac", [0.01, 0.001])

@@ -32,7 +32,7 @@ w = 60).  Structure used:
   Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (``q_k`` row k of Q,
   ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
   conjugate gradients; C is never formed (products cost O(i r j)), memory O(j i²).  Up to an order i·r of
-  :data:`_DENSE_CAPACITANCE`, C is formed and factored densely (:func:`_dense_capacitance_factor`) once a CG solve
+  :data:`_DENSE_CAPACITANCE`, C is formed and factored densely (:func:`~unfalsify.solvers.capacitance._dense_capacitance_factor`) once a CG solve
   has cost more than that (:meth:`_ColumnSystem._dense_cheaper`) or stopped short of its tolerance after i·r
   iterations (the bound of exact arithmetic), and for the rest of the solve: a noise ball far inside the residual
   makes C ill-conditioned and CG long (measured at (20, 400), σ = 0.01 × the least-squares rms: 88 000 CG
@@ -63,7 +63,7 @@ w = 60).  Structure used:
   ends the solve.
 
 * **Threads over columns.**  The stacks (products, Cholesky factors, FFT Hessians) are split into
-  contiguous column chunks run on a thread pool (:class:`_Chunks`, ``workers=``), BLAS held to one
+  contiguous column chunks run on a thread pool (:mod:`unfalsify.solvers.stacks`, ``workers=``), BLAS held to one
   thread per worker.
 
 Every centred iterate gives a dual point (``W_k = −2 (F_k⁻¹ − F_k⁻¹ΔF_kF_k⁻¹)_{21}/t`` and the noise
@@ -77,7 +77,7 @@ cond T(u_k) (up to 1e30 for ±1 input windows) and varies from column to column;
 preconditioner alone then needed 1000+ CG iterations per solve (Ritz values of the preconditioned
 capacitance from 7.5e-4 to 22).  The smallest eigenvalues belong to the m common-impulse directions
 (``dh_k = l`` for every k: ``T(u_k) l = T(l) u_k`` lies in 𝓛, so the noise term does not see them),
-which the CG deflates exactly (:func:`_common_impulse_basis`, :class:`_Deflation`): 308 iterations
+which the CG deflates exactly (:mod:`unfalsify.solvers.capacitance`): 308 iterations
 for the same solve.  The line search keeps at least half of ψ per step (:meth:`_ColumnBarrier._noise_step`):
 letting ψ fall 99 % of the way to the boundary had sent it from 106 to 0.026 in six steps after t grew,
 far below its value at the next centre (8.6), and 40+ Newton steps crawled back.
@@ -85,110 +85,24 @@ far below its value at the next centre (8.6), and 40+ Newton steps crawled back.
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
-import scipy.linalg
 
 from synthesis.validation import DataError
 
 from .barrier import (Deadline, PathAdvance, Stop, best_along, delta_step, linearised_dual, path_steps, pcg,
                       run_barrier)
 from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
+from .capacitance import _Capacitance, _common_impulse_basis, _Deflation
 from .columns import ColumnForm
 from .displacement import displacement_hessian
+from .stacks import (_SERIAL, _block_solve, _blocks_of, _BlockSum, _bmv, _chol_logdet, _Chunks, _inner, _max_norm,
+                     _shifted, _spd_inverse, _stack_of, _StackPool, _sym_inverse_into)
 from .start import cold_impulses, coordinates, impulses, operator_svd, ridge_fit
 from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_gram_stack, toeplitz_stack
 from .wider_ball import tighten_lower
 
 __all__ = ["solve", "solve_columns_barrier", "check_workers"]
-
-
-class _Chunks:
-    """Work on the column stack split into contiguous chunks, run on a thread pool.
-
-    numpy's batched matrix products, LAPACK and the FFTs release the GIL, so with ``workers``
-    threads (and a single-threaded BLAS, set by :func:`solve_columns_barrier`) the stacks of the
-    barrier are processed ``workers`` chunks at a time.  Every chunk runs the same deterministic
-    code as the whole stack would, so the result does not depend on ``workers`` beyond the order of
-    a few floating-point sums.  Stacks below ``min_size`` elements are processed serially.
-    """
-
-    def __init__(self, pool=None, workers: int = 1, min_size: int = 400_000):
-        self.pool, self.workers, self.min_size = pool, max(1, int(workers)), min_size
-
-    def slices(self, j: int, size: int) -> list[slice]:
-        parts = self.workers if (self.pool is not None and size >= self.min_size and j >= 2 * self.workers) else 1
-        b = np.linspace(0, j, parts + 1).astype(int)
-        return [slice(int(b[k]), int(b[k + 1])) for k in range(parts)]
-
-    def map(self, fn, j: int, size: int) -> list:
-        """``[fn(s) for s in slices]`` (on the pool when there is more than one slice)."""
-        sl = self.slices(j, size)
-        if len(sl) == 1:
-            return [fn(sl[0])]
-        return list(self.pool.map(fn, sl))
-
-    def matmul(self, A: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """``A @ B`` for stacks ``(j, p, q) @ (j, q, r)`` (into ``out`` if given)."""
-        if out is None:
-            out = np.empty(A.shape[:-1] + B.shape[-1:], np.result_type(A, B))
-        self.map(lambda s: np.matmul(A[s], B[s], out=out[s]), A.shape[0], out.size + A.size)
-        return out
-
-    def dot(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """``A @ B`` for matrices, the rows of A in chunks (BLAS is single-threaded inside the solve); threaded by
-        the count of multiply-adds, not of elements (the CG's (3i, 3i) × (3i, j) products at (100, 1000) had run on
-        the main thread alone: 8 of its 50 serial seconds with L optimised)."""
-        out = np.empty((A.shape[0], B.shape[1]), np.result_type(A, B))
-        self.map(lambda s: np.matmul(A[s], B, out=out[s]), A.shape[0], A.shape[0] * A.shape[1] * B.shape[1])
-        return out
-
-
-#: the serial default (tests and small problems)
-_SERIAL = _Chunks()
-
-
-#: Bytes from which a stack comes from a :class:`_StackPool` (below, numpy's allocations come from the heap and are
-#: reused anyway).
-_POOL_FROM = 4 << 20
-
-
-class _StackPool:
-    """Float stacks reused within one solve, handed out again once nothing but the pool refers to them.
-
-    A stack of 80 MB (a (1000, 100, 100) stack at (i, j) = (100, 1000)) is above glibc's largest mmap threshold, so
-    every fresh one is a new mapping whose pages fault on first touch: measured at (100, 1000) with L fixed, 26 s of
-    system time in a 55 s solve, and 43 s when the process allocator kept freed memory instead
-    (``MALLOC_MMAP_MAX_=0``).  The pool keeps the stacks it made and gives one out again when its reference count
-    shows that no point, view or temporary still uses it (a numpy view refers to its base), so a buffer is never
-    shared between two live arrays.  The pool lives as long as the solver; it is bypassed (``bypass=True``: the
-    solver's former route, :func:`unfalsify.solvers.baselines.former_routes`) and for stacks below
-    :data:`_POOL_FROM` bytes.
-    """
-
-    def __init__(self, bypass: bool = False):
-        self.bypass = bool(bypass)
-        self._stacks: dict[tuple, list[np.ndarray]] = {}
-        self.made = 0  # stacks allocated (for tests and measurements)
-        # the count of a stack nothing else holds, read the way take() reads it: interpreters differ in the
-        # references a call adds (Python 3.14 skips some), so it is measured, not assumed
-        probe = [np.empty(0)]
-        self._free_refs = sys.getrefcount(probe[0])
-
-    def take(self, shape) -> np.ndarray:
-        """An uninitialised C-ordered float stack of ``shape``: a free one of the pool, or a new one."""
-        shape = tuple(int(n) for n in shape)
-        if self.bypass or 8 * int(np.prod(shape)) < _POOL_FROM:
-            return np.empty(shape)
-        stacks = self._stacks.setdefault(shape, [])
-        for k in range(len(stacks)):
-            if sys.getrefcount(stacks[k]) <= self._free_refs:  # any other holder (a point, a view) makes it busy
-                return stacks[k]
-        stack = np.empty(shape)
-        stacks.append(stack)
-        self.made += 1
-        return stack
 
 
 def _new_pool() -> _StackPool:
@@ -208,12 +122,10 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = F
     if out is None:
         out = np.empty((j, m, m))
     cross = np.empty((j, m))
-    step = max(1, _BLOCK_BYTES // (8 * m * m))
     fft = precise or _STEP_ROUTE["route"] == "former" or m < _DISPLACEMENT_FROM
 
     def work(s):
-        for k0 in range(s.start, s.stop, step):
-            sl = slice(k0, min(k0 + step, s.stop))
+        for sl in _blocks_of(s, m * m):
             if fft:
                 out[sl], cross[sl] = corr_hessian(S11[sl], S21[sl], S22[sl], m, cross=True)
             else:
@@ -221,93 +133,6 @@ def _chunked_hessian(S11, S21, S22, chunks: _Chunks = _SERIAL, precise: bool = F
 
     chunks.map(work, j, S11.size)
     return out, cross.T
-
-
-def _spd_inverse(X: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None,
-                 out: np.ndarray | None = None) -> np.ndarray:
-    """Inverse of a stack of symmetric (positive definite) matrices, symmetrised, on ``chunks``' threads;
-    with ``shift`` the inverse of ``shift·I − X`` (formed block by block, never as a whole stack).  X may be a
-    :class:`_BlockSum`.  The result is C-ordered whatever X's layout (a strided stack makes every later batched
-    product strided), into ``out`` if given."""
-    if out is None:
-        out = np.empty(X.shape)
-
-    def work(s):
-        for b in _blocks_of(s, X.shape[1] * X.shape[2]):
-            _sym_inverse_into(X[b] if shift is None else _shifted(X[b], shift), out[b])
-
-    chunks.map(work, X.shape[0], X.size)
-    return out
-
-
-class _BlockSum:
-    """The stack ``A + c B`` read block by block (``X[b]``), never formed whole."""
-
-    def __init__(self, A: np.ndarray, B: np.ndarray, c: float):
-        self.A, self.B, self.c = A, B, c
-        self.shape, self.size = A.shape, A.size
-
-    def __getitem__(self, b):
-        out = np.multiply(self.B[b], self.c)
-        out += self.A[b]
-        return out
-
-
-#: Bytes of one block of a stack's temporaries (:func:`_blocks_of`, the Hessian's pieces, the two passes of
-#: :class:`_Point`): small enough to come from the heap and be reused while in cache.  A fresh mapping costs its page
-#: faults on first touch: at (100, 1000) the stacks are 80 MB, and whole-stack temporaries were a quarter of the CPU
-#: time in system calls.  Measured there with L fixed (whole solve, separate processes): 8 MB blocks 46 s and 16 s of
-#: system time, 2 MB 42 s / 13 s, 1 MB 41 s / 7 s, 256 KB 63 s (the per-call overhead of small batches).
-_BLOCK_BYTES = 1 << 20
-
-
-def _blocks_of(s: slice, item: int):
-    """Consecutive sub-slices of the column slice ``s`` whose stacks of ``item`` floats each fit in
-    :data:`_BLOCK_BYTES`."""
-    step = max(1, _BLOCK_BYTES // (8 * max(1, item)))
-    for k in range(s.start, s.stop, step):
-        yield slice(k, min(k + step, s.stop))
-
-
-def _shifted(X: np.ndarray, shift: float) -> np.ndarray:
-    """``shift·I − X`` for a stack (a new array)."""
-    K = np.negative(X)
-    K[..., np.arange(X.shape[-1]), np.arange(X.shape[-1])] += shift
-    return K
-
-
-def _sym_inverse_into(X: np.ndarray, out: np.ndarray) -> None:
-    """``out = (X⁻¹ + X⁻ᵀ)/2`` for a stack (numpy's batched LU, which releases the GIL)."""
-    Y = np.linalg.inv(X)
-    np.add(Y, _tr(Y), out=out)
-    out *= 0.5
-
-
-def _block_solve(A, X: np.ndarray, chunks: _Chunks = _SERIAL) -> np.ndarray:
-    """Columns ``A_k⁻¹ X[:, k, :]`` for a stack A (j, m, m) (or a :class:`_BlockSum`) and X (m, j, p), on ``chunks``'
-    threads, A read in blocks of :data:`_BLOCK_BYTES`."""
-    Xs = np.ascontiguousarray(np.moveaxis(X, 1, 0))  # (j, m, p)
-    out = np.empty_like(Xs)
-
-    def work(s):
-        for b in _blocks_of(s, A.shape[1] * A.shape[2]):
-            out[b] = np.linalg.solve(A[b], Xs[b])
-
-    chunks.map(work, A.shape[0], A.size)
-    return np.moveaxis(out, 0, 1)
-
-
-def _stack_of(H: np.ndarray, chunks: _Chunks, out: np.ndarray) -> np.ndarray:
-    """:func:`~unfalsify.solvers.toeplitz.toeplitz_stack` of H into ``out``, the columns in chunks on the threads."""
-    chunks.map(lambda s: toeplitz_stack(H[:, s], out=out[s]), H.shape[1], out.size)
-    return out
-
-
-def _bmv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Columns ``A_k X[:, k]`` for a stack A (j, m, m) and X (m, j) (or (m, j, p))."""
-    if X.ndim == 2:
-        return (A @ X.T[:, :, None])[:, :, 0].T
-    return np.moveaxis(A @ np.moveaxis(X, 1, 0), 0, 1)
 
 
 class _Point:
@@ -409,198 +234,6 @@ class _Point:
         if self._upper is None:
             self._upper = _max_norm(self.TtT, self.chunks)
         return self._upper
-
-
-def _inner(A: np.ndarray, B: np.ndarray) -> float:
-    """``⟨A, B⟩`` of two stacks without a product stack (``np.vdot`` reads both once)."""
-    return float(np.vdot(A, B))
-
-
-def _max_norm(TtT: np.ndarray, chunks: _Chunks = _SERIAL) -> float:
-    """``max_k √λ_max(TtT_k)`` over a stack of Gram matrices."""
-    tops = chunks.map(lambda s: float(np.linalg.eigvalsh(TtT[s])[:, -1].max()), TtT.shape[0], TtT.size)
-    return float(np.sqrt(max(max(tops), 0.0)))
-
-
-def _chol_logdet(K: np.ndarray, chunks: _Chunks = _SERIAL, shift: float | None = None) -> float | None:
-    """``log det K`` of a stack, or None if some K_k is not positive definite (numpy's batched Cholesky, which
-    releases the GIL, so chunks run in parallel; scipy's LAPACK wrappers hold it); with ``shift`` that of
-    ``shift·I − K``, formed block by block."""
-    def work(s):
-        total = 0.0
-        for b in _blocks_of(s, K[0].size):
-            part = _chol_logdet_of(K[b] if shift is None else _shifted(K[b], shift))
-            if part is None:
-                return None
-            total += part
-        return total
-
-    parts = chunks.map(work, K.shape[0], K.size)
-    if any(v is None for v in parts):
-        return None
-    return float(sum(parts))
-
-
-def _chol_logdet_of(K: np.ndarray) -> float | None:
-    """:func:`_chol_logdet` of one block."""
-    try:
-        L = np.linalg.cholesky(K)
-    except np.linalg.LinAlgError:
-        return None
-    logdet = 2.0 * float(np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1))))
-    return logdet if np.isfinite(logdet) else None
-
-
-def _kronecker_preconditioner(Q: np.ndarray, E: np.ndarray, sweeps: int = 4):
-    """``(A⁻¹, B⁻¹)`` of the nearest Kronecker product ``A ⊗ B`` to ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (Van Loan–Pitsianis).
-
-    In matrix form C maps Y (m × r) to ``Σ_k E_k Y q_k q_kᵀ``; if every ``E_k = w_k B`` it is exactly
-    ``B Y A`` with ``A = Σ_k w_k q_k q_kᵀ``.  Alternating least squares on the rank-one approximation of
-    the rearranged C: ``A ∝ Σ_k ⟨E_k, B⟩ q_k q_kᵀ``, ``B ∝ Σ_k (q_kᵀ A q_k) E_k``, starting from ``B = mean E_k``.
-    """
-    j, m = E.shape[0], E.shape[1]
-    E2 = E.reshape(j, m * m)
-    B = E.mean(axis=0)
-    for _ in range(sweeps):
-        wa = E2 @ B.ravel()
-        A = (Q.T * wa) @ Q
-        # q_kᵀ A q_k by a product (a three-operand einsum loops over (k, r, s) in C: 10 of the 50 serial seconds of
-        # the L-optimised solve at (100, 1000))
-        wb = np.einsum("kr,kr->k", Q @ A, Q)
-        B = (wb @ E2).reshape(m, m) / max(float(np.sum(A * A)), 1e-300)
-    return np.linalg.inv(0.5 * (A + A.T)), np.linalg.inv(0.5 * (B + B.T))
-
-
-def _common_impulse_basis(U: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """Orthonormal basis ``(m, m, r)`` of the capacitance directions ``Y_a = Z_a U Q`` (Z_a: shift by a).
-
-    ``Y Qᵀ = T(l) U`` for ``Y = Σ_a l_a Y_a`` (U's rows lie in 𝓛's row space), and
-    ``T(u_k) l = T(l) u_k``: the move of the L variable that the common impulse change ``dh_k = l``
-    cancels in every column.  The noise term does not see these m directions, only the LMI blocks do,
-    so they carry the smallest eigenvalues of the capacitance (measured at (i, j) = (100, 1000),
-    t = 4.9·10⁵: the Kronecker-preconditioned spectrum's smallest Ritz values, 7.5e-4 to 3e-3, lie
-    in this subspace).
-    """
-    m = U.shape[0]
-    UQ = U @ Q
-    Y = np.zeros((m, m, Q.shape[1]))
-    for a in range(m):
-        Y[a, a:] = UQ[: m - a]
-    basis, _ = np.linalg.qr(Y.reshape(m, -1).T)
-    return basis.T.reshape(Y.shape)
-
-
-class _Deflation:
-    """Deflation of ``span W`` in CG on ``C`` (Saad, Yeung, Erhel & Guyomarc'h 2000).
-
-    With ``E = Wᵀ C W``, CG starts at ``x₀ = W E⁻¹ Wᵀ b`` (the residual is then orthogonal to W) and
-    keeps its search directions C-orthogonal to W (:meth:`project`): the iteration runs on the
-    C-orthogonal complement of span W, whose smallest eigenvalues are those that slowed it.  The
-    solution is that of C x = b; one read of W and of CW per iteration, split over ``chunks``' threads (W and CW are
-    24 MB each at (100, 1000), so these reads are memory-bound: 11 of the 50 serial seconds of that solve with L
-    optimised when they ran on the main thread).
-    """
-
-    def __init__(self, Cmul, W: np.ndarray, chunks: _Chunks = _SERIAL):
-        k = W.shape[0]
-        self.chunks = chunks
-        self.W2 = W.reshape(k, -1)
-        self.CW = Cmul(W).reshape(k, -1)
-        E = self._gram(self.W2, self.CW)
-        self.L = np.linalg.cholesky(0.5 * (E + E.T))  # LinAlgError: E not numerically positive definite
-
-    def _gram(self, V2, X2) -> np.ndarray:
-        """``V2 X2ᵀ``, summed over column chunks of the long axis on the threads."""
-        return sum(self.chunks.map(lambda s: V2[:, s] @ X2[:, s].T, V2.shape[1], V2.size))
-
-    def _combine(self, c, V2) -> np.ndarray:
-        """``c V2`` (p, N), its columns in chunks on the threads."""
-        out = np.empty((c.shape[0], V2.shape[1]))
-        self.chunks.map(lambda s: np.matmul(c, V2[:, s], out=out[:, s]), V2.shape[1], V2.size)
-        return out
-
-    def _solve(self, V2, X2):
-        """``E⁻¹ V2 X2ᵀ`` transposed: (p, k)."""
-        return scipy.linalg.cho_solve((self.L, True), self._gram(V2, X2)).T
-
-    def start(self, B: np.ndarray):
-        """``(x₀, b − C x₀)`` for the stack B (p, …)."""
-        B2 = B.reshape(B.shape[0], -1)
-        c = self._solve(self.W2, B2)
-        return self._combine(c, self.W2).reshape(B.shape), (B2 - self._combine(c, self.CW)).reshape(B.shape)
-
-    def project(self, Z: np.ndarray) -> np.ndarray:
-        """``Z − W E⁻¹ (CW)ᵀ Z``: C-orthogonal to span W."""
-        Z2 = Z.reshape(Z.shape[0], -1)
-        return (Z2 - self._combine(self._solve(self.CW, Z2), self.W2)).reshape(Z.shape)
-
-
-def _dense_capacitance_factor(E: np.ndarray, Q: np.ndarray):
-    """A factor of the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` formed as an (mr × mr) matrix (row-major (m, r) order).
-
-    Cholesky where C is numerically positive definite (its smallest pivot² above ``mr·eps`` of the largest diagonal
-    entry); else the symmetric eigendecomposition with the directions below ``mr·eps`` of the largest eigenvalue
-    dropped: in the ill-conditioned limit (a noise ball far inside the residual, E_k inheriting cond T(u_k)) those
-    are the directions the rounding of C already leaves undetermined."""
-    j, m, r = E.shape[0], E.shape[1], Q.shape[1]
-    QQ = (Q[:, :, None] * Q[:, None, :]).reshape(j, r * r)
-    # symmetric to rounding (each E_k is); LAPACK's potrf and syevd read one triangle, so no symmetrising pass (a
-    # strided transpose: 43 ms of 100 at order 1200)
-    C = (E.reshape(j, m * m).T @ QQ).reshape(m, m, r, r).transpose(0, 2, 1, 3).reshape(m * r, m * r)
-    floor = m * r * np.finfo(float).eps * max(float(np.max(np.diag(C))), 0.0)
-    try:
-        L = np.linalg.cholesky(C)
-        if float(np.min(np.diag(L))) ** 2 > floor:
-            return ("cholesky", L)
-    except np.linalg.LinAlgError:
-        pass
-    w, V = np.linalg.eigh(C)
-    keep = w > max(float(w[-1]), 0.0) * m * r * np.finfo(float).eps
-    return ("eigen", w[keep], V[:, keep])
-
-
-def _dense_capacitance_apply(factor, B: np.ndarray) -> np.ndarray:
-    """``C⁺ B`` for a stack B (p, m, r) by :func:`_dense_capacitance_factor`'s factor."""
-    rhs = B.reshape(B.shape[0], -1).T
-    if factor[0] == "cholesky":
-        X = scipy.linalg.cho_solve((factor[1], True), rhs)
-    else:
-        _, w, V = factor
-        X = V @ ((V.T @ rhs) / w[:, None])
-    return X.T.reshape(B.shape)
-
-
-class _Capacitance:
-    """The capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` of one Newton system, for as many solves as use it (the primal–dual
-    method's predictor and corrector): for CG its product, Kronecker preconditioner and deflation, or its dense
-    factor, each built on first use."""
-
-    def __init__(self, system, E: np.ndarray):
-        self.system, self.E = system, E
-        self._cg = self._factor = None
-
-    def cg(self):
-        """``(Cmul, (A⁻¹, B⁻¹), deflation)`` (:meth:`_ColumnSystem._capacitance`, :func:`_kronecker_preconditioner`,
-        :func:`_deflation`)."""
-        if self._cg is None:
-            sys_ = self.system
-            Cmul = sys_._capacitance(self.E)
-            self._cg = (Cmul, _kronecker_preconditioner(sys_.Q, self.E), _deflation(Cmul, sys_.W, sys_.chunks))
-        return self._cg
-
-    def solve_dense(self, B: np.ndarray) -> np.ndarray:
-        """``C⁺ B`` by the dense factor (:func:`_dense_capacitance_factor`)."""
-        if self._factor is None:
-            self._factor = _dense_capacitance_factor(self.E, self.system.Q)
-        return _dense_capacitance_apply(self._factor, B)
-
-
-def _deflation(Cmul, W, chunks: _Chunks = _SERIAL):
-    """:class:`_Deflation` of ``span W``, or None if ``Wᵀ C W`` is not numerically positive definite."""
-    try:
-        return _Deflation(Cmul, W, chunks)
-    except np.linalg.LinAlgError:
-        return None
 
 
 #: Order m·r of the capacitance up to which it is factored densely where CG costs more, or fails

@@ -17,7 +17,7 @@ side is ``max_k ‖T(h_k)‖₂`` of the (strictly feasible) iterate; the stop, 
 those of :func:`~unfalsify.solvers.barrier.run_barrier`, one predictor–corrector iteration per "centring".
 
 One iteration (the ``arx_pd`` iteration, batched over the j blocks on the threads of
-:class:`~unfalsify.solvers.column_barrier._Chunks`):
+:class:`~unfalsify.solvers.stacks._Chunks`):
 
 * the NT scaling of every block (``Z_k = L_kL_kᵀ``, ``L_kᵀ S_k L_k = Q_kΛ_k²Q_kᵀ``, ``S_k L_k`` from T(h_k) by two
   m × m × 2m products) and of the noise cone (:mod:`~unfalsify.solvers.cones`);
@@ -49,7 +49,8 @@ import numpy as np
 
 from .barrier import Deadline, PrimalDualSteps, Stop, delta_step, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
-from .column_barrier import _SERIAL, _Chunks, _chol_logdet, _ColumnSystem, _max_norm, _on_threads
+from .column_barrier import _ColumnSystem, _on_threads
+from .stacks import _SERIAL, _chol_logdet, _Chunks, _max_norm
 from .columns import ColumnForm
 from .cones import _soc_div, _soc_prod, _soc_step, _soc_w, _soc_winv, sdp_step_stack, soc_scaling
 from .start import operator_svd
