@@ -127,6 +127,14 @@ def test_a_channel_silent_in_a_band_is_named_with_the_band():
     ex = uf.check_excitation(P, K, est)
     assert not ex.ok and ex.frequency > 0.2 * np.pi
     assert "input u[:, 1] has the least power there" in ex.reason and "rad/sample" in ex.reason
+    import re
+
+    below = re.search(r"least power there, ([0-9-]+) dB below the inputs' peak", ex.reason)
+    assert below and int(below.group(1)) > 20  # a positive number of dB below (it had read "down to -95 dB below")
+    ex1 = uf.check_excitation(control.ss([], [], [], 1.0, 1.0), control.ss([], [], [], [[0.5, -0.5]], 1.0),
+                              uf.frequency_response_estimate(u[:, 1], e[:, 0]))
+    below = re.search(r"the input's power there falls to ([0-9-]+) dB below its peak", ex1.reason)
+    assert not ex1.ok and below and int(below.group(1)) > 20
 
 
 def test_collinear_inputs_are_not_excited_although_every_channel_has_power():

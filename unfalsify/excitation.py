@@ -361,7 +361,7 @@ def _weakest_input(frf: FrequencyResponseEstimate, bad: np.ndarray) -> tuple[int
 
 
 def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
-    """``': the input's power there is down to … dB below its peak'`` over the flagged Welch frequencies (MIMO:
+    """``': the input's power there falls to … dB below its peak'`` over the flagged Welch frequencies (MIMO:
     the channel with the least power, and the weakest input direction when the channels move together)."""
     if not np.any(bad):
         return ""
@@ -369,18 +369,23 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
         if not float(np.max(frf.input_psd)) > 0.0:  # a constant input: nothing left once each segment is detrended
             return ": the input has no power at any frequency (it is constant)"
         level = 10.0 * np.log10(max(float(np.min(frf.input_psd[bad])), 1e-300) / float(np.max(frf.input_psd)))
-        return f": the input's power there is down to {level:.0f} dB below its peak"
+        return f": the input's power there falls to {_db_below(level)} its peak"
     j, level = _weakest_input(frf, bad)
     lam = np.linalg.eigvalsh(frf.input_psd)
     direction = 10.0 * np.log10(max(float(np.min(lam[bad, 0])), 1e-300) / max(float(np.max(lam[:, -1])), 1e-300))
     if level < -200.0:  # exactly or numerically zero: a dB figure would be the rounding's
         text = f": input u[:, {j}] has no power there"
     else:
-        text = f": input u[:, {j}] has the least power there, down to {level:.0f} dB below the inputs' peak"
+        text = f": input u[:, {j}] has the least power there, {_db_below(level)} the inputs' peak"
     if direction < level - 20.0:  # every channel has power, but not independently
-        text += (f", and the inputs' weakest direction is down to {direction:.0f} dB (the channels move together "
+        text += (f", and the inputs' weakest direction is {_db_below(direction)} it (the channels move together "
                  "there)")
     return text
+
+
+def _db_below(level: float) -> str:
+    """A power ratio ``level`` in dB (≤ 0) as ``'12 dB below'`` (it had read ``'down to -12 dB below'``)."""
+    return f"{max(-level, 0.0):.0f} dB below"
 
 
 def _input_fix(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
