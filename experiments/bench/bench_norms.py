@@ -31,7 +31,7 @@ TARGETS = {"additive_robustness": 20.0, "discrete_mixsyn": 8.0, "collect_data": 
 def _old_additive(plant, controller):
     """The former ``additive_robustness``: poles by ``eigvals`` and the grid peak (4096 points)."""
     from synthesis import peak_gain
-    from unfalsify.robust import additive_channel
+    from unfalsify import additive_channel
 
     M = additive_channel(plant, controller)
     rho = float(np.max(np.abs(np.linalg.eigvals(np.asarray(M.A, float)))))
