@@ -238,7 +238,7 @@ def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
                        "input_psd": np.where(np.arange(65) >= 40, 1e-6, 1.0)})
     bad = uf.check_excitation(P, K, frf)
     assert not bad.ok and bad.worst >= 1 and "excite" in bad.reason and "rad/sample" in bad.reason
-    assert "-60 dB" in bad.reason
+    assert "falls to 60 dB below its peak" in bad.reason
     # a disk far from P̂ (model error, not missing excitation) is named as such
     far = uf.check_excitation(P, K, _fake_frf(0.01 / peak, response=2.0 / peak))
     assert not far.ok and "differs from P̂" in far.reason
