@@ -434,6 +434,37 @@ def test_untested_premises_from_the_input_levels():
     assert len(two) == 1 and two[0].startswith("input 0 ")
 
 
+def test_a_two_level_input_recorded_with_noise_is_still_untested():
+    """A PRBS measured by a sensor is not two-valued, but the plant received two levels: the record shows no more
+    about a saturation than the exact one (on the adversarial catalogue, 1 % input noise had let
+    ``untested="refuse"`` certify the saturation case at four seeds, three loops without their δ margin).  The
+    levels are found up to a spread of 10 % of their spacing; inputs with several amplitudes are not stated."""
+    from unfalsify.premise import LEVEL_SPREAD
+
+    rng = np.random.default_rng(4)
+    n = 600
+    binary = np.sign(rng.standard_normal(n))
+    for noise in (0.01, 0.05, 0.15):  # rms of the measurement noise, the levels 2 apart
+        measured = binary + noise * rng.standard_normal(n)
+        (text,) = uf.untested_premises(measured)
+        low, high = (float(v) for v in text.split("two levels {")[1].split("}")[0].split(","))
+        assert abs(low + 1) < 3 * noise and abs(high - 1) < 3 * noise and "spread" in text
+    for x in (1.5 + 0.5 * binary + 0.01 * rng.standard_normal(n),              # an operating point: {1, 2}
+              rng.choice([-1.0, 0.0, 1.0], n) + 0.02 * rng.standard_normal(n)):  # 0 and ±a
+        assert len(uf.untested_premises(x)) == 1
+    assert len(uf.untested_premises(binary, validation=(binary + 0.01 * rng.standard_normal(n), None))) == 1
+    several = (binary + 0.3 * rng.standard_normal(n),                          # spread 0.15 of the spacing
+               rng.choice([-1.0, -0.5, 0.5, 1.0], n) + 0.02 * rng.standard_normal(n),
+               rng.choice([-1.0, 0.0, 2.0], n) + 0.01 * rng.standard_normal(n),  # uneven: an odd nonlinearity shows
+               rng.standard_normal(n), rng.uniform(-1.0, 1.0, n), np.sin(0.05 * np.arange(n)))
+    assert all(uf.untested_premises(x) == () for x in several)
+    # the threshold, from both sides: noise of rms 0.9 and 1.1 times LEVEL_SPREAD·2 on a ±1 input
+    unit = rng.standard_normal(n)
+    unit /= np.sqrt(np.mean(unit ** 2))
+    assert len(uf.untested_premises(binary + 0.9 * LEVEL_SPREAD * 2 * unit)) == 1
+    assert uf.untested_premises(binary + 1.1 * LEVEL_SPREAD * 2 * unit) == ()
+
+
 def test_a_window_too_short_for_the_premise_is_refused_with_the_fix():
     P = third_order()
     d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)

@@ -140,7 +140,7 @@ class CertificateOptions:
         (each form's premise is tested in its own terms; the result says which one certified).
     untested : {"warn", "refuse"}
         What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values,
-        or 0 and ±a, shows no saturation or dead zone; records too short for :func:`unfalsify.check_time_invariance`
+        or 0 and ±a, up to noise, shows no saturation or dead zone; records too short for :func:`unfalsify.check_time_invariance`
         show no change of the plant).  ``"warn"`` (default): the loop is certified on that assumption, which
         ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not certified, the
         reason names the fix (several input amplitudes; a longer validation record).  Measured on the adversarial catalogue's

@@ -180,8 +180,8 @@ class RobustDesignResult:
         :attr:`reason` repeats it when the coprime form does not certify either.
     assumed : tuple of str
         What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input
-        channel with two values, or 0 and ±a, cannot show a saturation or a dead zone; and one time-invariant plant
-        when ``invariance`` is None: no record given is long enough to test it).  A loop certified with a
+        channel with two values, or 0 and ±a, up to noise, cannot show a saturation or a dead zone; and one
+        time-invariant plant when ``invariance`` is None: no record given is long enough to test it).  A loop certified with a
         non-empty ``assumed`` holds for the plant only as far as these statements do; with
         ``CertificateOptions(untested="refuse")`` a non-empty ``assumed`` refuses the certificate instead.
     invariance : InvarianceTest or None
@@ -489,9 +489,9 @@ def robust_design_from_data(
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
     What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a
-    certified loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a, shows no static
-    input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the plant linear at the
-    amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for
+    certified loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a (up to noise),
+    shows no static input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the
+    plant linear at the amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for
     one input and one output) cannot show a plant that changes during the experiment, so the certificate then
     assumes one time-invariant plant.
 
