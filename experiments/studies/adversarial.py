@@ -51,7 +51,8 @@ one (the open-loop-unstable plant) an infinite one: the premise failed without t
 At ten seeds (the final code of 2026-11-27, with ``validation=``): 189 of 470 certified, 5 false certificates,
 every one on a ±1 PRBS -- the 80 % input saturation at seeds 4, 5, 7 and 9 (a two-level input shows it as a gain:
 ``result.assumed`` says so) and the gain drift at seed 4.  With ``--untested refuse``
-(``CertificateOptions(untested="refuse")``): 33 certified, none false.  The time-invariance test added since
+(``CertificateOptions(untested="refuse")``): 33 certified, none false; 21 since the inputs' levels are found up to
+noise (2026-11-28: a closed-loop input within ±0.15 of ±1 counts as two levels).  The time-invariance test added since
 (:func:`unfalsify.check_time_invariance`, on the 600 held-out samples this protocol gives the pipeline) refuses one
 more, ``drift/resonant`` at seed 4 (its loop had passed the judge): 188 certified, the same 5 false.
 
