@@ -11,13 +11,15 @@ nonlinearity are outside the model class.  This module generates such conditions
 * excitation (:class:`Excitation`): multisines over a low band, a mid band and a few lines only;
   low-pass filtered Gaussian noise at several cut-offs; PRBS held for ``k`` samples; sparse steps;
   white PRBS (the control group);
-* noise (:class:`Noise`): AR(1)-coloured sensor noise; a slow random walk plus an offset on ``y``;
+* noise (:class:`Noise`): AR(1)-coloured sensor noise; a slow random walk plus an offset on ``y``; noise on the
+  *recorded* input (``Case.input_noise``: a sensor on the actuator, errors in variables);
 * closed-loop data: the plant under a stabilising proportional controller with the excitation as
   a dither reference, ``u`` and ``y`` measured inside the loop -- among them an open-loop-unstable
   plant (discrete pole 1.05 and a stable mode);
 * input delays of ``i − 1``, ``i`` and ``i + 2`` samples;
 * an unmodelled lightly damped mode above the band, a gain that drifts linearly over the record,
-  a cubic output nonlinearity, input saturation at 80 % of the input amplitude;
+  a cubic output nonlinearity, input saturation at 80 % of the input amplitude (also with the input recorded with
+  noise, which makes a PRBS look multilevel);
 * another sample rate and order (a 4th-order plant at 50 Hz) and a 1st-order plant.
 
 Each record (``Case.record`` samples) is split into a *fitting* part (the first ``fit_fraction``)
@@ -309,6 +311,9 @@ class Case:
         ``y + 0.1·y³`` on the plant output, or the input clipped at 80 % of its amplitude.
     feedback : float
         Gain ``k`` of an error-feedback controller ``u = k(r − y)`` (0: open loop).
+    input_noise : float
+        White noise on the *recorded* input, as a fraction of its rms (the plant receives the exact input): a
+        sensor on the actuator, errors in variables.
     """
 
     name: str
@@ -325,6 +330,7 @@ class Case:
     gain_drift: tuple = ()
     nonlinearity: str = ""
     feedback: float = 0.0
+    input_noise: float = 0.0
 
     def lti_plant(self) -> control.StateSpace:
         """The plant without delay, drift or nonlinearity (discrete)."""
@@ -387,6 +393,10 @@ def catalogue(seed: int = 0) -> tuple[Case, ...]:
                       nonlinearity="saturation", seed=seed))
     cases.append(Case("nonlinear/third_order/saturation 80%/lowpass", "nonlinear", "third_order",
                       Excitation("lowpass", cutoff=0.05), nonlinearity="saturation", seed=seed))
+    # the input recorded by a sensor: a PRBS that is no longer two-valued, and errors in variables
+    cases.append(Case("nonlinear/third_order/saturation 80%/u measured 2%", "nonlinear", "third_order", white,
+                      nonlinearity="saturation", input_noise=0.02, seed=seed))
+    cases.append(Case("noise/third_order/u measured 30%", "noise", "third_order", white, input_noise=0.3, seed=seed))
     for e in (white, Excitation("lowpass", cutoff=0.05)):
         cases.append(Case(f"rate_order/fourth_order_50hz/{e.label}", "rate_order", "fourth_order_50hz", e, i=15,
                           j=40, record=1500, seed=seed))
@@ -483,6 +493,10 @@ def make_record(case: Case) -> Record:
         y_clean = y_clean + 0.1 * y_clean ** 3
         note = "linear part: y without the 0.1·y³ term"
     y = y_clean + case.noise.sensor_noise(n, rng)
+    if case.input_noise:
+        # drawn last, from its own stream: the plant's record is the exact-input case's, bit for bit
+        sensor = np.random.default_rng(case.seed + 300).standard_normal(n)
+        u = u + case.input_noise * float(np.sqrt(np.mean(u ** 2))) * sensor
     return Record(u=u, y=y, y_clean=y_clean, plant=judge, n_fit=n_fit, judge_note=note)
 
 
