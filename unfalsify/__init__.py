@@ -90,6 +90,7 @@ The certificate's premise, tested on the data
    PremiseTest            -- result of ``check_premise`` (``delta``, ``decided_by``, ``reason``)
    PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
    untested_premises      -- what the certificate assumes that the data cannot test (a two-level input: linearity)
+   LEVEL_SPREAD           -- an input within this fraction of its levels' spacing of two levels takes two (0.1)
    check_time_invariance  -- is the record that of one time-invariant plant? (Chow's test on ARX fits of its segments)
    InvarianceTest         -- result of ``check_time_invariance``
    TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
@@ -235,6 +236,7 @@ from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, Lo
                                  frequency_response_estimate, low_band_estimate)
 from .excitation import ExcitationCheck, check_excitation
 from .premise import (
+    LEVEL_SPREAD,
     OutputErrorResult,
     PremiseOptions,
     PremiseTest,
@@ -290,6 +292,7 @@ __all__ = [
     "step_metrics",
     "tracking_floors",
     "EXCITATION_FLOOR",
+    "LEVEL_SPREAD",
     "ExcitationCheck",
     "FrequencyResponseEstimate",
     "LowBandEstimate",

@@ -68,7 +68,7 @@ from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _ba
                                  _lpm_window, _unit, frequency_response_estimate, low_band_estimate)
 
 __all__ = ["PremiseOptions", "OutputErrorResult", "output_error_residual", "output_error_unfalsify", "PremiseTest",
-           "check_premise", "untested_premises"]
+           "check_premise", "untested_premises", "LEVEL_SPREAD"]
 
 #: growth of the model's free response over the segment above which its output error cannot be simulated.
 _GROWTH_LIMIT = 10.0
