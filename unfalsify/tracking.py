@@ -53,12 +53,17 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
         tried.append((E, e))
     worst, where, errs = _worst_excess(tried, floors)
     if worst > 0:
-        k = int(np.argmax(errs - floors))
-        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the plant P̂ "
-                f"{_offset_text(where)} (a static offset inside the certified ball of radius {radius:.4g}): the loop "
-                "tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
-                "frequency (integral action) or reduce δ (a longer or richer record)")
+        return _across_reason(errs, floors, f"the plant P̂ {_offset_text(where)} (a static offset inside the certified "
+                              f"ball of radius {radius:.4g})", "δ")
     return _data_gain_reason(model, controller, floors, data_gain)
+
+
+def _across_reason(errs: np.ndarray, floors: np.ndarray, plant: str, size: str) -> str:
+    """Why the loop fails its floor at ``plant``, a static plant of the certified ball (``size``: δ or ε)."""
+    k = int(np.argmax(errs - floors))
+    return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, floors.size)} for {plant}: "
+            "the loop tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
+            f"frequency (integral action) or reduce {size} (a longer or richer record)")
 
 
 def _data_gain_reason(model, controller, floors: np.ndarray, data_gain) -> str:
@@ -179,11 +184,8 @@ def _coprime_tracking_reason(factors, data_gain, controller, radius: float, floo
     worst, where, errs = _worst_excess(((G, _dc_errors_at_gain(controller, G, floors))
                                         for G in _coprime_static_gains(factors, radius)), floors)
     if worst > 0:
-        k = int(np.argmax(errs - floors))
-        return (f"steady-state tracking error {errs[k]:.3g} > {floors[k]:g}{_output_text(k, l)} for the static plant "
-                f"of gain {_gain_text(where)} inside the certified coprime-factor ball of radius {radius:.4g}: the "
-                "loop tracks on P̂ but not across the uncertainty it claims; use a weight W1 with more gain at low "
-                "frequency (integral action) or reduce ε (a longer or richer record)")
+        return _across_reason(errs, floors, f"the static plant of gain {_gain_text(where)} inside the certified "
+                              f"coprime-factor ball of radius {radius:.4g}", "ε")
     if data_gain is None:
         return ""
     return _data_gain_reason(factors.model(), controller, floors, data_gain)
