@@ -458,11 +458,20 @@ def test_a_two_level_input_recorded_with_noise_is_still_untested():
                rng.choice([-1.0, 0.0, 2.0], n) + 0.01 * rng.standard_normal(n),  # uneven: an odd nonlinearity shows
                rng.standard_normal(n), rng.uniform(-1.0, 1.0, n), np.sin(0.05 * np.arange(n)))
     assert all(uf.untested_premises(x) == () for x in several)
-    # the threshold, from both sides: noise of rms 0.9 and 1.1 times LEVEL_SPREAD·2 on a ±1 input
+    # the threshold, from both sides: noise of rms 0.8 and 1.3 times LEVEL_SPREAD·2 on a ±1 input (the spread leaves
+    # the farthest 1 % out: about 0.94 of a Gaussian noise's rms)
     unit = rng.standard_normal(n)
     unit /= np.sqrt(np.mean(unit ** 2))
-    assert len(uf.untested_premises(binary + 0.9 * LEVEL_SPREAD * 2 * unit)) == 1
-    assert uf.untested_premises(binary + 1.1 * LEVEL_SPREAD * 2 * unit) == ()
+    assert len(uf.untested_premises(binary + 0.8 * LEVEL_SPREAD * 2 * unit)) == 1
+    assert uf.untested_premises(binary + 1.3 * LEVEL_SPREAD * 2 * unit) == ()
+    # a glitch does not hide the levels, a rare level is found, and three levels are named as three
+    glitch = binary + 0.01 * rng.standard_normal(n)
+    glitch[100] = 8.0
+    assert "two levels" in uf.untested_premises(glitch)[0]
+    rare = np.where(rng.random(n) < 0.95, -1.0, 1.0) + 0.01 * rng.standard_normal(n)
+    assert "two levels" in uf.untested_premises(rare)[0]
+    ternary = rng.choice([-1.0, 0.0, 1.0], n, p=[0.9, 0.05, 0.05]) + 0.01 * rng.standard_normal(n)
+    assert "three evenly spaced levels" in uf.untested_premises(ternary)[0]
 
 
 def test_a_window_too_short_for_the_premise_is_refused_with_the_fix():
