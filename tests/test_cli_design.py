@@ -18,7 +18,7 @@ from experiments.studies.design_cli import default_weights
 from experiments.lab.plants import third_order
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop, collect_data
-from synthesis import load_controller
+from synthesis import DataError, load_controller
 
 from _reports import assert_reports_complete
 
@@ -206,3 +206,42 @@ def test_design_of_a_two_by_two_record(tmp_path, capsys):
     assert (K.ninputs, K.noutputs) == (4, 2)
     assert len(summary["step_final"]) == 2
     assert_reports_complete(tmp_path / "design", "design")
+
+
+def test_an_operating_point_is_named_and_removed_with_detrend(tmp_path, capsys):
+    """A record around an operating point (the input switching between 0 and 2, the output at 3 + deviations): the
+    models have no constant term, so (7.5) refuses it (columns starting with a zero input) and the message names
+    ``--detrend mean``; with it the design runs on the deviations, the same as a design of the centred record made
+    here, and the report says how to apply the controller."""
+    t, u, y, dt = _record()
+    csv = _write_csv(tmp_path / "operating.csv", t, u + 1.0, y + 3.0)
+    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--window", "0:49", "--out", str(tmp_path)])
+    assert "zero input" in err and "--detrend mean" in err
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--detrend", "mean", "--json",
+                 "--out", str(tmp_path)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    point = summary["operating_point"]
+    assert point["removed"] and point["u"] == [pytest.approx(float(np.mean(u + 1.0)), abs=1e-12)]
+    assert point["y"] == [pytest.approx(float(np.mean(y + 3.0)), abs=1e-12)]
+    assert "feed the controller r − ȳ and y − ȳ and add ū" in summary["operating_point_note"]
+    W1, W2, _ = default_weights(dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = uf.robust_design_from_data(u + 1.0 - np.mean(u + 1.0), y + 3.0 - np.mean(y + 3.0), 10, W1, W2, "auto",
+                                         dt=dt, window=(0, 49))
+    assert summary["delta"] == pytest.approx(float(ref.delta), rel=1e-9)
+    assert summary["certified"] == bool(ref.certified)
+
+
+def test_a_large_mean_is_named_in_the_report_without_detrend():
+    from experiments.lab.records import Record
+    from experiments.studies.design_cli import operating_point
+
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal((400, 1)))
+    rec = Record(u=u, y=0.5 * u + 2.0, dt=1.0, source="x")
+    same, point, text = operating_point(rec)
+    assert same is rec and not point["removed"] and "The mean of y (1.97" in text and "--detrend mean" in text
+    assert "mean of u" not in text  # a ±1 PRBS: its mean is below a tenth of its standard deviation
+    with pytest.raises(DataError, match="--detrend"):
+        operating_point(rec, "linear")

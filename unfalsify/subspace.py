@@ -246,7 +246,9 @@ class SubspaceProblem:
             raise DataError(
                 f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
                 f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
-                "samples (e.g. a ±1 PRBS on every channel)"
+                "samples (e.g. a ±1 PRBS on every channel), or, for an input that switches between 0 and a level, "
+                "subtract its operating point (u − mean(u), y − mean(y); `python -m experiments design --detrend "
+                "mean`)"
             )
         L_fixed = None
         if predictor is not None:
