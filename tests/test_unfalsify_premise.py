@@ -665,3 +665,16 @@ def test_estimates_check_their_arguments():
             uf.frequency_response_estimate(u, y, **kw)
     with pytest.raises(DataError, match="bins must be an integer"):
         uf.low_band_estimate(u, y, 1.0, bins=2.5)
+
+
+def test_a_refusal_names_a_record_at_an_operating_point():
+    """A sensor bias of 2 on outputs of about unit rms: the models have no constant term, the loop is refused, and the
+    warning names the mean and the fix (it had named only the consequences: a nearly integrating P̂)."""
+    P = third_order()
+    d = collect_data(P, prbs(1500, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    y = d.y[:, 0] + 2.0
+    r, warned = _pipeline(d.u[:900, 0], y[:900], (d.u[900:, 0], y[900:]))
+    assert not r.certified and len(warned) == 1
+    text = str(warned[0].message)
+    assert "note: the mean of y" in text and "operating point" in text and "--detrend mean" in text
+    assert uf.operating_point_note(d.u[:, 0], d.y[:, 0]) == ""  # the same record without the bias: nothing to say

@@ -91,6 +91,8 @@ The certificate's premise, tested on the data
    PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
    untested_premises      -- what the certificate assumes that the data cannot test (a two-level input: linearity)
    LEVEL_SPREAD           -- an input within this fraction of its levels' spacing of two levels takes two (0.1)
+   operating_point_note   -- which channels of a record sit at an operating point (the models have no constant term)
+   OFFSET_NOTE            -- a mean above this fraction of the standard deviation is named (0.1)
    check_time_invariance  -- is the record that of one time-invariant plant? (Chow's test on ARX fits of its segments)
    InvarianceTest         -- result of ``check_time_invariance``
    TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
@@ -237,6 +239,8 @@ from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, Lo
 from .excitation import ExcitationCheck, check_excitation
 from .premise import (
     LEVEL_SPREAD,
+    OFFSET_NOTE,
+    operating_point_note,
     OutputErrorResult,
     PremiseOptions,
     PremiseTest,
@@ -293,6 +297,8 @@ __all__ = [
     "tracking_floors",
     "EXCITATION_FLOOR",
     "LEVEL_SPREAD",
+    "OFFSET_NOTE",
+    "operating_point_note",
     "ExcitationCheck",
     "FrequencyResponseEstimate",
     "LowBandEstimate",

@@ -53,10 +53,6 @@ INPUT_ERRORS = (DataError, FileNotFoundError)
 #: names a CSV time column is recognised by when ``--t`` is not given
 _TIME_NAMES = ("t", "time", "time_s", "times", "seconds")
 
-#: a channel whose mean exceeds this fraction of its standard deviation is named in the report when ``--detrend`` is
-#: ``none``: the models have no constant term, so an operating point is read as dynamics
-OFFSET_NOTE = 0.1
-
 #: ``(dc, crossover as a fraction of Nyquist, gain there, hf)`` of the default weights
 W1_DEFAULT = (100.0, 1.0 / 30.0, 1.0, 0.2)
 W2_DEFAULT = (0.05, 1.0 / 10.0, 0.3, 1.0)
@@ -235,7 +231,8 @@ def operating_point(rec, detrend: str = "none"):
         ``{"u": ū, "y": ȳ, "removed": bool}`` (lists, one entry per channel).
     text : str
         The report's sentence: what was done, and how to apply the controller; or which channels have a mean
-        above :data:`OFFSET_NOTE` of their standard deviation and the option that removes it.
+        above :data:`unfalsify.OFFSET_NOTE` of their standard deviation and the option that removes it
+        (:func:`unfalsify.operating_point_note`).
 
     Examples
     --------
@@ -248,6 +245,8 @@ def operating_point(rec, detrend: str = "none"):
     >>> print(operating_point(rec)[2][:48])
     The mean of u (1) is 1 times its standard deviat
     """
+    from unfalsify import operating_point_note
+
     if detrend not in ("none", "mean"):
         raise DataError(f"--detrend must be none or mean, got {detrend!r}")
     mu, my = rec.u.mean(axis=0), rec.y.mean(axis=0)
@@ -257,19 +256,8 @@ def operating_point(rec, detrend: str = "none"):
                 "δ and the controller act on deviations from this operating point; feed the controller r − ȳ and "
                 "y − ȳ and add ū to its output.")
         return dataclasses.replace(rec, u=rec.u - mu, y=rec.y - my), point, text
-    notes = []
-    for what, x, mean in (("u", rec.u, mu), ("y", rec.y, my)):
-        spread = x.std(axis=0)
-        for k in range(x.shape[1]):
-            ratio = abs(float(mean[k])) / float(spread[k]) if spread[k] > 0 else math.inf
-            if ratio > OFFSET_NOTE:
-                name = what if x.shape[1] == 1 else f"{what}[:, {k}]"
-                notes.append(f"The mean of {name} ({float(mean[k]):.4g}) is {ratio:.2g} times its standard deviation")
-    if not notes:
-        return rec, point, ""
-    return rec, point, ("; ".join(notes) + ": the models have no constant term, so an operating point is read as "
-                        "dynamics (a nearly integrating P̂, or columns of (7.5) that start with a zero input); if the "
-                        "record was taken around an operating point, run again with `--detrend mean`.")
+    note = operating_point_note(rec.u, rec.y)
+    return rec, point, (note[0].upper() + note[1:] + "." if note else "")
 
 
 def _vector(x) -> str:
