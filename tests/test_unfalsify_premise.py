@@ -678,3 +678,20 @@ def test_a_refusal_names_a_record_at_an_operating_point():
     text = str(warned[0].message)
     assert "note: the mean of y" in text and "operating point" in text and "--detrend mean" in text
     assert uf.operating_point_note(d.u[:, 0], d.y[:, 0]) == ""  # the same record without the bias: nothing to say
+
+
+def test_a_refusal_names_glitches_in_the_output():
+    """Spikes of ±10 on a record of the third-order plant, in the fitting and the held-out part: refused, and the
+    warning names the held-out record's spikes (it had named only the consequences).  Second route: the same
+    held-out record without the spikes gives no note."""
+    P = third_order()
+    d = collect_data(P, prbs(1500, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    y = d.y[:, 0].copy()
+    fit, held = [20, 35, 300, 600], [950, 1100, 1450]
+    y[fit + held] += 10.0 * np.array([1, -1, 1, -1, 1, 1, -1])
+    r, warned = _pipeline(d.u[:900, 0], y[:900], (d.u[900:, 0], y[900:]))
+    assert not r.certified and len(warned) == 1
+    text = str(warned[0].message)
+    assert "note: 3 samples of y" in text and "glitches" in text
+    assert all(f"y[{k - 900}]" in text for k in held)                  # indices of the record it was given
+    assert uf.glitch_note(r.model, d.u[900:, 0], d.y[900:, 0], 10) == ""

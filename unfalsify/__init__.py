@@ -93,6 +93,8 @@ The certificate's premise, tested on the data
    LEVEL_SPREAD           -- an input within this fraction of its levels' spacing of two levels takes two (0.1)
    operating_point_note   -- which channels of a record sit at an operating point (the models have no constant term)
    OFFSET_NOTE            -- a mean above this fraction of the standard deviation is named (0.1)
+   glitch_note            -- which samples of y look like a sensor's glitches against P̂ (robust z of its output error)
+   GLITCH_LEVEL           -- robust standard deviations beyond which an output-error sample is named (8)
    check_time_invariance  -- is the record that of one time-invariant plant? (Chow's test on ARX fits of its segments)
    InvarianceTest         -- result of ``check_time_invariance``
    TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
@@ -239,7 +241,9 @@ from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, Lo
 from .excitation import ExcitationCheck, check_excitation
 from .premise import (
     LEVEL_SPREAD,
+    GLITCH_LEVEL,
     OFFSET_NOTE,
+    glitch_note,
     operating_point_note,
     OutputErrorResult,
     PremiseOptions,
@@ -299,6 +303,8 @@ __all__ = [
     "LEVEL_SPREAD",
     "OFFSET_NOTE",
     "operating_point_note",
+    "GLITCH_LEVEL",
+    "glitch_note",
     "ExcitationCheck",
     "FrequencyResponseEstimate",
     "LowBandEstimate",

@@ -70,7 +70,8 @@ from .model import predictor_model
 from .excitation import ExcitationCheck, check_excitation
 from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
                       _positive_real)
-from .premise import PremiseOptions, PremiseTest, check_premise, operating_point_note, untested_premises
+from .premise import (PremiseOptions, PremiseTest, check_premise, glitch_note, operating_point_note,
+                      untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
@@ -673,10 +674,10 @@ def robust_design_from_data(
     if not rec.certified:
         tried = len(records)
         size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
-        offset = operating_point_note(*record)
+        notes = [n for n in (operating_point_note(*record), glitch_note(model, *record, i)) if n]
         msg = (f"the §7.4 loop is NOT certified for {size}: {_with_form(rec.reason, additive_reason)}"
                + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made")
-               + (f"; note: {offset}" if offset else ""))
+               + "".join(f"; note: {n}" for n in notes))
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
