@@ -346,7 +346,7 @@ def _check_step_samples(step_samples) -> int:
     return check_count(step_samples, "step_samples", 8)
 
 
-def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
+def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     """The performance floor per output channel: one number for all, or one per channel.
 
     A plant with fewer inputs than outputs cannot track independent steps on every output: give
@@ -358,12 +358,13 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     ----------
     tracking_floor : float or sequence of float
         Mean absolute step error allowed over the last quarter of the run, ≥ 0 (``inf``: not tracked).
-    channels : int
-        The plant's outputs ``l``.
+    channels : int or None
+        The plant's outputs ``l``; None: not known yet (an option object checks its floors before any plant is
+        seen), every check but the count.
 
     Returns
     -------
-    ndarray, shape (channels,)
+    ndarray, shape (channels,) (None: one entry per floor given)
 
     Raises
     ------
@@ -376,16 +377,18 @@ def tracking_floors(tracking_floor, channels: int) -> np.ndarray:
     ([0.1, 0.1], [0.1, 0.2])
     >>> tracking_floors([0.1, float("inf")], 2).tolist()          # output 1 not tracked
     [0.1, inf]
+    >>> tracking_floors([0.1, 0.2, 0.3], None).tolist()            # count not known yet: the floors checked alone
+    [0.1, 0.2, 0.3]
     """
     if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
         if isinstance(tracking_floor, np.ndarray):
             tracking_floor = tracking_floor.item()
         _check_nonnegative(tracking_floor, "tracking_floor")
-        return np.full(int(channels), float(tracking_floor))
+        return np.full(1 if channels is None else int(channels), float(tracking_floor))
     floors = list(tracking_floor)
     if not floors:
         raise DataError("tracking_floor is empty: give one number for all output channels or one per channel")
-    if len(floors) != int(channels):
+    if channels is not None and len(floors) != int(channels):
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):

@@ -139,13 +139,13 @@ class CertificateOptions:
         ``"auto"`` (default): additive, and the coprime form when the data refute the additive premise
         (each form's premise is tested in its own terms; the result says which one certified).
     untested : {"warn", "refuse"}
-        What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values,
-        or 0 and ±a, up to noise, shows no saturation or dead zone; records too short for :func:`unfalsify.check_time_invariance`
-        show no change of the plant).  ``"warn"`` (default): the loop is certified on that assumption, which
-        ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.  ``"refuse"``: not certified, the
-        reason names the fix (several input amplitudes; a longer validation record).  Measured on the adversarial catalogue's
-        saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"`` certifies fail the true-plant
-        judge.
+        What a premise these data cannot test does (:func:`unfalsify.untested_premises`: an input with two values, or 0
+        and ±a, up to noise, shows no saturation or dead zone; records too short for
+        :func:`unfalsify.check_time_invariance` show no change of the plant).  ``"warn"`` (default): the loop is
+        certified on that assumption, which ``result.assumed`` states and :class:`UntestedPremiseWarning` repeats.
+        ``"refuse"``: not certified, the reason names the fix (several input amplitudes; a longer validation record).
+        Measured on the adversarial catalogue's saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"``
+        certifies fail the true-plant judge.
     """
 
     margin: float = CERTIFICATE_MARGIN
@@ -158,9 +158,7 @@ class CertificateOptions:
 
     def __post_init__(self):
         _positive_real(self.margin, "margin", allow_equal=True)
-        floor = self.tracking_floor
-        # every check of the floors but their count, which the plant's outputs fix later
-        tracking_floors(floor, len(floor) if isinstance(floor, (list, tuple, np.ndarray)) and np.ndim(floor) else 1)
+        tracking_floors(self.tracking_floor, None)  # their count is the plant's outputs, not known yet
         _check_step_samples(self.step_samples)
         if self.reference_horizon is not None:
             check_horizon(self.reference_horizon)
