@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import DataError, as_signal
+from ._validation import DataError, as_signal, check_count
 from .controller import RecedingHorizonController
 from .hinf import _design_from_plan, _map_plan, _predictor_parts
 from .recursive import RecursivePredictor
@@ -136,8 +136,7 @@ class AdaptiveHinf:
                  policy: GammaPolicy = GammaPolicy(), u_past=None, y_past=None, **design_kwargs):
         if not isinstance(predictor, RecursivePredictor):
             raise DataError("predictor must be a synthesis.RecursivePredictor (use RecursivePredictor.from_data)")
-        if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
-            raise DataError(f"period must be a positive number of samples, got {period!r}")
+        check_count(period, "period (samples between redesigns)", 1)
         if not isinstance(policy, GammaPolicy):
             raise DataError("policy must be a synthesis.GammaPolicy")
         fixed = sorted({"gamma", "gamma_ratio"} & set(design_kwargs))

@@ -93,7 +93,7 @@ def test_gains_after_updates_equal_fresh_design_on_same_window(window):
 def test_bad_arguments():
     u0, y0 = _init_data()
     W1, W2 = _weights()
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"period \(samples between redesigns\) must be an integer ≥ 1"):
         AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=0)
     with pytest.raises(ValueError):
         AdaptiveHinf(synthesis.fit_predictor(u0, y0, I_H), W1, W2, period=10)

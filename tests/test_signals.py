@@ -26,6 +26,8 @@ def test_prbs_seed_and_default_length():
     np.testing.assert_allclose(np.abs(prbs(10, amplitude=0.5)), 0.5)
     with pytest.raises(ValueError):
         prbs(0)
+    with pytest.raises(ValueError, match=r"n \(a number of samples\) must be an integer ≥ 1, got 2.5"):
+        prbs(2.5)  # one count check for the toolkit (synthesis.validation.check_count)
     with pytest.raises(ValueError):
         prbs(10, nbits=1)
 

@@ -10,15 +10,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import max_len_seq
 
-from synthesis.validation import DataError
+from synthesis.validation import DataError, check_count
 
 __all__ = ["prbs", "white_noise", "step_sequence", "step"]
 
 
 def _check_length(n, name: str = "n") -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise DataError(f"{name} must be a positive integer number of samples, got {n!r}")
-    return int(n)
+    return check_count(n, f"{name} (a number of samples)", 1)
 
 
 def prbs(n: int, nbits: int | None = None, *, amplitude: float = 1.0, seed=None) -> np.ndarray:
