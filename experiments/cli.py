@@ -103,8 +103,8 @@ COMMANDS: dict[str, tuple] = {
                (("--resume",), dict(dest="resume", action="store_true",
                                     help="skip the cases already finished in the report under --out")))),
     "design": ("experiments.studies.design_cli", "run",
-               "§7.4 workflow on a measured record (CSV/NPZ/MAT; one or several channels): δ, robust design, certificate or the "
-               "reason for refusing, controller files", "experiments.studies.design_cli:OPTIONS"),
+               "§7.4 workflow on a measured record (CSV/NPZ/MAT; one or several channels): δ, robust design, "
+               "certificate or the reason for refusing, controller files", "experiments.studies.design_cli:OPTIONS"),
     "cd-player": ("experiments.studies.cd_player", "run",
                   "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
                   "(--quick: i = 10)"),

@@ -256,7 +256,8 @@ from .premise import (
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
                       coprime_factors, coprime_gap, coprime_unfalsify, error_gap)
 from .options import CertificateOptions, DesignOptions, DesignSearch, EstimationOptions
-from .robust import RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta, robust_design_from_data
+from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta,
+                     robust_design_from_data)
 from .cost import arx_solve_estimate, solve_estimate
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 

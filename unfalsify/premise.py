@@ -541,11 +541,11 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
 
 
 #: a channel counts as taking two levels (or three evenly spaced ones) when the rms distance of its samples to their
-#: nearest level (the farthest 1 % left out) is below this fraction of the levels' spacing: noise on a recorded two-level input (a measured PRBS)
-#: does not show the plant other amplitudes.  Measured on the adversarial catalogue (a third-order plant behind a
-#: saturation at 80 % of a ±1 PRBS, input recorded with noise of 1 % and 5 % of its rms, seeds 4, 5, 7, 9): every
-#: run had been taken as testable and certified under ``untested="refuse"``, and 7 of the 8 loops lacked their δ
-#: margin on the plant.  A ±1 PRBS recorded with noise of rms 0.2 sits at the threshold.
+#: nearest level (the farthest 1 % left out) is below this fraction of the levels' spacing: noise on a recorded
+#: two-level input (a measured PRBS) does not show the plant other amplitudes.  Measured on the adversarial catalogue (a
+#: third-order plant behind a saturation at 80 % of a ±1 PRBS, input recorded with noise of 1 % and 5 % of its rms,
+#: seeds 4, 5, 7, 9): every run had been taken as testable and certified under ``untested="refuse"``, and 7 of the 8
+#: loops lacked their δ margin on the plant.  A ±1 PRBS recorded with noise of rms 0.2 sits at the threshold.
 LEVEL_SPREAD = 0.1
 
 

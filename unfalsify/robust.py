@@ -180,10 +180,10 @@ class RobustDesignResult:
         Why ``uncertainty="auto"`` left the additive form (the data refute its premise); ``''`` otherwise.
         :attr:`reason` repeats it when the coprime form does not certify either.
     assumed : tuple of str
-        What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input
-        channel with two values, or 0 and ±a, up to noise, cannot show a saturation or a dead zone; and one
-        time-invariant plant when ``invariance`` is None: no record given is long enough to test it).  A loop certified with a
-        non-empty ``assumed`` holds for the plant only as far as these statements do; with
+        What the certificate assumes that these data cannot test (:func:`unfalsify.untested_premises`: an input channel
+        with two values, or 0 and ±a, up to noise, cannot show a saturation or a dead zone; and one time-invariant plant
+        when ``invariance`` is None: no record given is long enough to test it).  A loop certified with a non-empty
+        ``assumed`` holds for the plant only as far as these statements do; with
         ``CertificateOptions(untested="refuse")`` a non-empty ``assumed`` refuses the certificate instead.
     invariance : InvarianceTest or None
         Chow's test of time invariance (:func:`unfalsify.check_time_invariance`) on the longest record the
@@ -489,12 +489,12 @@ def robust_design_from_data(
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
-    What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a
-    certified loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a (up to noise),
-    shows no static input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the
-    plant linear at the amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for
-    one input and one output) cannot show a plant that changes during the experiment, so the certificate then
-    assumes one time-invariant plant.
+    What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a certified
+    loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a (up to noise), shows no static
+    input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the plant linear at the
+    amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for one
+    input and one output) cannot show a plant that changes during the experiment, so the certificate then assumes one
+    time-invariant plant.
 
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then

@@ -218,10 +218,8 @@ def operating_point(rec, detrend: str = "none"):
     what the report says about it.
 
     The predictor, P̂ and the controller have no constant term: a record taken around an operating point (an input
-    between 0 and a level, a sensor bias) is read as dynamics.  Measured on the adversarial catalogue's third-order
-    and resonant plants (seeds 0–2): a sensor bias of 0.5 on outputs of about unit rms gave nearly integrating
-    models and refused 7 of 9 runs; an input switching between 0 and 2 was refused by (7.5) (columns starting
-    with a zero input).
+    between 0 and a level, a sensor bias) is read as dynamics (:func:`unfalsify.operating_point_note` says what that
+    did on the adversarial catalogue).
 
     Returns
     -------

@@ -25,18 +25,18 @@ w = 60).  Structure used:
   at (50, 500), 136 against 526 ms for 250 columns of i = 100.  Its cumulative sums keep about 1e-13 of the
   largest entry, so below a path gap of 1e-7·δ, and from the first step whose decrement it leaves
   non-positive, the FFT Hessian takes over (as in :mod:`~unfalsify.solvers.arx_barrier`).
-* **Newton system without O(n⁴) storage.**  The Hessian in H is block diagonal (j blocks i × i: the
-  barrier plus ``c T(u_k)ᵀT(u_k)``, c = 2w/ψ) plus the rank-one noise term ``(4w/ψ²) g gᵀ`` and, with
-  L optimised, minus ``c U Uᵀ``, ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: one LU solve
-  per block + Sherman–Morrison + the Schur complement of the δ row (exact, O(j i³)).  L optimised:
-  Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k`` (``q_k`` row k of Q,
-  ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
+* **Newton system without O(n⁴) storage.**  The Hessian in H is block diagonal (j blocks i × i: the barrier plus
+  ``c T(u_k)ᵀT(u_k)``, c = 2w/ψ) plus the rank-one noise term ``(4w/ψ²) g gᵀ`` and, with L optimised, minus ``c U Uᵀ``,
+  ``U = Mᵀ(Q ⊗ I)`` (M: H ↦ H̃), of rank r·i = 3i².  L fixed: one LU solve per block + Sherman–Morrison + the Schur
+  complement of the δ row (exact, O(j i³)).  L optimised: Woodbury with the capacitance ``C = Σ_k q_k q_kᵀ ⊗ E_k``
+  (``q_k`` row k of Q, ``E_k = (cI + c² T(u_k) G_k⁻¹ T(u_k)ᵀ)⁻¹``, G_k the barrier block) solved by preconditioned
   conjugate gradients; C is never formed (products cost O(i r j)), memory O(j i²).  Up to an order i·r of
-  :data:`_DENSE_CAPACITANCE`, C is formed and factored densely (:func:`~unfalsify.solvers.capacitance._dense_capacitance_factor`) once a CG solve
-  has cost more than that (:meth:`_ColumnSystem._dense_cheaper`) or stopped short of its tolerance after i·r
-  iterations (the bound of exact arithmetic), and for the rest of the solve: a noise ball far inside the residual
-  makes C ill-conditioned and CG long (measured at (20, 400), σ = 0.01 × the least-squares rms: 88 000 CG
-  iterations and 53 s with CG alone, 4.2 s with the switch; at σ = ½ the rms CG stays, 13 iterations a solve).
+  :data:`_DENSE_CAPACITANCE`, C is formed and factored densely
+  (:func:`~unfalsify.solvers.capacitance._dense_capacitance_factor`) once a CG solve has cost more than that
+  (:meth:`_ColumnSystem._dense_cheaper`) or stopped short of its tolerance after i·r iterations (the bound of exact
+  arithmetic), and for the rest of the solve: a noise ball far inside the residual makes C ill-conditioned and CG long
+  (measured at (20, 400), σ = 0.01 × the least-squares rms: 88 000 CG iterations and 53 s with CG alone, 4.2 s with
+  the switch; at σ = ½ the rms CG stays, 13 iterations a solve).
 * **Steps.**  After each centring t grows by ``mu`` (5), and the centring at μt starts from the best (lowest
   ``f_{μt}``) of the centred point and the two predictions of
   :func:`~unfalsify.solvers.barrier.path_predictor` (the tangent linear in 1/t, and the Hermite cubic through the
