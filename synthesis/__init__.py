@@ -105,6 +105,8 @@ Data helpers and saving
 
    estimate_noise         -- σ from the data: residual rms of the least-squares predictor, and how it was obtained
    NoiseEstimate          -- result of ``estimate_noise``
+   record_fingerprint     -- hashes of a record's blocks: which samples of another record it holds (held-out checks)
+   RecordFingerprint      -- result of ``record_fingerprint``, kept on a fitted ``Predictor``
    save_controller        -- write a controller to ``.npz`` or ``.mat`` (A, B, C, D, dt, signal names)
    load_controller        -- read it back as a ``control.StateSpace``
    read_variables         -- the variables of an ``.npz`` or ``.mat`` file (unreadable files named, with the fix)
@@ -281,6 +283,7 @@ from .bounded_real import BoundedRealCertificate, bounded_real_certificate
 from .infinite_horizon import MixsynResult, discrete_mixsyn, mixsyn_closed_loop, peak_gain
 from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 from .noise import NoiseEstimate, estimate_noise
+from .fingerprint import RecordFingerprint, record_fingerprint
 from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, read_variables, save_controller
 from .subspace_id import SubspaceModel, subspace_id
 from .arx_id import ArxModel, arx_id
@@ -347,6 +350,8 @@ __all__ = [
     "GammaPolicy",
     # the engineer's choices: noise level, weights
     "NoiseEstimate",
+    "RecordFingerprint",
+    "record_fingerprint",
     "estimate_noise",
     "makeweight",
     "diagonal_weight",

@@ -10,7 +10,7 @@ so that future outputs are predicted by (2.6), ``ŷ = Lw w_p + Lu u_f`` with
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -20,6 +20,7 @@ from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, as_signal, check_count, check_horizon, check_sample_time
+from .fingerprint import RecordFingerprint, record_fingerprint
 from .hankel import hankel_gram
 from ._repr import result
 
@@ -65,6 +66,10 @@ class Predictor:
         Sample time of the data the predictor was fitted on, when it was given
         (``fit_predictor(..., dt=...)``).  The designs then check the weights' sample time
         against it (:func:`synthesis.hinf_design`); ``None``: unknown (the arrays carry none).
+    fingerprint : RecordFingerprint or None
+        The record it was fitted on, as hashes (:func:`synthesis.record_fingerprint`; :func:`fit_predictor` sets
+        it): a test on "held-out" data can check that they are (:func:`unfalsify.check_premise`).  Not compared
+        by ``==``.  ``None``: unknown.
     """
 
     Lw: np.ndarray
@@ -80,6 +85,7 @@ class Predictor:
     rcond: float | None = None
     solver: str | None = None
     dt: float | None = None
+    fingerprint: RecordFingerprint | None = field(default=None, compare=False)
 
     @property
     def n_regressors(self) -> int:
@@ -519,12 +525,12 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     j = n - 2 * i + 1
     tol = _resolve_rcond(rcond, method, n_reg, j)
     if method == "cholesky":
-        return _with_dt(_predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method), dt)
+        return _stamped(_predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method), dt, u, y)
     Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
     if method == "qr":
         A = np.vstack([Up, Yp, Uf, Yf])
         R = _square_factor(np.linalg.qr(A.T, mode="r").T)
-        return _with_dt(_predictor_from_factor(R, i, m, l, j, tol, method), dt)
+        return _stamped(_predictor_from_factor(R, i, m, l, j, tol, method), dt, u, y)
     # method == "lstsq"
     Phi = np.vstack([Up, Yp, Uf])
     sol, _, q, s = np.linalg.lstsq(Phi.T, Yf.T, rcond=tol)
@@ -532,12 +538,15 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     r_in = _rank(np.linalg.svd(np.vstack([Up, Uf]), compute_uv=False), tol)
     _warn_rank(int(q), r_in, i, m, l, j, tol, stacklevel=3)
     Lw, Lu = _split(sol.T, i, m, l)
-    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol), dt=dt)
+    return _stamped(Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(tol)), dt, u, y)
 
 
-def _with_dt(pred: Predictor, dt) -> Predictor:
+def _stamped(pred: Predictor, dt, u, y) -> Predictor:
+    """``pred`` with the data's sample time (when given) and the fingerprint of the record it was fitted on."""
+    # a new object of our own, not yet seen by anyone
     if dt is not None:
-        object.__setattr__(pred, "dt", dt)  # a new object of our own, not yet seen by anyone
+        object.__setattr__(pred, "dt", dt)
+    object.__setattr__(pred, "fingerprint", record_fingerprint(u, y))
     return pred
 
 
