@@ -573,19 +573,22 @@ def test_an_untested_time_invariance_warns_when_certified_and_refuses_on_request
         with warnings.catch_warnings(record=True) as log:
             warnings.simplefilter("always")
             r = uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, validation=validation,
-                                           predictor=synthesis.fit_predictor(u, y, 3),
-                                           predictor_for=lambda h: synthesis.fit_predictor(u, y, h), **kw)
+                                           predictor=synthesis.fit_predictor(u[:fit], y[:fit], 3),
+                                           predictor_for=lambda h: synthesis.fit_predictor(u[:fit], y[:fit], h),
+                                           **kw)
         return r, [str(w.message) for w in log if issubclass(w.category, uf.UntestedPremiseWarning)]
 
+    fit = 800 - need
     short, untested = run()
     assert short.certified, short.reason
-    assert len(short.assumed) == 1 and short.assumed[0].startswith("one time-invariant plant made the data")
-    assert "(45 samples)" in short.assumed[0] and f"needs {need}" in short.assumed[0]
-    assert len(untested) == 1 and short.assumed[0] in untested[0]
+    assert len(short.assumed) == 2 and short.assumed[0].startswith("P̂'s output error was tested on the (7.5) window")
+    assert short.assumed[1].startswith("one time-invariant plant made the data")
+    assert "(45 samples)" in short.assumed[1] and f"needs {need}" in short.assumed[1]
+    assert len(untested) == 1 and all(a in untested[0] for a in short.assumed)
     strict, _ = run(certificate=uf.CertificateOptions(untested="refuse"))
     assert not strict.certified and "cannot test the premise" in strict.reason and "validation=" in strict.reason
-    # a validation record of exactly the length the test needs: tested, nothing assumed, no warning
-    tested, untested = run(validation=(u[45:45 + need], y[45:45 + need]))
+    # a held-out validation record of exactly the length the test needs: tested, nothing assumed, no warning
+    tested, untested = run(validation=(u[fit:], y[fit:]))
     assert tested.invariance is not None and tested.invariance.samples == need
     assert tested.certified and tested.assumed == () and not untested
     # record mode on a record too short for the test: the fix is a longer experiment, not another keyword
@@ -593,6 +596,49 @@ def test_an_untested_time_invariance_warns_when_certified_and_refuses_on_request
         warnings.simplefilter("ignore")
         whole = uf.robust_design_from_data(u[:300], y[:300], 3, W1, W2, "auto", dt=1.0, window=(0, 45), search=False)
     assert whole.invariance is None and whole.assumed[-1].endswith(f"(record at least {need} samples)")
+
+
+def test_a_validation_record_the_predictor_was_fitted_on_is_not_held_out():
+    """``validation=`` is checked against the data P̂ was fitted on (the predictor's fingerprint, or the window when
+    (7.5) finds the predictor): overlapping "held-out" data make the output-error test in sample, the result says
+    so, ``assumed`` states it with the fix, and ``untested="refuse"`` refuses."""
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(1200)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:1200] + 0.01 * rng.standard_normal(1200)
+    W1 = synthesis.makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
+    W2 = synthesis.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+
+    def run(fit, validation, **kw):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, validation=validation,
+                                              predictor=synthesis.fit_predictor(u[:fit], y[:fit], 3),
+                                              predictor_for=lambda h: synthesis.fit_predictor(u[:fit], y[:fit], h),
+                                              **kw)
+
+    held = run(800, (u[800:], y[800:]))
+    assert held.premise.output_error.held_out and held.premise.validation_shared == 0.0
+    assert held.certified and not any("held out" in a for a in held.assumed)
+    overlap = run(1200, (u[800:], y[800:]))  # the predictor was fitted on the whole record, "validation" included
+    assert not overlap.premise.output_error.held_out and overlap.premise.validation_shared == 0.8  # 320 of 400 in whole blocks
+    assert overlap.certified and overlap.assumed[0].startswith("the validation record is not held out: at least 80%")
+    assert "validation=(u_v, y_v), a record not used for fitting" in overlap.assumed[0]
+    strict = run(1200, (u[800:], y[800:]), certificate=uf.CertificateOptions(untested="refuse"))
+    assert not strict.certified and "the validation record is not held out" in strict.reason
+    # δ and the predictor found together by (7.5): the window is what P̂ was fitted on
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        window = uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, validation=(u[:400], y[:400]),
+                                            search=False)
+    assert not window.premise.output_error.held_out and 0 < window.premise.validation_shared < 0.2
+    # a predictor that does not say what it was fitted on (pickled before fingerprints): not checked, as before
+    pred = synthesis.fit_predictor(u, y, 3)
+    object.__setattr__(pred, "fingerprint", None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        unknown = uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, validation=(u[800:], y[800:]),
+                                             predictor=pred, search=False)
+    assert unknown.premise.output_error.held_out and np.isnan(unknown.premise.validation_shared)
 
 
 def test_record_mode_auto_window_and_bad_windows(prbs_record):

@@ -58,6 +58,7 @@ import numpy as np
 import scipy.signal
 import scipy.stats
 
+from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal, check_count
 
@@ -390,6 +391,10 @@ class PremiseTest:
     plant_low_band : LowBandEstimate or None
         The same for the plant itself; its lowest frequency gives the low-frequency gain the pipeline's
         tracking check uses.
+    validation_shared : float
+        Fraction of the ``validation`` record found in the data P̂ was fitted on (``fitted_on``; a lower bound, see
+        :meth:`synthesis.RecordFingerprint.shared_fraction`).  Above 0 the output error was tested partly in sample
+        and ``output_error.held_out`` is False.  NaN: no ``validation``, or not known what P̂ was fitted on.
     """
 
     delta_subspace: float
@@ -402,6 +407,7 @@ class PremiseTest:
     plant_frf: FrequencyResponseEstimate | None = None
     low_band: LowBandEstimate | None = None
     plant_low_band: LowBandEstimate | None = None
+    validation_shared: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -441,7 +447,7 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
                    "biased there; fit it on a longer or richer record (white PRBS), or raise the horizon")
 
 
-def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float, validation=None,
+def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float, validation=None, fitted_on=None,
                   options: PremiseOptions | None = None) -> PremiseTest:
     """Test the certificate's premise on the data (module docstring, items 1–2).
 
@@ -458,6 +464,11 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     validation : tuple of array_like, optional
         ``(u_v, y_v)``: a record of the same plant not used to fit P̂ (held out).  Without it the
         output error is computed on the window, in sample (optimistic; the result says so).
+    fitted_on : synthesis.RecordFingerprint or sequence of them, optional
+        The data P̂ was fitted on (:attr:`synthesis.Predictor.fingerprint`, or :func:`synthesis.record_fingerprint`
+        of the (7.5) window when δ and the predictor were found together).  A ``validation`` record that shares
+        samples with them is not held out: ``output_error.held_out`` is then False and ``validation_shared`` says
+        how much.  None: not checked.
     options : PremiseOptions, optional
 
     Returns
@@ -478,6 +489,13 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (True, True)
     >>> test.output_error.held_out, test.frf is not None, isinstance(test.ok, bool)
     (True, True, True)
+
+    The same test on a "validation" record that P̂ was fitted on is in sample:
+
+    >>> fitted = sy.record_fingerprint(u[:200], y[:200])
+    >>> test = check_premise(model, u[:45], y[:45], 3, 0.05, dt=1.0, validation=(u[:200], y[:200]), fitted_on=fitted)
+    >>> test.output_error.held_out, test.validation_shared
+    (False, 0.96)
     """
     opts = options or PremiseOptions()
     u, y = channel_pair(u, y)
@@ -487,9 +505,10 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         except (TypeError, ValueError):
             raise DataError("validation must be a pair (u, y) of held-out data of the same plant") from None
         uv, yv = channel_pair(uv, yv, "validation ")
-        oe_data, held_out = (uv, yv), True
+        shared = _shared_fraction(fitted_on, uv, yv)
+        oe_data, held_out = (uv, yv), not shared > 0
     else:
-        oe_data, held_out = (u, y), False
+        oe_data, held_out, shared = (u, y), False, float("nan")
     reasons = []
     try:
         oe = output_error_unfalsify(model, *oe_data, horizon, held_out=held_out, options=opts)
@@ -537,7 +556,20 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
             reasons.append(why)
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
                        frf=frf, inconsistency=float(worst), reason="; ".join(reasons), plant_frf=plant_frf,
-                       low_band=low, plant_low_band=plant_low)
+                       low_band=low, plant_low_band=plant_low, validation_shared=shared)
+
+
+def _shared_fraction(fitted_on, u, y) -> float:
+    """Fraction of the record ``(u, y)`` found in the fingerprints ``fitted_on`` (one, a sequence, or None: NaN)."""
+    if fitted_on is None:
+        return float("nan")
+    prints = (fitted_on,) if isinstance(fitted_on, RecordFingerprint) else tuple(fitted_on)
+    if not all(isinstance(fp, RecordFingerprint) for fp in prints):
+        raise DataError(f"fitted_on must be a synthesis.RecordFingerprint or a sequence of them, got {fitted_on!r}")
+    mask = np.zeros(np.shape(u)[0], bool)
+    for fp in prints:
+        mask |= fp.shared(u, y)
+    return float(mask.mean()) if mask.size else 0.0
 
 
 #: a channel counts as taking two levels (or three evenly spaced ones) when the rms distance of its samples to their

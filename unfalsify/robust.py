@@ -56,7 +56,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 import synthesis
-from synthesis import Additive, HinfDesign
+from synthesis import Additive, HinfDesign, record_fingerprint
+from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import DataError, as_signal, check_horizon
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
@@ -492,9 +493,11 @@ def robust_design_from_data(
     What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a certified
     loop, warned (:class:`UntestedPremiseWarning`): an input with two values, or 0 and ±a (up to noise), shows no static
     input nonlinearity (a saturation acts on it as a gain), so the certificate then assumes the plant linear at the
-    amplitudes the loop will use; and records all shorter than :func:`unfalsify.min_record_length` (336 samples for one
+    amplitudes the loop will use; records all shorter than :func:`unfalsify.min_record_length` (336 samples for one
     input and one output) cannot show a plant that changes during the experiment, so the certificate then assumes one
-    time-invariant plant.
+    time-invariant plant; and P̂'s output error tested in sample -- without ``validation``, or on a ``validation``
+    record that shares samples with the data P̂ was fitted on (found by :attr:`synthesis.Predictor.fingerprint`,
+    ``result.premise.validation_shared``) -- can miss a bias of P̂ that held-out data would show.
 
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
@@ -649,7 +652,7 @@ def robust_design_from_data(
     pred = _model_predictor(unf, predictor)
     model = predictor_model(pred, _data_dt(dt, W1, W2))
     prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
-                         options=premise or PremiseOptions())
+                         fitted_on=_fitted_on(predictor, u, y), options=premise or PremiseOptions())
     delta = prem.delta
     if design.w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
@@ -661,8 +664,8 @@ def robust_design_from_data(
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
     invariance, invariance_note = _time_invariance(record)
-    assumed = untested_premises(u, validation) + (_untested_invariance(*record, whole is not None)
-                                                   if invariance is None else ())
+    assumed = (untested_premises(u, validation) + _in_sample(prem)
+               + (_untested_invariance(*record, whole is not None) if invariance is None else ()))
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
     premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason,
                                            untested_reason, invariance.reason if invariance is not None else "")
@@ -694,6 +697,33 @@ def robust_design_from_data(
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
         assumed=assumed, invariance=invariance, invariance_note=invariance_note)
+
+
+def _fitted_on(predictor, u, y):
+    """What P̂ was fitted on: the given predictor's record (None when it carries no fingerprint), else the window,
+    on which (7.5) finds the predictor together with δ.  A window is often shorter than two of the fingerprint's
+    blocks, so its blocks are a quarter of it (at least 16 samples): sixteen samples of every channel do not repeat
+    by chance in a record with noise."""
+    if predictor is not None:
+        return getattr(predictor, "fingerprint", None)
+    n = np.shape(u)[0]
+    return record_fingerprint(u, y, block=min(FINGERPRINT_BLOCK, max(n // 4, 16)))
+
+
+def _in_sample(prem: PremiseTest) -> tuple[str, ...]:
+    """The premise stated when P̂'s output error was not tested on held-out data (nothing when it was, or when the
+    test did not run: the premise is then refused)."""
+    oe = prem.output_error
+    if oe is None or oe.held_out:
+        return ()
+    fix = ("pass validation=(u_v, y_v), a record not used for fitting, or the whole record with window= (the "
+           "pipeline then holds out its last third)")
+    if prem.validation_shared > 0:
+        return (f"the validation record is not held out: at least {prem.validation_shared:.0%} of its samples are in "
+                "the data P̂ was fitted on, so P̂'s output error was tested in sample, where a bias of P̂ that "
+                f"held-out data would show can hide; {fix}",)
+    return ("P̂'s output error was tested on the (7.5) window, not on held-out data, where a bias of P̂ that "
+            f"held-out data would show can hide; {fix}",)
 
 
 def _longest(u, y, validation) -> tuple:
