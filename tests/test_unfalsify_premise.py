@@ -5,6 +5,8 @@ import warnings
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import scipy.signal
 
 import synthesis
@@ -78,6 +80,64 @@ def test_a_silent_band_has_wide_disks_and_is_not_excited():
 def _slow_plant(dt=0.02):
     """A pole at 1 rad/s and a faster pair (unit DC gain) at 50 Hz: its DC gain lives below Welch's first bin."""
     return control.c2d(control.tf([192.0], np.polymul([1, 1], np.polymul([1, 3], [1, 4.8, 64]))), dt)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.sampled_from([200, 480, 2000]),
+       kind=st.sampled_from(["prbs", "gauss", "held3"]))
+def test_broadband_inputs_leave_no_bin_leaked(seed, n, kind):
+    """White PRBS, Gaussian noise and a PRBS held for 3 samples (spectral nulls between lobes, bridged by
+    interpolation) stand for themselves at every Welch bin."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n) if kind == "gauss" else np.sign(rng.standard_normal(n))
+    if kind == "held3":
+        u = np.repeat(u[: n // 3 + 1], 3)[:n]
+    est = uf.frequency_response_estimate(u, np.convolve(u, FIR)[:n] + 0.1 * rng.standard_normal(n))
+    assert not est.leaked.any() and not uf.leaked_bins([u.reshape(-1, 1)], est.nperseg).any()
+
+
+def test_bins_above_a_multisine_are_leaked_their_disks_infinite():
+    """Above a low multisine the Welch bins gather the in-band lines through the window's lobes: their estimate is
+    the response in the band, so they are leaked -- radius inf, not excited -- however small the disk the formula
+    gives; the in-band bins are not."""
+    t = np.arange(2048)
+    u = sum(np.sin(2 * np.pi * f * t + 3 * f) for f in np.linspace(0.005, 0.05, 10))
+    u = np.round(u / 0.01) * 0.01  # quantised, as a DAC plays it: a floor of power at every frequency
+    y = scipy.signal.lfilter([0.0, 0.3], [1.0, -0.7], u) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    est = uf.frequency_response_estimate(u, y, nperseg=32)
+    band = np.arange(est.frequency.size) <= 0.05 * 32  # bins 0 and 1 hold the lines
+    assert not np.any(est.leaked[band]) and np.all(est.leaked[2:8])  # just above the band: the lines' lobes
+    assert np.all(np.isinf(est.radius[est.leaked])) and not np.any(est.excited[est.leaked])
+    assert np.all(np.isfinite(est.radius[~est.leaked]))
+    # near Nyquist the quantisation floor, which the plant receives, is the bins' own power: they stand again
+    assert not np.any(est.leaked[-2:])
+    plain = scipy.signal.csd(u, y, nperseg=32)[1] / scipy.signal.welch(u, nperseg=32)[1]
+    np.testing.assert_allclose(est.response, plain)  # the estimate itself is unchanged
+
+
+def test_gathered_power_by_convolution_equals_the_direct_sums():
+    """Two routes to the centroid offsets and own-band shares: circular convolutions of the fine spectrum, and the
+    sums written out with the Hann window's transform at every fine frequency."""
+    from unfalsify.frequency_response import _FINE, _gathered_power
+
+    rng = np.random.default_rng(3)
+    u = scipy.signal.lfilter([1.0], [1.0, -0.8], rng.standard_normal(600)).reshape(-1, 1)
+    L = 16
+    offset, share = _gathered_power([u], L)
+    nf = _FINE * L
+    nu, P = scipy.signal.welch(u[:, 0], nperseg=nf, nfft=nf, return_onesided=False)
+    w = scipy.signal.get_window("hann", L)
+    for k in range(L // 2 + 1):
+        d = ((nu - k / L + 0.5) % 1.0 - 0.5) * L  # offset from bin k in bins, wrapped (the spectrum is periodic)
+        K = np.abs(np.exp(-2j * np.pi * np.outer(d / L, np.arange(L))) @ w) ** 2
+        box = np.where(np.abs(d) < 0.5, 1.0, np.where(np.isclose(np.abs(d), 0.5), 0.5, 0.0))
+        flat = box.sum() / K.sum()
+        assert offset[k, 0] == pytest.approx(np.sum(P * K * d) / np.sum(P * K), abs=1e-9)
+        assert share[k, 0] == pytest.approx(np.sum(P * box) / np.sum(P * K) / flat, rel=1e-9)
+    with pytest.raises(DataError, match="nperseg"):
+        uf.leaked_bins([u], 2)
+    with pytest.raises(DataError, match="same channels"):
+        uf.leaked_bins([u, np.hstack([u, u])], L)
 
 
 @pytest.mark.parametrize("seed", range(3))

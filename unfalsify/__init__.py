@@ -104,6 +104,7 @@ The certificate's premise, tested on the data
    OutputErrorResult      -- result of ``output_error_unfalsify``
    frequency_response_estimate -- Welch estimate ``S_yu S_uu⁻¹`` with simultaneous confidence regions (σ̄ radius)
    FrequencyResponseEstimate -- result of ``frequency_response_estimate``
+   leaked_bins            -- Welch bins whose estimate is the response elsewhere (window leakage from one side)
    low_band_estimate      -- response at the lowest DFT frequencies (local polynomial method), with regions
    LowBandEstimate        -- result of ``low_band_estimate``
    check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
@@ -237,7 +238,7 @@ from .model import predictor_model
 from .certify import (AdditiveRobustness, LoopCertificate, StepMetrics, additive_channel, additive_robustness,
                       certify_loop, closed_loop_ry, coprime_channel, loop_parts, step_metrics, tracking_floors)
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
-                                 frequency_response_estimate, low_band_estimate)
+                                 frequency_response_estimate, leaked_bins, low_band_estimate)
 from .excitation import ExcitationCheck, check_excitation
 from .premise import (
     LEVEL_SPREAD,
@@ -315,6 +316,7 @@ __all__ = [
     "check_excitation",
     "check_premise",
     "frequency_response_estimate",
+    "leaked_bins",
     "low_band_estimate",
     "output_error_residual",
     "output_error_unfalsify",

@@ -25,11 +25,13 @@ power).  So the premise is tested three ways, each from the record itself:
    would bias a direct estimate of P far beyond its confidence disk).  Where the input excites the plant
    (input spectrum above ``EXCITATION_FLOOR`` × its peak) and ``|D̂| − r > δ``, P̂ is inconsistent with the
    record by more than the δ being certified: the certificate is refused and the reason names the
-   frequencies.  Below the first Welch frequency -- where each detrended segment is blind, and where a
-   slow pole or an integrator that P̂ misses lives -- the local polynomial method
-   (:func:`low_band_estimate`) gives its own disks, and the same rule applies (measured: a 4th-order 50 Hz
-   plant whose P̂ had 0.27 of the DC gain passed every Welch frequency and Theorem 7.1's noise ball, and its
-   certified loop did not track).
+   frequencies.  A bin whose window gathers the input's power from one side only -- above a band-limited
+   input's edge -- estimates the response *there*, not at its own frequency
+   (:func:`unfalsify.leaked_bins`): its radius is infinite and it is not excited.  Below the first Welch
+   frequency -- where each detrended segment is blind, and where a slow pole or an integrator that P̂ misses
+   lives -- the local polynomial method (:func:`low_band_estimate`) gives its own disks, and the same rule
+   applies (measured: a 4th-order 50 Hz plant whose P̂ had 0.27 of the DC gain passed every Welch frequency
+   and Theorem 7.1's noise ball, and its certified loop did not track).
 3. **Excitation where the loop is sensitive, and the δ margin** (:mod:`unfalsify.excitation`, per design):
    the whole confidence disk must lie where the loop is stable frequency by frequency, and where every
    plant in the disks lacks the δ margin the loop is certified for, the data refute it.
