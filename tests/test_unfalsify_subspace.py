@@ -134,6 +134,10 @@ def test_zero_first_input_in_a_column_raises():
     u[3 + 4] = 0.0  # (U_f)_{0,4} = u_{i+4}
     with pytest.raises(DataError, match="U_f"):
         uf.subspace_unfalsify(u, y, 3, 0.05)
+    # a quantised input passes through 0 exactly: the message lists where, and the window that would avoid it
+    u[3 + 9] = 0.0
+    with pytest.raises(DataError, match=r"zero at u\[7\], u\[12\]\).*quantised.*samples 3 … 17 "):
+        uf.subspace_unfalsify(u, y, 3, 0.05)
 
 
 @pytest.mark.parametrize(

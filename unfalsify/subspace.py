@@ -243,12 +243,15 @@ class SubspaceProblem:
         check_noise_resolution(sigma, Yf.size, Yf, "Y_f")
         zero_cols = np.flatnonzero(np.all(Uf[:m] == 0.0, axis=0))
         if zero_cols.size:
+            where = ", ".join(f"u[{i + c}]" for c in zero_cols[:5]) + (", …" if zero_cols.size > 5 else "")
             raise DataError(
-                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}, "
-                f"u[{i + zero_cols[0]}] = 0): T((U_f)_{{:,k}}) is singular there; use an input with no zero "
-                "samples (e.g. a ±1 PRBS on every channel), or, for an input that switches between 0 and a level, "
-                "subtract its operating point (u − mean(u), y − mean(y); `python -m experiments design --detrend "
-                "mean`)"
+                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}; zero at "
+                f"{where}): T((U_f)_{{:,k}}) is singular there; use an input with no zero samples (e.g. a ±1 PRBS "
+                "on every channel); for an input that switches between 0 and a level, subtract its operating point "
+                "(u − mean(u), y − mean(y); `python -m experiments design --detrend mean`); for a quantised input "
+                f"that passes through 0 (an ADC's or a DAC's step), move the window so that its samples {i} … "
+                f"{i + j - 1} (the columns' first samples) hold no zero (`--window START:LEN` of `python -m "
+                "experiments design`)"
             )
         L_fixed = None
         if predictor is not None:
