@@ -8,9 +8,9 @@ the noise; a delay near the horizon, a resonance above the band, a drifting gain
 nonlinearity are outside the model class.  This module generates such conditions as a *class*
 (:func:`catalogue`, a grid of :class:`Case` specs) rather than a fixed list:
 
-* excitation (:class:`Excitation`): multisines over a low band, a mid band and a few lines only;
-  low-pass filtered Gaussian noise at several cut-offs; PRBS held for ``k`` samples; sparse steps;
-  white PRBS (the control group);
+* excitation (:class:`Excitation`): multisines over a low band, a mid band and a few lines only (and the low one
+  played through a DAC quantising at 1 % of its range); low-pass filtered Gaussian noise at several cut-offs; PRBS
+  held for ``k`` samples; sparse steps; white PRBS (the control group);
 * noise (:class:`Noise`): AR(1)-coloured sensor noise; a slow random walk plus an offset on ``y``; noise on the
   *recorded* input (``Case.input_noise``: a sensor on the actuator, errors in variables);
 * closed-loop data: the plant under a stabilising proportional controller with the excitation as
@@ -160,6 +160,9 @@ class Excitation:
         Low-pass cut-off.
     hold : int
         Samples per value (held PRBS, steps).
+    quantise : float
+        Step of a quantiser the signal is played through, as a fraction of its range (a DAC: the plant receives
+        the quantised signal, and the record holds it); 0: none.
     """
 
     kind: str = "prbs"
@@ -167,10 +170,14 @@ class Excitation:
     lines: int = 0
     cutoff: float = 0.5
     hold: int = 1
+    quantise: float = 0.0
 
     @property
     def label(self) -> str:
-        """Short name, e.g. ``multisine[0.005-0.05]`` or ``lowpass<0.05``."""
+        """Short name, e.g. ``multisine[0.005-0.05]``, ``lowpass<0.05`` or ``multisine[0.002-0.05]/DAC 1%``."""
+        return self._kind_label() + (f"/DAC {100 * self.quantise:g}%" if self.quantise else "")
+
+    def _kind_label(self) -> str:
         if self.kind == "multisine":
             few = f"×{self.lines}" if self.lines else ""
             return f"multisine[{self.band[0]:g}-{self.band[1]:g}]{few}"
@@ -181,7 +188,14 @@ class Excitation:
         return self.kind
 
     def signal(self, n: int, seed: int) -> np.ndarray:
-        """``n`` samples of the excitation (``seed`` chooses the PRBS phase, noise, levels)."""
+        """``n`` samples of the excitation (``seed`` chooses the PRBS phase, noise, levels), quantised when asked."""
+        x = self._unquantised(n, seed)
+        if not self.quantise:
+            return x
+        step = self.quantise * float(np.max(x) - np.min(x))
+        return np.round(x / step) * step
+
+    def _unquantised(self, n: int, seed: int) -> np.ndarray:
         rng = np.random.default_rng(seed)
         if self.kind == "prbs":
             return prbs(n, seed=seed)
@@ -370,6 +384,10 @@ def catalogue(seed: int = 0) -> tuple[Case, ...]:
             cases.append(Case(f"excitation/{plant}/{e.label}", "excitation", plant, e, seed=seed))
     for e in (excs[0], excs[4], excs[7], excs[-1]):
         cases.append(Case(f"excitation/nonminimum_phase/{e.label}", "excitation", "nonminimum_phase", e, seed=seed))
+    # a low multisine played through a DAC: the Welch bins above its band gather its lines through the window
+    dac = Excitation("multisine", band=(0.002, 0.05), quantise=0.01)
+    for plant in ("third_order", "resonant", "nonminimum_phase"):
+        cases.append(Case(f"excitation/{plant}/{dac.label}", "excitation", plant, dac, seed=seed))
     white, low = Excitation("prbs"), Excitation("multisine", band=(0.002, 0.05))
     for plant in ("third_order", "resonant"):
         cases.append(Case(f"noise/{plant}/AR(0.95)", "noise", plant, white, Noise(ar=0.95, sensor=0.1), seed=seed))
