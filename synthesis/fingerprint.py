@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._repr import result
-from ._validation import DataError, as_signal, check_count
+from ._validation import as_signal, check_count
 
 __all__ = ["RecordFingerprint", "record_fingerprint"]
 
