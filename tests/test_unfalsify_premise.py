@@ -83,17 +83,25 @@ def _slow_plant(dt=0.02):
 
 
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**31), n=st.sampled_from([200, 480, 2000]),
-       kind=st.sampled_from(["prbs", "gauss", "held3"]))
-def test_broadband_inputs_leave_no_bin_leaked(seed, n, kind):
-    """White PRBS, Gaussian noise and a PRBS held for 3 samples (spectral nulls between lobes, bridged by
-    interpolation) stand for themselves at every Welch bin."""
+@given(seed=st.integers(0, 2**31), n=st.sampled_from([200, 480, 2000]), kind=st.sampled_from(["prbs", "gauss"]))
+def test_white_inputs_leave_no_bin_leaked(seed, n, kind):
+    """White PRBS and Gaussian noise stand for themselves at every Welch bin."""
     rng = np.random.default_rng(seed)
     u = rng.standard_normal(n) if kind == "gauss" else np.sign(rng.standard_normal(n))
-    if kind == "held3":
-        u = np.repeat(u[: n // 3 + 1], 3)[:n]
     est = uf.frequency_response_estimate(u, np.convolve(u, FIR)[:n] + 0.1 * rng.standard_normal(n))
     assert not est.leaked.any() and not uf.leaked_bins([u.reshape(-1, 1)], est.nperseg).any()
+
+
+def test_a_held_prbs_is_bridged_across_its_spectral_nulls_in_most_records():
+    """A PRBS held for 3 samples has a null at a third of the sample rate; the bins beside it gather power from
+    one side each, and bins standing for themselves on both sides make them an interpolation.  Where the null is
+    wider than the bracket (a short record, coarse bins) a bin is leaked: measured in 7 of 200 records of 200
+    samples, 2 of 200 of 480, 6 of 200 of 2000 (held 10: 0, 0, 6)."""
+    leaked = 0
+    for seed in range(50):
+        u = np.repeat(np.sign(np.random.default_rng(seed).standard_normal(161)), 3)[:480]
+        leaked += bool(uf.leaked_bins([u], 32).any())
+    assert leaked <= 5
 
 
 def test_bins_above_a_multisine_are_leaked_their_disks_infinite():
