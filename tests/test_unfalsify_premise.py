@@ -689,7 +689,7 @@ def test_a_validation_record_the_predictor_was_fitted_on_is_not_held_out():
     assert held.certified and not any("held out" in a for a in held.assumed)
     overlap = run(1200, (u[800:], y[800:]))  # the predictor was fitted on the whole record, "validation" included
     assert not overlap.premise.output_error.held_out and overlap.premise.validation_shared == 0.8  # 320 of 400 in whole blocks
-    assert overlap.certified and overlap.assumed[0].startswith("the validation record is not held out: at least 80%")
+    assert overlap.certified and overlap.assumed[0].startswith("the validation record is not held out: at least 80 % of")
     assert "validation=(u_v, y_v), a record not used for fitting" in overlap.assumed[0]
     strict = run(1200, (u[800:], y[800:]), certificate=uf.CertificateOptions(untested="refuse"))
     assert not strict.certified and "the validation record is not held out" in strict.reason

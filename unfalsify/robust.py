@@ -719,8 +719,8 @@ def _in_sample(prem: PremiseTest) -> tuple[str, ...]:
     fix = ("pass validation=(u_v, y_v), a record not used for fitting, or the whole record with window= (the "
            "pipeline then holds out its last third)")
     if prem.validation_shared > 0:
-        return (f"the validation record is not held out: at least {prem.validation_shared:.0%} of its samples are in "
-                "the data P̂ was fitted on, so P̂'s output error was tested in sample, where a bias of P̂ that "
+        return (f"the validation record is not held out: at least {100 * prem.validation_shared:.3g} % of its samples "
+                "are in the data P̂ was fitted on, so P̂'s output error was tested in sample, where a bias of P̂ that "
                 f"held-out data would show can hide; {fix}",)
     return ("P̂'s output error was tested on the (7.5) window, not on held-out data, where a bias of P̂ that "
             f"held-out data would show can hide; {fix}",)
