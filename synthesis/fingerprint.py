@@ -136,13 +136,14 @@ def record_fingerprint(u, y, *, block: int = BLOCK) -> RecordFingerprint:
     block = check_count(block, "block", 1)
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
-    rows = np.hstack([u, y])
-    n = rows.shape[0]
-    whole = rows[:n - n % block].reshape(-1, block, rows.shape[1])  # the aligned blocks
-    varied = ~np.all(whole == whole[:, :1], axis=(1, 2))
-    words = _row_hashes(rows[:whole.shape[0] * block]).reshape(-1, block)
+    n = u.shape[0]
+    aligned = n - n % block
+    words = _row_hashes((u[:aligned], y[:aligned])).reshape(-1, block)
+    # equal samples have equal words: a block of one repeated word is idle (a collision only hides a block)
+    varied = words.min(axis=1) != words.max(axis=1)
     with np.errstate(over="ignore"):
-        hashes = _mix(np.sum(words * _powers(block), axis=1, dtype=np.uint64))
+        words *= _powers(block)
+        hashes = _mix(np.sum(words, axis=1, dtype=np.uint64))
     return RecordFingerprint(block=block, inputs=u.shape[1], outputs=y.shape[1], samples=n,
                              digests=np.unique(hashes[varied]))
 
@@ -153,10 +154,10 @@ def _rows(u, y, m: int, l: int) -> np.ndarray:
     return np.hstack([u, y])
 
 
-def _mix(z: np.ndarray) -> np.ndarray:
+def _mix(z: np.ndarray, t: np.ndarray | None = None) -> np.ndarray:
     """The splitmix64 finaliser, in place on ``z`` (returned): a bijection of 64-bit words that spreads every input
-    bit over the output."""
-    t = np.empty_like(z)
+    bit over the output.  ``t``: a scratch array like ``z`` (fresh large arrays cost their page faults)."""
+    t = np.empty_like(z) if t is None else t
     with np.errstate(over="ignore"):
         for shift, factor in ((30, 0xBF58476D1CE4E5B9), (27, 0x94D049BB133111EB)):
             np.right_shift(z, np.uint64(shift), out=t)
@@ -167,15 +168,19 @@ def _mix(z: np.ndarray) -> np.ndarray:
     return z
 
 
-def _row_hashes(rows: np.ndarray) -> np.ndarray:
-    """One mixed 64-bit word per sample from the bits of its channels (−0.0 read as 0.0)."""
-    bits = (rows + 0.0).view(np.uint64)  # a new C-ordered array of our own, mixed in place
-    h = np.zeros(rows.shape[0], np.uint64)
+def _row_hashes(signals) -> np.ndarray:
+    """One mixed 64-bit word per sample from the bits of every channel of ``signals`` (arrays (n, k) of one length,
+    read in order; −0.0 read as 0.0).  Two scratch arrays are reused: fresh large arrays cost their page faults."""
+    n = signals[0].shape[0]
+    h = np.zeros(n, np.uint64)
+    word, scratch = np.empty(n, np.uint64), np.empty(n, np.uint64)
+    channels = [x[:, k] for x in signals for k in range(x.shape[1])]
     with np.errstate(over="ignore"):
-        for c in range(bits.shape[1]):
-            word = bits[:, c] + np.uint64(_GOLDEN * (c + 1) % 2**64)
+        for c, x in enumerate(channels):
+            np.add(x, 0.0, out=word.view(np.float64))  # −0.0 + 0.0 = 0.0: the two zeros are one number
+            word += np.uint64(_GOLDEN * (c + 1) % 2**64)
             h ^= word
-            _mix(h)
+            _mix(h, scratch)
     return h
 
 
@@ -191,10 +196,11 @@ def _powers(block: int) -> np.ndarray:
 def _block_hashes(rows: np.ndarray, block: int) -> np.ndarray:
     """The hash of the ``block`` samples starting at every offset, shape (n − block + 1,): the same polynomial of
     the samples' mixed words as :func:`record_fingerprint`'s, by Horner's rule along the record."""
-    h = _row_hashes(rows)
+    h = _row_hashes((rows,))
     n = h.size - block + 1
     out = np.zeros(n, np.uint64)
     with np.errstate(over="ignore"):
         for s in range(block):
-            out = out * _BASE + h[s:s + n]
+            out *= _BASE
+            out += h[s:s + n]
     return _mix(out)

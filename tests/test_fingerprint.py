@@ -67,7 +67,7 @@ def test_the_aligned_hashes_equal_the_sliding_ones():
     rows = np.hstack([u, y])
     fp = synthesis.record_fingerprint(u, y)
     assert np.array_equal(np.unique(_block_hashes(rows, BLOCK)[::BLOCK][:1000 // BLOCK]), fp.digests)
-    assert np.unique(_row_hashes(rows)).size == 1000
+    assert np.unique(_row_hashes((rows,))).size == 1000
 
 
 def test_bad_input_and_channel_mismatch_raise_data_error():

@@ -8,7 +8,8 @@
   ``fit_predictor(method="cholesky")`` at (i, j) = (20, 1000) (Table 2.1), (64, 2048) (§6.2),
   (20, 100000), (64, 100000) and a MIMO case (m = l = 2, i = 32), with the ratio qr/cholesky, the
   largest relative difference of ``[Lw Lu]`` and the route the Cholesky fit took
-  (``Predictor.solver``);
+  (``Predictor.solver``); the fit's time includes the record's fingerprint
+  (:func:`synthesis.record_fingerprint`, kept on the predictor), also timed alone;
 * the route before the fast paths, timed in the same run
   (:func:`synthesis.baselines.former_cholesky_fit`: block-row loop for ``AAᵀ``,
   ``numpy.linalg.cholesky``, eigendecomposition pseudo-inverse and input rank), and the
@@ -47,7 +48,7 @@ import numpy as np
 from scipy.signal import lfilter
 from tqdm import tqdm
 
-from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor
+from synthesis import PersistenceWarning, RecursivePredictor, fit_predictor, record_fingerprint
 from synthesis.baselines import former_cholesky_fit
 
 from ..lab.report import Report, format_table, median_time, write_csv, write_json
@@ -168,6 +169,7 @@ def _batch(sizes, rng, repeats, peak):
         reps = repeats if j <= 10_000 else max(3, repeats // 2)
         with_qr = 2 * i * (m + l) * j <= QR_MAX_ENTRIES
         t_ch = median_time(lambda: _fit(u, y, i, "cholesky"), repeats=reps)
+        t_fp = median_time(lambda: record_fingerprint(u, y), repeats=reps)
         t_old = median_time(lambda: former_cholesky_fit(u, y, i), repeats=reps)
         t_qr = median_time(lambda: _fit(u, y, i, "qr"), repeats=reps) if with_qr else None
         t_dense = median_time(lambda: _dense_fit(u, y, i), repeats=reps) if with_qr else None
@@ -189,6 +191,7 @@ def _batch(sizes, rng, repeats, peak):
                 "l": l,
                 "qr_s": t_qr,
                 "cholesky_s": t_ch,
+                "fingerprint_s": t_fp,
                 "before_s": t_old,
                 "ratio_qr_over_cholesky": None if t_qr is None else t_qr / t_ch,
                 "speedup_vs_before": t_old / t_ch,
@@ -353,11 +356,12 @@ def run(opts) -> dict:
         }
 
     t_batch = format_table(
-        ["i", "j", "m, l", "qr [s]", "cholesky [s]", "qr/cholesky", "before [s]", "before/cholesky", "route",
-         "max rel diff [Lw Lu]", "rank"],
+        ["i", "j", "m, l", "qr [s]", "cholesky [s]", "of which fingerprint [s]", "qr/cholesky", "before [s]",
+         "before/cholesky", "route", "max rel diff [Lw Lu]", "rank"],
         [
-            [r["i"], r["j"], f"{r['m']}, {r['l']}", _fmt(r["qr_s"]), r["cholesky_s"], _fmt(r["ratio_qr_over_cholesky"], ".3g"),
-             r["before_s"], r["speedup_vs_before"], r["solver"], f"{r['max_rel_diff']:.2g} (vs {r['reference']})", r["rank"]]
+            [r["i"], r["j"], f"{r['m']}, {r['l']}", _fmt(r["qr_s"]), r["cholesky_s"], r["fingerprint_s"],
+             _fmt(r["ratio_qr_over_cholesky"], ".3g"), r["before_s"], r["speedup_vs_before"], r["solver"],
+             f"{r['max_rel_diff']:.2g} (vs {r['reference']})", r["rank"]]
             for r in batch
         ],
     )
