@@ -80,6 +80,8 @@ def test_bad_input_and_channel_mismatch_raise_data_error():
     with pytest.raises(synthesis.DataError):
         synthesis.record_fingerprint(u, y[:-1])
     assert fp.shared_fraction(u[:BLOCK - 1], y[:BLOCK - 1]) == 0.0  # shorter than a block: nothing can be found
+    short = synthesis.record_fingerprint(u[:BLOCK - 1], y[:BLOCK - 1])  # a record shorter than a block: no digest
+    assert short.samples == BLOCK - 1 and short.digests.size == 0 and short.shared_fraction(u, y) == 0.0
 
 
 def test_a_fitted_predictor_keeps_its_record_and_pickles_with_it():
