@@ -326,8 +326,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
         raise DataError(f"the output-error segment has {N} samples; it needs at least "
                         f"{i + max(burn + 4 * i, 2 * burn)} (horizon {i}, burn-in {burn}, 4i rows): pass a longer "
                         "validation record")
-    A = np.asarray(control.ssdata(model)[0], float)
-    rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    rho = _spectral_radius(model)
     with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)
         growth = float(np.float64(rho) ** (N - i)) if rho > 0 else 0.0
     seg_u = u[i:i + n]
@@ -797,8 +796,7 @@ def glitch_note(model, u, y, horizon: int) -> str:
     >>> print(glitch_note(model, u, y, 3)[:60])
     1 sample of y (y[400]) lies more than 8 robust standard devi
     """
-    A = np.asarray(model.A, float)
-    if A.size and not np.max(np.abs(np.linalg.eigvals(A))) < 1.0:
+    if not _spectral_radius(model) < 1.0:
         return ""
     e = np.asarray(output_error_residual(model, u, y, horizon), float)
     e = e.reshape(e.shape[0], -1)
@@ -820,6 +818,12 @@ def glitch_note(model, u, y, horizon: int) -> str:
     if not notes:
         return ""
     return "; ".join(notes) + ", as a sensor's glitches do: remove or interpolate them (they enlarge δ and bias P̂)"
+
+
+def _spectral_radius(model) -> float:
+    """Largest modulus of the model's poles (0 for a static model)."""
+    A = np.asarray(control.ssdata(model)[0], float)
+    return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
 
 
 def _low_bins(n: int, nperseg: int, inputs: int = 1) -> int:

@@ -652,7 +652,7 @@ def robust_design_from_data(
     pred = _model_predictor(unf, predictor)
     model = predictor_model(pred, _data_dt(dt, W1, W2))
     prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
-                         fitted_on=_fitted_on(predictor, u, y), options=premise or PremiseOptions())
+                         fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions())
     delta = prem.delta
     if design.w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
@@ -699,11 +699,13 @@ def robust_design_from_data(
         assumed=assumed, invariance=invariance, invariance_note=invariance_note)
 
 
-def _fitted_on(predictor, u, y):
+def _fitted_on(predictor, u, y, validation):
     """What P̂ was fitted on: the given predictor's record (None when it carries no fingerprint), else the window,
-    on which (7.5) finds the predictor together with δ.  A window is often shorter than two of the fingerprint's
-    blocks, so its blocks are a quarter of it (at least 16 samples): sixteen samples of every channel do not repeat
-    by chance in a record with noise."""
+    on which (7.5) finds the predictor together with δ; None without ``validation`` (nothing to check it against).
+    A window is often shorter than two of the fingerprint's blocks, so its blocks are a quarter of it (at least 16
+    samples): sixteen samples of every channel do not repeat by chance in a record with noise."""
+    if validation is None:
+        return None
     if predictor is not None:
         return getattr(predictor, "fingerprint", None)
     n = np.shape(u)[0]
