@@ -104,7 +104,7 @@ from .barrier import (Deadline, Stop, best_along, cholesky_retry, delta_step, li
 from .base import SolverOutput, one_blas_thread, unscaled, zero_answer
 from .columns import BlockColumnForm, ColumnForm
 from .displacement import displacement_hessian, inverse_blocks, schur_cholesky
-from .start import operator_svd, ridge_fit, ridge_fit_gram
+from .start import operator_svd, ridge_fit, ridge_fit_gram, start_target
 from .toeplitz import (adjoint, block_adjoint, block_certified_norm, block_corr_hessian, block_toeplitz_matrix,
                        certified_norm, conv_cols_T, corr_hessian, toeplitz_gram, toeplitz_matrix,
                        toeplitz_times)
@@ -681,7 +681,8 @@ def _configured_blas():
 
 
 def ridge_start(form: ColumnForm, B0: np.ndarray, frac: float = 0.9) -> np.ndarray:
-    """Ridge impulses ``h = argmin ‖B0 − P T(u)h‖² + λ‖h‖²`` with ``‖B0 − P T(u)h‖ = frac·ρ`` (λ by bisection).
+    """Ridge impulses ``h = argmin ‖B0 − P T(u)h‖² + λ‖h‖²`` with ``‖B0 − P T(u)h‖ = frac·ρ`` (λ by bisection; for a
+    record that starts with zero input, ``frac`` of the way from the noise floor to ρ: :func:`start_target`).
 
     ``B0 = P B`` (B with its component in 𝓛 removed, P the projector onto 𝓛^⊥); the result is strictly
     feasible for (C).  Fitting through P matters when 𝓛 holds whole rows (free equation errors): an
@@ -714,7 +715,7 @@ _NEAR_FRAC = 0.99
 def _ridge_start(form: ColumnForm, B0: np.ndarray, frac: float) -> np.ndarray:
     """The fit of :func:`ridge_start` at ``frac``·ρ."""
     channels = isinstance(form, BlockColumnForm)
-    target = (frac * form.rho) ** 2
+    target = start_target(form.rho, form.noise_floor()[0], frac)  # a record that starts at rest pins noise
     if not channels and form.m >= _STRUCTURED_FROM and form.Qr is None:
         return _ridge_from_gram(form, B0[:, 0], target)
     Tu = _channel_operator(form) if channels else toeplitz_matrix(form.U[:, 0])

@@ -39,7 +39,7 @@ import scipy.linalg
 from .barrier import Deadline, PathAdvance, Stop, cholesky_retry, delta_step, linearised_dual, run_barrier
 from .base import SolverOutput, unscaled, zero_answer
 from .columns import BlockColumnForm
-from .start import cold_impulses, operator_svd
+from .start import cold_impulses, operator_svd, start_target
 from .wider_ball import tighten_lower
 
 __all__ = ["solve"]
@@ -270,11 +270,14 @@ class _BlockBarrier(PathAdvance):
 
     # ---- start -------------------------------------------------------------------------------
     def start(self) -> _Point:
-        """Ridge impulses per column with ``‖PB − 𝓜H‖_F = 0.7 ρ`` (with L optimised, in the norm of 𝓛^⊥ where the plain
-        fit has an outlying column: :func:`~unfalsify.solvers.start.cold_impulses`), δ 20 % above their norm."""
-        B0 = self.f.project(self.f.B)
+        """Ridge impulses per column with ``‖B0 − 𝓜H‖_F = 0.7 ρ`` (with L optimised, in the norm of 𝓛^⊥ where the plain
+        fit has an outlying column: :func:`~unfalsify.solvers.start.cold_impulses`), δ 20 % above their norm.  ``B0``
+        is ``PB`` or, where inputs start with zeros, the point of ``B + 𝓛`` of
+        :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`, and the residual 0.7 of the way from its floor."""
+        floor, B0 = self.f.noise_floor()
         fit = None if self.Q is None else (lambda lam: self._projected_fit(B0, lam))
-        H = cold_impulses(operator_svd(self.M), B0, (0.7 * self.f.rho) ** 2, projected_fit=fit, top=self._top)
+        H = cold_impulses(operator_svd(self.M), B0, start_target(self.f.rho, floor, 0.7), projected_fit=fit,
+                          top=self._top)
         up = self._top(H)
         p = self._point(H, 1.2 * up + 1e-3 * (1.0 + up))
         self.start_H = H  # returned if it is not strictly feasible: the front end names the noise it leaves
@@ -291,7 +294,7 @@ class _BlockBarrier(PathAdvance):
         equations are the Newton system's ``(D − c 𝓤ᵀ𝓤)`` with ``G_k = λI`` and c = 1 (:meth:`_solve_lowrank`)."""
         try:
             G = np.broadcast_to(lam * np.eye(self.p), (self.j, self.p, self.p))
-            H = self._solve_lowrank(G, 1.0, self._apply_T(B0)[..., None])[..., 0]
+            H = self._solve_lowrank(G, 1.0, self._apply_T(self.f.project(B0))[..., None])[..., 0]
         except (np.linalg.LinAlgError, ValueError):  # cho_factor: not positive definite / non-finite entries
             return None
         if not np.all(np.isfinite(H)):

@@ -98,7 +98,7 @@ from .columns import ColumnForm
 from .displacement import displacement_hessian
 from .stacks import (_SERIAL, _block_solve, _blocks_of, _BlockSum, _bmv, _chol_logdet, _Chunks, _inner, _max_norm,
                      _shifted, _spd_inverse, _stack_of, _StackPool, _sym_inverse_into)
-from .start import cold_impulses, coordinates, impulses, operator_svd, ridge_fit
+from .start import cold_impulses, coordinates, impulses, operator_svd, ridge_fit, start_target
 from .toeplitz import _tr, adjoint, corr_hessian, toeplitz_gram_stack, toeplitz_stack
 from .wider_ball import tighten_lower
 
@@ -450,29 +450,35 @@ class _ColumnSystem:
 
     # ---- cold start ----------------------------------------------------------------------------
     def _cold_impulses(self, svd, B0) -> np.ndarray:
-        """:func:`~unfalsify.solvers.start.cold_impulses` (``‖B0 − H̃‖_F = 0.7 ρ``) with this system's projected fit."""
+        """:func:`~unfalsify.solvers.start.cold_impulses` (``‖B0 − H̃‖_F = 0.7 ρ``, or 0.7 of the way from the
+        :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor` to ρ) with this system's projected fit."""
         fit = None if self.Q is None else (lambda lam: self._projected_fit(svd, B0, lam))
-        return cold_impulses(svd, B0, (0.7 * self.f.rho) ** 2, projected_fit=fit,
+        target = start_target(self.f.rho, self.f.noise_floor()[0], 0.7)
+        return cold_impulses(svd, B0, target, projected_fit=fit,
                              top=lambda H: _max_norm(self._gram(H)[1], self.chunks))
 
     def _projected_fit(self, svd, B0, lam: float):
         """``H = argmin λ‖H‖²_F + ‖P(B0 − H̃)‖²_F`` and its residual ``‖P(B0 − H̃)‖²_F``, or None where the solve lost
         its digits.
 
-        The normal equations ``(D − U Uᵀ) h = Mᵀ B0`` are the Newton system of the class docstring with ``G_k = λI``,
+        The normal equations ``(D − U Uᵀ) h = Mᵀ P B0`` are the Newton system of the class docstring with ``G_k = λI``,
         c = 1 and no rank-one term, solved by the same Woodbury route; the SVD ``T(u_k) = U_k S_k V_kᵀ`` gives
         ``D_k⁻¹ = V_k (S_k² + λ)⁻¹ V_kᵀ`` and ``E_k = U_k λ(S_k² + λ)⁻¹ U_kᵀ`` without an inverse.  The CG goes to a
         relative residual of 1 % of ``ρ/‖B0‖`` within [1e-12, 1e-4] (the fit must resolve the noise ball, not the data;
         the caller checks the residual it returns).
         """
         Uk, s, Vt = svd
-        w = 1.0 / (s * s + lam)
+        # T(u_k)'s null directions (a column starting with p_k zero inputs has rank m − p_k): h is 0 there at the
+        # optimum and D_k⁻¹ = 1/λ would only amplify rounding, so they are left out
+        zeros = self.f.leading_zeros()
+        reach = np.arange(s.shape[1])[None, :] < (s.shape[1] - zeros)[:, None]
+        w = np.divide(1.0, s * s + lam, out=np.zeros_like(s), where=reach)
 
         def solve(X):  # D_k⁻¹ x_k for every column, X (m, j, p)
             return np.einsum("kqa,kqp->akp", Vt, np.einsum("kqa,akp->kqp", Vt, X) * w[..., None])
 
-        E = np.matmul(Uk * (lam * w)[:, None, :], _tr(Uk))
-        rhs = self.f.apply_T(B0)[..., None]
+        E = np.matmul(Uk * (lam / (s * s + lam))[:, None, :], _tr(Uk))
+        rhs = self.f.apply_T(self.f.project(B0))[..., None]  # B0 need not lie in 𝓛^⊥ (noise_floor's point)
         tol = min(max(1e-2 * self.f.rho / max(float(np.linalg.norm(B0)), np.finfo(float).tiny), 1e-12), 1e-4)
         try:
             woodbury = _Capacitance(self, E)
@@ -957,7 +963,7 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
     warm = None
     if warm_start is not None:  # data units -> this problem's scaled units (impulses and δ scale by s_u/s_y)
         warm = dict(warm_start, H=np.asarray(warm_start["H"], float) * (su / sy), d=float(warm_start["d"]) * su / sy)
-    out = solve_columns_barrier(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
+    out = solve_columns_barrier(f, f.noise_floor()[1], tol=float(tol), time_limit=time_limit, progress=progress,
                                 workers=workers, warm=warm)
     stats = {k: out[k] for k in ("newton", "outer", "cg", "cg_dense", "trials", "warm", "warm_blend", "warm_newton",
                                  "wider") if k in out}

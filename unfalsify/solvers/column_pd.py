@@ -410,7 +410,7 @@ def solve(problem, *, tol: float = 1e-6, time_limit=None, progress: bool = True,
     clock = Deadline()
     if zero_answer(f):
         return unscaled(problem, np.zeros(f.U.shape), 0.0, "optimal", clock.elapsed())
-    out = solve_columns_pd(f, f.project(f.B), tol=float(tol), time_limit=time_limit, progress=progress,
+    out = solve_columns_pd(f, f.noise_floor()[1], tol=float(tol), time_limit=time_limit, progress=progress,
                            workers=workers)
     return unscaled(problem, out["H"], out["upper"], out["status"], clock.elapsed(), V=out["V"], W=out["W"],
                     stats={k: out[k] for k in ("newton", "outer", "factorisations", "cg")})

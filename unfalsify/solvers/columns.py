@@ -87,6 +87,46 @@ class ColumnForm:
         self.Ql = basis_left
         self.Qr = basis_right
 
+    def leading_zeros(self) -> np.ndarray:
+        """The number p_k of leading zero samples of each input column (j,), i.e. of leading zero rows of
+        ``T(u_k)``; the column's length where it is all zero."""
+        return _leading_zeros(self.U.reshape(self.U.shape[0], 1, self.j))
+
+    def pinned(self) -> np.ndarray:
+        """Mask (m, j) of the targets no impulse reaches: row a of column k when ``a < p_k``
+        (:meth:`leading_zeros`), where ``T(u_k) h`` vanishes for every h, so Ξ and 𝓛 alone must take ``B``.
+
+        The column form stays exact there (see :meth:`noise_floor`)."""
+        return np.arange(self.m)[:, None] < self.leading_zeros()[None, :]
+
+    def noise_floor(self) -> tuple[float, np.ndarray]:
+        """The least noise norm of any feasible point, whatever δ: ``min_{X ∈ 𝓛} ‖(B − X)_Z‖_F`` over the
+        :meth:`pinned` entries Z, and the point ``B0 = B − X`` of that minimum nearest to ``P B`` (B's part in
+        𝓛^⊥; ``B0 = P B − Y`` with Y ∈ 𝓛 of least norm, so ``‖B0‖² = ‖PB‖² + ‖Y‖²`` is the least too);
+        ``(0.0, P B)`` when nothing is pinned.
+
+        Why it is the floor: where ``u_k`` starts with p_k zeros, ``{T(u_k)h}`` is exactly the set of columns
+        vanishing in their first p_k rows (the first non-zero sample reaches every later row), so with δ free the
+        other rows fit exactly.  (C) needs ``floor < ρ``.  It stays an exact reformulation of Theorem 7.1 on such a
+        column: ``T(u_k)h_k`` uses only ``h_k``'s first ``m − p_k`` entries, and the rest can be chosen so that
+        ``‖T(h_k)‖₂`` equals the norm of the shorter section (Parrott's theorem, one entry at a time: the
+        top rows and the right columns of ``T_{n+1}(h)`` both have the norm of ``T_n(h)``), which is the
+        Carathéodory–Fejér bound for the data after the zeros."""
+        B0 = self.project(self.B)
+        Z = self.pinned()
+        if not Z.any():
+            return 0.0, B0
+        if self.Qr is not None and 0 < self.Qr.shape[1] < self.Qr.shape[0]:
+            for a in np.flatnonzero(Z.any(axis=1)):  # row a of Y is y_aᵀQᵀ: least squares on its pinned columns
+                cols = Z[a]
+                B0[a] -= self.Qr @ _unit_basis_fit(self.Qr[cols], B0[a, cols])
+        elif self.Ql is not None and 0 < self.Ql.shape[1] < self.Ql.shape[0]:
+            for k in np.flatnonzero(Z.any(axis=0)):  # column k of Y is Q c_k: least squares on its pinned rows
+                rows = Z[:, k]
+                B0[:, k] -= self.Ql @ _unit_basis_fit(self.Ql[rows], B0[rows, k])
+        R = B0[Z]
+        return float(np.sqrt(R @ R)), B0
+
     def project(self, X: np.ndarray) -> np.ndarray:
         """Orthogonal projection onto 𝓛^⊥ (exactly zero when 𝓛 is the whole space: a square orthonormal basis, e.g.
         (7.5) with L optimised on no more columns than the rank of ``[W_p; U_f]``, where ``X − X Q Qᵀ`` would leave
@@ -164,6 +204,22 @@ class ColumnForm:
         return max(0.0, num / den)
 
 
+def _unit_basis_fit(Qs: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients c (least norm) of ``b ≈ Qs c`` for rows ``Qs`` of an orthonormal basis, whose
+    singular values are at most 1: directions below rounding on that unit scale are dropped (``lstsq``'s cut is
+    relative to the rows' own largest singular value, and fits b through rows that are zero up to rounding, such as
+    the regressor rows of a record at rest, with coefficients of 1e17)."""
+    U, s, Vt = np.linalg.svd(Qs, full_matrices=False)
+    keep = s > max(Qs.shape) * np.finfo(float).eps
+    return Vt[keep].T @ ((U[:, keep].T @ b) / s[keep])
+
+
+def _leading_zeros(U: np.ndarray) -> np.ndarray:
+    """Leading all-zero samples of each column of ``U`` (samples, channels, columns): (columns,) ints."""
+    moving = np.any(U != 0.0, axis=1)  # (samples, columns)
+    return np.where(moving.any(axis=0), np.argmax(moving, axis=0), U.shape[0])
+
+
 def scale_dual(W, a: float):
     """``a W`` for any form of norm multiplier: dense (stack), factor pair ``(P, Q)`` (P scaled only,
     ``W = P Qᵀ``) or :class:`CirculantDual`; None stays None.  Solvers work in scaled units and
@@ -227,6 +283,14 @@ class BlockColumnForm(ColumnForm):
             raise ValueError(f"U ({self.U.shape}) and B ({self.B.shape}) do not hold i samples of "
                              f"{self.n_in} input(s) and {self.n_out} output(s) per column")
         self.m = self.B.shape[0]  # the rows of V and B (ColumnForm's m)
+
+    def leading_zeros(self) -> np.ndarray:
+        """The number p_k of leading zero input samples (m-vectors) of each column (j,)."""
+        return _leading_zeros(self.U.reshape(self.i, self.n_in, self.j))
+
+    def pinned(self) -> np.ndarray:
+        """Mask (il, j) of the targets no impulse reaches: every output of sample s in column k when ``s < p_k``."""
+        return (np.arange(self.m)[:, None] // self.n_out) < self.leading_zeros()[None, :]
 
     def apply(self, H: np.ndarray) -> np.ndarray:
         """``H̃``: column k is ``T(h_k) u_k`` (H of shape (i, l, m, j))."""

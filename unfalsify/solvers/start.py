@@ -56,7 +56,25 @@ import scipy.linalg
 from .toeplitz import ridge_lambda
 
 __all__ = ["operator_svd", "coordinates", "impulses", "ridge_fit", "ridge_fit_gram", "ridge_search", "cold_impulses",
-           "OUTLIER"]
+           "start_target", "OUTLIER"]
+
+
+def start_target(rho: float, floor: float, share: float) -> float:
+    """The squared residual a cold start fits to: ``(share·ρ)²``, or, when the data pin a part ``floor`` of the
+    noise (:meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`, entries no impulse reaches), the same share
+    of the slack above it, ``floor² + share²(ρ² − floor²)``: a fixed fraction of ρ may lie below what any
+    impulses can reach.
+
+    Examples
+    --------
+    >>> start_target(1.0, 0.0, 0.7) == 0.7 ** 2
+    True
+    >>> round(start_target(1.0, 0.8, 0.7), 4)      # 0.64 + 0.49 × 0.36
+    0.8164
+    """
+    if not floor > 0.0:
+        return (share * rho) ** 2
+    return floor**2 + share**2 * (rho**2 - floor**2)
 
 
 def operator_svd(M: np.ndarray, *, basis: np.ndarray | None = None, split=None):
