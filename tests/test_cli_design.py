@@ -210,13 +210,15 @@ def test_design_of_a_two_by_two_record(tmp_path, capsys):
 
 def test_an_operating_point_is_named_and_removed_with_detrend(tmp_path, capsys):
     """A record around an operating point (the input switching between 0 and 2, the output at 3 + deviations): the
-    models have no constant term, so (7.5) refuses it (columns starting with a zero input) and the message names
-    ``--detrend mean``; with it the design runs on the deviations, the same as a design of the centred record made
-    here, and the report says how to apply the controller."""
+    models have no constant term, so the report names the means and ``--detrend mean``; with it the design runs on
+    the deviations, the same as a design of the centred record made here, and the report says how to apply the
+    controller."""
     t, u, y, dt = _record()
     csv = _write_csv(tmp_path / "operating.csv", t, u + 1.0, y + 3.0)
-    err = _bad(tmp_path, capsys, ["design", str(csv), "--horizon", "10", "--window", "0:49", "--out", str(tmp_path)])
-    assert "zero input" in err and "--detrend mean" in err
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--json", "--out", str(tmp_path)]) == 0
+    as_read = json.loads(capsys.readouterr().out)
+    assert not as_read["operating_point"]["removed"]
+    assert "the mean of y" in as_read["operating_point_note"] and "--detrend mean" in as_read["operating_point_note"]
     assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--detrend", "mean", "--json",
                  "--out", str(tmp_path)]) == 0
     summary = json.loads(capsys.readouterr().out)

@@ -149,7 +149,7 @@ def test_infeasible_status_raises(monkeypatch):
 @pytest.mark.parametrize(
     "kwargs",
     [
-        dict(u=[0.0, 1, 1, -1, 1], y=[0.0, 0, 1, 1, 0]),  # u0 = 0
+        dict(u=[0.0, 1, 1, -1, 1], y=[5.0, 0, 1, 1, 0]),  # u0 = 0 and an output there beyond the noise budget
         dict(u=[1.0, np.nan, 1, -1, 1], y=[0.0, 0, 1, 1, 0]),  # NaN
         dict(u=[1.0, 1, 1, -1, 1], y=[0.0, 0, 1, 1]),  # lengths
         dict(u=[1.0, 1, 1, -1, 1], y=[0.0, 0, 1, 1, 0], sigma=0.0),  # σ ≤ 0

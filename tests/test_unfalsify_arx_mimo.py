@@ -174,10 +174,10 @@ def test_refusals_name_the_fix():
         uf.arx_unfalsify(u.T, y, 0, 0, 0.1)
     with pytest.raises(DataError, match="samples"):
         uf.arx_unfalsify(u, y[:-1], 0, 0, 0.1)
-    u0 = u.copy()
-    u0[0] = 0.0
+    u0, y0 = u.copy(), y.copy()
+    u0[0], y0[0] = 0.0, 10.0  # an output no causal Δ(q) at rest gives, beyond the whole noise budget
     with pytest.raises(DataError, match="first non-zero input"):
-        uf.arx_unfalsify(u0, y, 0, 0, 0.1)
+        uf.arx_unfalsify(u0, y0, 0, 0, 0.1)
     with pytest.raises(DataError, match="longer record"):
         uf.arx_unfalsify(u, y, 5, 5, 0.1)
     with pytest.raises(ValueError, match="form='conditioned'"):

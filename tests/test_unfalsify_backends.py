@@ -88,8 +88,8 @@ def test_unknown_backend_and_thesis_structured_raise():
         uf.arx_unfalsify(u, y, 2, 2, 0.1, backend="mosek")
     with pytest.raises(ValueError, match="conditioned"):
         uf.arx_unfalsify(u, y, 2, 2, 0.1, backend="structured", form="thesis")
-    with pytest.raises(DataError):
-        uf.arx_unfalsify(np.r_[0.0, u[1:]], y, 2, 2, 0.1, backend="structured")
+    with pytest.raises(DataError, match="no δ unfalsifies"), pytest.warns(uf.NotAtRestWarning):
+        uf.arx_unfalsify(np.r_[0.0, u[1:]], np.r_[100.0, y[1:]], 2, 2, 0.1, backend="structured")  # y[0]: noise
     with pytest.raises(ValueError, match="backends|'cvxpy'"):
         uf.subspace_unfalsify(u, y, 3, 0.1, backend="x")
 

@@ -129,15 +129,16 @@ def test_predictor_property_feeds_synthesis():
     assert res.impulses.shape == (3, 25) and res.noise.shape == (3, 25)
 
 
-def test_zero_first_input_in_a_column_raises():
+def test_zero_first_inputs_beyond_the_noise_budget_are_refused_with_the_window():
+    """Columns of U_f that start with a zero input leave their first output to the noise (exact, see
+    tests/test_unfalsify_zero_start.py); with the predictor fixed and those outputs far beyond σ√N, no δ
+    unfalsifies the data, and the message lists the zero samples and the window that would avoid them."""
     u, y = _servo(20, 8)
-    u[3 + 4] = 0.0  # (U_f)_{0,4} = u_{i+4}
-    with pytest.raises(DataError, match="U_f"):
-        uf.subspace_unfalsify(u, y, 3, 0.05)
-    # a quantised input passes through 0 exactly: the message lists where, and the window that would avoid it
-    u[3 + 9] = 0.0
-    with pytest.raises(DataError, match=r"zero at u\[7\], u\[12\]\).*quantised.*samples 3 … 17 "):
-        uf.subspace_unfalsify(u, y, 3, 0.05)
+    u[3 + 4] = u[3 + 9] = 0.0  # (U_f)_{0,4} = u_{i+4}, (U_f)_{0,9}: a quantised input passes through 0 exactly
+    y[3 + 4] = y[3 + 9] = 50.0
+    pred = synthesis.fit_predictor(u, y, 3)
+    with pytest.raises(DataError, match=r"zero at u\[7\], u\[12\]\).*samples 3 … 17 "):
+        uf.subspace_unfalsify(u, y, 3, 0.05, predictor=pred)
 
 
 @pytest.mark.parametrize(

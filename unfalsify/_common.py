@@ -76,6 +76,22 @@ def check_noise_resolution(sigma: float, n_noise: int, data: np.ndarray, name: s
         )
 
 
+def check_noise_floor(form, sigma: float, where: str, fix: str) -> None:
+    """Raise DataError when the entries of (C) that no impulse reaches (outputs while an input column is still at
+    zero since its start, :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`) need more noise than the budget
+    ρ = σ√N holds: no δ unfalsifies the data then.  ``form`` in data units; ``where`` names the zero inputs and
+    ``fix`` the alternative to a larger σ."""
+    floor = form.noise_floor()[0]
+    if floor < form.rho:
+        return
+    pinned = int(np.count_nonzero(form.pinned()))
+    raise DataError(
+        f"no δ unfalsifies these data at sigma = {sigma:.4g}: {where}, so a causal Δ(q) at rest gives no output there "
+        f"and the noise must explain all {pinned} of those outputs, which takes rms noise ≥ "
+        f"{sigma * floor / form.rho:.4g} over the whole budget; pass sigma above that, or {fix}"
+    )
+
+
 def siso_signal(x, name: str, n: int | None = None) -> np.ndarray:
     """A single-channel signal as a 1-D float array (raises DataError otherwise)."""
     arr = as_signal(x, name, n=n)

@@ -75,8 +75,8 @@ from synthesis import DataError
 from synthesis.validation import check_count
 from synthesis.results import result
 
-from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_resolution, check_sigma,
-                      into_ball, rms_or_one)
+from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_floor,
+                      check_noise_resolution, check_sigma, into_ball, rms_or_one)
 from .cost import _guard_arx
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
@@ -327,11 +327,6 @@ class ArxProblem:
             what = "na·l + nb·m + free_rows" if u.ndim == 2 else "na + nb + free_rows"
             raise DataError(f"need more samples than parameters: n = {n} <= {what} = {params}; pass a longer "
                             "record or lower the orders")
-        if not np.any(u[0] != 0.0) and free_rows == 0:
-            raise DataError(
-                "u[0] == 0: T(u) is singular, so no causal Δ(q)u can explain a non-zero error at t = 0 and the "
-                "substitution e − ξ = T(u)h is not available; start the record at the first non-zero input sample"
-            )
         # u to unit rms, y so that the least-squares equation error has unit rms: the program splits
         # exactly that error between ξ and Δu (measured: fewer 'optimal_inaccurate')
         su = rms_or_one(u)
@@ -345,8 +340,14 @@ class ArxProblem:
         else:  # T(u) is nm × n: its singular values (as in unfalsified_gain)
             sv = np.linalg.svd(signal_toeplitz(u), compute_uv=False)
             cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
-        return cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=cond, free_rows=free_rows,
-                   n_inputs=m, n_outputs=l)
+        problem = cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=cond, free_rows=free_rows,
+                      n_inputs=m, n_outputs=l)
+        if not np.any(u[0] != 0.0):
+            zeros = problem.column_form(scaled=False).leading_zeros()[0]
+            check_noise_floor(problem.column_form(scaled=False), sigma,
+                              f"the input is zero at t = 0 … {zeros - 1}",
+                              "start the record at the first non-zero input sample if the system was at rest before it")
+        return problem
 
     @property
     def n(self) -> int:
@@ -454,8 +455,10 @@ def arx_unfalsify(
     Parameters
     ----------
     u, y : array_like, shape (n,) or (n, m) and (n, l)
-        Data, time along axis 0, system at rest before t = 0; ``u[0]`` must be non-zero (a non-zero vector
-        for several inputs).  Several channels: see the module docstring (conditioned form, both backends,
+        Data, time along axis 0, system at rest before t = 0.  Where the input is zero at the start, the
+        equation errors up to its first non-zero sample are noise (a causal Δ(q) at rest gives no output there; the
+        program stays exact, see :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`); ``form="thesis"``
+        needs ``u[0] ≠ 0``.  Several channels: see the module docstring (conditioned form, both backends,
         ``method="barrier"``).
     na, nb : int
         Orders of ``A(q) = 1 + a₁q⁻¹ + …`` and ``B(q) = b₁q⁻¹ + …`` (several channels: l × l and l × m
@@ -496,7 +499,7 @@ def arx_unfalsify(
     free_rows : int
         The first ``free_rows`` equation errors are free (neither Δu nor noise): the program for a
         record that does not start at rest, whose first rows carry the response to samples before it.
-        The noise budget is then ``σ√(n − free_rows)`` and ``u[0]`` may be zero.  Conditioned form only.
+        The noise budget is then ``σ√(n − free_rows)``.  Conditioned form only.
 
     Returns
     -------
@@ -507,7 +510,8 @@ def arx_unfalsify(
     Raises
     ------
     DataError
-        Bad data (NaN, lengths, time along axis 1, ``u[0] = 0``, too few samples), bad orders, σ ≤ 0; a cvxpy
+        Bad data (NaN, lengths, time along axis 1, too few samples, a σ below the noise of the outputs
+        before the input's first non-zero sample, ``u[0] = 0`` with ``form="thesis"``), bad orders, σ ≤ 0; a cvxpy
         solve whose estimated memory (:func:`~unfalsify.arx_solve_estimate`) exceeds half the memory available
         (the message names ``backend="structured"``).
     UnknownSolverError
@@ -568,6 +572,9 @@ def arx_unfalsify(
         if name not in CHANNELS:  # method="bracket"
             raise UnknownSolverError(f"method={method!r} solves single-channel data only; for {shape} data use "
                                      "method='barrier' (or backend='cvxpy')")
+    if form == "thesis" and not np.any(P.u[0] != 0.0):
+        raise DataError("form='thesis' recovers h by inverting T(u), which u[0] == 0 makes singular; "
+                        "form='conditioned' solves such a record exactly (its first errors are noise)")
     if form == "thesis" and not P.cond_Tu <= COND_WARN:
         warnings.warn(
             f"form='thesis' with cond T(u) = {P.cond_Tu:.3g}: T(u)ᵀT(u) is numerically singular; the solver's δ "

@@ -713,7 +713,7 @@ def operating_point_note(u, y) -> str:
     The predictor, P̂ and the controller have no constant term, so a record taken around an operating point is read
     as dynamics.  Measured on the adversarial catalogue's third-order and resonant plants (seeds 0–2): a sensor bias
     of 0.5 on outputs of about unit rms gave nearly integrating models and refused 7 of 9 runs, for reasons that do
-    not name the bias; an input switching between 0 and 2 was refused by (7.5) (columns starting with a zero input).
+    not name the bias (an input switching between 0 and 2 certified its 6 PRBS runs, each true on the plant).
     Subtracting the means (``python -m experiments design --detrend mean``) designs on the deviations.
 
     Parameters
@@ -746,8 +746,8 @@ def operating_point_note(u, y) -> str:
     if not notes:
         return ""
     return ("; ".join(notes) + ": the models have no constant term, so an operating point is read as dynamics (a "
-            "nearly integrating P̂, or columns of (7.5) that start with a zero input); if the record was taken around "
-            "an operating point, subtract its means (python -m experiments design --detrend mean)")
+            "nearly integrating P̂); if the record was taken around an operating point, subtract its means "
+            "(python -m experiments design --detrend mean)")
 
 
 #: an output-error sample farther than this many robust standard deviations (1.4826 × the median absolute deviation)

@@ -9,7 +9,12 @@ start of each column), and ``(1/(ij))‖Ξ‖_F² ≤ σ²``.  The smallest comm
 
 ``form="conditioned"`` (default)
     Per column ``(E − Ξ)_{:,k} = T((U_f)_{:,k}) h_k`` with ``‖T(h_k)‖₂ ≤ δ`` (an exact
-    reformulation when ``(U_f)_{0,k} ≠ 0``, by Theorem 7.1), and ``‖Ξ‖_F ≤ σ√(ij)``.
+    reformulation of Theorem 7.1), and ``‖Ξ‖_F ≤ σ√(ij)``.  A column whose input starts with p zeros
+    leaves its first p errors to the noise (a causal operator at rest gives no output there) and is
+    exact too: the last p entries of h_k do not reach the data and can be chosen so that ‖T(h_k)‖₂ is
+    the norm of the shorter section (Parrott's theorem; see
+    :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`).  If the noise budget cannot hold those
+    errors, no δ unfalsifies the data and :meth:`SubspaceProblem.from_data` says which σ would.
     With ``eliminate_L=True`` the predictor is eliminated analytically: for given impulses
     the smallest ``‖Ξ‖_F`` over ``L`` is ``‖(Y_f − H̃) N‖_F`` with ``N`` an orthonormal basis
     of the null space of ``A = [W_p; U_f]`` (``NNᵀ = I − P_A``), ``H̃_{:,k} = T((U_f)_{:,k}) h_k``.
@@ -29,8 +34,8 @@ with the il × im block lower-triangular Toeplitz matrix ``T(h_k)``, whose spect
 H∞ norm of such an operator (matrix Carathéodory–Fejér).  The program is (C) of
 :class:`~unfalsify.solvers.columns.BlockColumnForm`: ``‖T(h_k)‖₂ ≤ δ`` for every k and
 ``‖Ξ‖_F ≤ σ√(ilj)`` (the rms budget σ over all il·j noise entries); its dual (lower) bound is derived
-there.  The reparametrisation is exact when the first sample of every column, the vector ``u_{i+k}``,
-is not zero (the data relation is then solvable for h_k).  Several channels take ``form="conditioned"``
+there.  The reparametrisation is exact, as with one channel; a column whose first input vectors ``u_{i+k}, …``
+are zero leaves its first outputs to the noise.  Several channels take ``form="conditioned"``
 on both backends: cvxpy (the reference model) and ``backend="structured"``, which is the solver
 ``block_barrier`` there (:mod:`unfalsify.solvers.block_barrier`); ``executor=`` (the split solver) is
 SISO only and names ``backend="cvxpy"``.  With one channel each the SISO code runs unchanged.
@@ -50,8 +55,8 @@ from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
 from synthesis.validation import as_signal, check_horizon
 
-from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_resolution, check_sigma, into_ball,
-                      rms_or_one)
+from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_floor, check_noise_resolution,
+                      check_sigma, into_ball, rms_or_one)
 from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -229,6 +234,12 @@ class SubspaceProblem:
         """One input and one output (the SISO code paths)."""
         return self.n_inputs == 1 and self.n_outputs == 1
 
+    @property
+    def zero_start_columns(self) -> np.ndarray:
+        """Columns of ``U_f`` whose first input sample is zero (on every channel): their first outputs are the
+        noise's alone (:meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`)."""
+        return np.flatnonzero(np.all(self.Uf[: self.n_inputs] == 0.0, axis=0))
+
     @classmethod
     def from_data(cls, u, y, horizon, sigma, predictor=None) -> "SubspaceProblem":
         """Validate (raises :class:`DataError`) and scale; u (n, m), y (n, l), time along axis 0."""
@@ -241,18 +252,6 @@ class SubspaceProblem:
         A, Uf, Yf = subspace_data(u, y, horizon)
         i, j = Uf.shape[0] // m, Uf.shape[1]
         check_noise_resolution(sigma, Yf.size, Yf, "Y_f")
-        zero_cols = np.flatnonzero(np.all(Uf[:m] == 0.0, axis=0))
-        if zero_cols.size:
-            where = ", ".join(f"u[{i + c}]" for c in zero_cols[:5]) + (", …" if zero_cols.size > 5 else "")
-            raise DataError(
-                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}; zero at "
-                f"{where}): T((U_f)_{{:,k}}) is singular there; use an input with no zero samples (e.g. a ±1 PRBS "
-                "on every channel); for an input that switches between 0 and a level, subtract its operating point "
-                "(u − mean(u), y − mean(y); `python -m experiments design --detrend mean`); for a quantised input "
-                f"that passes through 0 (an ADC's or a DAC's step), move the window so that its samples {i} … "
-                f"{i + j - 1} (the columns' first samples) hold no zero (`--window START:LEN` of `python -m "
-                "experiments design`)"
-            )
         L_fixed = None
         if predictor is not None:
             L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
@@ -275,8 +274,19 @@ class SubspaceProblem:
         sy = rms_or_one(Yf - Lref @ A)
         if not sy > 1e-12 * rms_or_one(y):
             sy = rms_or_one(y)
-        return cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
-                   A=A, Uf=Uf, Yf=Yf, n_inputs=m, n_outputs=l)
+        problem = cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
+                      A=A, Uf=Uf, Yf=Yf, n_inputs=m, n_outputs=l)
+        zero_cols = problem.zero_start_columns
+        if zero_cols.size:
+            where = ", ".join(f"u[{i + c}]" for c in zero_cols[:5]) + (", …" if zero_cols.size > 5 else "")
+            check_noise_floor(
+                problem.column_form(scaled=False), sigma,
+                f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}; zero at "
+                f"{where})",
+                f"move the window so that its samples {i} … {i + j - 1} (the columns' first samples) hold no zero "
+                "(`--window START:LEN` of `python -m experiments design`); for an input that switches between 0 and "
+                "a level, subtract its operating point (u − mean(u), y − mean(y); `--detrend mean`)")
+        return problem
 
     def scaled_A(self) -> np.ndarray:
         """``A`` with rows scaled as the data (``u/s_u``, ``y/s_y``)."""
@@ -616,6 +626,13 @@ def subspace_unfalsify(
         if name == "column_pd" and not P.siso:
             raise UnknownSolverError(f"method='primal_dual' of (7.5) solves single-channel data only; for {l}×{m} "
                                      "data use method='barrier' (solver 'block_barrier') or backend='cvxpy'")
+        zero_cols = P.zero_start_columns
+        if zero_cols.size and (form == "thesis" or executor is not None):
+            route = "form='thesis' recovers h_k by inverting T((U_f)_{:,k})" if form == "thesis" else \
+                "executor= (the split solver) starts from the exact fit T((U_f)_{:,k})⁻¹ b_k"
+            raise DataError(f"{route}, which {zero_cols.size} column(s) starting with a zero input make singular "
+                            f"(first: column {zero_cols[0]}); form='conditioned' without executor= solves them "
+                            "exactly (their first outputs are noise)")
         if form == "thesis" and not P.cond_Tu <= COND_WARN:
             warnings.warn(
                 f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "
