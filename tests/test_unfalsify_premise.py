@@ -724,6 +724,31 @@ def test_record_mode_auto_window_and_bad_windows(prbs_record):
         uf.robust_design_from_data(np.vstack([u, u]), y, 10, W["W11"], W["W21"], 0.01, dt=P.dt, window="auto")
 
 
+def test_auto_window_of_a_record_that_starts_at_rest_begins_where_the_input_moves():
+    """A lab record often starts at rest (the input zero before the excitation, the output noise): window="auto"
+    starts i samples before the input first moves, so the first column's future begins with it; the design equals
+    the one on that window given explicitly, and the result says which samples it took."""
+    P = third_order()
+    u = np.r_[np.zeros(300), prbs(1500, seed=0)]
+    d = collect_data(P, u, process_noise=0.05, sensor_noise=0.05, seed=100)
+    u, y = d.u[:, 0], d.y[:, 0]
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = uf.robust_design_from_data(u, y, 5, W["W11"], W["W21"], "auto", dt=P.dt, window="auto", search=False)
+        start, stop = auto.window
+        given = uf.robust_design_from_data(u, y, 5, W["W11"], W["W21"], "auto", dt=P.dt, window=(start, stop - start),
+                                           search=False)
+    assert start == 300 - 5 and stop - start == 2 * 5 + 3 * 3 * 5 - 1 and given.window == auto.window
+    assert auto.unfalsification.delta == given.unfalsification.delta > 0
+    assert auto.certified == given.certified and auto.reason == given.reason
+    # from the record's start the columns' outputs are noise alone, more than half the residual rms can hold
+    with pytest.raises(DataError, match="no δ unfalsifies"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        uf.robust_design_from_data(u, y, 5, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, stop - start),
+                                   search=False)
+
+
 def test_steady_state_tracking_is_checked_across_the_certified_ball():
     from unfalsify.tracking import _steady_state_reason
 

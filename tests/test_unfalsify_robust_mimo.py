@@ -109,7 +109,8 @@ def test_persistence_of_a_mimo_window():
 def test_record_mode_auto_window_counts_the_regressors_of_several_channels():
     rng = np.random.default_rng(1)
     u, y = rng.standard_normal((600, 2)), rng.standard_normal((600, 2))
-    uw, yw, val, pred, _ = robust._record_mode(u, y, 3, "auto", None, None, None)
+    uw, yw, val, pred, _, span = robust._record_mode(u, y, 3, "auto", None, None, None)
+    assert span == (0, uw.shape[0])
     j = uw.shape[0] - 2 * 3 + 1
     assert j == 3 * 3 * (2 * 2 + 2) and uw.shape[1] == 2 and yw.shape[1] == 2
     assert val[0].shape == (200, 2) and pred.m == 2 and pred.l == 2

@@ -193,6 +193,9 @@ class RobustDesignResult:
         (``invariance_note`` says so).
     invariance_note : str
         Why time invariance was not tested (``''`` when it was).
+    window : tuple of int or None
+        Record mode (``window=``): the samples ``[start, stop)`` of the record that form the (7.5) window;
+        None when ``u, y`` were the window itself.
     """
 
     unfalsification: SubspaceResult
@@ -221,6 +224,7 @@ class RobustDesignResult:
     assumed: tuple = ()
     invariance: InvarianceTest | None = None
     invariance_note: str = ""
+    window: tuple | None = None
 
     @property
     def controller(self) -> control.StateSpace:
@@ -573,9 +577,10 @@ def robust_design_from_data(
         last third of the record is held out for the premise test (unless ``validation`` is given);
         the window must lie in the first two thirds, on which the predictor of P̂ (when ``predictor``
         is None) and those of the other horizons (when ``predictor_for`` is None) are fitted by
-        least squares -- no lambda needed.  ``"auto"``: the first ``2i + j − 1`` samples with
-        ``j = 3·i(2m + l)`` columns (three per regressor of the predictor), or as many as the fitting
-        part holds.  None (default): ``u, y`` are the window itself.
+        least squares -- no lambda needed.  ``"auto"``: ``2i + j − 1`` samples with ``j = 3·i(2m + l)``
+        columns (three per regressor of the predictor), or as many as the fitting part holds, from the
+        start of the record, or from i samples before the input first moves if it starts at rest.  None
+        (default): ``u, y`` are the window itself.
     **legacy
         The keywords of earlier releases (``gamma_ratio``, ``margin``, ``w3_rule``, ``causal``,
         ``certificate_margin``, ``tracking_floor``, ``step_samples``, ``reference_horizon``,
@@ -637,9 +642,10 @@ def robust_design_from_data(
     if not isinstance(premise if premise is not None else PremiseOptions(), PremiseOptions):
         raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
     whole = (u, y) if window is not None else None
+    span = None
     if window is not None:
-        u, y, validation, predictor, predictor_for = _record_mode(u, y, horizon, window, validation, predictor,
-                                                                  predictor_for)
+        u, y, validation, predictor, predictor_for, span = _record_mode(u, y, horizon, window, validation, predictor,
+                                                                        predictor_for)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
@@ -696,7 +702,7 @@ def robust_design_from_data(
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=assumed, invariance=invariance, invariance_note=invariance_note)
+        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span)
 
 
 def _fitted_on(predictor, u, y, validation):
@@ -1009,7 +1015,7 @@ HELD_OUT_FRACTION = 1.0 / 3.0
 def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     """Split a whole record into the (7.5) window, a fitting part and a held-out part (``window=``).
 
-    Returns ``(u_window, y_window, validation, predictor, predictor_for)``.
+    Returns ``(u_window, y_window, validation, predictor, predictor_for, (start, stop))``.
     """
     u_all, y_all = channel_pair(u, y)
     n = u_all.shape[0]
@@ -1017,8 +1023,12 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     i = check_horizon(horizon, n)
     fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
     if window == "auto":
-        j = min(3 * i * (2 * m + l), fit_end - 2 * i + 1)  # three columns per regressor of the predictor
-        start, stop = 0, 2 * i + j - 1
+        start = _auto_window_start(u_all, i)
+        j = min(3 * i * (2 * m + l), fit_end - start - 2 * i + 1)  # three columns per regressor of the predictor
+        if j < 1:
+            raise DataError(f"the input is zero up to sample {start + i}, which leaves no (7.5) window of horizon {i} "
+                            f"in the fitting part [0, {fit_end}); pass a longer record or validation=(u_v, y_v)")
+        stop = start + 2 * i + j - 1
     elif isinstance(window, slice):
         start, stop, step = window.indices(n)
         if step != 1:
@@ -1039,7 +1049,15 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
         predictor = _fitted(u_fit, y_fit, i)
     if predictor_for is None:
         predictor_for = functools.partial(_fitted, u_fit, y_fit)
-    return u_all[start:stop], y_all[start:stop], validation, predictor, predictor_for
+    return u_all[start:stop], y_all[start:stop], validation, predictor, predictor_for, (start, stop)
+
+
+def _auto_window_start(u: np.ndarray, i: int) -> int:
+    """Where ``window="auto"`` starts: i samples before the input first moves, so that the first column's future
+    begins with it.  A record that starts at rest would otherwise give (7.5) columns whose outputs are all noise
+    (their input is zero since the column's start), which a noise budget of half the residual cannot hold."""
+    moving = np.flatnonzero(np.any(u.reshape(u.shape[0], -1) != 0.0, axis=1))
+    return max(0, int(moving[0]) - i) if moving.size else 0
 
 
 def _warn_few_columns(predictor) -> None:

@@ -442,9 +442,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     n = rec.n
     fit_end = n - int(n / 3)  # robust_design_from_data's held-out last third (HELD_OUT_FRACTION)
     unf = res.unfalsification
-    # the window robust_design_from_data used: 2i + j − 1 samples from START ("auto" starts at 0)
-    win_start = window_arg[0] if isinstance(window_arg, tuple) else 0
-    win = (win_start, win_start + 2 * int(unf.horizon) + int(unf.n_columns) - 1)
+    win = tuple(int(k) for k in res.window)  # the samples robust_design_from_data took as the (7.5) window
     npz = save_controller(out / "controller.npz", res.controller)
     mat = save_controller(out / "controller.mat", res.controller)
     figs, numbers = _figures(out, rec, res, fit_end, win)
