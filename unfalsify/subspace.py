@@ -563,7 +563,8 @@ def subspace_unfalsify(
     ------
     DataError
         NaN/inf, lengths, time along axis 1 (the message names ``u.T``), bad horizon / too few samples,
-        σ ≤ 0, or a column of ``U_f`` whose first sample ``u_{i+k}`` is 0 (``T((U_f)_{:,k})`` singular); a solve
+        σ ≤ 0; columns of ``U_f`` starting with a zero input whose first outputs need more noise than σ√N holds
+        (the message gives the least σ), or such columns with ``form="thesis"`` or ``executor=``; a solve
         whose estimated memory (:func:`~unfalsify.solve_estimate`) exceeds half the memory available (the message
         names a shorter window, and the other backend where it needs less).
     UnknownSolverError
