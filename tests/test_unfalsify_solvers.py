@@ -109,6 +109,25 @@ def test_split_with_an_executor_equals_the_serial_split():
     assert pooled.delta == serial.delta
 
 
+def test_split_outer_problem_closes_where_false_position_stalled():
+    """A noise ball far inside the residual (σ = 0.1 × the fixed predictor's residual rms): g(δ) is flat above δ*, and
+    false position from the lower end had found only upper ends (measured: 30 of 30 rounds on this record).  The
+    bracket closes within 15 rounds and its δ is the structured barrier's (another method on the same program)."""
+    from unfalsify.solvers.split import split_solve
+
+    rng = np.random.default_rng(2)
+    u = rng.choice([-1.0, 1.0], 80)
+    y = np.convolve(u, [0.0, 1.0, 0.5, 0.25])[:80] + 0.1 * rng.standard_normal(80)
+    pred = sy.fit_predictor(u, y, 4)
+    A, Uf, Yf = uf.subspace_data(u, y, 4)
+    B = Yf - np.hstack([pred.Lw, pred.Lu]) @ A
+    sigma = 0.1 * np.linalg.norm(B) / np.sqrt(B.size)
+    out = split_solve(Uf, B, sigma * np.sqrt(B.size), max_rounds=15)
+    ref = uf.subspace_unfalsify(u, y, 4, sigma, predictor=pred, backend="structured", tol=1e-8, progress=False)
+    assert out["status"] == "optimal" and out["lower"] <= out["delta"]
+    assert out["delta"] == pytest.approx(ref.delta, rel=1e-6)
+
+
 def test_status_strings_of_results_are_the_shared_enum_values():
     u, y = servo_arx_data(30, 0)
     _, rms = uf.arx_least_squares(u, y, 2, 2)

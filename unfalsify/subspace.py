@@ -564,7 +564,7 @@ def subspace_unfalsify(
     DataError
         NaN/inf, lengths, time along axis 1 (the message names ``u.T``), bad horizon / too few samples,
         σ ≤ 0; columns of ``U_f`` starting with a zero input whose first outputs need more noise than σ√N holds
-        (the message gives the least σ), or such columns with ``form="thesis"`` or ``executor=``; a solve
+        (the message gives the least σ), or such columns with ``form="thesis"``; a solve
         whose estimated memory (:func:`~unfalsify.solve_estimate`) exceeds half the memory available (the message
         names a shorter window, and the other backend where it needs less).
     UnknownSolverError
@@ -628,12 +628,10 @@ def subspace_unfalsify(
             raise UnknownSolverError(f"method='primal_dual' of (7.5) solves single-channel data only; for {l}×{m} "
                                      "data use method='barrier' (solver 'block_barrier') or backend='cvxpy'")
         zero_cols = P.zero_start_columns
-        if zero_cols.size and (form == "thesis" or executor is not None):
-            route = "form='thesis' recovers h_k by inverting T((U_f)_{:,k})" if form == "thesis" else \
-                "executor= (the split solver) starts from the exact fit T((U_f)_{:,k})⁻¹ b_k"
-            raise DataError(f"{route}, which {zero_cols.size} column(s) starting with a zero input make singular "
-                            f"(first: column {zero_cols[0]}); form='conditioned' without executor= solves them "
-                            "exactly (their first outputs are noise)")
+        if zero_cols.size and form == "thesis":
+            raise DataError(f"form='thesis' recovers h_k by inverting T((U_f)_{{:,k}}), which {zero_cols.size} "
+                            f"column(s) starting with a zero input make singular (first: column {zero_cols[0]}); "
+                            "form='conditioned' solves them exactly (their first outputs are noise)")
         if form == "thesis" and not P.cond_Tu <= COND_WARN:
             warnings.warn(
                 f"form='thesis' with max_k cond T((U_f)_k) = {P.cond_Tu:.3g}: the literal LMI is numerically "

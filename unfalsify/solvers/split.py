@@ -125,7 +125,7 @@ def solve_columns(U, B, delta: float, gap: float) -> dict:
     Parameters
     ----------
     U, B : ndarray, shape (m, k)
-        Input columns (``U[0] ≠ 0``) and target columns.
+        Input columns and target columns.
     delta : float
         The bound δ > 0.
     gap : float
@@ -220,6 +220,19 @@ def _map_blocks(executor, U, B, delta, gap, blocks) -> dict:
                 W=np.concatenate([p["W"] for p in parts]))
 
 
+def _exact_fit(u: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """``(‖T(h)‖₂, ‖b[:p]‖²)`` for the impulses h that fit b exactly after the p leading zeros of u, whose first p
+    entries no impulse reaches (they are noise).  The impulse entries beyond the shorter section can keep the norm
+    at that section's (Parrott's theorem: see :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`)."""
+    moving = np.flatnonzero(u != 0.0)
+    p = int(moving[0]) if moving.size else u.size
+    pinned = float(b[:p] @ b[:p])
+    if p == u.size:
+        return 0.0, pinned
+    h = scipy.linalg.solve_triangular(toeplitz_matrix(u[p:]), b[p:], lower=True)
+    return toeplitz_norm(h), pinned
+
+
 def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, block_size: int | None = None,
                 max_rounds: int = 60) -> dict:
     """δ* of the column form with 𝓛 = {0}: column blocks on ``executor``, the outer problem here.
@@ -227,7 +240,8 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     Parameters
     ----------
     U, B : ndarray, shape (m, j)
-        Input columns (no zero first entry) and targets (``Y_f − L A``), preferably scaled.
+        Input columns and targets (``Y_f − L A``), preferably scaled.  A column whose input starts with p zeros
+        leaves its first p targets to the noise.
     rho : float
         Noise budget ρ (2-norm of the whole noise matrix).
     executor : concurrent.futures.Executor, optional
@@ -269,8 +283,6 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     B = np.asarray(B, float)
     if U.ndim != 2 or U.shape != B.shape:
         raise DataError(f"U and B must be matrices of one shape (m, j); got {U.shape} and {B.shape}")
-    if np.any(U[0] == 0.0):
-        raise DataError("a column of U starts with a zero input: T(u_k) is singular; use an input with no zero samples")
     if not (np.isfinite(rho) and rho > 0):
         raise DataError(f"rho must be a finite positive noise budget, got {rho!r}")
     if not (isinstance(rtol, float) and 0 < rtol < 1):
@@ -286,11 +298,17 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
         raise DataError(f"block_size must be a positive number of columns, got {block_size!r}")
     blocks = [slice(s, min(s + bs, j)) for s in range(0, j, bs)]
     gap = _GAP_REL * rho2 / j
-    # exact fit (zero noise): feasible, an upper end of the bracket
-    hi = max(toeplitz_norm(scipy.linalg.solve_triangular(toeplitz_matrix(U[:, k]), B[:, k], lower=True))
-             for k in range(j))
+    # exact fit of every row an impulse reaches (the rest, before a column's first non-zero input, is noise):
+    # feasible, an upper end of the bracket
+    fits = [_exact_fit(U[:, k], B[:, k]) for k in range(j)]
+    hi = max(norm for norm, _ in fits)
+    ghi = sum(pinned for _, pinned in fits) - rho2
+    if not ghi < 0.0:
+        raise DataError(f"the targets before each column's first non-zero input (no impulse reaches them) need noise "
+                        f"of norm {np.sqrt(ghi + rho2):.4g}, not below rho = {rho:.4g}: no δ is feasible")
     lo, glo, dlo = 0.0, g0, None
-    ghi, dhi, best, best_gap = -rho2, None, None, None
+    dhi, best, best_gap = None, None, None
+    stuck = 0  # chord steps in a row that found only upper ends (Illinois: the lower end's weight halves each time)
     rounds, status = 0, "max_rounds"
     while rounds < max_rounds:
         chord = lo + glo * (hi - lo) / (glo - ghi)
@@ -310,8 +328,12 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
             x, gx_tol = hi, gap  # the answer's primal and dual points at full precision
         elif chord - lower <= rtol * chord:
             x, gx_tol = chord, gap  # confirm the upper end: the candidate answer
-        elif lower <= lo * (1 + 1e-12):
-            x, gx_tol = chord, loose  # no tangent progress yet
+        elif lower <= lo * (1 + 1e-12):  # no tangent progress yet
+            # a false-position step from the lower end stalls where g is flat above δ* (a noise floor near ρ:
+            # measured 60 rounds without a lower end), so the lower end's weight halves after each step that
+            # found only an upper end; it stays 1 until then
+            w = glo * 0.5**stuck
+            x, gx_tol = lo + w * (hi - lo) / (w - ghi), loose
         else:
             x, gx_tol = lower, loose
         ev = _map_blocks(executor, U, B, x, gx_tol, blocks)
@@ -320,8 +342,10 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
         dx = float(np.sum(ev["df"]))
         if gx <= 0.0:
             hi, ghi, dhi, best, best_gap = x, gx, dx, ev, gx_tol
+            stuck += 1
         else:
             lo, glo, dlo = x, gx, dx
+            stuck = 0
     if best is None:  # pragma: no cover - max_rounds too small to reach an upper end
         best = _map_blocks(executor, U, B, hi, gap, blocks)
     return dict(delta=float(hi), lower=float(lower), H=best["H"], V=best["R"], W=best["W"], status=status,
