@@ -87,8 +87,8 @@ def check_noise_floor(form, sigma: float, where: str, fix: str) -> None:
     pinned = int(np.count_nonzero(form.pinned()))
     raise DataError(
         f"no δ unfalsifies these data at sigma = {sigma:.4g}: {where}, so a causal Δ(q) at rest gives no output there "
-        f"and the noise must explain all {pinned} of those outputs, which takes rms noise ≥ "
-        f"{sigma * floor / form.rho:.4g} over the whole budget; pass sigma above that, or {fix}"
+        f"and the noise alone must explain those {pinned} outputs, which needs sigma ≥ {sigma * floor / form.rho:.4g}; "
+        f"pass a larger sigma, or {fix}"
     )
 
 

@@ -283,8 +283,9 @@ class SubspaceProblem:
                 problem.column_form(scaled=False), sigma,
                 f"{zero_cols.size} column(s) of U_f start with a zero input (first: column {zero_cols[0]}; zero at "
                 f"{where})",
-                f"move the window so that its samples {i} … {i + j - 1} (the columns' first samples) hold no zero "
-                "(`--window START:LEN` of `python -m experiments design`); for an input that switches between 0 and "
+                f"move the window so that its samples {i} … {i + j - 1} (the columns' first samples) hold fewer zeros "
+                "(`--window START:LEN` of `python -m experiments design`; for a record that starts at rest, start i "
+                "samples before the input moves, as window='auto' does); for an input that switches between 0 and "
                 "a level, subtract its operating point (u − mean(u), y − mean(y); `--detrend mean`)")
         return problem
 
