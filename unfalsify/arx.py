@@ -343,9 +343,8 @@ class ArxProblem:
         problem = cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=cond, free_rows=free_rows,
                       n_inputs=m, n_outputs=l)
         if not np.any(u[0] != 0.0):
-            zeros = problem.column_form(scaled=False).leading_zeros()[0]
-            check_noise_floor(problem.column_form(scaled=False), sigma,
-                              f"the input is zero at t = 0 … {zeros - 1}",
+            form = problem.column_form(scaled=False)
+            check_noise_floor(form, sigma, f"the input is zero at t = 0 … {form.leading_zeros()[0] - 1}",
                               "start the record at the first non-zero input sample if the system was at rest before it")
         return problem
 

@@ -288,8 +288,9 @@ def leaked_bins(inputs, nperseg: int) -> np.ndarray:
     margin on the plant.  From a spectrum :data:`_FINE` times finer, a bin *stands for itself* when the centroid of
     its gathered power lies within :data:`_CENTROID_LIMIT` bins of it and its own band (±½ bin) holds at least
     :data:`_OWN_SHARE` of the power the window gathers (relative to that share under a flat spectrum), for every
-    input channel.  A bin that does not is *leaked* unless bins standing for themselves lie within :data:`_BRACKET` bins on both sides (an
-    interpolation across a spectral null, whose error is of second order, as between a held PRBS's lobes).
+    input channel.  A bin that does not is *leaked* unless bins standing for themselves lie within :data:`_BRACKET`
+    bins on both sides (an interpolation across a spectral null, whose error is of second order, as between a held
+    PRBS's lobes).
     Measured: white PRBS and Gaussian noise leave no bin leaked (300 records each of 200, 480 and 2000 samples); a
     PRBS held 3 samples leaves one beside its null, where the null is wider than the bracket, in 1–3.5 % of records.
 

@@ -450,10 +450,12 @@ class _ColumnSystem:
 
     # ---- cold start ----------------------------------------------------------------------------
     def _cold_impulses(self, svd, B0) -> np.ndarray:
-        """:func:`~unfalsify.solvers.start.cold_impulses` (``‖B0 − H̃‖_F = 0.7 ρ``, or 0.7 of the way from the
-        :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor` to ρ) with this system's projected fit."""
+        """:func:`~unfalsify.solvers.start.cold_impulses` (``‖B0 − H̃‖_F = 0.7 ρ``, or 0.7 of the way to ρ from B0's
+        part that no impulse reaches, which the plain fit leaves whole: the
+        :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor` for its point) with this system's projected fit."""
         fit = None if self.Q is None else (lambda lam: self._projected_fit(svd, B0, lam))
-        target = start_target(self.f.rho, self.f.noise_floor()[0], 0.7)
+        pinned = B0[self.f.pinned()]
+        target = start_target(self.f.rho, float(np.sqrt(pinned @ pinned)), 0.7)
         return cold_impulses(svd, B0, target, projected_fit=fit,
                              top=lambda H: _max_norm(self._gram(H)[1], self.chunks))
 

@@ -46,6 +46,7 @@ from synthesis import DataError
 from ..exceptions import SolverWarning
 from .barrier import Deadline
 from .base import SolverOutput, SolverStatus
+from .columns import ColumnForm
 from .toeplitz import adjoint, toeplitz_matrix, toeplitz_norm, toeplitz_stack
 
 __all__ = ["split_solve", "solve", "solve_columns", "solve_column"]
@@ -220,17 +221,13 @@ def _map_blocks(executor, U, B, delta, gap, blocks) -> dict:
                 W=np.concatenate([p["W"] for p in parts]))
 
 
-def _exact_fit(u: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """``(‖T(h)‖₂, ‖b[:p]‖²)`` for the impulses h that fit b exactly after the p leading zeros of u, whose first p
-    entries no impulse reaches (they are noise).  The impulse entries beyond the shorter section can keep the norm
-    at that section's (Parrott's theorem: see :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`)."""
-    moving = np.flatnonzero(u != 0.0)
-    p = int(moving[0]) if moving.size else u.size
-    pinned = float(b[:p] @ b[:p])
+def _exact_fit_norm(u: np.ndarray, b: np.ndarray, p: int) -> float:
+    """``‖T(h)‖₂`` of the impulses h that fit b exactly after the p leading zeros of u (b's first p entries no impulse
+    reaches: they are noise).  The impulse entries beyond the shorter section can keep the norm at that section's
+    (Parrott's theorem: see :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`)."""
     if p == u.size:
-        return 0.0, pinned
-    h = scipy.linalg.solve_triangular(toeplitz_matrix(u[p:]), b[p:], lower=True)
-    return toeplitz_norm(h), pinned
+        return 0.0
+    return toeplitz_norm(scipy.linalg.solve_triangular(toeplitz_matrix(u[p:]), b[p:], lower=True))
 
 
 def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, block_size: int | None = None,
@@ -300,12 +297,14 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     gap = _GAP_REL * rho2 / j
     # exact fit of every row an impulse reaches (the rest, before a column's first non-zero input, is noise):
     # feasible, an upper end of the bracket
-    fits = [_exact_fit(U[:, k], B[:, k]) for k in range(j)]
-    hi = max(norm for norm, _ in fits)
-    ghi = sum(pinned for _, pinned in fits) - rho2
-    if not ghi < 0.0:
+    form = ColumnForm(U, B, rho)
+    zeros = form.leading_zeros()
+    hi = max(_exact_fit_norm(U[:, k], B[:, k], zeros[k]) for k in range(j))
+    floor = form.noise_floor()[0]
+    if not floor < rho:
         raise DataError(f"the targets before each column's first non-zero input (no impulse reaches them) need noise "
-                        f"of norm {np.sqrt(ghi + rho2):.4g}, not below rho = {rho:.4g}: no δ is feasible")
+                        f"of norm {floor:.4g}, not below rho = {rho:.4g}: no δ is feasible")
+    ghi = floor**2 - rho2
     lo, glo, dlo = 0.0, g0, None
     dhi, best, best_gap = None, None, None
     stuck = 0  # chord steps in a row that found only upper ends (Illinois: the lower end's weight halves each time)
