@@ -128,7 +128,6 @@ def test_noisy_gain_grows_with_n():
 @pytest.mark.parametrize(
     "u, y",
     [
-        ([0.0, 1.0, 1.0], [0.0, 1.0, 2.0]),  # u0 = 0
         ([1.0, np.nan, 1.0], [0.0, 1.0, 2.0]),  # NaN
         ([1.0, 1.0, 1.0], [0.0, 1.0]),  # lengths
         (np.ones((2, 4)), np.ones(4)),  # time along axis 1 (several channels are accepted since issue 28)

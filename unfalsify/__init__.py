@@ -66,6 +66,7 @@ Certificates and Toeplitz helpers
    toeplitz_norm          -- spectral norm ‖T(h)‖₂
    toeplitz_cond          -- condition number of T(u)
    deconvolve             -- solve ``T(u) h = y``
+   minimal_extension      -- the next Markov parameters of the least-H∞-norm system with given first ones
 
 Robust design from data (§7.4)
 ------------------------------
@@ -230,6 +231,7 @@ from .exceptions import (FewDataWarning, IllConditionedWarning, LongSolveWarning
 from ._common import BACKENDS, COND_WARN, Certificate
 from .solvers import SOLVERS, SolverOutput, SolverStatus
 from .solvers.toeplitz import deconvolve, toeplitz_cond, toeplitz_matrix, toeplitz_norm
+from .solvers.extension import minimal_extension
 from .arx import ArxProblem, ArxResult, arx_least_squares, arx_regressor, arx_unfalsify
 from .gain import GainResult, is_unfalsified, unfalsified_gain, unfalsified_gain_result
 from .subspace import SubspaceProblem, SubspaceResult, subspace_data, subspace_unfalsify
@@ -278,6 +280,7 @@ __all__ = [
     "toeplitz_cond",
     "toeplitz_matrix",
     "toeplitz_norm",
+    "minimal_extension",
     "ArxProblem",
     "ArxResult",
     "arx_least_squares",

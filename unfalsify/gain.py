@@ -30,9 +30,14 @@ explain the data and only γ_min is returned (``impulse`` is None).  Necessity i
 feasible h gives ``T(y)ᵀT(y) = T(u)ᵀT(h)ᵀT(h)T(u) ⪯ ‖T(h)‖₂² T(u)ᵀT(u)``; sufficiency is the
 commutant-lifting step of Poolla et al., checked in ``tests/test_unfalsify_mimo.py`` against the
 semidefinite program ``min ‖T(h)‖₂`` written out in cvxpy.
+
+A record that starts at rest (the input vector zero for the first p samples) makes T(u) singular; its answer
+is that of the samples after the zeros when y is zero there too, and ∞ when it is not (no causal Δ makes an
+output before the input): see :func:`unfalsified_gain_result`.
 """
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -46,6 +51,7 @@ from synthesis.validation import as_signal
 
 from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
+from .solvers.extension import minimal_extension
 from .solvers.toeplitz import block_toeplitz_norm, deconvolve, signal_toeplitz, toeplitz_cond, toeplitz_norm
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
@@ -62,13 +68,21 @@ class GainResult:
         Smallest γ satisfying (7.1), ``‖T(h)‖₂``.
     impulse : ndarray or None
         ``h = T(u)⁻¹ y``: Markov parameters of the causal operator mapping u to y; shape (n,) for SISO,
-        (n, l, 1) for one input and l outputs, None for several inputs (h is not unique then).
+        (n, l, 1) for one input and l outputs, None for several inputs (h is not unique then) and when no
+        causal operator explains the data.  After ``leading_zeros`` = p zero inputs only the first n − p are
+        determined; the last p are the least-norm extension, so that ``‖T(h)‖₂ = γ`` still.
     cond_Tu : float
-        2-norm condition number of ``T(u)`` (nm × n for m inputs); above :data:`COND_WARN` the answer is flagged.
+        2-norm condition number of ``T(u)`` (nm × n for m inputs) of the samples after the leading zeros;
+        above :data:`COND_WARN` the answer is flagged.
     exact : bool
         Whether ``h`` was computed in exact rational arithmetic.
     method : str
-        How ``‖T(h)‖₂`` was computed (``"dense"`` or ``"lanczos"``; ``"qr"``: ``‖T(y)R⁻¹‖₂`` for m > 1).
+        How ``‖T(h)‖₂`` was computed (``"dense"`` or ``"lanczos"``; ``"qr"``: ``‖T(y)R⁻¹‖₂`` for m > 1);
+        ``"acausal"``: y moves while u is still zero, no causal Δ explains the data and γ = ∞; ``"zero input"``:
+        u and y are zero throughout, γ = 0.
+    leading_zeros : int
+        How many samples the input is exactly zero (every channel) before it first moves; the answer is
+        that of the data after them, the system being at rest before t = 0.
     """
 
     gamma: float
@@ -76,6 +90,7 @@ class GainResult:
     cond_Tu: float
     exact: bool
     method: str
+    leading_zeros: int = 0
 
     @property
     def well_conditioned(self) -> bool:
@@ -84,16 +99,48 @@ class GainResult:
 
 
 def _checked_pair(u, y) -> tuple[np.ndarray, np.ndarray]:
-    """``(u, y)`` as (n, m) and (n, l) float arrays (time along axis 0), ``u[0] ≠ 0``."""
+    """``(u, y)`` as (n, m) and (n, l) float arrays (time along axis 0)."""
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
-    if not np.any(u[0] != 0.0):
-        raise DataError(
-            "u[0] == 0: T(u) is singular, so Theorem 7.1 cannot be applied as stated (if y[0] != 0 no "
-            "causal Δ explains the data at all). If the system was at rest and the input starts later, "
-            "drop the leading samples where u is zero from both u and y"
-        )
     return u, y
+
+
+def _leading_zeros(u: np.ndarray) -> int:
+    """How many samples the input vector is exactly zero before it first moves (n when it never does)."""
+    moved = np.flatnonzero(np.any(u != 0.0, axis=1))
+    return int(moved[0]) if moved.size else u.shape[0]
+
+
+def _at_rest_result(u: np.ndarray, y: np.ndarray, p: int) -> GainResult | None:
+    """The answer when the input is zero for its first p samples and that alone decides it, else None.
+
+    y moving before u does: no causal Δ explains the data (γ = ∞, no h).  An input that never moves and an
+    output that stays at zero: Δ = 0 (γ = 0, every Markov parameter free, the least-norm choice zero).
+    """
+    n, m = u.shape
+    if np.any(y[:p] != 0.0):
+        return GainResult(gamma=float("inf"), impulse=None, cond_Tu=float("inf"), exact=False, method="acausal",
+                          leading_zeros=p)
+    if p < n:
+        return None
+    impulse = None if m > 1 else (np.zeros(n) if y.shape[1] == 1 else np.zeros((n, y.shape[1], 1)))
+    return GainResult(gamma=0.0, impulse=impulse, cond_Tu=float("inf"), exact=True, method="zero input",
+                      leading_zeros=p)
+
+
+def _extended(short: GainResult, n: int, p: int) -> GainResult:
+    """The answer of the samples after p zero inputs as that of the whole record (h at full length).
+
+    With ``u_0 … u_{p−1} = 0`` and ``y_0 … y_{p−1} = 0``, ``T(u) = [0 0; T(u') 0]`` and likewise T(y), so (7.1)
+    is (7.1) of ``(u', y') = (u[p:], y[p:])``.  The last p Markov parameters never meet the data; the least-norm
+    extension (:func:`~unfalsify.solvers.extension.minimal_extension`) keeps ``‖T(h)‖₂ = γ``.
+    """
+    h = short.impulse
+    if h is not None and np.all(np.isfinite(h)):
+        h = minimal_extension(h, n)
+    elif h is not None:
+        h = np.concatenate([h, np.full((p,) + h.shape[1:], np.nan)])
+    return dataclasses.replace(short, impulse=h, leading_zeros=p)
 
 
 def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "auto", warn: bool = True) -> GainResult:
@@ -117,7 +164,14 @@ def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "a
     Raises
     ------
     DataError
-        On NaN/inf, length mismatch, time along axis 1 (the message names ``u.T``), or ``u[0] == 0``.
+        On NaN/inf, length mismatch or time along axis 1 (the message names ``u.T``).
+
+    Notes
+    -----
+    An input that is zero for its first p samples (a record that starts at rest) makes T(u) singular.  If
+    y is zero there too, ``T(u) = [0 0; T(u') 0]`` and ``T(y) = [0 0; T(y') 0]`` with ``u' = u[p:]``,
+    ``y' = y[p:]``, so (7.1) is that of the data after the zeros: γ and h are theirs, h extended at the same
+    norm (``leading_zeros``).  If y moves first, no causal Δ explains the data: γ = ∞ (``method="acausal"``).
 
     Examples
     --------
@@ -133,9 +187,16 @@ def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "a
     (True, True, 'qr')
     """
     u, y = _checked_pair(u, y)
+    n, p = u.shape[0], _leading_zeros(u)
+    answer = _at_rest_result(u, y, p) if p else None
+    if answer is not None:
+        return answer
+    u, y = u[p:], y[p:]
     if u.shape[1] == 1 and y.shape[1] == 1:
-        return _siso_result(u[:, 0].copy(), y[:, 0].copy(), exact, method, warn)
-    return _mimo_result(u, y, exact, method, warn)
+        short = _siso_result(u[:, 0].copy(), y[:, 0].copy(), exact, method, warn)
+    else:
+        short = _mimo_result(u, y, exact, method, warn)
+    return _extended(short, n, p) if p else short
 
 
 def _warn_cond(cond: float) -> None:
