@@ -442,12 +442,32 @@ def _crossed_bounds(P, cert: Certificate) -> str:
             f"this close to the least-squares residual rms makes δ that small")
 
 
+def _delta_outside(P, cert: Certificate) -> str:
+    """Why a conic solver's δ lies outside the bracket its own point and dual certify, or "".
+
+    Either side holds to the rounding of the data (:func:`_crossed_bounds`) and the solver's δ to its tolerance, so a
+    δ outside by more than 1e-6 relative (plus that rounding) is provably not δ_unf.  Measured: SCS stopped after 20
+    iterations ('optimal_inaccurate') returned δ = 0.0295 with the bracket [0.0450, 0.1157] (δ_unf = 0.0837)."""
+    delta, lo, up = cert.delta, cert.lower_bound, cert.upper_bound
+    if not np.isfinite(delta):
+        return ""
+    slack = 1e-6 * abs(delta) + 100.0 * np.finfo(float).eps * _data_scale(P)
+    below = np.isfinite(lo) and delta < lo - slack
+    above = np.isfinite(up) and delta > up + slack and not _outside_ball(cert)
+    if not (below or above):
+        return ""
+    return (f"its δ = {delta:.6g} lies {'below' if below else 'above'} the bracket its own point and dual certify, "
+            f"[{lo:.6g}, {up:.6g}]: δ is NaN, the bracket (result.certificate) is what the data certify; tighten the "
+            "solver's tolerances or raise its iteration limit, or use backend='structured'")
+
+
 def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     """The :class:`Certificate` of a solver's output for the problem ``P``, and the δ to report.
 
     Both sides are recomputed from the data: the primal point ``(impulses, params)`` and the dual point
     ``(dual_v, dual_W)``.  For a structured solver (``out.bracketed``) δ is NaN unless the solve ended
-    with a certified bracket, and any status but ``optimal`` warns with the certificate's gap.
+    with a certified bracket, and any status but ``optimal`` warns with the certificate's gap.  A conic solver's δ
+    outside the bracket its own point and dual certify is NaN, and warned (:func:`_delta_outside`).
     """
     up, nn = P.evaluate_primal(out.impulses, out.params, near=_near(out.delta))
     if out.dual_v is not None:
@@ -486,6 +506,10 @@ def certify(P, out: SolverOutput, what: str) -> tuple[Certificate, float]:
     crossed = _crossed_bounds(P, cert)
     if crossed:
         warnings.warn(f"{what}: {crossed}", SolverWarning, stacklevel=4)
+    outside = "" if out.bracketed or crossed else _delta_outside(P, cert)
+    if outside:
+        warnings.warn(f"{what}: status '{out.status.value}', {outside}", SolverWarning, stacklevel=4)
+        delta = float("nan")
     if out.bracketed:
         # a stopped solve's best point can leave the noise ball by rounding once the data are recomputed (measured: by
         # 5e-6 relative, cond T(u) about 1e24): then only the lower side is certified

@@ -526,7 +526,8 @@ def arx_unfalsify(
     -----
     SolverWarning
         Status other than optimal (δ is NaN unless ``optimal_inaccurate``, or, for the structured
-        backend, ``bracket``/``time_limit``/``interrupted``, where δ is the certified upper bound).
+        backend, ``bracket``/``time_limit``/``interrupted``, where δ is the certified upper bound); a cvxpy δ
+        outside the bracket of its own certificate (then NaN: it is provably not the answer).
     IllConditionedWarning
         ``form="thesis"`` with ``cond T(u) > COND_WARN``.
     LongSolveWarning
