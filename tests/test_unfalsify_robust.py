@@ -300,3 +300,13 @@ def test_valid_option_objects_are_unchanged():
     assert uf.tracking_floors(np.array(0.2), 2).tolist() == [0.2, 0.2]  # a 0-d array is a number
     assert uf.DesignSearch(horizons=(5, np.int64(10))).horizons == (5, 10)
     assert uf.PremiseOptions(time_limit=None, nperseg=64).nperseg == 64
+
+
+@pytest.mark.parametrize("n", [25, 35, 45])
+def test_a_record_too_short_for_the_horizon_says_so(n):
+    # it had been refused as noise-free data (35, 45 samples) or as an input at rest (25)
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(n))
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:n] + 0.05 * rng.standard_normal(n)
+    with pytest.raises(DataError, match=r"too short for horizon i = 10.*record at least 164 samples"):
+        uf.robust_design_from_data(u, y, 10, 1.0, 0.1, "auto", dt=1.0, window="auto")

@@ -204,3 +204,16 @@ def test_the_literal_forms_refuse_them_by_name():
         uf.subspace_unfalsify(u, y, 4, 0.03, form="thesis", progress=False)
     with pytest.raises(DataError, match="form='conditioned'"):
         uf.arx_unfalsify(np.r_[0.0, u[1:]], y, 1, 1, 0.03, form="thesis", progress=False)
+
+
+def test_an_input_that_never_moves_is_named_not_sigma():
+    # every output is noise then: the floor refusal had blamed σ and the window (and --detrend mean, already used)
+    y = np.random.default_rng(0).standard_normal(120)
+    with pytest.raises(DataError, match="the input is zero on every sample of the window's future inputs"):
+        uf.subspace_unfalsify(np.zeros(120), y, 4, 0.1)
+    with pytest.raises(DataError, match="the input is zero on every sample of the record"):
+        uf.arx_unfalsify(np.zeros(40), y[:40], 1, 1, 0.1)
+    u = np.zeros(120)
+    u[:3] = 1.0  # moves, but only in the past rows of the first columns: U_f is still zero
+    with pytest.raises(DataError, match="U_f"):
+        uf.subspace_unfalsify(u, y, 4, 0.1)

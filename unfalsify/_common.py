@@ -76,6 +76,16 @@ def check_noise_resolution(sigma: float, n_noise: int, data: np.ndarray, name: s
         )
 
 
+def check_input_moves(u: np.ndarray, where: str) -> None:
+    """Raise DataError when the input is zero on every sample: no output is a response then, δ is undefined, and
+    the noise-floor refusal (:func:`check_noise_floor`) would blame σ and the window instead."""
+    if not np.any(u != 0.0):
+        raise DataError(
+            f"the input is zero on every sample of {where}: the data hold no response to an input, so they say "
+            "nothing about the uncertainty Δ; use a record whose input moves (a PRBS or a multisine; a constant "
+            "input with its mean subtracted, `--detrend mean`, is zero)")
+
+
 def check_noise_floor(form, sigma: float, where: str, fix: str) -> None:
     """Raise DataError when the entries of (C) that no impulse reaches (outputs while an input column is still at
     zero since its start, :meth:`~unfalsify.solvers.columns.ColumnForm.noise_floor`) need more noise than the budget

@@ -230,7 +230,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
         freq, dist, radius = frf.frequency, frf.gain, frf.radius
         bound, peak = _bin_loop_gain(M, frf.response, radius, frf.frequency, frf.resolution, frf.dt, +1.0)
         bound = np.where(np.isfinite(radius), bound, np.where(peak > 0, np.inf, 0.0))
-    bound = np.nan_to_num(bound, nan=np.inf)
+    bound = np.nan_to_num(bound, nan=np.inf, posinf=np.inf)  # an unexcited bin stays ∞, not the largest float
     welch = np.ones(freq.size, bool)
     if low_band is not None:
         # below the Welch resolution only evidence refuses: (|D̂| − r)·|M̂| ≥ 1.  The local fits' disks are
@@ -270,7 +270,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
                f"{float(np.max(np.where(bad, radius, 0))):.3g}; excite {lo:.3g}–{hi:.3g} {unit}"
                f"{_input_fix(frf, bad[welch])} ({signal}) or record longer")
     else:
-        test = "σ̄(D̂M̂) + r·σ̄(M̂)" if mimo else "(|P − P̂| estimate + r)·|K(I+P̂K)⁻¹|"
+        error = "M̂P − N̂" if factors is not None else "P − P̂"
+        test = "σ̄(D̂M̂) + r·σ̄(M̂)" if mimo else f"(|{error}| estimate + r)·{norm}"
         why = (f"at {band} the data's frequency response differs from P̂ by more than the loop tolerates "
                f"({test} = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
                "richer or longer record, or raise the horizon")

@@ -1025,7 +1025,7 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     if window == "auto":
         start = _auto_window_start(u_all, i)
         j = min(3 * i * (2 * m + l), fit_end - start - 2 * i + 1)  # three columns per regressor of the predictor
-        if j < 1:
+        if j < 1 and start > 0:
             raise DataError(f"the input is zero up to sample {start + i}, which leaves no (7.5) window of horizon {i} "
                             f"in the fitting part [0, {fit_end}); pass a longer record or validation=(u_v, y_v)")
         stop = start + 2 * i + j - 1
@@ -1042,6 +1042,7 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
             f"the window [{start}, {stop}) must lie in the fitting part [0, {fit_end}) of the {n}-sample record "
             f"(the last {n - fit_end} samples are held out for the premise test): choose an earlier or shorter "
             "window, or pass validation=(u_v, y_v) from another experiment to use the whole record for fitting")
+    _check_fitting_part(fit_end - 2 * i + 1, i, m, l, n, validation is None)
     u_fit, y_fit = u_all[:fit_end], y_all[:fit_end]
     if validation is None:
         validation = (u_all[fit_end:], y_all[fit_end:])
@@ -1050,6 +1051,21 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     if predictor_for is None:
         predictor_for = functools.partial(_fitted, u_fit, y_fit)
     return u_all[start:stop], y_all[start:stop], validation, predictor, predictor_for, (start, stop)
+
+
+def _check_fitting_part(j: int, i: int, m: int, l: int, n: int, held_out: bool) -> None:
+    """Refuse a record whose fitting part gives the predictor no more columns than regressors: it would fit those
+    samples exactly, and every later test would blame noise-free data or the window instead of the length."""
+    rows = i * (2 * m + l)
+    if j > rows:
+        return
+    need = 3 * rows + 2 * i - 1  # three columns per regressor, as window="auto" takes
+    if held_out:
+        need = int(np.ceil(need / (1.0 - HELD_OUT_FRACTION)))
+    raise DataError(
+        f"the record is too short for horizon i = {i}: its fitting part gives the predictor j = {max(j, 0)} columns "
+        f"for its i(2m + l) = {rows} regressors, so it would fit those samples exactly; record at least {need} samples"
+        f"{' (the last third is held out)' if held_out else ''}, or lower the horizon")
 
 
 def _auto_window_start(u: np.ndarray, i: int) -> int:

@@ -55,8 +55,8 @@ from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
 from synthesis.validation import as_signal, check_horizon
 
-from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_floor, check_noise_resolution,
-                      check_sigma, into_ball, rms_or_one)
+from ._common import (COND_WARN, Certificate, certify, check_form, check_input_moves, check_noise_floor,
+                      check_noise_resolution, check_sigma, into_ball, rms_or_one)
 from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -277,6 +277,8 @@ class SubspaceProblem:
         problem = cls(u=u, y=y, horizon=i, sigma=sigma, L_fixed=L_fixed, scale=(su, sy), cond_Tu=float(cond),
                       A=A, Uf=Uf, Yf=Yf, n_inputs=m, n_outputs=l)
         zero_cols = problem.zero_start_columns
+        if zero_cols.size == j:
+            check_input_moves(Uf, f"the window's future inputs U_f (samples {i} … {i + j + i - 2})")
         if zero_cols.size:
             where = ", ".join(f"u[{i + c}]" for c in zero_cols[:5]) + (", …" if zero_cols.size > 5 else "")
             check_noise_floor(
