@@ -12,12 +12,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .lab.report import json_default
+from .lab.report import dumps_json
 
 __all__ = ["Options", "COMMANDS", "main", "output_dir", "summary_text"]
 
@@ -106,8 +105,8 @@ COMMANDS: dict[str, tuple] = {
                "§7.4 workflow on a measured record (CSV/NPZ/MAT; one or several channels): δ, robust design, "
                "certificate or the reason for refusing, controller files", "experiments.studies.design_cli:OPTIONS"),
     "cd-player": ("experiments.studies.cd_player", "run",
-                  "the design workflow on real data: the CD-player arm (DaISy), u1 → y1, i = 10, 15, 20 "
-                  "(--quick: i = 10)"),
+                  "the design workflow on real data: the CD-player arm (DaISy), u1 → y1 at i = 10, 15, 20 and the "
+                  "2 × 2 record at i = 10 (--quick: u1 → y1, i = 10)"),
     "compare": ("experiments.studies.compare", "run",
                 "model-free vs identify-then-design (ARX, N4SID, physics model) and the ideal, judged on the true "
                 "plant; thesis Figs 6.6/6.7"),
@@ -192,8 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         sub = parser._subparsers._group_actions[0].choices[args.command]  # the subcommand's own usage line
         sub.error(str(exc))
     if args.json:
-        json.dump(summary, sys.stdout, indent=2, default=json_default)
-        sys.stdout.write("\n")
+        sys.stdout.write(dumps_json(summary, strict=True) + "\n")
     else:
         print(summary_text(args.command, summary, getattr(mod, "summary_lines", None), opts.out), flush=True)
     return 0

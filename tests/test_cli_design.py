@@ -79,7 +79,7 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     ex = res.excitation
     assert res.certified and res.uncertainty == "additive" and ex.ok and 0 < ex.margin < 1  # tested, and passed
     for key, value in (("excitation_worst", ex.worst if ex else None), ("margin_evidence", ex.margin if ex else None)):
-        assert summary[key] == (value if value is not None and np.isfinite(value) else None), key
+        assert summary[key] == (value if value is not None and not np.isnan(value) else None), key
     assert "evidence that the plant lacks the δ margin" in md
     K_npz, K_mat = load_controller(summary["controller_npz"]), load_controller(summary["controller_mat"])
     K = res.controller
@@ -247,3 +247,85 @@ def test_a_large_mean_is_named_in_the_report_without_detrend():
     assert "mean of u" not in text  # a ±1 PRBS: its mean is below a tenth of its standard deviation
     with pytest.raises(DataError, match="--detrend"):
         operating_point(rec, "linear")
+
+
+def _signals_csv(path, header, columns):
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(f"{float(v)!r}" for v in row)
+                                                        for row in zip(*columns)) + "\n")
+    return path
+
+
+def test_one_of_u_and_y_on_a_wide_record_is_refused(tmp_path):
+    from experiments.lab.records import RecordError
+    from experiments.studies.design_cli import _select
+
+    t, u, y, _ = _record()
+    path = _signals_csv(tmp_path / "wide.csv", ["t", "u1", "u2", "y1", "y2"], [t, u, u, y, y])
+    with pytest.raises(RecordError, match="--y is missing"):  # it had taken u2 for the output
+        _select(path, {"u": "u1"})
+    with pytest.raises(RecordError, match="--u is missing"):
+        _select(path, {"y": "y1,y2"})
+    assert _select(path, {"u": "u1,u2", "y": "y1"})[:2] == (["u1", "u2"], "y1")
+    three = _signals_csv(tmp_path / "three.csv", ["t", "u", "y"], [t, u, y])
+    assert _select(three, {"u": "u"})[:3] == ("u", "y", "t")  # one column left: unambiguous
+
+
+def test_a_time_column_is_never_a_signal_also_with_dt(tmp_path):
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "timed.csv", ["time", "u1", "y1"], [t, u, y])
+    u_sel, y_sel, t_sel, _ = _select(path, {"dt": dt})  # --dt given: the time column had become the input
+    assert (u_sel, y_sel, t_sel) == ("u1", "y1", "time")
+    rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
+    assert np.array_equal(rec.u[:, 0], u) and rec.dt == pytest.approx(dt)
+    with pytest.raises(RecordError, match="disagrees with the time column"):  # a --dt the time column refutes
+        load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=2 * dt)
+
+
+def test_a_bad_time_column_and_a_transposed_csv_name_the_fix(tmp_path):
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, _ = _record()
+    path = _signals_csv(tmp_path / "r.csv", ["time", "u1", "u2", "y1"], [t, u, u, y])
+    with pytest.raises(RecordError, match=r"--t 'Time' is not a column.*time, u1, u2, y1"):  # had raised ValueError
+        _select(path, {"t": "Time"})
+    with pytest.raises(RecordError, match="--t 7 is not a column"):
+        _select(path, {"t": "7"})
+    flipped = tmp_path / "flipped.csv"
+    flipped.write_text("\n".join(",".join(f"{float(v)!r}" for v in row) for row in (u[:300], y[:300])) + "\n")
+    with pytest.raises(RecordError, match="save the transposed table"):
+        _select(flipped, {"dt": 1.0})
+    with pytest.raises(RecordError, match="save the transposed table"):
+        load_record(flipped, u=0, y=1, dt=1.0)
+
+
+def test_a_coprime_certificate_is_reported_as_such():
+    from types import SimpleNamespace
+
+    from experiments.studies.design_cli import _family, summary_lines
+
+    res = SimpleNamespace(uncertainty="coprime", epsilon=0.0277, delta=0.128, margin=0.25)
+    assert _family(res).startswith("ε = 0.0277 in coprime-factor form") and "sized by δ = 0.128" in _family(res)
+    additive = SimpleNamespace(uncertainty="additive", epsilon=float("nan"), delta=0.128, margin=0.25)
+    assert _family(additive) == "δ = 0.128 (every plant within (1 + 0.25)·δ of P̂ in ‖Δ‖∞)"
+    summary = dict(certified=True, uncertainty="coprime", epsilon=0.0277, delta=0.128, decided_by="subspace (7.5)",
+                   controller_npz="K.npz", controller_mat="K.mat")
+    assert "certified in coprime-factor form for ε = 0.0277, not for δ" in summary_lines(summary)[0]
+
+
+def test_summaries_are_strict_json(tmp_path):
+    from experiments.lab.report import Report, finish_report
+
+    summary = finish_report(Report("t"), {"a": float("nan"), "b": np.array([np.inf, 1.0]), "c": -np.inf}, tmp_path,
+                            "strict")
+    text = (tmp_path / "strict.json").read_text()
+
+    def refuse(name):
+        raise ValueError(name)
+
+    data = json.loads(text, parse_constant=refuse)  # NaN / Infinity would be refused, as jq and JavaScript do
+    assert (data["a"], data["b"], data["c"]) == ("nan", ["inf", 1.0], "-inf")
+    assert np.isnan(summary["a"])  # the returned summary keeps its numbers

@@ -191,3 +191,12 @@ def test_files_the_readers_cannot_parse_raise_record_errors(tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"not a zip archive")
     with pytest.raises(RecordError, match="as NPZ"):
         load_record(tmp_path / "junk.npz", u="u", y="y", dt=1)
+
+
+def test_a_record_built_by_hand_names_its_channels():
+    from experiments.lab.records import Record
+
+    rec = Record(u=np.zeros((5, 2)), y=np.zeros((5, 1)), dt=1.0, source="by hand")
+    assert rec.u_columns == ("u0", "u1") and rec.y_columns == ("y0",)  # the design report had raised IndexError
+    named = Record(u=np.zeros((5, 1)), y=np.zeros((5, 1)), dt=1.0, source="x", u_columns=("volts",))
+    assert named.u_columns == ("volts",) and named.y_columns == ("y0",)

@@ -58,6 +58,13 @@ class Record:
     y_columns: tuple = ()
     t: np.ndarray | None = None
 
+    def __post_init__(self):
+        # a Record built by hand names its channels (u0, u1, …) as the reports need a name for each
+        for what in ("u", "y"):
+            width = int(np.shape(getattr(self, what))[1]) if np.ndim(getattr(self, what)) == 2 else 1
+            if not getattr(self, f"{what}_columns"):
+                object.__setattr__(self, f"{what}_columns", tuple(f"{what}{k}" for k in range(width)))
+
     @property
     def n(self) -> int:
         """Number of samples."""
@@ -92,6 +99,15 @@ def _as_list(sel, what: str):
 
 
 # ---------------------------------------------------------------------------------------------- CSV
+def _check_orientation(table: np.ndarray, path: Path) -> None:
+    """A CSV table with more columns than rows holds its signals in rows (a record saved transposed)."""
+    rows, cols = table.shape
+    if cols > rows:
+        raise RecordError(f"{str(path)!r} has {rows} data row{'s' if rows != 1 else ''} and {cols} columns: more "
+                          "columns than samples, so the signals look stored in rows; a record has one row per sample "
+                          "and one column per signal: save the transposed table")
+
+
 def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
     text = path.read_text(encoding="utf-8-sig")
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
@@ -323,6 +339,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
             header, table = _read_csv(path, delimiter, decimal)
+            _check_orientation(table, path)
         else:
             arrays = read_variables(path, error=RecordError)
             if variable not in arrays:
@@ -421,7 +438,7 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     >>> from experiments import record_columns
     >>> with tempfile.TemporaryDirectory() as d:
     ...     f = pathlib.Path(d) / "run.csv"
-    ...     _ = f.write_text("t,u,y\\n0,1,0\\n0.1,1,0.5\\n")
+    ...     _ = f.write_text("t,u,y\\n0,1,0\\n0.1,1,0.5\\n0.2,1,0.8\\n")
     ...     record_columns(f)
     (['t', 'u', 'y'], 3)
     """
@@ -431,6 +448,7 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     fmt = path.suffix.lower()
     if fmt in (".csv", ".txt"):
         header, table = _read_csv(path, None)
+        _check_orientation(table, path)
         return header, table.shape[1]
     if variable is not None and fmt in (".npz", ".mat"):
         arrays = read_variables(path, error=RecordError)

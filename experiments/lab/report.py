@@ -12,7 +12,7 @@ _PIPE = re.compile(r"(?<!\\)\|")
 
 __all__ = ["format_table", "write_csv", "write_json", "save_figure", "Report", "median_time", "finish_report",
            "markdown_tables", "LiveTable",
-           "check_figure", "FIGURE_PROBLEMS", "json_default"]
+           "check_figure", "FIGURE_PROBLEMS", "json_default", "dumps_json", "strict_json"]
 
 
 def format_table(headers: Sequence[str], rows: Iterable[Sequence], floatfmt: str = ".4g") -> str:
@@ -42,11 +42,47 @@ def write_csv(path: Path, headers: Sequence[str], rows: Iterable[Sequence]) -> P
     return path
 
 
-def write_json(path: Path, data) -> Path:
+def write_json(path: Path, data, *, strict: bool = False) -> Path:
+    """``data`` as indented JSON at ``path``; ``strict``: numbers that are not finite as strings (:func:`strict_json`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, default=json_default))
+    path.write_text(dumps_json(data, strict=strict))
     return path
+
+
+def dumps_json(data, *, strict: bool = False) -> str:
+    """``json.dumps`` with the summaries' types; ``strict``: valid JSON for any reader (:func:`strict_json`)."""
+    if strict:
+        return json.dumps(strict_json(data), indent=2, default=json_default, allow_nan=False)
+    return json.dumps(data, indent=2, default=json_default)
+
+
+def strict_json(obj):
+    """``obj`` with every NaN and ±∞ (Python and numpy floats, in arrays too) as the strings ``"nan"``, ``"inf"``,
+    ``"-inf"``: ``json.dumps`` writes them as ``NaN``/``Infinity``, which strict readers (``jq``, JavaScript) refuse,
+    while ``float()`` reads the strings back.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> strict_json({"a": float("nan"), "b": [1.0, np.inf], "c": np.array([-np.inf, 2.0]), "d": "x"})
+    {'a': 'nan', 'b': [1.0, 'inf'], 'c': ['-inf', 2.0], 'd': 'x'}
+    """
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        np = None
+    if np is not None and isinstance(obj, np.ndarray):
+        obj = obj.tolist()
+    elif np is not None and isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float):
+        return obj if obj == obj and abs(obj) != float("inf") else str(obj)
+    if isinstance(obj, dict):
+        return {k: strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict_json(v) for v in obj]
+    return obj
 
 
 def json_default(obj):
@@ -157,7 +193,8 @@ class Report:
 
 def finish_report(rep: Report, summary: dict, out: Path, name: str, *, warn_log=(), figures=(),
                   t_start: float | None = None, warnings_heading: str = "Warnings raised (expected)") -> dict:
-    """Close a run: list the warnings, record run time and figures, write ``<name>.md`` and ``<name>.json``.
+    """Close a run: list the warnings, record run time and figures, write ``<name>.md`` and ``<name>.json`` (strict
+    JSON: a number that is not finite as the string ``"nan"``, ``"inf"`` or ``"-inf"``).
 
     Returns ``summary`` with ``warnings``, ``seconds`` (if ``t_start``), ``figures`` and ``report`` filled in.
     """
@@ -171,7 +208,7 @@ def finish_report(rep: Report, summary: dict, out: Path, name: str, *, warn_log=
         rep.text(f"\n_Run time {summary['seconds']:.1f} s._")
     summary["figures"] = [Path(f).name for f in figures]
     summary["report"] = str(rep.write(Path(out) / f"{name}.md"))
-    write_json(Path(out) / f"{name}.json", summary)
+    write_json(Path(out) / f"{name}.json", summary, strict=True)
     return summary
 
 

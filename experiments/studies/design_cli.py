@@ -183,26 +183,27 @@ def _select(path: Path, extra: dict):
     variable = extra.get("variable")
     u, y, t = _column(extra.get("u")), _column(extra.get("y")), _column(extra.get("t"))
     names, width = record_columns(path, variable)
-    if t is None and names is not None and extra.get("dt") is None:
-        # a CSV with a column called t/time: its step is the sample time (no --dt needed)
+    if t is None and names is not None:
+        # a CSV with a column called t/time: its step is the sample time (no --dt needed; with --dt, the two are
+        # checked against each other), and it is never taken for a signal
         hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
         t = names[hits[0]] if hits else None
     if u is None or y is None:
         if width is None:
             u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
         else:
-            t_index = None if t is None else (names.index(t) if isinstance(t, str) and names else int(t) % width)
+            t_index = None if t is None else _time_index(t, names, width, path)
             rest = [k for k in range(width) if k != t_index]
-            if len(rest) > 2 and (u is None and y is None):
+            taken = [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
+            free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
+            missing = " and ".join(f"--{w}" for w, sel in (("u", u), ("y", y)) if sel is None)
+            if len(rest) > 2 and len(free) > (u is None) + (y is None):
                 cols = ", ".join(names[k] for k in rest) if names else f"{len(rest)} columns"
                 raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}): say which are inputs "
                                   "with --u and which are outputs with --y (names or 0-based indices, comma-separated "
-                                  "for several channels, e.g. --u 0,1 --y 2,3)")
-            taken = [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
-            free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
+                                  f"for several channels, e.g. --u 0,1 --y 2,3); {missing} is missing")
             pick = (lambda k: names[k]) if names else (lambda k: k)
             if len(free) < (u is None) + (y is None):
-                missing = " and ".join(f"--{w}" for w, sel in (("u", u), ("y", y)) if sel is None)
                 cols = ", ".join(names) if names else f"{width} columns"
                 raise RecordError(f"{str(path)!r} ({cols}) leaves no column for {missing} once the others are "
                                   f"taken; pass {missing} (names or 0-based indices)")
@@ -211,6 +212,19 @@ def _select(path: Path, extra: dict):
             if y is None:
                 y = pick(free[0])
     return u, y, t, variable
+
+
+def _time_index(t, names, width: int, path: Path) -> int:
+    """The 0-based column of ``--t`` (a header name, or an index)."""
+    if isinstance(t, str):
+        if not names or t not in names:
+            where = f"the header ({', '.join(names)})" if names else "a file without a header"
+            raise RecordError(f"--t {t!r} is not a column of {str(path)!r}: {where}; pass the time column's name "
+                              f"exactly, or its 0-based index")
+        return names.index(t)
+    if not -width <= int(t) < width:
+        raise RecordError(f"--t {t} is not a column of {str(path)!r}, which has {width} (0-based indices)")
+    return int(t) % width
 
 
 def operating_point(rec, detrend: str = "none"):
@@ -289,7 +303,9 @@ def _channels(x) -> np.ndarray:
 
 
 def _fmt(x) -> str:
-    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.4g}"
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "—"
+    return "∞" if x == math.inf else f"{x:.4g}"
 
 
 def _simulate(sys, u):
@@ -489,10 +505,12 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                      _fmt(s.gamma), "yes" if s.certified else "no", s.reason or "—"])
     rep.table(["#", "horizon", "causal", "γ/γ_min", "W3 gain", "γ", "certified", "reason"], rows)
     verdict = "CERTIFIED" if res.certified else "NOT CERTIFIED"
-    rep.section("Verdict", f"**{verdict}** for δ = {_fmt(res.delta)}."
+    rep.section("Verdict", f"**{verdict}** for {_family(res)}."
                 + (f"\n\nReason: {res.reason}" if res.reason else
-                   "\n\nThe loop is stable on P̂ and P̂_ref, small gain is proven for δ, the step tracks, and "
-                   "the held-out data do not falsify the premise.")
+                   f"\n\nThe loop is stable on P̂ and P̂_ref, small gain is proven for "
+                   f"{'δ' if res.uncertainty == 'additive' else 'ε'}, the step tracks, and the held-out data do not "
+                   "falsify the premise.")
+                + (f"\n\nThe additive form was left: {res.additive_reason}" if res.additive_reason else "")
                 + "".join(f"\n\nAssumed, not testable on these data: {a}." for a in res.assumed))
     rep.section("The loop on P̂",
                 f"Controller (inputs [r; y], output u, {res.controller.nstates} states): `{npz.name}`, "
@@ -506,6 +524,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "y": rec.y_columns[0] if rec.l == 1 else list(rec.y_columns),
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
+        "uncertainty": res.uncertainty, "epsilon": float(res.epsilon) if res.uncertainty == "coprime" else None,
+        "margin": float(res.margin), "additive_reason": res.additive_reason,
         "assumed": list(res.assumed),
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
         "excitation_worst": excitation_worst, "margin_evidence": margin_evidence,
@@ -523,11 +543,20 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                          warnings_heading="Warnings raised")
 
 
+def _family(res) -> str:
+    """The set of plants the verdict speaks of: the additive ball about P̂, or the coprime-factor ball."""
+    ball = f"every plant within (1 + {res.margin:g})"
+    if res.uncertainty == "coprime":
+        return (f"ε = {_fmt(res.epsilon)} in coprime-factor form ({ball}·ε of P̂ = M̂⁻¹N̂ in ‖[Δ_N Δ_M]‖∞; "
+                f"the design is sized by δ = {_fmt(res.delta)})")
+    return f"δ = {_fmt(res.delta)} ({ball}·δ of P̂ in ‖Δ‖∞)"
+
+
 def _excitation_number(res, name: str):
-    """``res.excitation.<name>`` of the returned loop, or None where the check did not run (an unstable loop) or
-    gave no number (NaN)."""
+    """``res.excitation.<name>`` of the returned loop (∞ where a band the loop is sensitive to is not excited), or
+    None where the check did not run (an unstable loop) or gave no number (NaN)."""
     value = getattr(res.excitation, name, None)  # getattr(None, ...) is None too: no check ran
-    return float(value) if value is not None and np.isfinite(value) else None
+    return float(value) if value is not None and not np.isnan(value) else None
 
 
 def _invariance_text(res) -> str:
@@ -559,9 +588,11 @@ def run(opts) -> dict:
 def summary_lines(summary: dict) -> list[str]:
     """The verdict, δ and the controller files, for the CLI's closing summary."""
     verdict = "certified" if summary["certified"] else f"NOT certified: {summary['reason']}"
+    if summary["certified"] and summary.get("uncertainty") == "coprime":
+        verdict = f"certified in coprime-factor form for ε = {float(summary['epsilon']):.4g}, not for δ"
     assumed = [f"assumed, not testable on these data: {a}" for a in summary.get("assumed", ())]
     point = [summary["operating_point_note"]] if summary.get("operating_point_note") else []
-    return [f"δ = {summary['delta']:.4g} ({summary['decided_by']}); {verdict}", *assumed, *point,
+    return [f"δ = {float(summary['delta']):.4g} ({summary['decided_by']}); {verdict}", *assumed, *point,
             f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
 
 
