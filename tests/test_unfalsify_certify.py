@@ -272,3 +272,15 @@ def test_without_a_reference_model_it_says_it_cannot_certify(nmp_window):
                                         unfalsification=r.unfalsification, require_reference=False,
                                         validation=val)
     assert r2.certified and r2.reference_certificate is None and r2.reference_note
+
+
+def test_reasons_name_the_model_they_were_found_on():
+    # the reference model's failures had read "unstable on the model P̂" and "the step on P̂"
+    P = control.ss([[1.0]], [[1.0]], [[0.1]], [[0.0]], 1.0)  # 0.1/(z − 1)
+    unstable = control.ss([], [], [], [[-30.0, 30.0]], 1.0)  # positive feedback
+    cert = uf.certify_loop(P, unstable, 0.1, model_name="P̂_ref")
+    assert cert.reason.startswith("nominal loop unstable on the model P̂_ref")
+    slow = control.ss([], [], [], [[1e-4, -1e-4]], 1.0)  # stable, far too slow to track in 200 samples
+    cert = uf.certify_loop(P, slow, 0.0, model_name="P̂_ref")
+    assert "the step on P̂_ref leaves" in cert.reason
+    assert "the step on P̂ leaves" in uf.certify_loop(P, slow, 0.0).reason

@@ -401,7 +401,8 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
 
 
 def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracking_floor: float = TRACKING_FLOOR,
-                 step_samples: int = STEP_SAMPLES, tol: float = 1e-8, factors=None) -> LoopCertificate:
+                 step_samples: int = STEP_SAMPLES, tol: float = 1e-8, factors=None,
+                 model_name: str = "P̂") -> LoopCertificate:
     """Certify the implemented loop ``(P̂, K)`` for additive uncertainty of size δ (see the module docstring),
     or, with ``factors``, for coprime-factor uncertainty of size ε = δ.
 
@@ -425,6 +426,8 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     factors : CoprimeFactors, optional
         ``P̂ = M̂⁻¹N̂`` (:func:`unfalsify.coprime_factors`; ``model`` must be this P̂): the small gain is then
         ``δ·‖[K; I](M̂ + N̂K)⁻¹‖∞`` (:func:`coprime_channel`), which stays finite for an integrating P̂.
+    model_name : str
+        What the reasons call ``model`` (``"P̂_ref"`` for the reference model).
 
     Returns
     -------
@@ -454,7 +457,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     floors = tracking_floors(tracking_floor, l)
     tracking_floor = float(floors[0]) if np.ndim(tracking_floor) == 0 else tuple(float(f) for f in floors)
     if factors is None:
-        M, kind, name = control.feedback(C[:, l:], P, sign=+1), "additive", "‖K(I+P̂K)⁻¹‖∞"
+        M, kind, name = control.feedback(C[:, l:], P, sign=+1), "additive", f"‖K(I+{model_name}K)⁻¹‖∞"
     else:
         _check_factors(P, factors)
         M, kind, name = coprime_channel(factors, C), "coprime", "‖[K; I](M̂+N̂K)⁻¹‖∞"
@@ -463,7 +466,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor,
                   uncertainty=kind)
     if not rho < 1.0:
-        return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model P̂ (spectral radius {rho:.6g})",
+        return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model {model_name} (spectral radius {rho:.6g})",
                                norm=None, small_gain=float("inf"), step=None, **common)
     bracket = hinf_norm(M, tol=tol)
     kyp = None
@@ -479,7 +482,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     elif not np.all((errs := step.output_errors(np.isfinite(floors))) <= floors):
         worst = int(np.argmax(errs - floors))
         channel = f" on output {worst}" if l > 1 else ""
-        reason = (f"performance floor: the step on P̂ leaves a mean error {errs[worst]:.3g} > "
+        reason = (f"performance floor: the step on {model_name} leaves a mean error {errs[worst]:.3g} > "
                   f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)"
                   + (_TALL_HINT.format(m=P.ninputs, l=l) if P.ninputs < l and np.all(np.isfinite(floors)) else ""))
     elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)

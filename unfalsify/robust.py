@@ -905,7 +905,7 @@ class _LoopJudge:
         if self.ball is not None:
             return self._coprime_record(h, cz, ratio, c, d)
         prem = self.prem
-        ref = (certify_loop(self.ref_model, d.controller, self.delta, **self.cert_opts)
+        ref = (certify_loop(self.ref_model, d.controller, self.delta, model_name="P̂_ref", **self.cert_opts)
                if self.ref_model is not None else self.missing)
         cert = certify_loop(self.model, d.controller, self.delta, **self.cert_opts)
         exc = (check_excitation(self.model, d.controller, prem.frf, prem.low_band, delta=self.delta)
@@ -930,10 +930,12 @@ class _LoopJudge:
                                           self.floor) if cert.stable else "")
         ref = self.missing
         if self.ref_model is not None and b.ref_factors is not None:
-            ref = certify_loop(self.ref_model, d.controller, b.eps, factors=b.ref_factors, **self.cert_opts)
+            ref = certify_loop(self.ref_model, d.controller, b.eps, factors=b.ref_factors, model_name="P̂_ref",
+                               **self.cert_opts)
             if ref.certified and cert.certified and (exc is None or exc.ok) and not track:
                 eps_ref, why = b.ref_epsilon()
-                ref = (certify_loop(self.ref_model, d.controller, eps_ref, factors=b.ref_factors, **self.cert_opts)
+                ref = (certify_loop(self.ref_model, d.controller, eps_ref, factors=b.ref_factors,
+                                    model_name="P̂_ref", **self.cert_opts)
                        if not why else dataclasses.replace(ref, certified=False, reason=why))
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
 

@@ -46,15 +46,15 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
             A = np.asarray(loop.A, float)
             if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
                 return (f"the loop is unstable with the static perturbation {_offset_text(E)} of P̂, inside the "
-                        f"certified ball of radius {radius:.4g}")
+                        f"ball of radius {radius:.4g} the certificate claims")
             e = _tracked_errors(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), floors)
         except (np.linalg.LinAlgError, ValueError):
             e = np.full(l, np.inf)
         tried.append((E, e))
     worst, where, errs = _worst_excess(tried, floors)
     if worst > 0:
-        return _across_reason(errs, floors, f"the plant P̂ {_offset_text(where)} (a static offset inside the certified "
-                              f"ball of radius {radius:.4g})", "δ")
+        return _across_reason(errs, floors, f"the plant P̂ {_offset_text(where)} (a static offset inside the "
+                              f"ball of radius {radius:.4g} the certificate claims)", "δ")
     return _data_gain_reason(model, controller, floors, data_gain)
 
 
@@ -184,8 +184,8 @@ def _coprime_tracking_reason(factors, data_gain, controller, radius: float, floo
     worst, where, errs = _worst_excess(((G, _dc_errors_at_gain(controller, G, floors))
                                         for G in _coprime_static_gains(factors, radius)), floors)
     if worst > 0:
-        return _across_reason(errs, floors, f"the static plant of gain {_gain_text(where)} inside the certified "
-                              f"coprime-factor ball of radius {radius:.4g}", "ε")
+        return _across_reason(errs, floors, f"the static plant of gain {_gain_text(where)} inside the "
+                              f"coprime-factor ball of radius {radius:.4g} the certificate claims", "ε")
     if data_gain is None:
         return ""
     return _data_gain_reason(factors.model(), controller, floors, data_gain)
