@@ -71,7 +71,7 @@ def save_controller(path, sys, *, name: str | None = None) -> Path:
     Raises
     ------
     ControllerFileError
-        The ending is neither ``.npz`` nor ``.mat``.
+        The ending is neither ``.npz`` nor ``.mat``, or the matrices hold NaN or infinite entries.
     InputTypeError
         ``sys`` is not a python-control LTI system.
 
@@ -108,6 +108,10 @@ def save_controller(path, sys, *, name: str | None = None) -> Path:
     n, m, p = sys.nstates, sys.ninputs, sys.noutputs
     mats = {"A": np.asarray(sys.A, float).reshape(n, n), "B": np.asarray(sys.B, float).reshape(n, m),
             "C": np.asarray(sys.C, float).reshape(p, n), "D": np.asarray(sys.D, float).reshape(p, m)}
+    bad = [k for k, v in mats.items() if not np.all(np.isfinite(v))]
+    if bad:  # load_controller refuses such a file: do not write one
+        raise ControllerFileError(f"the system's {', '.join(bad)} hold NaN or infinite entries: it is no controller "
+                                  "to save (a failed design?); check the design's status before saving")
     dt = _dt_to_number(sys.dt)
     labels = {"InputName": list(sys.input_labels), "OutputName": list(sys.output_labels),
               "StateName": list(sys.state_labels)}

@@ -142,7 +142,7 @@ def choose_horizon(u, y, W1, W2, *, dt, horizons=None, gamma_ratio: float = 1.1,
     dt : float
         The data's sample time (checked against the weights').
     horizons : sequence of int, optional
-        Candidates, default :data:`DEFAULT_HORIZONS`; those leaving fewer than ``min_column_ratio``
+        Two or more candidates, default :data:`DEFAULT_HORIZONS`; those leaving fewer than ``min_column_ratio``
         Hankel columns per regressor (``j < ratio·i(2m + l)``) are skipped.
     gamma_ratio : float
         γ / γ_min of the designs (default 1.1).
@@ -201,8 +201,9 @@ def choose_horizon(u, y, W1, W2, *, dt, horizons=None, gamma_ratio: float = 1.1,
         cand = sorted({int(h) for h in horizons if not isinstance(h, bool) and isinstance(h, numbers.Integral)})
     except TypeError:
         raise DataError(f"horizons must be a sequence of integers, got {horizons!r}") from None
-    if not cand or len(cand) != len(list(horizons)) or any(h < 2 for h in cand):
-        raise DataError(f"horizons must be one or more distinct integers >= 2, got {horizons!r}")
+    if len(cand) < 2 or len(cand) != len(list(horizons)) or any(h < 2 for h in cand):
+        raise DataError(f"horizons must be two or more distinct integers >= 2 (the choice compares a horizon with the "
+                        f"next), got {horizons!r}")
     fits = [h for h in cand if n - 2 * h + 1 >= min_column_ratio * h * (2 * m + l)]
     if len(fits) < 2:
         need = int(np.ceil(min_column_ratio * cand[min(1, len(cand) - 1)] * (2 * m + l))) + 2 * cand[min(1, len(cand) - 1)]

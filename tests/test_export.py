@@ -131,3 +131,11 @@ def test_swapped_arguments_and_unreadable_files_name_the_fix(tmp_path, controlle
     (tmp_path / "v73.mat").write_bytes(header + b"\x89HDF\r\n\x1a\n" + bytes(256))
     with pytest.raises(synthesis.ControllerFileError, match=r"v7\.3 \(HDF5\).*'-v7'"):
         synthesis.load_controller(tmp_path / "v73.mat")
+
+
+@pytest.mark.parametrize("ending", [".npz", ".mat"])
+def test_a_system_with_nan_entries_is_not_written(tmp_path, ending):
+    K = control.ss([[np.nan]], [[1.0, -1.0]], [[1.0]], [[0.0, 0.0]], 0.1)
+    with pytest.raises(synthesis.ControllerFileError, match="A hold NaN or infinite"):  # load_controller refuses it
+        synthesis.save_controller(tmp_path / f"K{ending}", K)
+    assert not (tmp_path / f"K{ending}").exists()

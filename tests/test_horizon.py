@@ -82,8 +82,10 @@ def test_bad_input_names_the_fix(nmp):
         sy.choose_horizon(d.u[:150], d.y[:150], W1, W2, dt=DT)
     with pytest.raises(sy.DataError, match="distinct integers"):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(10, 10.5))
-    with pytest.raises(sy.DataError, match="one or more"):  # no candidate at all had raised IndexError
+    with pytest.raises(sy.DataError, match="two or more"):  # no candidate at all had raised IndexError
         sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=())
+    with pytest.raises(sy.DataError, match="two or more"):  # one had been refused as needing a longer record
+        sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(3,))
     with pytest.raises(sy.DataError, match="dt"):
         sy.choose_horizon(d.u, d.y, W1, W2, dt=0)
 
