@@ -283,6 +283,8 @@ def test_a_predictor_without_persistent_excitation_skips_the_coprime_form():
     (lambda: uf.DesignSearch(w3_factors=(0.0,)), "w3_factors"),
     (lambda: uf.DesignSearch(causal=(0,)), "causal"),
     (lambda: uf.DesignSearch(horizons=5), "horizons must be a tuple"),
+    (lambda: uf.DesignSearch(gamma_ratios=()), "gamma_ratios is empty"),
+    (lambda: uf.DesignSearch(causal=[]), "causal is empty"),
     (lambda: uf.PremiseOptions(confidence=1.5), "confidence must lie in"),
     (lambda: uf.PremiseOptions(samples=0), "samples must be an integer"),
     (lambda: uf.PremiseOptions(nperseg=2.5), "nperseg must be an integer"),

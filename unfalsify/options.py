@@ -57,6 +57,10 @@ class DesignSearch:
         for name in ("gamma_ratios", "w3_factors", "causal", "horizons"):
             if isinstance(getattr(self, name), (str, bytes)) or not np.iterable(getattr(self, name)):
                 raise DataError(f"{name} must be a tuple, got {getattr(self, name)!r}")
+        for name in ("gamma_ratios", "w3_factors", "causal"):
+            if not len(tuple(getattr(self, name))):  # the search tries their combinations: one empty, none at all
+                raise DataError(f"{name} is empty: the search would try no design; give at least one value (or pass "
+                                "search=False to robust_design_from_data for the first design alone)")
         for r in self.gamma_ratios:
             _positive_real(r, "each of gamma_ratios", above=1.0)
         for f in self.w3_factors:
