@@ -23,6 +23,7 @@ lightly damped, fast-sampled plant do not spoil the design.
 from __future__ import annotations
 
 import numbers
+import warnings
 from dataclasses import dataclass
 
 import control
@@ -32,6 +33,7 @@ from scipy.signal import lfilter
 
 from ._repr import result
 from ._validation import DataError, as_signal, check_count, check_sample_time
+from .exceptions import PersistenceWarning
 
 __all__ = ["ArxModel", "arx_id"]
 
@@ -74,15 +76,17 @@ class ArxModel:
     residual_rms: float
 
 
-def _fit(u, y, n, nk):
-    """Least-squares ``(a, b, residual)``; equations for ``k = n + nk − 1 … N − 1`` (all lags available)."""
+def _fit(u, y, n, nk, *, rank: bool = False):
+    """Least-squares ``(a, b, residual)``; equations for ``k = n + nk − 1 … N − 1`` (all lags available).
+    ``rank=True``: the regressor's numerical rank (``lstsq``'s) is appended."""
     N = y.size
     k0 = max(n, n + nk - 1)
     rows = np.arange(k0, N)
     Phi = np.column_stack([-y[rows - t] for t in range(1, n + 1)] + [u[rows - nk - t] for t in range(n)])
-    theta, *_ = np.linalg.lstsq(Phi, y[rows], rcond=None)
+    theta, _, r, _ = np.linalg.lstsq(Phi, y[rows], rcond=None)
     res = y[rows] - Phi @ theta
-    return np.concatenate([[1.0], theta[:n]]), theta[n:], res
+    out = np.concatenate([[1.0], theta[:n]]), theta[n:], res
+    return (*out, int(r)) if rank else out
 
 
 def _num(b, nk):
@@ -122,6 +126,11 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
     ------
     DataError
         Bad or multichannel data, bad ``order``, ``max_order``, ``delay``, ``dt``, too few samples.
+
+    Warns
+    -----
+    PersistenceWarning
+        The chosen order's regressor is rank deficient: the data do not determine the coefficients.
 
     Examples
     --------
@@ -185,7 +194,13 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
         n, criterion = int(np.argmin(scores)) + 1, "validation"
     else:
         n, scores, criterion = int(order), np.zeros(0), "given"
-    a, b, res = _fit(u, y, n, delay)
+    a, b, res, r = _fit(u, y, n, delay, rank=True)
+    if r < 2 * n:
+        warnings.warn(
+            f"the ARX regressor of order {n} has rank {r} of {2 * n}: the record does not determine a and b (an input "
+            "that is zero, constant or a single sine, or an output that a lower order already explains exactly), so "
+            "the model is one of many that fit; excite more frequencies (a PRBS or a multisine) or lower the order",
+            PersistenceWarning, stacklevel=2)
     num = _num(b, delay)
     den = np.concatenate([a, np.zeros(max(num.size - a.size, 0))])   # polynomials in z⁻¹ → in z (same length)
     num = np.concatenate([num, np.zeros(max(den.size - num.size, 0))])

@@ -219,3 +219,17 @@ def test_models_pickle_and_drive_discrete_mixsyn():
         K = sy.discrete_mixsyn(res.model, W["W11"], W["W21"]).controller
         loop = control.feedback(P * K, 1)
         assert np.max(np.abs(loop.poles())) < 1          # the identified model's design works on the servo
+
+
+def test_arx_id_warns_when_the_data_do_not_determine_the_model():
+    # a zero input had returned b = [0, 0] ("the plant is zero") without a word, unlike fit_predictor
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    with pytest.warns(sy.PersistenceWarning, match="rank 2 of 4"):
+        sy.arx_id(np.zeros(300), y, order=2)
+    with pytest.warns(sy.PersistenceWarning, match="rank"):
+        sy.arx_id(np.ones(300), y, order=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sy.PersistenceWarning)
+        assert sy.arx_id(u, y, order=2).order == 2  # an exciting input: no warning
