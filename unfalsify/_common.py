@@ -455,13 +455,14 @@ def _crossed_bounds(P, cert: Certificate) -> str:
 def _delta_outside(P, cert: Certificate) -> str:
     """Why a conic solver's δ lies outside the bracket its own point and dual certify, or "".
 
-    Either side holds to the rounding of the data (:func:`_crossed_bounds`) and the solver's δ to its tolerance, so a
-    δ outside by more than 1e-6 relative (plus that rounding) is provably not δ_unf.  Measured: SCS stopped after 20
-    iterations ('optimal_inaccurate') returned δ = 0.0295 with the bracket [0.0450, 0.1157] (δ_unf = 0.0837)."""
+    Either side holds to the rounding of the data (:func:`_crossed_bounds`) and the solver's δ to its tolerances, about
+    1e-8 of the data's scale absolute (a δ_unf of 0 came back from Clarabel as 5e-12 against the bracket [0, 2.5e-13]),
+    so a δ outside by more than 1e-6 relative plus 1e-7 of that scale is provably not δ_unf.  Measured: SCS stopped
+    after 20 iterations ('optimal_inaccurate') returned δ = 0.0295 with the bracket [0.0450, 0.1157] (δ_unf = 0.0837)."""
     delta, lo, up = cert.delta, cert.lower_bound, cert.upper_bound
     if not np.isfinite(delta):
         return ""
-    slack = 1e-6 * abs(delta) + 100.0 * np.finfo(float).eps * _data_scale(P)
+    slack = 1e-6 * abs(delta) + 1e-7 * _data_scale(P)
     below = np.isfinite(lo) and delta < lo - slack
     above = np.isfinite(up) and delta > up + slack and not _outside_ball(cert)
     if not (below or above):
