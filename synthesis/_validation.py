@@ -12,7 +12,7 @@ import numpy as np
 from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
-           "check_horizon", "check_level", "check_sample_time", "check_flag", "check_count"]
+           "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag", "check_count"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -179,6 +179,38 @@ def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0
     if np.isnan(v) or not v > minimum or (np.isinf(v) and not allow_inf):
         raise DataError(f"{name} must be a {'' if allow_inf else 'finite '}number > {minimum:g}, got {value!r}")
     return v
+
+
+def check_nonnegative(value, name: str, *, allow_inf: bool = False) -> float:
+    """Return ``value`` as a float ``>= 0`` (a bound that may be 0: a δ, a tracking floor, ...).
+
+    Parameters
+    ----------
+    value : real number
+        The value to check; ``bool`` and strings are refused.
+    name : str
+        Name used in error messages.
+    allow_inf : bool
+        Accept ``+inf``.
+
+    Raises
+    ------
+    DataError
+        If ``value`` is not a real number, is NaN, negative, or infinite (unless allowed).
+
+    Examples
+    --------
+    >>> check_nonnegative(0, "delta")
+    0.0
+    >>> check_nonnegative(float("nan"), "delta")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: delta must be a finite number >= 0, got nan
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (
+            (np.isfinite(value) or (allow_inf and value == np.inf)) and value >= 0):
+        raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {value!r}")
+    return float(value)
 
 
 def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):

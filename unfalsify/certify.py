@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system, check_count, check_same_dt
+from synthesis.validation import DataError, as_discrete_system, check_count, check_nonnegative, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
@@ -335,12 +335,6 @@ _TALL_HINT = ("; the plant has fewer inputs ({m}) than outputs ({l}), so no cont
               "every output: give tracking_floor per output channel, inf for the outputs not tracked")
 
 
-def _check_nonnegative(v, name: str, allow_inf: bool = False) -> None:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
-            (math.isfinite(v) or (allow_inf and v == math.inf)) and v >= 0):
-        raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {v!r}")
-
-
 def _check_step_samples(step_samples) -> int:
     """The length of the step run: an integer ≥ 8 (its last quarter is the tracking window)."""
     return check_count(step_samples, "step_samples", 8)
@@ -383,7 +377,7 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
         if isinstance(tracking_floor, np.ndarray):
             tracking_floor = tracking_floor.item()
-        _check_nonnegative(tracking_floor, "tracking_floor")
+        check_nonnegative(tracking_floor, "tracking_floor")
         return np.full(1 if channels is None else int(channels), float(tracking_floor))
     floors = list(tracking_floor)
     if not floors:
@@ -392,7 +386,7 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):
-        _check_nonnegative(f, f"tracking_floor[{k}]", allow_inf=True)
+        check_nonnegative(f, f"tracking_floor[{k}]", allow_inf=True)
     floors = np.asarray(floors, float)
     if not np.any(np.isfinite(floors)):
         raise DataError("tracking_floor is inf on every output: at least one output must be tracked (a finite floor), "
@@ -448,7 +442,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     (False, True)
     """
     for name, v in (("delta", delta), ("margin", margin)):
-        _check_nonnegative(v, name)
+        check_nonnegative(v, name)
     _check_step_samples(step_samples)
     P, C, l = loop_parts(model, controller)
     floors = tracking_floors(tracking_floor, l)

@@ -62,7 +62,7 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_count
+from synthesis.validation import DataError, as_signal, check_count, check_nonnegative
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -499,6 +499,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (False, 0.96)
     """
     opts = options or PremiseOptions()
+    delta_subspace = check_nonnegative(delta_subspace, "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
     u, y = channel_pair(u, y)
     if validation is not None:
         try:
