@@ -12,7 +12,8 @@ import numpy as np
 from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
-           "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag", "check_count"]
+           "check_predictor_dt", "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag",
+           "check_count"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -306,6 +307,53 @@ def check_same_dt(a, b, name_a: str, name_b: str) -> None:
     raise DataError(
         f"{name_a} has sample time {da} but {name_b} has {db}; both must be discretised at the same sample "
         f"time (e.g. control.c2d(G, {db}, 'zoh') or synthesis.tustin(W, {db}))")
+
+
+def check_predictor_dt(pred, dt, *, error=DataError):
+    """The data's sample time: ``dt`` if given, else the predictor's (``fit_predictor(..., dt=)``); both must agree.
+
+    Parameters
+    ----------
+    pred : synthesis.Predictor or object
+        A predictor; one without a ``dt`` attribute (or with ``dt=None``) carries no sample time.
+    dt : float, True or None
+        The sample time the caller was given (None: not given).  Not validated here when the
+        predictor carries none: the caller checks it (:func:`check_sample_time`).
+    error : type, optional
+        Exception class raised (a :class:`DataError` subclass, e.g. ``WeightError``).
+
+    Returns
+    -------
+    float, True or None
+        ``dt``, or the predictor's when ``dt`` is None (None when neither has one).
+
+    Raises
+    ------
+    error
+        If ``dt`` is given and differs from the predictor's (``True``, unspecified, differs too: the
+        predictor's is known).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> check_predictor_dt(SimpleNamespace(dt=0.5), None), check_predictor_dt(SimpleNamespace(dt=None), 1.0)
+    (0.5, 1.0)
+    >>> check_predictor_dt(SimpleNamespace(dt=0.5), 1.0)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: dt = 1.0 but the predictor was fitted on data sampled at 0.5 (Predictor.dt); pass the data's sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)
+    """
+    pdt = getattr(pred, "dt", None)
+    if pdt is None:
+        return dt
+    if dt is None:
+        return pdt
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not np.isclose(float(dt), float(pdt), rtol=1e-9,
+                                                                                    atol=0):
+        raise error(
+            f"dt = {dt!r} but the predictor was fitted on data sampled at {pdt} (Predictor.dt); pass the data's "
+            "sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)")
+    return dt
 
 
 def check_flag(value, name: str) -> bool:

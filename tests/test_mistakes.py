@@ -80,6 +80,26 @@ def test_predictor_dt_reaches_the_robust_pipeline():
         uf.robust_design_from_data(u[:40], y[:40], 4, W1, W2, 0.005, predictor=pred, search=False)
 
 
+def test_predictor_dt_reaches_the_models_and_the_lqg_design():
+    # predictor_model, coprime_factors and lqg_design had ignored Predictor.dt (lqg: a controller with dt=True)
+    u, y = _fir(300, 1)
+    pred = synthesis.fit_predictor(u, y, 3, dt=0.5)
+    assert uf.predictor_model(pred).dt == 0.5 and uf.predictor_model(pred, 0.5).dt == 0.5
+    assert uf.coprime_factors(pred).dt == 0.5
+    assert synthesis.lqg_design(pred, 1.0, 0.01).controller.dt == 0.5
+    for call in (lambda: uf.predictor_model(pred, 1.0), lambda: uf.coprime_factors(pred, 1.0),
+                 lambda: uf.predictor_model(pred, True), lambda: synthesis.lqg_design(pred, 1.0, 0.01, dt=0.2)):
+        with pytest.raises(DataError, match=r"fitted on data sampled at 0.5 \(Predictor.dt\).*drop dt="):
+            call()
+    with pytest.raises(DataError, match="carries no sample time: pass dt="):
+        uf.predictor_model(synthesis.fit_predictor(u, y, 3))
+    # the premise test reads its frequencies with dt: one that contradicts the model's is refused
+    model = uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3), 1.0)
+    with pytest.raises(DataError, match=r"dt = 0.5 but the model P̂ has sample time 1.0.*pass dt=1.0"):
+        uf.check_premise(model, u[:45], y[:45], 3, 0.05, dt=0.5)
+    assert uf.check_premise(uf.predictor_model(pred), u[:45], y[:45], 3, 0.05, dt=0.5).frf.dt == 0.5
+
+
 @pytest.mark.parametrize("call", [
     "ex.prbs(0)",
     "ex.white_noise(10, sigma=-1.0)",

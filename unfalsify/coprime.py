@@ -160,15 +160,16 @@ class CoprimeFactors:
         return np.hstack([Cu, Cy]), np.asarray(self.N[0], float)
 
 
-def coprime_factors(pred, dt) -> CoprimeFactors:
+def coprime_factors(pred, dt=None) -> CoprimeFactors:
     """The left coprime factors ``(N̂, M̂)`` of the predictor's first block row (module docstring).
 
     Parameters
     ----------
     pred : synthesis.Predictor
         ``Lw``, ``Lu``, ``horizon``, ``m``, ``l`` (as for :func:`unfalsify.predictor_model`).
-    dt : float
-        The data's sample time.
+    dt : float, optional
+        The data's sample time.  Default: the predictor's (:attr:`synthesis.Predictor.dt`);
+        required when it carries none, refused when it differs from the predictor's.
 
     Returns
     -------
