@@ -302,6 +302,20 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
 def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepMetrics:
     """Unit step on every input of a discrete loop ``r → y``; the worst output channel's metrics.
 
+    Parameters
+    ----------
+    loop : control.StateSpace or control.TransferFunction
+        A discrete-time loop (e.g. :func:`closed_loop_ry`).
+    samples : int
+        Length of the step run, ≥ 1 (the last quarter is the tracking window).
+
+    Raises
+    ------
+    DataError
+        ``loop`` continuous-time or with NaN entries, ``samples`` not an integer ≥ 1.
+    InputTypeError
+        ``loop`` not a python-control system.
+
     Examples
     --------
     >>> import control
@@ -311,6 +325,8 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
     >>> m.rise_samples, m.samples, bool(m.final_error < 1e-12), m.overshoot == 0.0
     (11, 300, True, True)
     """
+    loop = as_discrete_system(loop, "loop", hint="the step run counts samples")
+    samples = check_count(samples, "samples", 1)
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
