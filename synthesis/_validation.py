@@ -356,9 +356,10 @@ def check_predictor_dt(pred, dt, *, error=DataError):
     return dt
 
 
-def check_flag(value, name: str) -> bool:
+def check_flag(value, name: str, *, error=DataError) -> bool:
     """``value`` as a bool when it is one (Python's or numpy's), else ``DataError``: a string such as ``"no"`` is
-    truthy, and reading it as True would silently do the opposite of what was asked.
+    truthy, and reading it as True would silently do the opposite of what was asked.  ``error``: the class
+    raised (a :class:`DataError` subclass, e.g. ``WeightError``).
 
     Examples
     --------
@@ -370,7 +371,7 @@ def check_flag(value, name: str) -> bool:
     synthesis.exceptions.DataError: causal must be True or False, got 'no'
     """
     if not isinstance(value, (bool, np.bool_)):
-        raise DataError(f"{name} must be True or False, got {value!r}")
+        raise error(f"{name} must be True or False, got {value!r}")
     return bool(value)
 
 

@@ -72,7 +72,7 @@ import cvxpy as cp
 import numpy as np
 
 from synthesis import DataError
-from synthesis.validation import check_count
+from synthesis.validation import check_count, check_flag
 from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_floor,
@@ -559,6 +559,7 @@ def arx_unfalsify(
     ((20, 2, 2), (20, 2), True)
     """
     form = check_form(form)
+    progress = check_flag(progress, "progress")
     name = resolve("arx", backend, method)
     if backend == "structured" and form != "conditioned":
         raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")

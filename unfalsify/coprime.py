@@ -49,7 +49,7 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system, check_sample_time
+from synthesis.validation import DataError, as_discrete_system, check_flag, check_sample_time
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -366,6 +366,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     (True, True)
     """
     opts = options or PremiseOptions()
+    held_out = check_flag(held_out, "held_out")
     u, y = channel_pair(u, y)
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)

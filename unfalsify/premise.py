@@ -62,7 +62,8 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_count, check_nonnegative, check_sample_time
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_nonnegative,
+                                  check_sample_time)
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -317,6 +318,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     (True, True, True)
     """
     opts = options or PremiseOptions()
+    held_out = check_flag(held_out, "held_out")
     i = int(horizon)
     u, y = channel_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)

@@ -53,7 +53,7 @@ import numpy as np
 
 from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
-from synthesis.validation import as_signal, check_horizon
+from synthesis.validation import as_signal, check_flag, check_horizon
 
 from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_floor, check_noise_resolution,
                       check_sigma, into_ball, rms_or_one)
@@ -607,6 +607,7 @@ def subspace_unfalsify(
     ('warm (window advanced by 5 samples)', True)
     """
     form = check_form(form)
+    eliminate_L, progress = check_flag(eliminate_L, "eliminate_L"), check_flag(progress, "progress")
     name = resolve("subspace", backend, method)
     if backend == "structured" and form != "conditioned":
         raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")

@@ -42,7 +42,7 @@ from scipy.linalg import lapack as _lapack
 from scipy.sparse.linalg import LinearOperator, eigsh, svds
 
 from synthesis import DataError
-from synthesis.validation import as_signal
+from synthesis.validation import as_signal, check_flag
 
 __all__ = [
     "toeplitz_matrix",
@@ -240,6 +240,7 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
     >>> deconvolve(u, y, exact=True).tolist()
     [0.0, 2.0, 1.0, 0.0]
     """
+    exact = check_flag(exact, "exact")
     if np.size(u) == 0 or np.size(y) == 0:
         raise DataError(f"u and y must be non-empty and of the same length, got {np.size(u)} and {np.size(y)} samples")
     u, y = as_signal(u, "u"), as_signal(y, "y")  # real, finite, time along axis 0 (one channel each)
