@@ -49,7 +49,7 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system, check_flag, check_sample_time
+from synthesis.validation import DataError, as_discrete_system, check_count, check_flag, check_sample_time
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -270,6 +270,19 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     ``distance/ε`` of a coprime certificate (above 1: the premise is false).  The grid is logarithmic from
     ``10⁻⁴`` of Nyquist to Nyquist.
 
+    Parameters
+    ----------
+    factors : CoprimeFactors
+    plant : control.StateSpace or control.TransferFunction
+        A discrete-time plant at the factors' sample time, with their numbers of inputs and outputs.
+    points : int
+        Number of grid frequencies, ≥ 2 (the grid's two ends).
+
+    Raises
+    ------
+    DataError
+        A continuous-time plant, another sample time or shape, ``points`` not an integer ≥ 2.
+
     Examples
     --------
     >>> import control, numpy as np
@@ -278,6 +291,7 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     >>> bool(d < 1e-12)
     True
     """
+    points = check_count(points, "points", 2)
     sys = control.ss(as_discrete_system(plant, "plant"))  # a continuous plant was read as if discrete
     if sys.dt is not True and not np.isclose(float(sys.dt), factors.dt, rtol=1e-9, atol=0.0):
         raise DataError(f"plant has sample time {sys.dt} but the factors {factors.dt}; compare systems at one sample "
