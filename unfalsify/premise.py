@@ -502,7 +502,8 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (False, 0.96)
     """
     opts = options or PremiseOptions()
-    delta_subspace = check_nonnegative(delta_subspace, "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
+    delta_subspace = check_nonnegative(delta_subspace,
+                                       "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
     dt = check_sample_time(dt, "dt", allow_true=False)
     model_dt = getattr(model, "dt", None)
     # a model built with dt=True leaves its sample time unspecified: nothing to contradict
