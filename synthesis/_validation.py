@@ -12,7 +12,8 @@ import numpy as np
 from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
-           "check_horizon", "check_level", "check_sample_time", "check_flag", "check_count"]
+           "check_predictor_dt", "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag",
+           "check_count"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -181,6 +182,38 @@ def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0
     return v
 
 
+def check_nonnegative(value, name: str, *, allow_inf: bool = False) -> float:
+    """Return ``value`` as a float ``>= 0`` (a bound that may be 0: a δ, a tracking floor, ...).
+
+    Parameters
+    ----------
+    value : real number
+        The value to check; ``bool`` and strings are refused.
+    name : str
+        Name used in error messages.
+    allow_inf : bool
+        Accept ``+inf``.
+
+    Raises
+    ------
+    DataError
+        If ``value`` is not a real number, is NaN, negative, or infinite (unless allowed).
+
+    Examples
+    --------
+    >>> check_nonnegative(0, "delta")
+    0.0
+    >>> check_nonnegative(float("nan"), "delta")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: delta must be a finite number >= 0, got nan
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (
+            (np.isfinite(value) or (allow_inf and value == np.inf)) and value >= 0):
+        raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {value!r}")
+    return float(value)
+
+
 def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
     """Return a valid discrete sample time: a positive finite float, or ``True`` (unspecified).
 
@@ -276,9 +309,57 @@ def check_same_dt(a, b, name_a: str, name_b: str) -> None:
         f"time (e.g. control.c2d(G, {db}, 'zoh') or synthesis.tustin(W, {db}))")
 
 
-def check_flag(value, name: str) -> bool:
+def check_predictor_dt(pred, dt, *, error=DataError):
+    """The data's sample time: ``dt`` if given, else the predictor's (``fit_predictor(..., dt=)``); both must agree.
+
+    Parameters
+    ----------
+    pred : synthesis.Predictor or object
+        A predictor; one without a ``dt`` attribute (or with ``dt=None``) carries no sample time.
+    dt : float, True or None
+        The sample time the caller was given (None: not given).  Not validated here when the
+        predictor carries none: the caller checks it (:func:`check_sample_time`).
+    error : type, optional
+        Exception class raised (a :class:`DataError` subclass, e.g. ``WeightError``).
+
+    Returns
+    -------
+    float, True or None
+        ``dt``, or the predictor's when ``dt`` is None (None when neither has one).
+
+    Raises
+    ------
+    error
+        If ``dt`` is given and differs from the predictor's (``True``, unspecified, differs too: the
+        predictor's is known).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> check_predictor_dt(SimpleNamespace(dt=0.5), None), check_predictor_dt(SimpleNamespace(dt=None), 1.0)
+    (0.5, 1.0)
+    >>> check_predictor_dt(SimpleNamespace(dt=0.5), 1.0)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: dt = 1.0 but the predictor was fitted on data sampled at 0.5 (Predictor.dt); pass the data's sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)
+    """
+    pdt = getattr(pred, "dt", None)
+    if pdt is None:
+        return dt
+    if dt is None:
+        return pdt
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not np.isclose(float(dt), float(pdt), rtol=1e-9,
+                                                                                    atol=0):
+        raise error(
+            f"dt = {dt!r} but the predictor was fitted on data sampled at {pdt} (Predictor.dt); pass the data's "
+            "sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)")
+    return dt
+
+
+def check_flag(value, name: str, *, error=DataError) -> bool:
     """``value`` as a bool when it is one (Python's or numpy's), else ``DataError``: a string such as ``"no"`` is
-    truthy, and reading it as True would silently do the opposite of what was asked.
+    truthy, and reading it as True would silently do the opposite of what was asked.  ``error``: the class
+    raised (a :class:`DataError` subclass, e.g. ``WeightError``).
 
     Examples
     --------
@@ -290,7 +371,7 @@ def check_flag(value, name: str) -> bool:
     synthesis.exceptions.DataError: causal must be True or False, got 'no'
     """
     if not isinstance(value, (bool, np.bool_)):
-        raise DataError(f"{name} must be True or False, got {value!r}")
+        raise error(f"{name} must be True or False, got {value!r}")
     return bool(value)
 
 

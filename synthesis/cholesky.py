@@ -23,13 +23,14 @@ import math
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from ._validation import DataError
+from ._validation import DataError, check_flag
 from .exceptions import DowndateError
 
 __all__ = ["cholupdate", "choldowndate", "DowndateError"]
 
 
 def _prepare(L, x, lower: bool, overwrite: bool):
+    lower, overwrite = check_flag(lower, "lower"), check_flag(overwrite, "overwrite")
     L = np.asarray(L, dtype=float)
     x = np.asarray(x, dtype=float).reshape(-1)
     if L.ndim != 2 or L.shape[0] != L.shape[1]:

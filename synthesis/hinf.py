@@ -31,7 +31,7 @@ import control
 import numpy as np
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, check_flag, check_level, check_sample_time
+from ._validation import DataError, check_flag, check_level, check_predictor_dt, check_sample_time
 from .controller import WeightState, lti_controller
 from .minimax import _gains, _level, _saddle, _warn_near, minimax_gamma_min
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
@@ -362,16 +362,7 @@ def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
 
 def _data_dt(pred, dt):
     """The data's sample time: ``dt`` if given, else the predictor's (``fit_predictor(..., dt=)``); both must agree."""
-    pdt = getattr(pred, "dt", None)
-    if pdt is None:
-        return dt
-    if dt is None:
-        return pdt
-    if dt is True or not np.isclose(float(dt), float(pdt), rtol=1e-9, atol=0):
-        raise WeightError(
-            f"dt = {dt} but the predictor was fitted on data sampled at {pdt} (Predictor.dt); pass the data's "
-            "sample time once: drop dt= or refit with fit_predictor(u, y, i, dt=...)")
-    return dt
+    return check_predictor_dt(pred, dt, error=WeightError)
 
 
 def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> PerformanceMap:

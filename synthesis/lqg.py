@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, check_sample_time
+from ._validation import DataError, check_predictor_dt, check_sample_time
 from .controller import lti_controller
 from ._repr import result
 
@@ -82,7 +82,7 @@ def _spd(M, n: int, name: str) -> np.ndarray:
     return M
 
 
-def lqg_design(pred, Q, R, *, dt=True) -> LqgDesign:
+def lqg_design(pred, Q, R, *, dt=None) -> LqgDesign:
     """Subspace LQG law (4.2) and its LTI controller.
 
     Parameters
@@ -92,9 +92,10 @@ def lqg_design(pred, Q, R, *, dt=True) -> LqgDesign:
         Output weight, ``Q = Qᵀ > 0``.
     R : scalar or (m, m) array
         Input weight, ``R = Rᵀ > 0``.
-    dt : float or True
-        Sample time of the data, given to the controller (the predictor has none); ``True``
-        (default) leaves it unspecified but discrete.
+    dt : float or True, optional
+        Sample time of the data, given to the controller.  Default: the predictor's
+        (``fit_predictor(u, y, i, dt=...)``, :attr:`Predictor.dt`), else ``True`` (unspecified but
+        discrete).  A ``dt`` that differs from the predictor's is refused.
 
     Returns
     -------
@@ -105,7 +106,7 @@ def lqg_design(pred, Q, R, *, dt=True) -> LqgDesign:
     DataError
         Predictor of the wrong shape or with NaN, ``Q``/``R`` not symmetric positive definite or
         of the wrong size, ``dt`` not a positive sample time (0 would make the controller
-        continuous-time).
+        continuous-time) or not the predictor's.
 
     Examples
     --------
@@ -131,7 +132,8 @@ def lqg_design(pred, Q, R, *, dt=True) -> LqgDesign:
     from .hinf import _predictor_parts  # shared validation
 
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    dt = check_sample_time(dt)
+    dt = check_predictor_dt(pred, dt)
+    dt = check_sample_time(True if dt is None else dt)
     Q = _spd(Q, l, "Q")
     R = _spd(R, m, "R")
     Qc = np.kron(np.eye(i), np.linalg.cholesky(Q).T)  # Q_cᵀ Q_c = Q_diag

@@ -123,10 +123,18 @@ class Predictor:
         return (self.Lw @ w_p + self.Lu @ u_f).reshape(self.horizon, self.l)
 
     def past_vector(self, u_past, y_past) -> np.ndarray:
-        """Stack the last ``i`` samples of ``u`` and ``y`` into ``w_p`` (3.13)."""
+        """Stack the last ``i`` samples of ``u`` and ``y`` into ``w_p`` (3.13).
+
+        ``u_past`` and ``y_past`` must end at the same sample, so they must have the same length: the
+        last ``i`` rows of records of different lengths would pair inputs and outputs of different times.
+        """
         i = self.horizon
         u_past = as_signal(u_past, "u_past", width=self.m, record=False)
         y_past = as_signal(y_past, "y_past", width=self.l, record=False)
+        if u_past.shape[0] != y_past.shape[0]:
+            raise DataError(
+                f"u_past has {u_past.shape[0]} samples but y_past has {y_past.shape[0]}; their last i={i} rows would "
+                "come from different times: pass the same samples of both (e.g. u[:k] and y[:k])")
         if u_past.shape[0] < i or y_past.shape[0] < i:
             raise DataError(f"need at least i={i} past samples of u and y")
         return np.concatenate([u_past[-i:].reshape(-1), y_past[-i:].reshape(-1)])

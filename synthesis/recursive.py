@@ -179,9 +179,10 @@ class RecursivePredictor:
 
     def _push_samples(self, z: np.ndarray) -> "RecursivePredictor":
         """:meth:`push` of already validated samples ``z = [u y]`` (finite floats, shape (k, m + l))."""
-        k = z.shape[0]
         i = self.horizon
         seg = np.concatenate([self._data()[-(2 * i - 1) :], z])
+        # the first 2i − 1 samples after construction complete no column of A
+        k = max(0, seg.shape[0] - 2 * i + 1)
         self._append(z)
         self._j += k
         drop = 0 if self.window is None else max(0, self._j - self.window)
@@ -224,8 +225,18 @@ class RecursivePredictor:
         Equal (to rounding) to ``fit_predictor(..., method="cholesky")`` on the current data
         window; a rank-deficient window gives the minimum-norm predictor with its numerical
         rank, and a :class:`~synthesis.PersistenceWarning`.
+
+        Raises
+        ------
+        DataError
+            Fewer than ``2i`` samples pushed since construction (no column of ``A``, ``j = 0``).
         """
         i, m, l, j = self.horizon, self.m, self.l, self._j
+        if j < 1:
+            short = 2 * i - self.n_samples_kept
+            raise DataError(
+                f"the recursive predictor holds {self.n_samples_kept} sample(s), no complete column of the data "
+                f"matrix (horizon i={i} needs 2i = {2 * i}): push at least {short} more sample(s) of u and y first")
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
             return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)

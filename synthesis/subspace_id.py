@@ -43,7 +43,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from ._repr import result
-from ._validation import DataError, as_signal, check_horizon, check_sample_time
+from ._validation import DataError, as_signal, check_flag, check_horizon, check_sample_time
 from .predictor import block_hankel, fit_predictor
 
 __all__ = ["SubspaceModel", "subspace_id"]
@@ -235,6 +235,7 @@ def subspace_id(u, y, horizon: int, *, order="floor", floor_ratio: float = 5.0, 
     l = y.shape[1]
     i = check_horizon(horizon, N)
     dt = True if dt is None else check_sample_time(dt, "dt")
+    feedthrough = check_flag(feedthrough, "feedthrough")
     if max_order is None:
         max_order = max(1, min(i * l // 2, 20))
     if isinstance(max_order, bool) or not isinstance(max_order, numbers.Integral) or not 1 <= max_order < i * l:

@@ -24,7 +24,7 @@ import numpy as np
 
 from .exceptions import WeightError
 
-from ._validation import DataError, as_discrete_system, check_count, check_horizon, to_state_space
+from ._validation import DataError, as_discrete_system, check_count, check_flag, check_horizon, to_state_space
 
 __all__ = [
     "WeightError",
@@ -302,6 +302,8 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
     ...
     synthesis.exceptions.WeightError: W1 must have relative degree 0, i.e. a full-rank feedthrough D (§3.1); its D = [[0.0]] has rank 0 < 1. Add a small direct term (e.g. a far-away zero) to make it biproper
     """
+    allow_zero = check_flag(allow_zero, "allow_zero", error=WeightError)
+    square_rank = check_flag(square_rank, "square_rank", error=WeightError)
     W = to_state_space(W, name, error=WeightError)
     if isinstance(W, control.StateSpace):
         A, B, C, D = _ss_parts(W)

@@ -1,5 +1,7 @@
 """Common mistakes fail with a message that names the fix (issue "From a data file to a saved,
 certified controller", item 5)."""
+import warnings
+
 import numpy as np
 import pytest
 
@@ -80,6 +82,26 @@ def test_predictor_dt_reaches_the_robust_pipeline():
         uf.robust_design_from_data(u[:40], y[:40], 4, W1, W2, 0.005, predictor=pred, search=False)
 
 
+def test_predictor_dt_reaches_the_models_and_the_lqg_design():
+    # predictor_model, coprime_factors and lqg_design had ignored Predictor.dt (lqg: a controller with dt=True)
+    u, y = _fir(300, 1)
+    pred = synthesis.fit_predictor(u, y, 3, dt=0.5)
+    assert uf.predictor_model(pred).dt == 0.5 and uf.predictor_model(pred, 0.5).dt == 0.5
+    assert uf.coprime_factors(pred).dt == 0.5
+    assert synthesis.lqg_design(pred, 1.0, 0.01).controller.dt == 0.5
+    for call in (lambda: uf.predictor_model(pred, 1.0), lambda: uf.coprime_factors(pred, 1.0),
+                 lambda: uf.predictor_model(pred, True), lambda: synthesis.lqg_design(pred, 1.0, 0.01, dt=0.2)):
+        with pytest.raises(DataError, match=r"fitted on data sampled at 0.5 \(Predictor.dt\).*drop dt="):
+            call()
+    with pytest.raises(DataError, match="carries no sample time: pass dt="):
+        uf.predictor_model(synthesis.fit_predictor(u, y, 3))
+    # the premise test reads its frequencies with dt: one that contradicts the model's is refused
+    model = uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3), 1.0)
+    with pytest.raises(DataError, match=r"dt = 0.5 but the model P̂ has sample time 1.0.*pass dt=1.0"):
+        uf.check_premise(model, u[:45], y[:45], 3, 0.05, dt=0.5)
+    assert uf.check_premise(uf.predictor_model(pred), u[:45], y[:45], 3, 0.05, dt=0.5).frf.dt == 0.5
+
+
 @pytest.mark.parametrize("call", [
     "ex.prbs(0)",
     "ex.white_noise(10, sigma=-1.0)",
@@ -120,6 +142,40 @@ def test_true_false_options_refuse_strings():
         with pytest.raises(DataError, match="causal must be True or False"):
             call()
     assert synthesis.gamma_min(pred, W, W, causal=np.bool_(True)) == synthesis.gamma_min(pred, W, W, causal=True)
+
+
+@pytest.mark.parametrize("call, name", [
+    ("uf.coprime_unfalsify(F, u[200:260], y[200:260], held_out='no')", "held_out"),
+    ("uf.output_error_unfalsify(P, u[200:], y[200:], 3, held_out='no')", "held_out"),
+    ("uf.subspace_unfalsify(u[:20], y[:20], 2, 0.02, eliminate_L='no')", "eliminate_L"),
+    ("uf.subspace_unfalsify(u[:30], y[:30], 2, 0.02, backend='structured', progress='no')", "progress"),
+    ("uf.arx_unfalsify(u[:30], y[:30], 1, 1, 0.02, progress='no')", "progress"),  # cvxpy: had been ignored
+    ("sy.subspace_id(u, y, 6, feedthrough='no')", "feedthrough"),
+    ("uf.unfalsified_gain_result(u[:20], y[:20], exact='no')", "exact"),
+    ("uf.unfalsified_gain_result(u[:20], y[:20], warn='no')", "warn"),
+    ("uf.deconvolve(u[:20], y[:20], exact='no')", "exact"),
+    ("sy.as_weight(0.0, 'W3', allow_zero='no')", "allow_zero"),
+    ("sy.cholupdate(np.eye(2), [1.0, 0.0], lower='no')", "lower"),
+    ("sy.choldowndate(np.eye(2), [0.1, 0.0], lower='no')", "lower"),
+])
+def test_more_true_false_options_refuse_strings(call, name):
+    """``held_out="no"`` and its kin are truthy strings: each had been read as True (``lower="no"`` updated the
+    factor as a lower one, ``allow_zero="no"`` accepted a zero weight)."""
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    env = {"uf": uf, "sy": synthesis, "np": np, "u": u, "y": y,
+           "F": uf.coprime_factors(synthesis.fit_predictor(u, y, 2), 1.0),
+           "P": uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3), 1.0)}
+    error = synthesis.WeightError if name == "allow_zero" else DataError
+    with pytest.raises(error, match=f"{name} must be True or False, got 'no'"):
+        eval(call, env)
+    # exact=None (choose by conditioning) stays allowed, and numpy's bools are bools
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert uf.unfalsified_gain_result(u[:20], y[:20], exact=None).gamma > 0
+    np.testing.assert_array_equal(synthesis.cholupdate(np.eye(2), [1.0, 0.0], lower=np.False_),
+                                  synthesis.cholupdate(np.eye(2), [1.0, 0.0], lower=False))
 
 
 @pytest.mark.parametrize("call, name", [

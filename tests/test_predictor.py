@@ -298,6 +298,14 @@ def test_predict_and_past_vector_check_sizes():
     assert p.predict(p.past_vector(u, y), np.zeros((3, 2))).shape == (3, 2)
 
 
+def test_past_vector_refuses_records_of_different_lengths():
+    # the last i rows of u[:10] and y[:9] are samples 7..9 and 6..8: inputs and outputs of different times
+    u, y = noisy_mimo(seed=10, n=200)
+    p = fit_predictor(u, y, 3)
+    with pytest.raises(DataError, match=r"u_past has 10 samples but y_past has 9.*same samples"):
+        p.past_vector(u[:10], y[:9])
+
+
 # ----------------------------------------------------------------------------- benchmark smoke test
 def test_bench_predictor_quick(tmp_path):
     from experiments.bench.bench_predictor import run

@@ -195,3 +195,26 @@ def test_bad_rcond_is_refused_at_construction():
     assert rp.predictor().rcond == 1e-3
     with pytest.raises(DataError, match="horizon"):
         RecursivePredictor(3.0, 1, 1)
+
+
+@pytest.mark.parametrize("track", TRACKS)
+@pytest.mark.parametrize("window", [None, 4])
+def test_an_empty_predictor_names_the_samples_to_push_and_then_equals_refit(track, window):
+    # it had returned an all-zero Predictor (n_columns 0) with a warning, and counted every pushed sample as a column
+    u, y = _data(7, 40, 2, 1)
+    rp = RecursivePredictor(3, 2, 1, window=window, track=track)
+    with pytest.raises(DataError, match=r"holds 0 sample\(s\).*push at least 6 more"):
+        rp.predictor()
+    rp.push(u[:5], y[:5])
+    assert rp.n_columns == 0
+    with pytest.raises(DataError, match=r"holds 5 sample\(s\).*push at least 1 more"):
+        rp.predictor()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PersistenceWarning)
+        warnings.simplefilter("ignore", RefactorWarning)  # 4 columns of 18 rows: the downdated factor is singular
+        for t in range(5, 20):  # one sample at a time: 2i = 6 samples give the first column
+            rp.push(u[t], y[t])
+            assert rp.n_columns == (t - 4 if window is None else min(window, t - 4))
+            p = rp.predictor()
+            ref, _ = _refit(u, y, 3, t + 1, rp)
+            _assert_same(p, ref)

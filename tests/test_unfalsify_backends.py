@@ -95,6 +95,16 @@ def test_unknown_backend_and_thesis_structured_raise():
         uf.subspace_unfalsify(u, y, 3, 0.1, backend="x")
 
 
+@pytest.mark.parametrize("bad", ["x", ["max_iters", 5], {1: 5}])
+def test_solver_options_must_be_a_mapping_of_keywords(bad):
+    # a string had reached dict() inside the cvxpy model: "dictionary update sequence element #0 has length 1"
+    u, y = servo_arx_data(20, 0)
+    for call in (lambda: uf.arx_unfalsify(u, y, 2, 2, 0.1, solver_options=bad),
+                 lambda: uf.subspace_unfalsify(u, y, 3, 0.1, solver_options=bad)):
+        with pytest.raises(DataError, match=r"solver_options must be a mapping of keyword arguments.*or None"):
+            call()
+
+
 def test_time_limit_returns_certified_bracket_with_warning():
     u, y = servo_arx_data(60, 1)
     _, rms = uf.arx_least_squares(u, y, 2, 2)

@@ -145,6 +145,19 @@ def test_certificate_refuses_mismatched_systems(designed):
         uf.certify_loop(Ph, control.ss(Kc.A, Kc.B, Kc.C, Kc.D, 0.2), 0.1)
 
 
+def test_step_metrics_refuses_continuous_loops_and_bad_sample_counts():
+    # a continuous-time 1/(s + 0.5) had been stepped as x_{k+1} = -0.5 x_k + r: final error 0.33, "rise" 1 sample
+    with pytest.raises(synthesis.DataError, match=r"loop is continuous-time.*control.c2d"):
+        uf.step_metrics(control.ss([[-0.5]], [[1.0]], [[1.0]], [[0.0]]), 50)
+    with pytest.raises(synthesis.InputTypeError, match="loop must be a python-control StateSpace"):
+        uf.step_metrics(np.eye(2), 50)
+    loop = control.ss([[0.8]], [[0.2]], [[1.0]], [[0.0]], 1.0)  # y_k = 1 − 0.8^k
+    for bad in (0, -1, 10.5, "10", True):
+        with pytest.raises(synthesis.DataError, match=r"samples must be an integer ≥ 1"):
+            uf.step_metrics(loop, bad)
+    assert uf.step_metrics(control.tf([0.2], [1, -0.8], 1.0), 40).rise_samples == 11  # 1 − 0.8^11 ≥ 0.9 first
+
+
 # ------------------------------------------------------------------------------------------------
 # the pipeline on plants it was not designed on: the invariant, on the true plant
 @pytest.mark.slow

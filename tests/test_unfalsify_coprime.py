@@ -216,3 +216,14 @@ def test_coprime_distance_checks_the_plant():
     with pytest.raises(DataError, match="2 × 2"):
         uf.coprime_distance(F, control.ss([], [], [], np.eye(2), 1.0))
     assert uf.coprime_distance(F, control.tf([0.1], [1.0, -1.0], 1.0))[0] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("bad", [0, 1, -3, 5.5, "512", True])
+def test_coprime_distance_checks_the_grid_size(bad):
+    # points=0 had raised IndexError (argmax of an empty grid), 5.5 numpy's TypeError
+    F = uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-1.0]]]), dt=1.0)
+    with pytest.raises(DataError, match=r"points must be an integer ≥ 2"):
+        uf.coprime_distance(F, control.tf([0.2], [1.0, -1.0], 1.0), bad)
+    # 2 points are the grid's two ends, 10⁻⁴ of Nyquist and Nyquist
+    d, w = uf.coprime_distance(F, control.tf([0.2], [1.0, -1.0], 1.0), 2)
+    assert d > 0 and (w == pytest.approx(np.pi) or w == pytest.approx(1e-4 * np.pi))

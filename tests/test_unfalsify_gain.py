@@ -162,3 +162,30 @@ def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
     for n in (2, 5):  # the method is checked for every size (n < 3 used to fall through to dense)
         with pytest.raises(ValueError, match="unknown method"):
             uf.toeplitz_norm(np.ones(n), method="svd")
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: uf.toeplitz_norm(np.ones((5, 2))), r"h must be one sequence.*shape \(5, 2\).*block_toeplitz_norm"),
+    (lambda: uf.toeplitz_matrix(None), "x must be a real numeric sequence.*got None"),  # had returned [[nan]]
+    (lambda: uf.toeplitz_matrix([1.0, np.nan]), "x contains 1 NaN"),
+    (lambda: uf.toeplitz_cond([]), "u is empty.*at least one sample"),  # had raised IndexError
+    (lambda: uf.toeplitz_cond([1.0, np.inf]), "u contains 1 NaN or infinite"),
+    (lambda: uf.toeplitz_norm("abc"), "h must be a real numeric sequence"),
+    (lambda: uf.toeplitz_matrix("abc"), "x must be a real numeric sequence"),
+    (lambda: uf.toeplitz_cond("abc"), "u must be a real numeric sequence"),
+    (lambda: uf.toeplitz_matrix(np.ones(3) + 1j), "x must be a real numeric sequence"),
+    (lambda: uf.toeplitz_norm(np.ones(5), tol=-1.0), r"tol .*must be a finite number >= 0"),
+    (lambda: uf.toeplitz_norm(np.ones(5), tol=np.nan), r"tol .*must be a finite number >= 0"),
+    (lambda: uf.toeplitz_norm(np.ones(5), tol="x"), r"tol .*must be a finite number >= 0"),
+])
+def test_toeplitz_helpers_refuse_what_is_not_one_finite_sequence(call, match):
+    with pytest.raises(DataError, match=match):
+        call()
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 7, 60])
+def test_toeplitz_matrix_is_scipys_and_a_column_is_one_sequence(n):
+    x = np.random.default_rng(n).standard_normal(n)
+    np.testing.assert_array_equal(uf.toeplitz_matrix(x), scipy.linalg.toeplitz(x, np.zeros(n)))
+    if n:
+        assert uf.toeplitz_norm(x[:, None]) == uf.toeplitz_norm(x) == uf.toeplitz_norm(x[None, :])

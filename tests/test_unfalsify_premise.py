@@ -262,6 +262,14 @@ def test_unstable_model_is_refused_not_simulated():
     assert not test.ok and "unstable" in test.reason and "stabilise" in test.reason
 
 
+@pytest.mark.parametrize("bad", [float("nan"), -0.05, float("inf"), "0.05", None, True])
+def test_check_premise_refuses_a_delta_that_is_not_a_finite_nonnegative_number(bad):
+    # NaN had given delta = NaN and ok = True, -0.05 delta = 0 and ok = True, "0.05" a raw TypeError
+    u, y = _fir_data(300, 0.01, 5)
+    with pytest.raises(DataError, match=r"delta_subspace .*must be a finite number >= 0"):
+        uf.check_premise(_model_of(FIR), u, y, 4, bad, dt=1.0)
+
+
 @pytest.mark.parametrize("seed", range(2))
 def test_free_rows_agree_across_backends_and_absorb_a_start_not_at_rest(seed):
     rng = np.random.default_rng(seed)

@@ -128,6 +128,39 @@ def test_split_outer_problem_closes_where_false_position_stalled():
     assert out["delta"] == pytest.approx(ref.delta, rel=1e-6)
 
 
+@pytest.mark.parametrize("kw, match", [
+    (dict(max_rounds=0), "max_rounds must be an integer ≥ 1"),  # had raised UnboundLocalError
+    (dict(max_rounds=2.5), "max_rounds must be an integer ≥ 1"),
+    (dict(rho="x"), r"rho \(the noise budget σ√N\) must be a real number > 0"),  # had raised TypeError
+    (dict(rho=float("nan")), r"rho .*must be a finite number > 0"),
+    (dict(nan=True), "U and B contain NaN or infinite values"),  # had raised scipy's ValueError
+    (dict(executor="x"), r"executor must be a concurrent.futures.Executor"),  # had raised AttributeError
+    (dict(block_size=0), "block_size must be an integer ≥ 1"),
+])
+def test_split_solve_refuses_bad_arguments_with_the_fix(kw, match):
+    from unfalsify.solvers.split import split_solve
+
+    u, y = servo_arx_data(40, 3)
+    pred = sy.fit_predictor(u, y, 2)
+    A, Uf, Yf = uf.subspace_data(u[:7], y[:7], 2)
+    B = Yf - np.hstack([pred.Lw, pred.Lu]) @ A
+    if kw.pop("nan", False):
+        B[0, 0] = np.nan
+    args = dict(rho=0.1 * np.linalg.norm(B)) | kw
+    with pytest.raises(sy.DataError, match=match):
+        split_solve(Uf, B, **args)
+    # one round is a valid bound: a bracket, its upper end feasible
+    out = split_solve(Uf, np.nan_to_num(B), 0.1 * np.linalg.norm(np.nan_to_num(B)), max_rounds=1)
+    assert out["rounds"] == 1 and out["lower"] <= out["delta"]
+
+
+def test_an_executor_without_submit_is_refused_through_subspace_unfalsify():
+    u, y = servo_arx_data(40, 3)
+    pred = sy.fit_predictor(u, y, 2)
+    with pytest.raises(sy.DataError, match=r"executor must be a concurrent.futures.Executor.*got 'x'"):
+        uf.subspace_unfalsify(u[:7], y[:7], 2, 0.02, predictor=pred, executor="x")
+
+
 def test_status_strings_of_results_are_the_shared_enum_values():
     u, y = servo_arx_data(30, 0)
     _, rms = uf.arx_least_squares(u, y, 2, 2)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numbers
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -130,6 +131,17 @@ def rms_or_one(x: np.ndarray) -> float:
     """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
     r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))
     return r if r > 0 else 1.0
+
+
+def check_solver_options(solver_options) -> dict | None:
+    """``solver_options`` as a dict of keyword arguments for cvxpy's ``Problem.solve`` (None stays None); raises
+    DataError for anything that is not a mapping with string keys (a string had reached ``dict()``'s own error)."""
+    if solver_options is None:
+        return None
+    if not isinstance(solver_options, Mapping) or not all(isinstance(k, str) for k in solver_options):
+        raise DataError(f"solver_options must be a mapping of keyword arguments for cvxpy's Problem.solve "
+                        f"(e.g. {{'max_iters': 5000}}) or None, got {solver_options!r}")
+    return dict(solver_options)
 
 
 def check_form(form: str) -> str:

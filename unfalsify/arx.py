@@ -72,11 +72,12 @@ import cvxpy as cp
 import numpy as np
 
 from synthesis import DataError
-from synthesis.validation import check_count
+from synthesis.validation import check_count, check_flag
 from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_input_moves,
-                      check_noise_floor, check_noise_resolution, check_sigma, into_ball, rms_or_one)
+                      check_noise_floor, check_noise_resolution, check_sigma, check_solver_options, into_ball,
+                      rms_or_one)
 from .cost import _guard_arx
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
@@ -560,6 +561,8 @@ def arx_unfalsify(
     ((20, 2, 2), (20, 2), True)
     """
     form = check_form(form)
+    progress = check_flag(progress, "progress")
+    solver_options = check_solver_options(solver_options)
     name = resolve("arx", backend, method)
     if backend == "structured" and form != "conditioned":
         raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system, check_count, check_same_dt
+from synthesis.validation import DataError, as_discrete_system, check_count, check_nonnegative, check_same_dt
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
@@ -302,6 +302,20 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
 def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepMetrics:
     """Unit step on every input of a discrete loop ``r → y``; the worst output channel's metrics.
 
+    Parameters
+    ----------
+    loop : control.StateSpace or control.TransferFunction
+        A discrete-time loop (e.g. :func:`closed_loop_ry`).
+    samples : int
+        Length of the step run, ≥ 1 (the last quarter is the tracking window).
+
+    Raises
+    ------
+    DataError
+        ``loop`` continuous-time or with NaN entries, ``samples`` not an integer ≥ 1.
+    InputTypeError
+        ``loop`` not a python-control system.
+
     Examples
     --------
     >>> import control
@@ -311,6 +325,8 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
     >>> m.rise_samples, m.samples, bool(m.final_error < 1e-12), m.overshoot == 0.0
     (11, 300, True, True)
     """
+    loop = as_discrete_system(loop, "loop", hint="the step run counts samples")
+    samples = check_count(samples, "samples", 1)
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
@@ -333,12 +349,6 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
 
 _TALL_HINT = ("; the plant has fewer inputs ({m}) than outputs ({l}), so no controller tracks independent steps on "
               "every output: give tracking_floor per output channel, inf for the outputs not tracked")
-
-
-def _check_nonnegative(v, name: str, allow_inf: bool = False) -> None:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not (
-            (math.isfinite(v) or (allow_inf and v == math.inf)) and v >= 0):
-        raise DataError(f"{name} must be a finite number >= 0{' or inf' if allow_inf else ''}, got {v!r}")
 
 
 def _check_step_samples(step_samples) -> int:
@@ -383,7 +393,7 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
         if isinstance(tracking_floor, np.ndarray):
             tracking_floor = tracking_floor.item()
-        _check_nonnegative(tracking_floor, "tracking_floor")
+        check_nonnegative(tracking_floor, "tracking_floor")
         return np.full(1 if channels is None else int(channels), float(tracking_floor))
     floors = list(tracking_floor)
     if not floors:
@@ -392,7 +402,7 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):
-        _check_nonnegative(f, f"tracking_floor[{k}]", allow_inf=True)
+        check_nonnegative(f, f"tracking_floor[{k}]", allow_inf=True)
     floors = np.asarray(floors, float)
     if not np.any(np.isfinite(floors)):
         raise DataError("tracking_floor is inf on every output: at least one output must be tracked (a finite floor), "
@@ -451,7 +461,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     (False, True)
     """
     for name, v in (("delta", delta), ("margin", margin)):
-        _check_nonnegative(v, name)
+        check_nonnegative(v, name)
     _check_step_samples(step_samples)
     P, C, l = loop_parts(model, controller)
     floors = tracking_floors(tracking_floor, l)

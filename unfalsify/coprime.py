@@ -49,7 +49,7 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system, check_sample_time
+from synthesis.validation import DataError, as_discrete_system, check_count, check_flag, check_sample_time
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -160,15 +160,16 @@ class CoprimeFactors:
         return np.hstack([Cu, Cy]), np.asarray(self.N[0], float)
 
 
-def coprime_factors(pred, dt) -> CoprimeFactors:
+def coprime_factors(pred, dt=None) -> CoprimeFactors:
     """The left coprime factors ``(N̂, M̂)`` of the predictor's first block row (module docstring).
 
     Parameters
     ----------
     pred : synthesis.Predictor
         ``Lw``, ``Lu``, ``horizon``, ``m``, ``l`` (as for :func:`unfalsify.predictor_model`).
-    dt : float
-        The data's sample time.
+    dt : float, optional
+        The data's sample time.  Default: the predictor's (:attr:`synthesis.Predictor.dt`);
+        required when it carries none, refused when it differs from the predictor's.
 
     Returns
     -------
@@ -269,6 +270,19 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     ``distance/ε`` of a coprime certificate (above 1: the premise is false).  The grid is logarithmic from
     ``10⁻⁴`` of Nyquist to Nyquist.
 
+    Parameters
+    ----------
+    factors : CoprimeFactors
+    plant : control.StateSpace or control.TransferFunction
+        A discrete-time plant at the factors' sample time, with their numbers of inputs and outputs.
+    points : int
+        Number of grid frequencies, ≥ 2 (the grid's two ends).
+
+    Raises
+    ------
+    DataError
+        A continuous-time plant, another sample time or shape, ``points`` not an integer ≥ 2.
+
     Examples
     --------
     >>> import control, numpy as np
@@ -277,6 +291,7 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     >>> bool(d < 1e-12)
     True
     """
+    points = check_count(points, "points", 2)
     sys = control.ss(as_discrete_system(plant, "plant"))  # a continuous plant was read as if discrete
     if sys.dt is not True and not np.isclose(float(sys.dt), factors.dt, rtol=1e-9, atol=0.0):
         raise DataError(f"plant has sample time {sys.dt} but the factors {factors.dt}; compare systems at one sample "
@@ -365,6 +380,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     (True, True)
     """
     opts = options or PremiseOptions()
+    held_out = check_flag(held_out, "held_out")
     u, y = channel_pair(u, y)
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)

@@ -47,7 +47,7 @@ import scipy.linalg
 from synthesis import DataError
 from synthesis.results import result
 
-from synthesis.validation import as_signal
+from synthesis.validation import as_signal, check_flag
 
 from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
@@ -187,6 +187,8 @@ def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "a
     (True, True, 'qr')
     """
     u, y = _checked_pair(u, y)
+    exact = None if exact is None else check_flag(exact, "exact")
+    warn = check_flag(warn, "warn")
     n, p = u.shape[0], _leading_zeros(u)
     answer = _at_rest_result(u, y, p) if p else None
     if answer is not None:

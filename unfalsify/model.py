@@ -20,20 +20,22 @@ from __future__ import annotations
 import control
 import numpy as np
 
-from synthesis.validation import DataError, check_sample_time
+from synthesis.validation import DataError, check_predictor_dt, check_sample_time
 
 __all__ = ["predictor_model"]
 
 
-def predictor_model(pred, dt) -> control.StateSpace:
+def predictor_model(pred, dt=None) -> control.StateSpace:
     """ARX model ``P̂`` of the predictor's first block row, in the delay-line state ``w_p``.
 
     Parameters
     ----------
     pred : synthesis.Predictor
         Any object with ``Lw`` (``il × i(m+l)``), ``Lu`` (``il × im``), ``horizon``, ``m``, ``l``.
-    dt : float
-        The data's sample time (the predictor does not carry one).
+    dt : float or True, optional
+        The data's sample time.  Default: the predictor's (``fit_predictor(u, y, i, dt=...)``,
+        :attr:`synthesis.Predictor.dt`); required when the predictor carries none, refused when it
+        differs from the predictor's.
 
     Returns
     -------
@@ -45,7 +47,8 @@ def predictor_model(pred, dt) -> control.StateSpace:
     Raises
     ------
     DataError
-        A predictor with NaN entries or inconsistent shapes, or a bad sample time.
+        A predictor with NaN entries or inconsistent shapes, or a bad sample time (none, or not the
+        predictor's).
 
     Examples
     --------
@@ -73,6 +76,10 @@ def predictor_model(pred, dt) -> control.StateSpace:
                         f"for i = {i}, m = {m}, l = {l}")
     if not (np.all(np.isfinite(Lw)) and np.all(np.isfinite(Lu))):
         raise DataError("predictor contains NaN or infinite entries; refit it on finite data")
+    dt = check_predictor_dt(pred, dt)
+    if dt is None:
+        raise DataError("the predictor carries no sample time: pass dt= (the data's), or fit it with "
+                        "synthesis.fit_predictor(u, y, i, dt=...)")
     dt = check_sample_time(dt, "dt")
     return _delay_line(Lw[:l], Lu[:l, :m], i, m, l, dt)
 

@@ -62,7 +62,8 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_count
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_nonnegative,
+                                  check_sample_time)
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -317,6 +318,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     (True, True, True)
     """
     opts = options or PremiseOptions()
+    held_out = check_flag(held_out, "held_out")
     i = int(horizon)
     u, y = channel_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)
@@ -462,6 +464,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     delta_subspace : float
         δ of (7.5).
     dt : float
+        The data's sample time; must be the model's (unless P̂ was built with ``dt=True``).
     validation : tuple of array_like, optional
         ``(u_v, y_v)``: a record of the same plant not used to fit P̂ (held out).  Without it the
         output error is computed on the window, in sample (optimistic; the result says so).
@@ -499,6 +502,16 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (False, 0.96)
     """
     opts = options or PremiseOptions()
+    delta_subspace = check_nonnegative(delta_subspace,
+                                       "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
+    dt = check_sample_time(dt, "dt", allow_true=False)
+    model_dt = getattr(model, "dt", None)
+    # a model built with dt=True leaves its sample time unspecified: nothing to contradict
+    if isinstance(model_dt, numbers.Real) and not isinstance(model_dt, bool) and not np.isclose(
+            float(model_dt), dt, rtol=1e-9, atol=0):
+        raise DataError(f"dt = {dt!r} but the model P̂ has sample time {model_dt}: the frequency estimates would be "
+                        f"read at the wrong frequencies; pass dt={model_dt} (the data's), or rebuild P̂ with "
+                        f"unfalsify.predictor_model(pred, {dt})")
     u, y = channel_pair(u, y)
     if validation is not None:
         try:

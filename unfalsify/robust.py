@@ -656,7 +656,8 @@ def robust_design_from_data(
     elif unf.horizon != i:
         raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
     pred = _model_predictor(unf, predictor)
-    model = predictor_model(pred, _data_dt(dt, W1, W2))
+    # a predictor fitted with dt= knows the data's sample time: prefer it to the weights' (hinf_design does too)
+    model = predictor_model(pred, _data_dt(dt if dt is not None else getattr(pred, "dt", None), W1, W2))
     prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
                          fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions())
     delta = prem.delta

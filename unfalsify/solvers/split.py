@@ -41,7 +41,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.linalg
 
-from synthesis import DataError
+from synthesis.validation import DataError, check_count, check_level
 
 from ..exceptions import SolverWarning
 from .barrier import Deadline
@@ -242,13 +242,14 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     rho : float
         Noise budget ρ (2-norm of the whole noise matrix).
     executor : concurrent.futures.Executor, optional
-        Where the column blocks run (``submit`` is all that is used); None runs them here.
+        Where the column blocks run (``submit`` is all that is used: any object with ``submit(fn, *args)``
+        returning a future will do); None runs them here.
     rtol : float
         Relative width of the final bracket on δ*.
     block_size : int, optional
         Columns per task (default: j/16 rounded up, at least 1).
     max_rounds : int
-        Bound on the outer iterations (one parallel round of column solves each).
+        Bound on the outer iterations (one parallel round of column solves each), ≥ 1.
 
     Returns
     -------
@@ -276,23 +277,32 @@ def split_solve(U, B, rho: float, executor=None, *, rtol: float = SPLIT_RTOL, bl
     True
     """
     clock = Deadline()
-    U = np.asarray(U, float)
-    B = np.asarray(B, float)
+    try:
+        U = np.asarray(U, float)
+        B = np.asarray(B, float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"U and B must be numeric matrices of one shape (m, j): {exc}") from None
     if U.ndim != 2 or U.shape != B.shape:
         raise DataError(f"U and B must be matrices of one shape (m, j); got {U.shape} and {B.shape}")
-    if not (np.isfinite(rho) and rho > 0):
-        raise DataError(f"rho must be a finite positive noise budget, got {rho!r}")
+    if not (np.all(np.isfinite(U)) and np.all(np.isfinite(B))):
+        raise DataError("U and B contain NaN or infinite values; clean the data (and refit the predictor that "
+                        "made B) first")
+    rho = check_level(rho, "rho (the noise budget σ√N)")
     if not (isinstance(rtol, float) and 0 < rtol < 1):
         raise DataError(f"rtol must be a float in (0, 1), got {rtol!r}")
+    max_rounds = check_count(max_rounds, "max_rounds", 1)
+    if block_size is not None:
+        block_size = check_count(block_size, "block_size", 1)
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise DataError(f"executor must be a concurrent.futures.Executor (an object with submit(fn, *args)) or "
+                        f"None to solve here, got {executor!r}")
     m, j = U.shape
     rho2 = float(rho) ** 2
     g0 = float(np.sum(B * B)) - rho2
     if g0 <= 0.0:  # zero impulses already fit within the budget
         return dict(delta=0.0, lower=0.0, H=np.zeros((m, j)), V=None, W=None, status="optimal", rounds=0,
                     time=clock.elapsed())
-    bs = int(block_size) if block_size else max(1, math.ceil(j / 16))
-    if bs < 1:
-        raise DataError(f"block_size must be a positive number of columns, got {block_size!r}")
+    bs = block_size if block_size is not None else max(1, math.ceil(j / 16))
     blocks = [slice(s, min(s + bs, j)) for s in range(0, j, bs)]
     gap = _GAP_REL * rho2 / j
     # exact fit of every row an impulse reaches (the rest, before a column's first non-zero input, is noise):
