@@ -452,6 +452,24 @@ def _split(L: np.ndarray, i: int, m: int, l: int):
     return L[:, : i * (m + l)].copy(), L[:, i * (m + l) :].copy()
 
 
+#: Peaks of a channel the Gram route (``method="cholesky"``) takes: it squares the data, and beyond this range the
+#: squares leave floating point (measured: a record scaled by 1e-170 gave rank 0 and an all-zero predictor, by 1e-160
+#: an Lu off by 1.5e-4 without a warning, by 1e154 LAPACK's "did not converge").
+GRAM_RANGE = (1e-100, 1e100)
+
+
+def _check_gram_range(u: np.ndarray, y: np.ndarray) -> None:
+    for name, x in (("u", u), ("y", y)):
+        peak = np.max(np.abs(x), axis=0)
+        bad = np.flatnonzero((peak > 0) & ((peak < GRAM_RANGE[0]) | (peak > GRAM_RANGE[1])))
+        if bad.size:
+            k = int(bad[0])
+            raise DataError(
+                f"{name}[:, {k}] peaks at {peak[k]:.3g}: method='cholesky' forms the Gram matrix AAᵀ, whose entries "
+                f"(about 1e{2 * np.log10(peak[k]):.0f} times the record length) leave floating-point range; rescale "
+                "the signal (e.g. to volts, or divide it by its rms) or pass method='qr'")
+
+
 def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float | None = None,
                   dt: float | None = None) -> Predictor:
     """Fit the least-squares subspace predictor (2.5) from input/output data.
@@ -499,7 +517,8 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     ------
     DataError
         On NaN/inf, length mismatch, wrong dimensions, too few samples for the horizon, a bad
-        horizon or a bad ``rcond``.
+        horizon or a bad ``rcond``; with ``"cholesky"``, a channel whose peak lies outside
+        ``[1e-100, 1e100]`` (its Gram matrix would leave floating-point range: rescale, or ``"qr"``).
     ValueError
         On an unknown ``method``.
 
@@ -533,6 +552,7 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     j = n - 2 * i + 1
     tol = _resolve_rcond(rcond, method, n_reg, j)
     if method == "cholesky":
+        _check_gram_range(u, y)
         return _stamped(_predictor_from_gram(hankel_gram(u, y, i), i, m, l, j, tol, method), dt, u, y)
     Up, Uf, Yp, Yf, j = _data_matrices(u, y, i)
     if method == "qr":

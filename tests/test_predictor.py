@@ -503,3 +503,15 @@ def test_bench_predictor_flop_counts_written_out():
     assert fl["performed"] == gemm + tail + recursion + sym + chol + solves + estimate
     assert fl["minimal"] == 2 * 2 * 2 * 4 * 9 + chol + solves  # 2i lags x c² x j multiply-adds
     assert fl["dense_equivalent"] == 8 * 8 * 9 + chol + solves
+
+
+@pytest.mark.parametrize("scale", [1e-170, 1e-160, 1e154])
+def test_the_gram_route_refuses_data_whose_squares_leave_floating_point(scale):
+    # 1e-170 had given rank 0 and a zero predictor, 1e-160 an Lu off by 1.5e-4 without a word, 1e154 LinAlgError
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    with pytest.raises(DataError, match=r"u\[:, 0\] peaks at .*method='qr'"):
+        fit_predictor(u * scale, y * scale, 4)
+    qr = fit_predictor(u * scale, y * scale, 4, method="qr")  # the route it names: the predictor is scale-free
+    np.testing.assert_allclose(qr.Lu, fit_predictor(u, y, 4).Lu, atol=1e-10)

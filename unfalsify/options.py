@@ -16,6 +16,7 @@ import numpy as np
 
 from synthesis.validation import DataError, check_flag, check_horizon
 
+from ._common import BACKENDS, check_form, check_solver_options
 from .certify import STEP_SAMPLES, TRACKING_FLOOR, _check_step_samples, tracking_floors
 
 __all__ = ["DesignSearch", "DesignOptions", "CertificateOptions", "EstimationOptions"]
@@ -193,6 +194,14 @@ class EstimationOptions:
     solver: str = "CLARABEL"
     solver_options: dict | None = None
     backend: str | None = None
+
+    def __post_init__(self):
+        check_form(self.form)
+        if not isinstance(self.solver, str):
+            raise DataError(f"solver must be the name of a cvxpy solver (e.g. 'CLARABEL'), got {self.solver!r}")
+        check_solver_options(self.solver_options)
+        if self.backend is not None and self.backend not in BACKENDS:
+            raise DataError(f"backend must be None or one of {BACKENDS}, got {self.backend!r}")
 
 
 #: the keywords of earlier releases and the option field each sets
