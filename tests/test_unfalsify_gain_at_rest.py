@@ -19,22 +19,11 @@ from synthesis import DataError
 from unfalsify.solvers.extension import minimal_extension
 from unfalsify.solvers.toeplitz import block_toeplitz_matrix
 
+from test_unfalsify_mimo import _cvx_gain as _cvx_least_norm  # min ‖T(h)‖₂ s.t. the data relation, in cvxpy
+
 
 def _dense_norm(h):
     return float(np.linalg.norm(block_toeplitz_matrix(h), 2))
-
-
-def _cvx_least_norm(u, y):
-    """min ‖T(h)‖₂ over n Markov parameters (l × m) s.t. y_s = Σ_t h_t u_{s−t}: Theorem 7.1 written out."""
-    n, m = u.shape
-    l = y.shape[1]
-    hs = [cp.Variable((l, m)) for _ in range(n)]
-    d = cp.Variable()
-    cons = [sum(hs[t] @ u[s - t] for t in range(s + 1)) == y[s] for s in range(n)]
-    T = cp.bmat([[hs[r - c] if c <= r else np.zeros((l, m)) for c in range(n)] for r in range(n)])
-    cons.append(cp.bmat([[d * np.eye(n * m), T.T], [T, d * np.eye(n * l)]]) >> 0)
-    cp.Problem(cp.Minimize(d), cons).solve(solver="CLARABEL")
-    return float(d.value)
 
 
 def _record_at_rest(seed, n, p, m=1, l=1):

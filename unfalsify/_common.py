@@ -467,10 +467,11 @@ def _crossed_bounds(P, cert: Certificate) -> str:
 def _delta_outside(P, cert: Certificate) -> str:
     """Why a conic solver's δ lies outside the bracket its own point and dual certify, or "".
 
-    Either side holds to the rounding of the data (:func:`_crossed_bounds`) and the solver's δ to its tolerances, about
-    1e-8 of the data's scale absolute (a δ_unf of 0 came back from Clarabel as 5e-12 against the bracket [0, 2.5e-13]),
-    so a δ outside by more than 1e-6 relative plus 1e-7 of that scale is provably not δ_unf.  Measured: SCS stopped
-    after 20 iterations ('optimal_inaccurate') returned δ = 0.0295 with the bracket [0.0450, 0.1157] (δ_unf = 0.0837)."""
+    Either side holds to the rounding of the data (:func:`_crossed_bounds`) and the solver's δ to its tolerances,
+    about 1e-8 of the data's scale absolute (a δ_unf of 0 came back from Clarabel as 5e-12 against the bracket
+    [0, 2.5e-13]), so a δ outside by more than 1e-6 relative plus 1e-7 of that scale is provably not δ_unf.  Measured:
+    SCS stopped after 20 iterations ('optimal_inaccurate') returned δ = 0.0295 with the bracket [0.0450, 0.1157]
+    (δ_unf = 0.0837)."""
     delta, lo, up = cert.delta, cert.lower_bound, cert.upper_bound
     if not np.isfinite(delta):
         return ""

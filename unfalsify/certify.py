@@ -476,7 +476,8 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor,
                   uncertainty=kind)
     if not rho < 1.0:
-        return LoopCertificate(certified=False, reason=f"nominal loop unstable on the model {model_name} (spectral radius {rho:.6g})",
+        return LoopCertificate(certified=False,
+                               reason=f"nominal loop unstable on the model {model_name} (spectral radius {rho:.6g})",
                                norm=None, small_gain=float("inf"), step=None, **common)
     bracket = hinf_norm(M, tol=tol)
     kyp = None

@@ -43,7 +43,8 @@ def write_csv(path: Path, headers: Sequence[str], rows: Iterable[Sequence]) -> P
 
 
 def write_json(path: Path, data, *, strict: bool = False) -> Path:
-    """``data`` as indented JSON at ``path``; ``strict``: numbers that are not finite as strings (:func:`strict_json`)."""
+    """``data`` as indented JSON at ``path``; ``strict``: numbers that are not finite as strings
+    (:func:`strict_json`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(dumps_json(data, strict=strict))
