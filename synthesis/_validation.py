@@ -13,7 +13,7 @@ from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
            "check_predictor_dt", "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag",
-           "check_count"]
+           "check_count", "check_instance"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -391,3 +391,22 @@ def check_count(value, name: str, least: int, *, error=DataError) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < least:
         raise error(f"{name} must be an integer ≥ {least}, got {value!r}")
     return int(value)
+
+
+def check_instance(value, types, name: str, what: str):
+    """``value`` when it is an instance of ``types``, else :class:`InputTypeError` naming ``name`` and ``what`` is
+    expected: an object of another type would otherwise fail deep inside with an ``AttributeError``.
+
+    Examples
+    --------
+    >>> check_instance(3.0, float, "gain", "a float")
+    3.0
+    >>> check_instance("P", float, "gain", "a float (e.g. 0.5)")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.InputTypeError: gain must be a float (e.g. 0.5), got str 'P'
+    """
+    if not isinstance(value, types):
+        shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+        raise InputTypeError(f"{name} must be {what}, got {type(value).__name__} {shown}")
+    return value
