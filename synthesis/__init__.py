@@ -139,6 +139,10 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
    check_same_dt          -- two systems checked for one sample time
    check_flag             -- a True/False option checked (a string such as "no" is refused, not read as True)
    check_count            -- a count (an integer ≥ a least value) checked (a float or a bool is refused, not rounded)
+   check_level            -- a number > a least value (a level γ, a ratio, a tolerance) checked
+   check_nonnegative      -- a finite number ≥ 0 checked (NaN, a string or a bool is refused)
+   check_predictor_dt     -- a design's sample time checked against the predictor's
+   check_instance         -- an argument of the expected type, or ``InputTypeError`` naming it
 
 Also in ``synthesis.results`` and ``synthesis.validation``.
 
@@ -247,8 +251,8 @@ from importlib.metadata import version as _version
 
 from .exceptions import DataError, InputTypeError
 from .results import result
-from .validation import (as_discrete_system, as_signal, check_count, check_flag, check_horizon, check_same_dt,
-                         check_sample_time)
+from .validation import (as_discrete_system, as_signal, check_count, check_flag, check_horizon, check_instance,
+                         check_level, check_nonnegative, check_predictor_dt, check_same_dt, check_sample_time)
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -375,6 +379,10 @@ __all__ = [
     "check_same_dt",
     "check_flag",
     "check_count",
+    "check_level",
+    "check_nonnegative",
+    "check_predictor_dt",
+    "check_instance",
     # identify-then-design baselines and the horizon from data
     "SubspaceModel",
     "subspace_id",

@@ -173,6 +173,15 @@ def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0
     ------
     DataError
         If ``value`` is not a real number, is NaN, is infinite (unless allowed) or is ``<= minimum``.
+
+    Examples
+    --------
+    >>> check_level(1.1, "gamma_ratio", minimum=1.0)
+    1.1
+    >>> check_level("2", "gamma")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: gamma must be a real number > 0, got '2'
     """
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise DataError(f"{name} must be a real number > {minimum:g}, got {value!r}")
