@@ -214,12 +214,14 @@ def check_nonnegative(value, name: str, *, allow_inf: bool = False) -> float:
     return float(value)
 
 
-def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
+def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True, error=DataError):
     """Return a valid discrete sample time: a positive finite float, or ``True`` (unspecified).
+
+    ``error``: the class raised (a :class:`DataError` subclass, e.g. ``WeightError``).
 
     Raises
     ------
-    DataError
+    error
         If ``dt`` is 0 / ``False`` / ``None`` (continuous time), negative, NaN, infinite or not a number.
 
     Examples
@@ -239,7 +241,7 @@ def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
         return True
     if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt > 0):
         allowed = "a positive finite sample time" + (" or True (unspecified)" if allow_true else "")
-        raise DataError(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
+        raise error(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
     return float(dt)
 
 
