@@ -112,11 +112,11 @@ def as_real_array(x, name: str, *, error=DataError) -> np.ndarray:
     >>> as_real_array([1j, 0], "A")
     Traceback (most recent call last):
     ...
-    synthesis.exceptions.DataError: A is complex; the toolkit works with real numbers: pass the real part (np.real(A)) if that is what you mean
+    synthesis.exceptions.DataError: A is complex; the toolkit works with real numbers: take the real part (np.real) first if the imaginary part is only rounding
     >>> as_real_array("0.5", "rcond")
     Traceback (most recent call last):
     ...
-    synthesis.exceptions.DataError: rcond must be real numbers, not text ('0.5'): pass numbers (e.g. 0.5, not '0.5')
+    synthesis.exceptions.DataError: rcond must be real numbers, not text ('0.5'): use numbers (e.g. 0.5, not '0.5')
     """
     try:
         arr = np.asarray(x)
@@ -124,11 +124,11 @@ def as_real_array(x, name: str, *, error=DataError) -> np.ndarray:
         raise error(f"{name} must be an array of real numbers, got {type(x).__name__} that numpy cannot make an "
                     f"array of ({exc})") from exc
     if arr.dtype.kind == "c":
-        raise error(f"{name} is complex; the toolkit works with real numbers: pass the real part (np.real({name})) "
-                    "if that is what you mean")
+        raise error(f"{name} is complex; the toolkit works with real numbers: take the real part (np.real) first "
+                    "if the imaginary part is only rounding")
     if arr.dtype.kind in "US":
         shown = repr(x) if len(repr(x)) <= 40 else repr(x)[:37] + "..."
-        raise error(f"{name} must be real numbers, not text ({shown}): pass numbers (e.g. 0.5, not '0.5')")
+        raise error(f"{name} must be real numbers, not text ({shown}): use numbers (e.g. 0.5, not '0.5')")
     # objects numpy could not type (None, a Python complex among them, a dict): float() of None is nan, so check
     if arr.dtype.kind == "O" and not all(isinstance(v, numbers.Real) for v in arr.flat):
         raise error(f"{name} must be an array of real numbers, got {type(x).__name__} {x!r:.40}")

@@ -187,7 +187,7 @@ def test_receding_horizon_refuses_text_and_complex_samples(servo):
     rh = RecedingHorizonController(hinf_design(pred, W1, W2, causal=True))
     with pytest.raises(DataError, match=r"r_k must be real numbers, not text \('a'\)"):
         rh.control("a")
-    with pytest.raises(DataError, match=r"r_k is complex.*np\.real\(r_k\)"):
+    with pytest.raises(DataError, match=r"r_k is complex.*take the real part"):
         rh.control(1 + 1j)
     with pytest.raises(DataError, match="u_k must be real numbers, not text"):
         rh.observe("a", 0.0, 0.0)

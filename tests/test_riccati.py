@@ -185,7 +185,7 @@ def test_complex_and_text_input_is_refused():
     A, B, C, D = _random_system(np.random.default_rng(0), 3, 2, 2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # refused before numpy's ComplexWarning
-        with pytest.raises(DataError, match=r"A is complex.*np\.real\(A\)"):
+        with pytest.raises(DataError, match=r"A is complex.*take the real part"):
             hinf_riccati(A * (1 + 1j), B, C, D, gamma=5.0, horizon=3, n_disturbances=1)
         with pytest.raises(DataError, match="D is complex"):
             lqr_riccati(A, B, C, D + 0j, 1.0, 1.0, horizon=3)
