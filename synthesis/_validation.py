@@ -109,10 +109,10 @@ def as_real_array(x, name: str, *, error=DataError) -> np.ndarray:
     --------
     >>> as_real_array([[1, 2]], "A")
     array([[1., 2.]])
-    >>> as_real_array([1j, 0], "A")
+    >>> as_real_array([1j, 0], "A")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    synthesis.exceptions.DataError: A is complex; the toolkit works with real numbers: take the real part (np.real) first if the imaginary part is only rounding
+    synthesis.exceptions.DataError: A is complex; ...: take the real part (np.real) first if the imaginary part is ...
     >>> as_real_array("0.5", "rcond")
     Traceback (most recent call last):
     ...
