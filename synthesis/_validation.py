@@ -13,7 +13,7 @@ from .exceptions import DataError, InputTypeError
 
 __all__ = ["DataError", "InputTypeError", "as_signal", "as_discrete_system", "to_state_space", "check_same_dt",
            "check_predictor_dt", "check_horizon", "check_level", "check_nonnegative", "check_sample_time", "check_flag",
-           "check_count", "check_instance"]
+           "check_count", "check_instance", "as_real_array"]
 
 
 def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, record: bool = True) -> np.ndarray:
@@ -82,6 +82,57 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
     if width is not None and arr.shape[1] != width:
         raise DataError(f"{name} has {arr.shape[1]} channel(s) but {width} were expected")
     return arr
+
+
+def as_real_array(x, name: str, *, error=DataError) -> np.ndarray:
+    """``x`` as a float array of any shape, refusing what ``np.asarray(x, dtype=float)`` would mangle.
+
+    A complex array would lose its imaginary part with only a ``ComplexWarning``, a string would be
+    parsed as a number (``"0.5"``) or fail with numpy's bare ``ValueError``; for a matrix, a gain or
+    a sample no shape or finiteness is checked here (the callers know what they need).
+
+    Parameters
+    ----------
+    x : array_like
+        Real numbers (Python's or numpy's, a bool array counts as 0/1).
+    name : str
+        Name used in error messages.
+    error : type, optional
+        Exception class raised (a :class:`DataError` subclass, e.g. ``ControllerFileError``).
+
+    Raises
+    ------
+    error
+        If ``x`` is complex, holds strings or is not numeric.
+
+    Examples
+    --------
+    >>> as_real_array([[1, 2]], "A")
+    array([[1., 2.]])
+    >>> as_real_array([1j, 0], "A")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: A is complex; ...: take the real part (np.real) first if the imaginary part is ...
+    >>> as_real_array("0.5", "rcond")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: rcond must be real numbers, not text ('0.5'): use numbers (e.g. 0.5, not '0.5')
+    """
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError) as exc:  # a ragged nested list
+        raise error(f"{name} must be an array of real numbers, got {type(x).__name__} that numpy cannot make an "
+                    f"array of ({exc})") from exc
+    if arr.dtype.kind == "c":
+        raise error(f"{name} is complex; the toolkit works with real numbers: take the real part (np.real) first "
+                    "if the imaginary part is only rounding")
+    if arr.dtype.kind in "US":
+        shown = repr(x) if len(repr(x)) <= 40 else repr(x)[:37] + "..."
+        raise error(f"{name} must be real numbers, not text ({shown}): use numbers (e.g. 0.5, not '0.5')")
+    # objects numpy could not type (None, a Python complex among them, a dict): float() of None is nan, so check
+    if arr.dtype.kind == "O" and not all(isinstance(v, numbers.Real) for v in arr.flat):
+        raise error(f"{name} must be an array of real numbers, got {type(x).__name__} {x!r:.40}")
+    return arr.astype(float, copy=False)
 
 
 def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1) -> int:
@@ -223,12 +274,14 @@ def check_nonnegative(value, name: str, *, allow_inf: bool = False) -> float:
     return float(value)
 
 
-def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
+def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True, error=DataError):
     """Return a valid discrete sample time: a positive finite float, or ``True`` (unspecified).
+
+    ``error``: the class raised (a :class:`DataError` subclass, e.g. ``WeightError``).
 
     Raises
     ------
-    DataError
+    error
         If ``dt`` is 0 / ``False`` / ``None`` (continuous time), negative, NaN, infinite or not a number.
 
     Examples
@@ -248,7 +301,7 @@ def check_sample_time(dt, name: str = "dt", *, allow_true: bool = True):
         return True
     if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt > 0):
         allowed = "a positive finite sample time" + (" or True (unspecified)" if allow_true else "")
-        raise DataError(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
+        raise error(f"{name} must be {allowed}, got {dt!r}; 0 or None would mean continuous time")
     return float(dt)
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import DataError, as_signal, check_count
+from ._validation import DataError, as_signal, check_count, check_level, check_nonnegative
 from .controller import RecedingHorizonController
 from .hinf import _design_from_plan, _map_plan, _predictor_parts
 from .recursive import RecursivePredictor
@@ -50,13 +50,10 @@ class GammaPolicy:
     def __post_init__(self):
         if self.kind not in ("ratio", "offset"):
             raise DataError(f"GammaPolicy kind must be 'ratio' or 'offset', got {self.kind!r}")
-        if not (isinstance(self.alpha, (int, float, np.floating)) and np.isfinite(self.alpha) and self.alpha > 0):
-            raise DataError(f"GammaPolicy alpha must be a positive number (gamma > gamma_min), got {self.alpha!r}")
+        check_level(self.alpha, "GammaPolicy alpha")  # a bool (True) had passed as alpha = 1
 
     def __call__(self, gmin: float) -> float:
-        gmin = float(gmin)
-        if not (np.isfinite(gmin) and gmin >= 0):
-            raise DataError(f"gamma_min must be finite and >= 0, got {gmin!r}")
+        gmin = check_nonnegative(gmin, "gamma_min")  # numbers only: float() had parsed "1"
         return (1.0 + self.alpha) * gmin if self.kind == "ratio" else gmin + self.alpha
 
 

@@ -45,7 +45,7 @@ import scipy.linalg as sla
 
 from ._repr import result
 from ._validation import check_level
-from .hinfnorm import _grid, _Sys
+from .hinfnorm import _as_n_grid, _grid, _Sys
 
 __all__ = ["BoundedRealCertificate", "bounded_real_certificate"]
 
@@ -218,7 +218,7 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
         gap.  It only steers the search; the proof is the check of ``P``.
     n_grid : int
         Points of the frequency grid (pole angles added) whose largest gain sets the Riccati
-        perturbations (with ``lower``) and disproves levels at or below an attained gain.
+        perturbations (with ``lower``) and disproves levels at or below an attained gain; ≥ 2.
 
     Returns
     -------
@@ -241,13 +241,16 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     (True, False)
     """
     gamma = check_level(gamma, "gamma")
+    n_grid = _as_n_grid(n_grid)
     s = _Sys(sys, "sys")
     none = dict(P=None, lmi_max=float("nan"), lmi_allowance=float("nan"), p_min=float("nan"),
                 p_allowance=float("nan"), epsilon=float("nan"), A=s.given[0], B=s.given[1], C=s.given[2], D=s.D)
     stable, why = s.stability()
     if not stable:
         return BoundedRealCertificate(False, gamma, why, **none)
-    if s.n == 0 or s.m == 0 or s.p == 0:
+    if s.m == 0 or s.p == 0:  # had been called a static gain "with no state" even when it has states
+        return BoundedRealCertificate(True, gamma, "empty system (no inputs or outputs): the norm is 0", **none)
+    if s.n == 0:
         ok = s.dnorm < gamma
         return BoundedRealCertificate(ok, gamma, (
             f"static gain: ‖D‖₂ = {s.dnorm:.12g} {'<' if ok else '>='} gamma (no state, nothing to certify by P)"),

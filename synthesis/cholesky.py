@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from ._validation import DataError, check_flag
+from ._validation import DataError, as_real_array, check_flag, check_nonnegative
 from .exceptions import DowndateError
 
 __all__ = ["cholupdate", "choldowndate", "DowndateError"]
@@ -31,8 +31,9 @@ __all__ = ["cholupdate", "choldowndate", "DowndateError"]
 
 def _prepare(L, x, lower: bool, overwrite: bool):
     lower, overwrite = check_flag(lower, "lower"), check_flag(overwrite, "overwrite")
-    L = np.asarray(L, dtype=float)
-    x = np.asarray(x, dtype=float).reshape(-1)
+    # as_real_array: a complex factor had lost its imaginary part (ComplexWarning), a complex x raised TypeError
+    L = as_real_array(L, "the Cholesky factor L")
+    x = as_real_array(x, "x").reshape(-1)
     if L.ndim != 2 or L.shape[0] != L.shape[1]:
         raise DataError(f"the Cholesky factor must be a square matrix, got shape {L.shape}")
     if x.size != L.shape[0]:
@@ -121,7 +122,7 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
         Downdate ``L`` in place (only after the positive-definiteness check has passed).
     rtol : float, optional
         The downdate is refused when ``1 − ‖L⁻¹x‖² ≤ rtol`` (the downdated matrix would be
-        singular to working precision).  Default ``N · eps``.
+        singular to working precision); in ``[0, 1)``.  Default ``N · eps``.
 
     Returns
     -------
@@ -132,6 +133,8 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
     DowndateError
         If ``L`` is singular or ``L Lᵀ − x xᵀ`` is not numerically positive definite
         (nothing is modified in that case).
+    DataError
+        ``L`` or ``x`` not real finite arrays of matching sizes; ``rtol`` not a number in ``[0, 1)``.
 
     Examples
     --------
@@ -152,10 +155,15 @@ def choldowndate(L, x, *, lower: bool = True, overwrite: bool = False, rtol: flo
     ...
     synthesis.exceptions.DowndateError: downdate would lose positive definiteness (1 - ||L^-1 x||^2 = -1); refactor the Gram matrix instead
     """
-    Lin = np.asarray(L, dtype=float)
-    N = Lin.shape[0] if Lin.ndim == 2 else 0
-    tol = N * np.finfo(float).eps if rtol is None else float(rtol)
+    if rtol is not None:
+        # float() had read "1" as 1.0 and refused every downdate as a loss of definiteness; -1 had been accepted
+        rtol = check_nonnegative(rtol, "rtol")
+        if not rtol < 1.0:
+            raise DataError(f"rtol must lie in [0, 1) (1 - ||L^-1 x||^2 is at most 1, so rtol >= 1 refuses every "
+                            f"downdate), got {rtol!r}; leave it None for N * eps")
     W, R, x = _prepare(L, x, lower, overwrite)  # nothing is modified before the checks pass
+    N = R.shape[0]
+    tol = N * np.finfo(float).eps if rtol is None else rtol
     if N == 0:
         return W
     d = np.abs(np.diag(R))

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, as_signal
+from ._validation import DataError, as_real_array, as_signal
 from ._repr import result
 
 __all__ = ["WeightState", "RecedingHorizonController", "lti_controller"]
@@ -268,7 +268,7 @@ class RecedingHorizonController:
             if required:
                 raise DataError(why)
             return np.zeros(l)
-        r = np.asarray(r_k, dtype=float).reshape(-1)
+        r = as_real_array(r_k, "r_k").reshape(-1)  # text or complex had raised numpy's ValueError/TypeError
         if r.size != l or not np.all(np.isfinite(r)):
             raise DataError(f"r_k must be {l} finite value(s), got {r_k!r}")
         return r
@@ -288,8 +288,8 @@ class RecedingHorizonController:
         W1 has states; it may be omitted (taken as 0) only when it cannot matter (static W1).
         """
         d = self._design
-        u = np.asarray(u_k, dtype=float).reshape(-1)
-        y = np.asarray(y_k, dtype=float).reshape(-1)
+        u = as_real_array(u_k, "u_k").reshape(-1)  # text or complex had raised numpy's ValueError/TypeError
+        y = as_real_array(y_k, "y_k").reshape(-1)
         if u.size != d.m or y.size != d.l or not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise DataError(f"u_k must be {d.m} and y_k {d.l} finite value(s)")
         tracks = any(ws.drive == "e" and np.size(ws.A) for ws in d.weight_states)

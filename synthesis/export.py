@@ -13,6 +13,7 @@ rebuilds the controller.  An unspecified discrete sample time (``dt=True``) is s
 """
 from __future__ import annotations
 
+import os
 import zipfile
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from .exceptions import ControllerFileError
 
-from ._validation import InputTypeError, to_state_space
+from ._validation import InputTypeError, as_real_array, check_instance, to_state_space
 
 __all__ = ["ControllerFileError", "save_controller", "load_controller", "read_variables", "CONTROLLER_FORMATS"]
 
@@ -73,7 +74,7 @@ def save_controller(path, sys, *, name: str | None = None) -> Path:
     ControllerFileError
         The ending is neither ``.npz`` nor ``.mat``, or the matrices hold NaN or infinite entries.
     InputTypeError
-        ``sys`` is not a python-control LTI system.
+        ``sys`` is not a python-control LTI system, ``path`` not a ``str`` or path, ``name`` not a ``str``.
 
     See Also
     --------
@@ -98,7 +99,11 @@ def save_controller(path, sys, *, name: str | None = None) -> Path:
     if isinstance(path, control.InputOutputSystem):  # save_controller(K, "K.npz"): numpy's order is file first
         raise InputTypeError(f"save_controller(path, sys) takes the file first, got a {type(path).__name__} as path; "
                              "call save_controller('K.npz', K)")
-    path = Path(path)
+    # Path(3) had raised a bare TypeError; a name of another type had been stored as its str() (b'K' as "b'K'")
+    path = Path(check_instance(path, (str, os.PathLike), "path", "a file name (str or pathlib.Path) ending in "
+                               "'.npz' or '.mat'"))
+    if name is not None:
+        check_instance(name, str, "name", "a string (e.g. name='K') or None for the system's own name")
     fmt = _format(path)
     sys = to_state_space(sys, "sys")
     if not isinstance(sys, control.StateSpace):
@@ -253,10 +258,8 @@ def load_controller(path):
             "controller file needs A, B, C, D and dt (or Ts): write it with synthesis.save_controller")
     mats = {}
     for k in _MATRICES:
-        try:
-            mats[k] = np.atleast_2d(np.asarray(data[k], dtype=float))
-        except (TypeError, ValueError) as exc:
-            raise ControllerFileError(f"{str(path)!r}: {k} is not a numeric matrix") from exc
+        # as_real_array: a complex matrix had lost its imaginary part (ComplexWarning), text had been parsed
+        mats[k] = np.atleast_2d(as_real_array(data[k], f"{str(path)!r}: {k}", error=ControllerFileError))
         if mats[k].ndim != 2 or not np.all(np.isfinite(mats[k])):
             raise ControllerFileError(f"{str(path)!r}: {k} must be a finite 2-D matrix; got shape {mats[k].shape}")
     A, B, C, D = (mats[k] for k in _MATRICES)
@@ -268,10 +271,11 @@ def load_controller(path):
         raise ControllerFileError(
             f"{str(path)!r}: shapes A {A.shape}, B {B.shape}, C {C.shape}, D {D.shape} do not fit together "
             f"(expected A ({n}, {n}), B ({n}, {m}), C ({p}, {n}) for D ({p}, {m})); re-export the controller")
-    dt_raw = np.asarray(data["dt"], dtype=float).ravel()
-    if dt_raw.size != 1 or not np.isfinite(dt_raw[0]) or (dt_raw[0] < 0 and dt_raw[0] != -1.0):
+    dt_raw = np.asarray(data["dt"]).ravel()
+    real = dt_raw.dtype.kind in "biuf"  # text had raised numpy's bare ValueError ("0.1" been parsed), complex warned
+    if not real or dt_raw.size != 1 or not np.isfinite(dt_raw[0]) or (dt_raw[0] < 0 and dt_raw[0] != -1.0):
         raise ControllerFileError(
-            f"{str(path)!r}: dt must be one sample time >= 0 (or -1: unspecified), got {data['dt']!r}")
+            f"{str(path)!r}: dt must be one number, a sample time >= 0 (or -1: unspecified), got {data['dt']!r}")
     dt = _dt_from_number(dt_raw[0])
     kwargs = {}
     for key, kw, count in (("InputName", "inputs", m), ("OutputName", "outputs", p), ("StateName", "states", n)):

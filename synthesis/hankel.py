@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import as_strided, sliding_window_view
 
-from ._validation import as_signal, check_horizon
+from ._validation import as_signal, check_count, check_horizon
 
 __all__ = ["hankel_gram", "hankel_order"]
 
@@ -39,6 +39,18 @@ def hankel_order(i: int, m: int, l: int) -> np.ndarray:
 
     Returns ``perm`` with ``A = Z[perm]``, where row ``r*(m+l) + ch`` of ``Z`` holds channel
     ``ch`` of ``z_{r+t} = [u_{r+t}; y_{r+t}]``.
+
+    Parameters
+    ----------
+    i : int
+        The horizon (block rows of each of ``U_p, Y_p, U_f, Y_f``), ≥ 1.
+    m, l : int
+        Numbers of inputs and outputs, each ≥ 1.
+
+    Raises
+    ------
+    DataError
+        ``i``, ``m`` or ``l`` is not an integer ≥ 1 (a float such as ``3.0`` included).
 
     Examples
     --------
@@ -56,6 +68,9 @@ def hankel_order(i: int, m: int, l: int) -> np.ndarray:
     >>> np.array_equal(Z[perm], A)
     True
     """
+    # i = 0 had returned an empty permutation and a negative i numpy's bare ValueError
+    i = check_horizon(i)
+    m, l = check_count(m, "m", 1), check_count(l, "l", 1)
     c = m + l
     perm = np.empty(2 * i * c, dtype=np.intp)
     pos = 0

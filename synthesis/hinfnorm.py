@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import DataError, as_discrete_system, check_level
+from ._validation import DataError, as_discrete_system, check_count, check_level
 from ._repr import result
 
 __all__ = ["NormBracket", "NormTest", "hinf_norm", "norm_below"]
@@ -358,7 +358,12 @@ def _allowance(s: _Sys, lower: float, freq: float) -> float:
 
 def _grid(s: _Sys, n_grid: int) -> np.ndarray:
     ang = np.abs(np.angle(s.poles)) if s.n else np.zeros(0)
-    return np.unique(np.concatenate([np.linspace(0.0, np.pi, max(int(n_grid), 2)), ang]))
+    return np.unique(np.concatenate([np.linspace(0.0, np.pi, n_grid), ang]))
+
+
+def _as_n_grid(n_grid) -> int:
+    """``n_grid`` checked up front (``int()`` had parsed "5" and cut 10.5, 0 and -5 had become 2 silently)."""
+    return check_count(n_grid, "n_grid", 2)
 
 
 def _refine(s: _Sys, w: np.ndarray, g: np.ndarray, top: int = 3) -> tuple[float, float]:
@@ -445,7 +450,7 @@ def hinf_norm(sys, *, tol: float = 1e-8, n_grid: int = 64) -> NormBracket:
         Relative gap aimed at: ``upper = lower·(1 + tol)`` when the bounded-real test passes at
         that level (default 1e-8; within ``[1e-14, 1)``).
     n_grid : int
-        Points of the uniform starting grid on ``[0, π]`` (the pole angles are always added).
+        Points of the uniform starting grid on ``[0, π]`` (the pole angles are always added), ≥ 2.
         Only the starting value depends on it, not the proof.
 
     Returns
@@ -458,7 +463,7 @@ def hinf_norm(sys, *, tol: float = 1e-8, n_grid: int = 64) -> NormBracket:
     ------
     DataError
         Continuous-time system, NaN/inf entries, a transfer function that is not proper, not a
-        python-control system, ``tol`` outside ``[1e-14, 1)``.
+        python-control system, ``tol`` outside ``[1e-14, 1)``, ``n_grid`` not an integer ≥ 2.
 
     Examples
     --------
@@ -468,6 +473,7 @@ def hinf_norm(sys, *, tol: float = 1e-8, n_grid: int = 64) -> NormBracket:
     True
     """
     tol = _as_tol(tol)
+    n_grid = _as_n_grid(n_grid)
     s = _Sys(sys, "sys")
     stable, reason = s.stability()
     near = tuple(complex(p) for p in s.poles if 1.0 - abs(p) <= NEAR_UNIT_CIRCLE * (1 + 1e-6))
@@ -496,7 +502,7 @@ def norm_below(sys, gamma: float, *, n_grid: int = 16) -> NormTest:
     gamma : float
         Level, finite and > 0.
     n_grid : int
-        Points of the uniform grid checked first (pole angles are added).
+        Points of the uniform grid checked first (pole angles are added), ≥ 2.
 
     Returns
     -------
@@ -508,7 +514,7 @@ def norm_below(sys, gamma: float, *, n_grid: int = 16) -> NormTest:
     Raises
     ------
     DataError
-        As :func:`hinf_norm`; ``gamma`` not a finite number > 0.
+        As :func:`hinf_norm`; ``gamma`` not a finite number > 0; ``n_grid`` not an integer ≥ 2.
 
     Examples
     --------
@@ -535,6 +541,7 @@ def _norm_below(sys, gamma: float, *, n_grid: int = 16, allowance: bool = True) 
     (the bisection of :func:`~synthesis.discrete_mixsyn`).
     """
     gamma = check_level(gamma, "gamma")
+    n_grid = _as_n_grid(n_grid)
     s = _Sys(sys, "sys")
     stable, reason = s.stability()
     if not stable:

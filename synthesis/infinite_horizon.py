@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, as_discrete_system, check_level
+from ._validation import DataError, as_discrete_system, check_count, check_level
 from .hinfnorm import NormBracket, _norm_below, hinf_norm
 from .minimax import InfeasibleGammaError
 from .riccati import generalized_plant
@@ -220,19 +220,20 @@ def peak_gain(sys, n_grid: int = 4000) -> float:
     sys : control.StateSpace or control.TransferFunction
         Discrete-time system.
     n_grid : int
-        Points of each of the two frequency grids.
+        Points of each of the two frequency grids, ≥ 2.
 
     Returns
     -------
     float
         ``sup_ω σ̄(G(e^{jω}))``, or ``inf`` when a pole lies on or outside the unit circle
-        (spectral radius ``>= 1``): the H∞ norm of an unstable system is infinite.
+        (spectral radius ``>= 1``): the H∞ norm of an unstable system is infinite; 0 for a
+        system without inputs or outputs (as :func:`~synthesis.hinf_norm`).
 
     Raises
     ------
     DataError
         If ``sys`` is continuous-time (its discrete frequency response would be meaningless) or
-        not a python-control system.
+        not a python-control system; ``n_grid`` not an integer ≥ 2.
 
     Examples
     --------
@@ -254,10 +255,14 @@ def peak_gain(sys, n_grid: int = 4000) -> float:
     """
     from scipy.optimize import minimize_scalar
 
+    # numpy had refused -5 with a bare ValueError and 10.5 or "10" with a TypeError
+    n_grid = check_count(n_grid, "n_grid", 2)
     sys = as_discrete_system(sys, "sys", hint="use control.norm(sys, 'inf') for continuous time")
     A, B, C, D = _ss_parts(sys)
     if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return float("inf")
+    if B.shape[1] == 0 or C.shape[0] == 0:  # no inputs or outputs: the norm is 0 (the SVD had an empty axis)
+        return 0.0
     ang = np.abs(np.angle(np.linalg.eigvals(A))) if A.size else np.zeros(0)
     w = np.unique(np.concatenate([np.linspace(1e-7, np.pi, n_grid), np.geomspace(1e-7, np.pi, n_grid),
                                   ang[(ang > 0) & (ang <= np.pi)], [np.pi]]))

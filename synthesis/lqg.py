@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from ._validation import DataError, check_predictor_dt, check_sample_time
+from ._validation import DataError, as_real_array, check_predictor_dt, check_sample_time
 from .controller import lti_controller
 from ._repr import result
 
@@ -63,10 +63,7 @@ class LqgDesign:
 
 
 def _spd(M, n: int, name: str) -> np.ndarray:
-    try:
-        M = np.atleast_2d(np.asarray(M, dtype=float))
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{name} must be a scalar or a {n}×{n} numeric matrix, got {M!r}") from exc
+    M = np.atleast_2d(as_real_array(M, name))  # numbers only: asarray(float) had parsed "1" (and dropped 0j)
     if M.shape == (1, 1) and n > 1:
         M = M[0, 0] * np.eye(n)
     if M.shape != (n, n):

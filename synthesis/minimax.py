@@ -43,7 +43,7 @@ from scipy.linalg import blas, lapack
 
 from .exceptions import InfeasibleGammaError, NearGammaMinWarning
 
-from ._validation import DataError
+from ._validation import DataError, as_real_array, check_nonnegative
 from ._repr import result
 
 __all__ = [
@@ -86,7 +86,8 @@ class MinimaxSolution:
 
 
 def _check_maps(Md, Mu, Mx=None):
-    Mu = np.asarray(Mu, dtype=float)
+    # as_real_array: a complex map had lost its imaginary part with only a ComplexWarning
+    Mu = as_real_array(Mu, "M_u")
     if Mu.ndim != 2 or Mu.shape[1] == 0:
         raise DataError(f"M_u must be a 2-D matrix with at least one column, got shape {Mu.shape}")
     rows = Mu.shape[0]
@@ -103,7 +104,7 @@ def _check_maps(Md, Mu, Mx=None):
 
 def _rows_like(M, rows: int, name: str) -> np.ndarray:
     """``M`` as a 2-D array with ``rows`` rows (a 1-D array of that length is one column)."""
-    M = np.asarray(M, dtype=float)
+    M = as_real_array(M, name)
     if M.ndim == 1 and M.size == rows:
         M = M[:, None]
     if M.ndim != 2 or M.shape[0] != rows:
@@ -183,12 +184,18 @@ def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
     Md, Mu : ndarray
         The performance map's disturbance and control blocks.
     gamma_min : float
-        The computed ``γ_min``.
+        The computed ``γ_min`` (:func:`minimax_gamma_min`), a finite number ``≥ 0``.
 
     Returns
     -------
     float
         ``γ_min + τ``, i.e. ``γ_min (1 + k eps)`` with ``k = 8 max(r, c) ‖M_d‖_F / γ_min``.
+
+    Raises
+    ------
+    DataError
+        Maps that are not real finite matrices with the same number of rows; ``gamma_min`` not a finite
+        number ``≥ 0`` (NaN had given a NaN threshold, which no level passes).
 
     Examples
     --------
@@ -200,6 +207,12 @@ def feasibility_threshold(Md, Mu, gamma_min: float) -> float:
     >>> 2.0 < t < 2.0 + 1e-12
     True
     """
+    Md, Mu, _ = _check_maps(Md, Mu)
+    return _threshold(Md, Mu, check_nonnegative(gamma_min, "gamma_min"))
+
+
+def _threshold(Md: np.ndarray, Mu: np.ndarray, gamma_min: float) -> float:
+    """:func:`feasibility_threshold` of checked maps (``_saddle``'s, already checked by its caller)."""
     rows, cols = Md.shape[0], Md.shape[1] + Mu.shape[1]
     tau = _THRESHOLD_SAFETY * max(rows, cols) * np.finfo(float).eps * float(np.linalg.norm(Md))
     return float(gamma_min + tau)
@@ -241,7 +254,7 @@ def _saddle(Md, Mu, Mx=None) -> _Saddle:
         XtX, gmin = None, 0.0
     return _Saddle(R=R, QtMd=T[:k], QtMx=None if TX is None else TX[:k],
                    QcMx=None if TX is None else TX[k:], X=X, XtX=XtX, gamma_min=gmin,
-                   threshold=feasibility_threshold(Md, Mu, gmin))
+                   threshold=_threshold(Md, Mu, gmin))
 
 
 def minimax_gamma_min(Md, Mu) -> float:

@@ -19,7 +19,7 @@ from scipy.linalg import lapack
 from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, as_signal, check_count, check_horizon, check_sample_time
+from ._validation import DataError, as_signal, check_count, check_horizon, check_nonnegative, check_sample_time
 from .fingerprint import RecordFingerprint, record_fingerprint
 from .hankel import hankel_gram
 from ._repr import result
@@ -194,6 +194,8 @@ def _data_matrices(u: np.ndarray, y: np.ndarray, i: int):
 _EPS = np.finfo(float).eps
 #: methods that factor the Gram matrix AAᵀ (and therefore square the singular values)
 _GRAM_METHODS = ("cholesky", "recursive")
+#: every method a predictor can be computed by (:attr:`Predictor.method`)
+_METHODS = ("cholesky", "qr", "lstsq", "recursive")
 
 
 def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
@@ -207,6 +209,19 @@ def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
     rank deficient.  Data that are that ill-conditioned (noise-free outputs of a low-order
     plant) have a gap of many decades there, so the decision is robust.
 
+    Parameters
+    ----------
+    method : {"cholesky", "recursive", "qr", "lstsq"}
+        How the predictor is computed.
+    n_regressors, n_columns : int
+        ``i(2m+l)`` and ``j``, each ≥ 1.
+
+    Raises
+    ------
+    DataError
+        An unknown ``method`` or a count that is not an integer ≥ 1 (they had given a tolerance all the same:
+        ``default_rcond("bogus", -1, 0)`` was 0).
+
     Examples
     --------
     ``i = 10``, one input and one output (``i(2m+l) = 30`` regressors), ``j = 1000`` columns:
@@ -217,7 +232,9 @@ def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
     >>> round(default_rcond("cholesky", 30, 1000), 8)
     4.71e-06
     """
-    base = max(int(n_regressors), int(n_columns)) * _EPS
+    if method not in _METHODS:
+        raise DataError(f"unknown method {method!r}; use one of {', '.join(map(repr, _METHODS))}")
+    base = max(check_count(n_regressors, "n_regressors", 1), check_count(n_columns, "n_columns", 1)) * _EPS
     if method in _GRAM_METHODS:
         return 10.0 * float(np.sqrt(base))
     return float(base)
@@ -226,11 +243,8 @@ def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
 def _resolve_rcond(rcond, method: str, n_reg: int, j: int) -> float:
     if rcond is None:
         return default_rcond(method, n_reg, j)
-    try:
-        r = float(rcond)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"rcond must be a non-negative float or None, got {rcond!r}") from exc
-    if not (np.isfinite(r) and 0.0 <= r < 1.0):
+    r = check_nonnegative(rcond, "rcond")  # numbers only: float() had parsed the string "0.5"
+    if not r < 1.0:
         raise DataError(f"rcond must lie in [0, 1), got {rcond!r}")
     return r
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from .exceptions import StageSaddleError
 
-from ._validation import DataError, as_discrete_system, check_horizon, check_level
+from ._validation import DataError, as_discrete_system, as_real_array, check_horizon, check_level
 from .weights import _ss_parts, as_weight, common_dt
 from ._repr import result
 
@@ -74,7 +74,7 @@ class GeneralizedPlant:
         """Stack ``[x_p; x_w1; x_w2]`` (checking sizes)."""
         parts = []
         for v, n, name in ((x_p, self.n_p, "x_p"), (x_w1, self.n_w1, "x_w1"), (x_w2, self.n_w2, "x_w2")):
-            a = np.asarray(v, dtype=float).reshape(-1)
+            a = as_real_array(v, name).reshape(-1)
             if a.size != n:
                 raise DataError(f"{name} must have {n} entries, got {a.size}")
             parts.append(a)
@@ -126,7 +126,7 @@ class RiccatiLaw:
         x : ndarray, shape (i + 1, n)
             States ``x_k … x_{k+i}``.
         """
-        x = np.asarray(x0, dtype=float).reshape(-1)
+        x = as_real_array(x0, "x0").reshape(-1)  # text or complex had raised numpy's ValueError/TypeError
         if x.size != self.A.shape[0] or not np.all(np.isfinite(x)):
             raise DataError(f"x0 must be {self.A.shape[0]} finite values")
         ws, xs = [], [x]
@@ -202,7 +202,8 @@ def generalized_plant(P, W1, W2) -> GeneralizedPlant:
 
 
 def _matrices(A, B, C, D):
-    A, B, C, D = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, B, C, D))
+    # as_real_array: a complex plant had lost its imaginary part (ComplexWarning) or raised a bare TypeError
+    A, B, C, D = (np.atleast_2d(as_real_array(M, name)) for M, name in zip((A, B, C, D), "ABCD"))
     n = A.shape[0]
     if A.shape != (n, n) or B.shape[0] != n or C.shape[1] != n or D.shape != (C.shape[0], B.shape[1]):
         raise DataError(f"inconsistent state-space shapes A {A.shape}, B {B.shape}, C {C.shape}, D {D.shape}")
@@ -373,15 +374,15 @@ def lqr_riccati(A, B, C, D, Q, R, *, horizon: int, terminal=None) -> RiccatiLaw:
     A, B, C, D = _matrices(A, B, C, D)
     i = check_horizon(horizon)
     l, m, n = C.shape[0], B.shape[1], A.shape[0]
-    Q = np.atleast_2d(np.asarray(Q, dtype=float))
-    R = np.atleast_2d(np.asarray(R, dtype=float))
+    Q = np.atleast_2d(as_real_array(Q, "Q"))  # text had been parsed ("1"), complex had raised a TypeError
+    R = np.atleast_2d(as_real_array(R, "R"))
     if Q.shape == (1, 1) and l > 1:
         Q = Q[0, 0] * np.eye(l)
     if R.shape == (1, 1) and m > 1:
         R = R[0, 0] * np.eye(m)
     if Q.shape != (l, l) or R.shape != (m, m):
         raise DataError(f"Q must be {l}x{l} and R {m}x{m}; got {Q.shape} and {R.shape}")
-    P0 = np.zeros((n, n)) if terminal is None else np.asarray(terminal, dtype=float)
+    P0 = np.zeros((n, n)) if terminal is None else as_real_array(terminal, "terminal")
     if P0.shape != (n, n):
         raise DataError(f"terminal must be {n}x{n}")
     for name, M in (("Q", Q), ("R", R), ("terminal", P0)):

@@ -24,7 +24,8 @@ import numpy as np
 
 from .exceptions import WeightError
 
-from ._validation import DataError, as_discrete_system, check_count, check_flag, check_horizon, to_state_space
+from ._validation import (DataError, as_discrete_system, check_count, check_flag, check_horizon, check_instance,
+                          check_sample_time, to_state_space)
 
 __all__ = [
     "WeightError",
@@ -74,6 +75,11 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
         raise WeightError("tustin needs a continuous-time system (dt = 0); the weight is already discrete")
     if isinstance(dt, bool) or not (isinstance(dt, numbers.Real) and np.isfinite(dt) and dt > 0):
         raise WeightError(f"dt must be a positive finite sample time in seconds, got {dt!r}")
+    # python-control's sampling fails on an improper or NaN weight with a bare ValueError: check it first (the
+    # conversion is only a check; the original is sampled, so the realisation is the one it always was)
+    ss = to_state_space(sys_continuous, "the weight given to tustin", error=WeightError)
+    if not all(np.all(np.isfinite(M)) for M in (ss.A, ss.B, ss.C, ss.D)):
+        raise WeightError("the weight given to tustin has NaN or infinite entries; check how it was computed")
     sysd = control.sample_system(sys_continuous, float(dt), method="bilinear")
     return control.ss(sysd)
 
@@ -227,8 +233,21 @@ def _ss_parts(W) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
             np.asarray(W.D, float).reshape(W.noutputs, W.ninputs))
 
 
-def is_zero_weight(W: control.StateSpace) -> bool:
+def is_zero_weight(W) -> bool:
     """True when the weight's transfer function is identically zero (D = 0 and all C Aᵏ B = 0).
+
+    Parameters
+    ----------
+    W : control.StateSpace or control.TransferFunction
+        A python-control system (e.g. one returned by :func:`as_weight`, which turns a scalar or a
+        matrix into one).
+
+    Raises
+    ------
+    InputTypeError
+        ``W`` is not a python-control ``StateSpace`` or ``TransferFunction``.
+    WeightError
+        ``W`` is an improper transfer function or has NaN/inf coefficients.
 
     Examples
     --------
@@ -237,8 +256,13 @@ def is_zero_weight(W: control.StateSpace) -> bool:
     True
     >>> is_zero_weight(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1))   # 1/(z − 0.5)
     False
+    >>> is_zero_weight(control.tf([0.0], [1.0], 0.1))
+    True
     """
-    A, B, C, D = _ss_parts(W)
+    check_instance(W, (control.StateSpace, control.TransferFunction), "W",
+                   "a python-control StateSpace or TransferFunction (make a scalar or matrix weight one with "
+                   "is_zero_weight(as_weight(W, name)))")
+    A, B, C, D = _ss_parts(to_state_space(W, "W", error=WeightError))
     if np.any(D != 0):
         return False
     M = B
@@ -304,6 +328,8 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
     """
     allow_zero = check_flag(allow_zero, "allow_zero", error=WeightError)
     square_rank = check_flag(square_rank, "square_rank", error=WeightError)
+    if dt is not None:  # python-control would refuse a bad one later with a bare ValueError ("invalid timebase")
+        dt = check_sample_time(dt, "dt", error=WeightError)
     W = to_state_space(W, name, error=WeightError)
     if isinstance(W, control.StateSpace):
         A, B, C, D = _ss_parts(W)

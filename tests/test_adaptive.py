@@ -35,6 +35,15 @@ def test_gamma_policy_arithmetic():
         GammaPolicy()(float("nan"))
 
 
+def test_gamma_policy_takes_numbers_only():
+    """GammaPolicy()("1") had parsed the string; alpha=True had passed as alpha = 1."""
+    with pytest.raises(synthesis.DataError, match="gamma_min must be a finite number >= 0, got '1'"):
+        GammaPolicy()("1")
+    with pytest.raises(synthesis.DataError, match="GammaPolicy alpha must be a real number > 0, got True"):
+        GammaPolicy(alpha=True)
+    assert GammaPolicy("offset", 1)(np.float64(2.0)) == 3.0
+
+
 def test_without_updates_equals_fixed_lti_controller():
     u0, y0 = _init_data()
     W1, W2 = _weights()

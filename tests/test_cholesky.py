@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synthesis import DowndateError, choldowndate, cholupdate
+from synthesis import DataError, DowndateError, choldowndate, cholupdate
 
 
 def _spd(rng, N, extra=3):
@@ -92,6 +92,31 @@ def test_bad_arguments():
         cholupdate(np.eye(3), [1.0, 2.0])
     with pytest.raises(ValueError, match="finite"):
         choldowndate(np.eye(2), [np.nan, 0.0])
+
+
+@pytest.mark.parametrize("rtol, match", [(-1, "rtol must be a finite number >= 0"),
+                                         ("1", "rtol must be a finite number >= 0"),
+                                         (1.0, r"rtol must lie in \[0, 1\).*leave it None")])
+def test_downdate_rtol_is_checked(rtol, match):
+    """rtol=-1 had been accepted; rtol="1" had been read as 1.0 and reported as a loss of positive definiteness."""
+    L = np.linalg.cholesky(np.array([[4.0, 1.0], [1.0, 3.0]]))
+    with pytest.raises(DataError, match=match):
+        choldowndate(L, [0.1, 0.1], rtol=rtol)
+    assert np.allclose(choldowndate(L, [0.1, 0.1], rtol=0), choldowndate(L, [0.1, 0.1]))
+
+
+def test_complex_factor_or_column_is_refused():
+    """A complex L had lost its imaginary part (ComplexWarning), a complex x had raised a bare TypeError."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataError, match="Cholesky factor L is complex.*real part"):
+            cholupdate(np.eye(2) + 0j, [1.0, 0.0])
+        with pytest.raises(DataError, match="x is complex"):
+            cholupdate(np.eye(2), [1j, 0.0])
+        with pytest.raises(DataError, match="Cholesky factor L is complex"):
+            choldowndate(2 * np.eye(2) + 0j, [0.1, 0.0])
 
 
 @settings(max_examples=25, deadline=None)

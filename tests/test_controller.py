@@ -181,6 +181,24 @@ def test_receding_horizon_inputs(servo):
         rh.reset(u_past[:3])
 
 
+def test_receding_horizon_refuses_text_and_complex_samples(servo):
+    """Text had raised numpy's bare ValueError, a complex sample its TypeError; both name the sample now."""
+    _, pred, W1, W2 = servo
+    rh = RecedingHorizonController(hinf_design(pred, W1, W2, causal=True))
+    with pytest.raises(DataError, match=r"r_k must be real numbers, not text \('a'\)"):
+        rh.control("a")
+    with pytest.raises(DataError, match=r"r_k is complex.*take the real part"):
+        rh.control(1 + 1j)
+    with pytest.raises(DataError, match="u_k must be real numbers, not text"):
+        rh.observe("a", 0.0, 0.0)
+    with pytest.raises(DataError, match="y_k is complex"):
+        rh.observe(0.0, 1j, 0.0)
+    with pytest.raises(DataError, match="r_k is complex"):
+        rh.observe(0.0, 0.0, 1j)
+    rh.observe(np.float32(0.5), 1, 0.0)  # numpy and integer samples stay accepted
+    assert rh.control(np.int64(1)).shape == (pred.m,)
+
+
 @pytest.mark.parametrize("law", ["nominal", "causal", "multiplicative", "additive"])
 def test_mimo_lti_and_receding_horizon_agree_on_arbitrary_signals(law):
     """m = 2, l = 3: the stacking of u_p, y_p and the weight states must agree channel by channel.

@@ -139,3 +139,43 @@ def test_a_system_with_nan_entries_is_not_written(tmp_path, ending):
     with pytest.raises(synthesis.ControllerFileError, match="A hold NaN or infinite"):  # load_controller refuses it
         synthesis.save_controller(tmp_path / f"K{ending}", K)
     assert not (tmp_path / f"K{ending}").exists()
+
+
+@pytest.mark.parametrize("dt", ["x", "0.1", 0.1j])
+def test_a_file_whose_dt_is_text_or_complex_is_refused(tmp_path, dt):
+    """Text had raised numpy's bare ValueError (and '0.1' would have been parsed), complex had only warned."""
+    np.savez(tmp_path / "K.npz", A=np.eye(1) * 0.5, B=np.ones((1, 1)), C=np.ones((1, 1)), D=np.zeros((1, 1)), dt=dt)
+    with pytest.raises(synthesis.ControllerFileError, match="dt must be one number, a sample time >= 0"):
+        synthesis.load_controller(tmp_path / "K.npz")
+
+
+@pytest.mark.parametrize("ending", [".npz", ".mat"])
+def test_complex_or_text_matrices_in_a_file_are_refused(tmp_path, ending):
+    """A complex matrix had lost its imaginary part with only a ComplexWarning."""
+    import warnings
+
+    variables = {"A": np.eye(1) * 0.5j, "B": np.ones((1, 1)), "C": np.ones((1, 1)), "D": np.zeros((1, 1)), "dt": 0.1}
+    if ending == ".npz":
+        np.savez(tmp_path / "K.npz", **variables)
+    else:
+        scipy.io.savemat(tmp_path / "K.mat", variables)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(synthesis.ControllerFileError, match=r"K\.(npz|mat)': A is complex.*real part"):
+            synthesis.load_controller(tmp_path / f"K{ending}")
+    np.savez(tmp_path / "T.npz", A=np.array(["0.5"]), B=np.ones((1, 1)), C=np.ones((1, 1)), D=np.zeros((1, 1)),
+             dt=0.1)
+    with pytest.raises(synthesis.ControllerFileError, match="A must be real numbers, not text"):
+        synthesis.load_controller(tmp_path / "T.npz")
+
+
+def test_save_controller_refuses_a_path_or_name_of_another_type(tmp_path, controller):
+    """save_controller(3, K) had raised pathlib's bare TypeError; name=3 or b'K' had been stored as its str()."""
+    with pytest.raises(synthesis.InputTypeError, match=r"path must be a file name \(str or pathlib.Path\)"):
+        synthesis.save_controller(3, controller)
+    for name in (3, b"K"):
+        with pytest.raises(synthesis.InputTypeError, match=r"name must be a string \(e.g. name='K'\)"):
+            synthesis.save_controller(tmp_path / "K.mat", controller, name=name)
+    # any string is a valid Name: it is stored as a value, not as a MATLAB variable name
+    assert synthesis.load_controller(synthesis.save_controller(str(tmp_path / "K.mat"), controller,
+                                                               name="my K[1]")).name == "my K[1]"

@@ -138,6 +138,34 @@ def test_bad_input_raises_data_error():
         norm_below(ct.tf([1], [1, -0.5], 1), -1.0)
 
 
+@pytest.mark.parametrize("n_grid", [0, -5, 1, 10.5, "10", True])
+def test_n_grid_must_be_a_count_of_at_least_two(n_grid):
+    """int() had parsed "10" and cut 10.5, 0 and -5 had silently become 2; peak_gain had raised numpy's
+    ValueError/TypeError."""
+    from synthesis import bounded_real_certificate, peak_gain
+
+    G = ct.tf([1], [1, -0.5], 1)
+    for call in (lambda: hinf_norm(G, n_grid=n_grid), lambda: norm_below(G, 3.0, n_grid=n_grid),
+                 lambda: bounded_real_certificate(G, 3.0, n_grid=n_grid), lambda: peak_gain(G, n_grid=n_grid)):
+        with pytest.raises(DataError, match="n_grid must be an integer ≥ 2"):
+            call()
+    assert hinf_norm(G, n_grid=2).lower == pytest.approx(2.0)
+
+
+def test_a_system_without_outputs_has_norm_zero():
+    """peak_gain had raised an IndexError; all four agree with hinf_norm's 0.  (python-control itself refuses to
+    build a system with states and no inputs, so only the no-output case can reach the norms.)"""
+    from synthesis import bounded_real_certificate, peak_gain
+
+    E = ct.ss([[0.5]], [[1.0]], np.zeros((0, 1)), np.zeros((0, 1)), 1.0)
+    assert E.noutputs == 0
+    assert peak_gain(E) == 0.0
+    assert hinf_norm(E).upper == 0.0
+    assert norm_below(E, 1.0)
+    cert = bounded_real_certificate(E, 1.0)
+    assert cert and "empty system" in cert.reason
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_badly_scaled_realisation_gives_the_bracket_of_its_well_scaled_twin(seed):
     """State units over 8 decades: the same transfer function, so the same norm; computed in an exactly

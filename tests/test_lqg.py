@@ -83,3 +83,14 @@ def test_non_numeric_weights_are_named():
     pred = _predictor(1, 1)
     with pytest.raises(DataError, match="Q must be"):
         lqg_design(pred, "a", 1.0)
+
+
+def test_weights_as_text_or_complex_are_refused_not_parsed():
+    """lqg_design(pred, "1", 0.01) had parsed the string and designed with Q = 1."""
+    pred = _predictor(1, 1)
+    with pytest.raises(DataError, match=r"Q must be real numbers, not text \('1'\)"):
+        lqg_design(pred, "1", 0.01)
+    with pytest.raises(DataError, match=r"R must be real numbers, not text"):
+        lqg_design(pred, 1.0, ["0.01"])
+    with pytest.raises(DataError, match="R is complex"):
+        lqg_design(pred, 1.0, 0.01 + 0j)

@@ -116,6 +116,33 @@ def test_bad_maps():
         solve_minimax(Md, Mu, Mx_nan, 10.0)
 
 
+def test_complex_and_text_maps_are_refused():
+    """A complex map had lost its imaginary part with only a ComplexWarning; text had raised numpy's bare
+    ValueError."""
+    Md, Mu, Mx = _maps(8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refused before numpy's ComplexWarning
+        with pytest.raises(DataError, match=r"M_d is complex.*take the real part"):
+            minimax_gamma_min(Md + 1j, Mu)
+        with pytest.raises(DataError, match="M_u is complex"):
+            solve_minimax(Md, Mu.astype(complex), Mx, 10.0)
+        with pytest.raises(DataError, match="M_x is complex"):
+            solve_minimax(Md, Mu, 1j * Mx, 10.0)
+    with pytest.raises(DataError, match=r"M_d must be real numbers, not text \('a'\)"):
+        minimax_gamma_min("a", Mu)
+
+
+def test_feasibility_threshold_checks_its_arguments():
+    """A NaN gamma_min had given a NaN threshold, '2' a TypeError, maps of different heights a number."""
+    Md, Mu = np.array([[1.0], [2.0]]), np.array([[1.0], [0.0]])
+    for bad in (np.nan, "2", -1.0, np.inf):
+        with pytest.raises(DataError, match="gamma_min must be a finite number >= 0"):
+            feasibility_threshold(Md, Mu, bad)
+    with pytest.raises(DataError, match="same number of rows"):
+        feasibility_threshold(np.ones((3, 1)), Mu, 1.0)
+    assert feasibility_threshold(Md, Mu, 2.0) == feasibility_threshold(Md, Mu, np.float64(2.0)) > 2.0
+
+
 def test_non_numeric_gamma_is_named():
     Md, Mu, Mx = np.eye(3)[:, :1], np.eye(3)[:, 1:], np.ones((3, 2))
     for bad in ("2.0", None, True):

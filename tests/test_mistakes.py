@@ -186,6 +186,12 @@ def test_more_true_false_options_refuse_strings(call, name):
     ("uf.arx_least_squares(np.ones(50), np.ones(50), 1.0, 2)", "na"),
     ("uf.CertificateOptions(step_samples=100.0)", "step_samples"),
     ("sy.diagonal_weight(control.tf([1.0], [1.0, -0.5], 1.0), channels=2.0)", "channels"),
+    # hankel_order: 3.0 and '3' had raised numpy's TypeError, -1 its ValueError, 0 had returned []
+    ("sy.hankel_order(3.0, 1, 1)", "horizon"),
+    ("sy.hankel_order('3', 1, 1)", "horizon"),
+    ("sy.hankel_order(-1, 1, 1)", "horizon"),
+    ("sy.hankel_order(0, 1, 1)", "horizon"),
+    ("sy.hankel_order(2, 1, 0)", "l"),
 ])
 def test_counts_refuse_floats_and_bools_with_one_message(call, name):
     """Every count (rows, channels, orders, lengths) goes through one check, ``synthesis.validation.check_count``:

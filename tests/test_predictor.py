@@ -226,6 +226,24 @@ def test_default_rcond_gram_methods_are_looser():
     assert synthesis.default_rcond("recursive", 100, 1000) == synthesis.default_rcond("cholesky", 100, 1000)
 
 
+@pytest.mark.parametrize("args, match", [(("bogus", 30, 100), "unknown method 'bogus'"),
+                                         (("qr", -1, 100), "n_regressors must be an integer ≥ 1"),
+                                         (("qr", 30, 0), "n_columns must be an integer ≥ 1"),
+                                         (("cholesky", 30.0, 100), "n_regressors must be an integer ≥ 1")])
+def test_default_rcond_checks_its_arguments(args, match):
+    """default_rcond("bogus", -1, 0) had returned 0.0: no tolerance at all."""
+    with pytest.raises(DataError, match=match):
+        synthesis.default_rcond(*args)
+
+
+def test_rcond_as_text_is_refused_not_parsed():
+    u = np.random.default_rng(0).standard_normal(100)
+    with pytest.raises(DataError, match="rcond must be a finite number >= 0, got '0.5'"):
+        fit_predictor(u, u, 3, rcond="0.5")
+    with pytest.raises(DataError, match="rcond must be a finite number >= 0, got True"):
+        synthesis.RecursivePredictor(3, 1, 1, rcond=True)
+
+
 def test_badly_scaled_output_warns_and_names_the_fix():
     # y in a tiny unit (e.g. metres for a micro-positioner): the Gram route's √eps-relative tolerance
     # drops the y rows, so the cholesky predictor is wrong — it must say so and name the fix;

@@ -175,6 +175,31 @@ def test_bad_input():
         lqr_riccati(A, B, C, D, 1.0, 1.0, horizon=3).rollout([np.nan, 0, 0])
 
 
+def test_complex_and_text_input_is_refused():
+    """Complex plants and weights had lost their imaginary part (ComplexWarning) or raised a bare TypeError; a
+    text Q had been parsed as a number; a text x0 had raised numpy's ValueError."""
+    import warnings
+
+    from synthesis import DataError
+
+    A, B, C, D = _random_system(np.random.default_rng(0), 3, 2, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refused before numpy's ComplexWarning
+        with pytest.raises(DataError, match=r"A is complex.*take the real part"):
+            hinf_riccati(A * (1 + 1j), B, C, D, gamma=5.0, horizon=3, n_disturbances=1)
+        with pytest.raises(DataError, match="D is complex"):
+            lqr_riccati(A, B, C, D + 0j, 1.0, 1.0, horizon=3)
+        with pytest.raises(DataError, match="Q is complex"):
+            lqr_riccati(A, B, C, D, 1j, 1.0, horizon=3)
+    with pytest.raises(DataError, match=r"R must be real numbers, not text \('1'\)"):
+        lqr_riccati(A, B, C, D, 1.0, "1", horizon=3)
+    law = lqr_riccati(A, B, C, D, 1.0, 1.0, horizon=3)
+    with pytest.raises(DataError, match="x0 must be real numbers, not text"):
+        law.controls("a")
+    with pytest.raises(DataError, match="x0 is complex"):
+        law.controls([1j, 0, 0])
+
+
 @pytest.mark.filterwarnings("ignore::synthesis.PersistenceWarning")
 def test_theorem_4_3_mimo_three_disk():
     # one input, three outputs (order 6 < i = 10), diagonal dynamic W1

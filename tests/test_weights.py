@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from synthesis import DataError, WeightError, as_weight, markov_toeplitz, observability, tustin
+from synthesis import DataError, InputTypeError, WeightError, as_weight, markov_toeplitz, observability, tustin
 from synthesis.weights import common_dt, is_zero_weight
 
 DT = 0.1
@@ -139,6 +139,35 @@ def test_tustin_refuses_boolean_sample_time():
     s = control.tf("s")
     with pytest.raises(WeightError, match="dt"):
         tustin(1 / (s + 1), True)
+
+
+def test_tustin_refuses_improper_and_nan_weights():
+    """python-control's sampling had failed on these with a bare ValueError."""
+    s = control.tf("s")
+    with pytest.raises(WeightError, match="not proper.*add poles"):
+        tustin(s + 1, 0.1)
+    with pytest.raises(WeightError, match="NaN or infinite.*check how"):
+        tustin(control.tf([np.nan], [1.0, 1.0]), 0.1)
+    with pytest.raises(WeightError, match="NaN or infinite.*check how"):
+        tustin(control.ss([[np.nan]], [[1.0]], [[1.0]], [[1.0]]), 0.1)
+
+
+@pytest.mark.parametrize("dt", [-1, "x", 0, np.nan])
+def test_as_weight_refuses_a_bad_sample_time(dt):
+    """python-control had refused these with a bare ValueError ("invalid timebase")."""
+    with pytest.raises(WeightError, match="dt must be a positive finite sample time or True"):
+        as_weight(0.5, "W2", dt=dt)
+    assert as_weight(0.5, "W2", dt=True).dt is True
+
+
+def test_is_zero_weight_takes_systems_and_refuses_the_rest():
+    """A transfer function is a system (had raised AttributeError); a number or a string is no system: the
+    message names as_weight, which makes one."""
+    assert is_zero_weight(control.tf([0.0], [1.0], DT))
+    assert not is_zero_weight(control.tf([1.0], [1.0, -0.5], DT))
+    for W in (0.0, "W3", np.zeros((1, 1))):
+        with pytest.raises(InputTypeError, match=r"W must be a python-control StateSpace.*as_weight\(W, name\)"):
+            is_zero_weight(W)
 
 
 def test_markov_toeplitz_and_observability_refuse_continuous_time():
