@@ -39,7 +39,8 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system, check_count, check_nonnegative, check_same_dt
+from synthesis.validation import (DataError, as_discrete_system, check_count, check_instance, check_nonnegative,
+                                  check_same_dt)
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
@@ -250,6 +251,11 @@ def coprime_channel(factors, controller) -> control.StateSpace:
     control.StateSpace
         Inputs ``v`` (l), outputs ``[u; y]`` (m + l).
 
+    Raises
+    ------
+    InputTypeError
+        ``factors`` is not a :class:`CoprimeFactors`.
+
     Examples
     --------
     >>> import numpy as np, control
@@ -260,6 +266,9 @@ def coprime_channel(factors, controller) -> control.StateSpace:
     >>> sorted(H.poles().real.round(6).tolist()), np.round(np.abs(control.dcgain(H)).ravel(), 6).tolist()
     ([0.0, 0.8], [10.0, 5.0])
     """
+    from .coprime import CoprimeFactors  # here: coprime imports premise, which imports this module
+
+    check_instance(factors, CoprimeFactors, "factors", "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
     G = factors.equation()
     P, C, l = loop_parts(factors.model(), controller)
     m = P.ninputs

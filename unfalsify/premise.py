@@ -62,7 +62,7 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_nonnegative,
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_instance, check_nonnegative,
                                   check_sample_time)
 
 from ._common import channel_pair
@@ -134,6 +134,15 @@ class PremiseOptions:
         if self.time_limit is not None and (isinstance(self.time_limit, bool) or
                                             not isinstance(self.time_limit, numbers.Real) or not self.time_limit > 0):
             raise DataError(f"time_limit must be None or a number of seconds > 0, got {self.time_limit!r}")
+
+
+def _premise_options(options) -> PremiseOptions:
+    """``options``, or the defaults for None; :class:`~synthesis.validation.InputTypeError` for another object
+    (``options or PremiseOptions()`` had read an empty dict as the defaults and failed on a string deep inside)."""
+    if options is None:
+        return PremiseOptions()
+    return check_instance(options, PremiseOptions, "options",
+                          "a PremiseOptions (e.g. PremiseOptions(samples=400)) or None")
 
 
 @result
@@ -317,7 +326,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     >>> oe.held_out, oe.delta < 0.05, oe.unfalsification.certificate.verify()
     (True, True, True)
     """
-    opts = options or PremiseOptions()
+    opts = _premise_options(options)
     held_out = check_flag(held_out, "held_out")
     i = int(horizon)
     u, y = channel_pair(u, y)
@@ -501,7 +510,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     >>> test.output_error.held_out, test.validation_shared
     (False, 0.96)
     """
-    opts = options or PremiseOptions()
+    opts = _premise_options(options)
     delta_subspace = check_nonnegative(delta_subspace,
                                        "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
     dt = check_sample_time(dt, "dt", allow_true=False)
