@@ -741,11 +741,17 @@ def operating_point_note(u, y) -> str:
     Parameters
     ----------
     u, y : array_like, shape (n,) or (n, k)
-        The record.
+        The record: two or more samples, u and y of one length.  A constant channel away from zero is named as
+        such (it has no standard deviation to compare its mean with); a channel that is zero throughout is not.
 
     Returns
     -------
     str
+
+    Raises
+    ------
+    DataError
+        Bad data, u and y of different lengths, or a single sample.
 
     Examples
     --------
@@ -757,13 +763,23 @@ def operating_point_note(u, y) -> str:
     >>> print(operating_point_note(u, 0.5 * u + 2.0)[:45])
     the mean of y (1.972) is 4 times its standard
     """
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])  # one record: a y of another length is another record's
+    if u.shape[0] < 2:
+        raise DataError("the record has one sample: it has no standard deviation to compare its mean with; pass the "
+                        "whole record (two samples or more)")
     notes = []
-    for what, x in (("u", as_signal(u, "u")), ("y", as_signal(y, "y"))):
+    for what, x in (("u", u), ("y", y)):
         mean, spread = x.mean(axis=0), x.std(axis=0)
         for k in range(x.shape[1]):
-            ratio = abs(float(mean[k])) / float(spread[k]) if spread[k] > 0 else math.inf
+            name = what if x.shape[1] == 1 else f"{what}[:, {k}]"
+            if np.ptp(x[:, k]) == 0.0:  # exactly: the std of a constant is rounding (1e-17 of it), not 0
+                # "inf times its standard deviation" said nothing; a channel that is zero throughout has no offset
+                if x[0, k] != 0.0:
+                    notes.append(f"{name} is constant at {float(x[0, k]):.4g} over the record")
+                continue
+            ratio = abs(float(mean[k])) / float(spread[k])
             if ratio > OFFSET_NOTE:
-                name = what if x.shape[1] == 1 else f"{what}[:, {k}]"
                 notes.append(f"the mean of {name} ({float(mean[k]):.4g}) is {ratio:.2g} times its standard deviation")
     if not notes:
         return ""
