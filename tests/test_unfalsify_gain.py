@@ -145,6 +145,21 @@ def test_is_unfalsified_rejects_bad_gamma():
         uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], np.nan)
 
 
+
+@pytest.mark.parametrize("kw, fragment", [
+    (dict(gamma="1e9"), r"gamma \(the gain bound\) must be a finite number >= 0, got '1e9'"),
+    (dict(gamma=True), r"gamma \(the gain bound\) must be"),
+    (dict(gamma=1.0, rtol="1e-9"), r"rtol \(the relative tolerance of the comparison\) must be a finite number >= 0"),
+    (dict(gamma=1.0, rtol=-1e-9), r"rtol .* must be a finite number >= 0, got -1e-09"),
+])
+def test_is_unfalsified_refuses_strings_for_its_numbers(kw, fragment):
+    # gamma="1e9" had been parsed by float() silently, rtol="1e-9" reached numpy's sum (a bare TypeError)
+    gamma = kw.pop("gamma")
+    with pytest.raises(DataError, match=fragment):
+        uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], gamma, **kw)
+    assert uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], 0.5) and not uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], 0.49)
+
+
 def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
     # a public helper must not leak ZeroDivisionError/IndexError: DataError names the problem and the fix
     with pytest.raises(DataError, match="u\\[0\\] == 0.*first non-zero"):

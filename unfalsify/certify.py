@@ -388,7 +388,8 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     Raises
     ------
     DataError
-        A negative or NaN floor, a sequence whose length is not ``channels``, or no tracked output.
+        A negative or NaN floor, a sequence whose length is not ``channels``, no tracked output, or ``channels``
+        not None nor an integer ≥ 1.
 
     Examples
     --------
@@ -399,15 +400,17 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     >>> tracking_floors([0.1, 0.2, 0.3], None).tolist()            # count not known yet: the floors checked alone
     [0.1, 0.2, 0.3]
     """
+    if channels is not None:
+        channels = check_count(channels, "channels (the plant's outputs l)", 1)  # 2.0 had been accepted
     if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
         if isinstance(tracking_floor, np.ndarray):
             tracking_floor = tracking_floor.item()
         check_nonnegative(tracking_floor, "tracking_floor")
-        return np.full(1 if channels is None else int(channels), float(tracking_floor))
+        return np.full(1 if channels is None else channels, float(tracking_floor))
     floors = list(tracking_floor)
     if not floors:
         raise DataError("tracking_floor is empty: give one number for all output channels or one per channel")
-    if channels is not None and len(floors) != int(channels):
+    if channels is not None and len(floors) != channels:
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):

@@ -44,10 +44,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from synthesis import DataError
 from synthesis.results import result
 
-from synthesis.validation import as_signal, check_flag
+from synthesis.validation import as_signal, check_flag, check_nonnegative
 
 from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
@@ -282,6 +281,12 @@ def unfalsified_gain(u, y, **kwargs) -> float:
 def is_unfalsified(u, y, gamma: float, *, rtol: float = 1e-9, **kwargs) -> bool:
     """True if the data do not falsify "y = Δu with ‖Δ‖∞ ≤ gamma" (Thm 7.1), up to ``rtol``.
 
+    Raises
+    ------
+    DataError
+        ``gamma`` or ``rtol`` not a finite number ≥ 0 (a string is refused, not parsed); bad data
+        (:func:`unfalsified_gain`).
+
     Examples
     --------
     >>> import numpy as np
@@ -290,7 +295,7 @@ def is_unfalsified(u, y, gamma: float, *, rtol: float = 1e-9, **kwargs) -> bool:
     >>> is_unfalsified(u, y, 0.8), is_unfalsified(u, y, 0.7)
     (True, False)
     """
-    g = float(gamma)
-    if not np.isfinite(g) or g < 0:
-        raise DataError(f"gamma must be a finite number >= 0, got {gamma!r}")
+    # float("1e9") had parsed a string silently, and a string rtol reached the sum below
+    g = check_nonnegative(gamma, "gamma (the gain bound)")
+    rtol = check_nonnegative(rtol, "rtol (the relative tolerance of the comparison)")
     return bool(unfalsified_gain(u, y, **kwargs) <= g * (1.0 + rtol))
