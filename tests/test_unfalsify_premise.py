@@ -844,7 +844,8 @@ def test_operating_point_note_checks_its_record_and_names_constant_channels():
     with pytest.raises(DataError, match="y has 49 samples but 50 were expected"):
         uf.operating_point_note(u, u[:49])
     note = uf.operating_point_note(np.full(50, 0.1), u)
-    assert note.startswith("u is constant at 0.1 over the record: the models have no constant term") and "inf" not in note
+    assert note.startswith("u is constant at 0.1 over the record: the models have no constant term")
+    assert "inf" not in note
     assert uf.operating_point_note(np.zeros(50), u) == ""  # zero throughout: no operating point
     two = uf.operating_point_note(np.column_stack([u, np.full(50, -2.0)]), u)
     assert two.startswith("u[:, 1] is constant at -2 over the record") and "mean of u[:, 0]" not in two
