@@ -241,3 +241,22 @@ def test_objects_of_the_wrong_type_raise_input_type_error(call, fragment):
     with pytest.raises(InputTypeError, match=fragment) as caught:
         eval(call, env)
     assert isinstance(caught.value, TypeError) and ", got " in str(caught.value)
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    (dict(xtol=0), r"xtol \(brentq's absolute tolerance on c, relative to max\(c, 1\)\) must be a finite number > 0"),
+    (dict(delta="x"), "delta must be a finite number >= 0, got 'x'"),
+    (dict(max_doublings=2.5), "max_doublings must be an integer ≥ 1, got 2.5"),
+    (dict(margin="0.1"), "margin must be a finite number >= 0"),
+    (dict(gamma_ratio=1.0), r"gamma_ratio \(the design needs γ > γ_min_a\) must be a finite number > 1"),
+    (dict(causal="no"), "causal must be True or False"),
+])
+def test_additive_weight_fixed_point_checks_its_numbers(kw, fragment):
+    # xtol=0 had reached brentq's bare "xtol too small", delta="x" and max_doublings=2.5 numpy's/range's TypeErrors
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(200)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:200] + 0.01 * rng.standard_normal(200)
+    args = dict(delta=0.05)
+    args.update(kw)
+    with pytest.raises(DataError, match=fragment):
+        uf.additive_weight_fixed_point(synthesis.fit_predictor(u, y, 2), 1.0, 0.1, args.pop("delta"), **args)
