@@ -200,3 +200,69 @@ def test_counts_refuse_floats_and_bools_with_one_message(call, name):
 
     with pytest.raises(DataError, match=f"{name} must be an integer ≥ [0-9]+, got"):
         eval(call, {"sy": synthesis, "uf": uf, "np": np, "control": control})
+
+
+@pytest.mark.parametrize("call, fragment", [
+    ("uf.subspace_unfalsify(u[:20], y[:20], 2, 0.02, predictor='x')", "predictor must be a synthesis.Predictor"),
+    ("uf.estimate_delta(u[:20], y[:20], 2, 0.02, estimation='x')", "estimation must be an EstimationOptions"),
+    ("uf.estimate_delta(u[:20], y[:20], 2, 0.02, estimation={'backend': 'cvxpy'})",
+     "estimation must be an EstimationOptions"),
+    ("uf.estimate_delta(u[:20], y[:20], 2, 0.02, predictor='x')", "predictor must be a synthesis.Predictor"),
+    ("uf.output_error_unfalsify(P, u[200:260], y[200:260], 3, held_out=True, options='x')",
+     "options must be a PremiseOptions"),
+    ("uf.check_premise(P, u[:45], y[:45], 3, 0.05, dt=1.0, options='x')", "options must be a PremiseOptions"),
+    ("uf.check_excitation(P, K, None)", "frf must be a FrequencyResponseEstimate"),
+    ("uf.check_excitation(P, K, 'x')", "frf must be a FrequencyResponseEstimate"),
+    ("uf.check_excitation(P, K, frf, low_band='x')", "low_band must be a LowBandEstimate"),
+    ("uf.check_excitation(P, K, frf, factors='x')", "factors must be a CoprimeFactors"),
+    ("uf.coprime_channel('x', K)", "factors must be a CoprimeFactors"),
+    ("uf.coprime_unfalsify('F', u[200:260], y[200:260], held_out=True)", "factors must be a CoprimeFactors"),
+    ("uf.check_coprime_premise('F', u[200:260], y[200:260], 0.01)", "factors must be a CoprimeFactors"),
+    ("uf.coprime_gap('F', [0.1], [1.0])", "factors must be a CoprimeFactors"),
+    ("uf.coprime_distance('F', P)", "factors must be a CoprimeFactors"),
+    ("uf.error_gap('F', F_low)", "factors must be a CoprimeFactors"),
+    ("uf.error_gap(F, 'x')", "est must be a FrequencyResponseEstimate or LowBandEstimate"),
+    ("uf.additive_weight_fixed_point('p', 1.0, 0.1, 0.05)", "pred must be a synthesis.Predictor"),
+    ("uf.robust_design_from_data(u, y, 3, 1.0, 0.1, 0.02, predictor='x')", "predictor must be a synthesis.Predictor"),
+    ("uf.robust_design_from_data(u, y, 3, 1.0, 0.1, 0.02, predictor_for='x')", "predictor_for must be a callable"),
+    ("uf.robust_design_from_data(u, y, 3, 1.0, 0.1, 0.02, premise='x')", "premise must be a PremiseOptions"),
+])
+def test_objects_of_the_wrong_type_raise_input_type_error(call, fragment):
+    """A string, None or a dict where an option object, an estimate, a predictor or coprime factors belong had failed
+    deep inside with an AttributeError (``'str' object has no attribute 'Lw'``), or silently as the defaults (an empty
+    dict for ``estimation``); now InputTypeError (a DataError and a TypeError) names the type expected."""
+    import control
+    from synthesis.validation import InputTypeError
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    F = uf.coprime_factors(synthesis.fit_predictor(u, y, 2), 1.0)
+    env = {"uf": uf, "u": u, "y": y, "F": F, "K": control.ss([], [], [], [[0.5, -0.5]], 1.0),
+           "P": uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3), 1.0),
+           "frf": uf.frequency_response_estimate(u, y),
+           "F_low": uf.LowBandEstimate(frequency=np.array([0.0, 1.0]), response=np.array([0.1, 0.1]),
+                                       radius=np.array([0.02, 0.02]), confidence=0.99, window=16, degree=2,
+                                       samples=100, dt=1.0)}
+    with pytest.raises(InputTypeError, match=fragment) as caught:
+        eval(call, env)
+    assert isinstance(caught.value, TypeError) and ", got " in str(caught.value)
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    (dict(xtol=0), r"xtol \(brentq's absolute tolerance on c, relative to max\(c, 1\)\) must be a finite number > 0"),
+    (dict(delta="x"), "delta must be a finite number >= 0, got 'x'"),
+    (dict(max_doublings=2.5), "max_doublings must be an integer ≥ 1, got 2.5"),
+    (dict(margin="0.1"), "margin must be a finite number >= 0"),
+    (dict(gamma_ratio=1.0), r"gamma_ratio \(the design needs γ > γ_min_a\) must be a finite number > 1"),
+    (dict(causal="no"), "causal must be True or False"),
+])
+def test_additive_weight_fixed_point_checks_its_numbers(kw, fragment):
+    # xtol=0 had reached brentq's bare "xtol too small", delta="x" and max_doublings=2.5 numpy's/range's TypeErrors
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(200)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:200] + 0.01 * rng.standard_normal(200)
+    args = dict(delta=0.05)
+    args.update(kw)
+    with pytest.raises(DataError, match=fragment):
+        uf.additive_weight_fixed_point(synthesis.fit_predictor(u, y, 2), 1.0, 0.1, args.pop("delta"), **args)

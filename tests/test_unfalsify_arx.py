@@ -166,6 +166,22 @@ def test_bad_input_raises(kwargs):
         uf.arx_unfalsify(args.pop("u"), args.pop("y"), args.pop("na"), args.pop("nb"), args.pop("sigma"))
 
 
+@pytest.mark.parametrize("na, nb", [(2, 40), (31, 0), (30, 1), (0, 30)])
+def test_lags_beyond_the_record_name_the_least_length(na, nb):
+    # nb = 40 on 30 samples had raised numpy's "could not broadcast input array from shape (29,) into shape (0,)"
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal(30), rng.standard_normal(30)
+    need = max(na, nb) + 1
+    for f in (uf.arx_regressor, uf.arx_least_squares):
+        with pytest.raises(DataError, match=rf"n = 30 samples but the lags reach back max\(na, nb\) = {need - 1}: "
+                                            rf"record at least {need} samples"):
+            f(u, y, na, nb)
+        with pytest.raises(DataError, match="record at least"):
+            f(np.column_stack([u, u]), y, na, nb)  # several channels: the same rule
+    Phi, _ = uf.arx_regressor(u, y, 29, 2)  # the longest lag one sample inside the record: its column is y[0] alone
+    assert Phi[:, 28].tolist() == [0.0] * 29 + [y[0]]
+
+
 def test_unknown_form_raises():
     u, y = _data(8, 13)
     with pytest.raises(ValueError, match="form"):

@@ -227,3 +227,83 @@ def test_coprime_distance_checks_the_grid_size(bad):
     # 2 points are the grid's two ends, 10⁻⁴ of Nyquist and Nyquist
     d, w = uf.coprime_distance(F, control.tf([0.2], [1.0, -1.0], 1.0), 2)
     assert d > 0 and (w == pytest.approx(np.pi) or w == pytest.approx(1e-4 * np.pi))
+
+
+def test_hand_made_factors_refuse_strings_and_complex_taps():
+    # N="x" had raised numpy's "could not convert string to float"; complex taps lost their imaginary part silently
+    M = np.array([[[1.0]], [[-1.0]]])
+    with pytest.raises(DataError, match=r"numeric taps: N must be an array of shape \(i \+ 1, l, m\), got str"):
+        uf.CoprimeFactors(N="x", M=M, dt=1.0)
+    with pytest.raises(DataError, match="real taps; M is complex"):
+        uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=M + 0.5j, dt=1.0)
+
+
+def _gap_factors(l=1, m=1, dt=1.0):
+    N = np.zeros((2, l, m))
+    N[1] = 0.1
+    M = np.stack([np.eye(l), -np.eye(l)])
+    return uf.CoprimeFactors(N=N, M=M, dt=dt)
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    (dict(response=np.ones(2)), r"response has shape \(2,\) for 3 frequencies.*pass \(3, 1, 1\) or \(3,\)"),
+    (dict(response="x"), "response must be a numeric array, got str"),
+    (dict(radius=-0.1), "radius must be ≥ 0"),
+    (dict(radius=[0.1, np.nan, 0.1]), "radius must be ≥ 0"),
+    (dict(radius=[0.1, 0.1]), r"radius has shape \(2,\); pass one number or 3"),
+    (dict(frequency=[0.1, np.nan, 1.0]), r"frequency\[1\] = nan lies outside \[0, π/dt\]"),
+    (dict(frequency=[0.1, 4.0, 1.0]), r"frequency\[1\] = 4 lies outside \[0, π/dt\] = \[0, 3.14159\]"),
+    (dict(frequency=[-0.1, 0.5, 1.0]), r"frequency\[0\] = -0.1 lies outside"),
+    (dict(frequency="x"), "frequency must be a numeric array"),
+])
+def test_coprime_gap_checks_its_inputs(kw, fragment):
+    """A response of another length had raised numpy's reshape error, a string numpy's conversion error; a negative
+    radius, a NaN frequency or one above Nyquist had given numbers (a NaN or an aliased frequency's gap)."""
+    args = dict(frequency=np.array([0.1, 0.5, 1.0]), response=np.ones(3, complex), radius=None)
+    args.update(kw)
+    with pytest.raises(DataError, match=fragment):
+        uf.coprime_gap(_gap_factors(), args["frequency"], args["response"], args["radius"])
+
+
+def test_coprime_gap_refuses_a_flat_response_for_several_channels_and_takes_nyquist():
+    # (2F,) for a 2 × 1 model had been reshaped to (F, 2, 1) and read through its first entry only (the SISO path)
+    F = _gap_factors(2, 1)
+    w = np.array([0.1, 1.0])
+    G = np.arange(1.0, 5.0).reshape(2, 2, 1) + 0j
+    with pytest.raises(DataError, match=r"response has shape \(4,\).*2 × 1.*pass \(2, 2, 1\), one response"):
+        uf.coprime_gap(F, w, G.ravel())
+    np.testing.assert_allclose(uf.coprime_gap(F, w, G), uf.coprime_gap(F, w, G.tolist()), rtol=0)
+    # the ends of [0, π/dt] are frequencies (dt = 0.5: Nyquist 2π rad/s), and the gap there the one at dt = 1 of ωdt
+    w2 = np.array([0.0, 2.0 * np.pi])
+    g2 = uf.coprime_gap(_gap_factors(dt=0.5), w2, np.array([0.3, -0.2 + 0j]))
+    np.testing.assert_allclose(g2, uf.coprime_gap(_gap_factors(), w2 * 0.5, np.array([0.3, -0.2 + 0j])), rtol=1e-15)
+
+
+@pytest.mark.parametrize("bad", ["x", -0.01, 0.0, float("nan"), True])
+def test_coprime_noise_levels_are_checked(bad):
+    # sigma="x" had reached float() (a bare ValueError), and in check_coprime_premise a "reason" of the result
+    _, u, y = _arx_data(1, 1, n=300, seed=4)
+    F = uf.coprime_factors(sy.fit_predictor(u[:200, 0], y[:200, 0], 2), 1.0)
+    with pytest.raises(DataError, match=r"sigma (\(the admissible rms noise level\) )?must be"):
+        uf.coprime_unfalsify(F, u[200:, 0], y[200:, 0], held_out=True, sigma=bad)
+    with pytest.raises(DataError, match=r"sigma_window \(the admissible rms noise of \(7.5\).* must be a"):
+        uf.check_coprime_premise(F, u[:60, 0], y[:60, 0], bad)
+
+
+def test_an_unspecified_sample_time_is_kept():
+    """``dt=True`` (unspecified) had been stored as ``float(True)`` = 1.0: a sample time of one second the data never
+    had, which then contradicted a plant at any other sample time."""
+    _, u, y = _arx_data(1, 1, n=400, seed=5)
+    pred = sy.fit_predictor(u[:300, 0], y[:300, 0], 2)
+    F_true, F_one = uf.coprime_factors(pred, True), uf.coprime_factors(pred, 1.0)
+    assert F_true.dt is True and F_true.model().dt is True and F_true.equation().dt is True
+    assert uf.CoprimeFactors(N=F_one.N, M=F_one.M, dt=True).dt is True
+    np.testing.assert_array_equal(F_true.N, F_one.N)
+    # True matches any sample time and reads frequencies in rad/sample: the distance of a plant at 0.5 from F_true is
+    # that of the same coefficients at 1.0 from F_one (second route)
+    plant = lambda dt: control.tf([0.3, 0.1], [1.0, -0.6], dt)  # noqa: E731
+    assert uf.coprime_distance(F_true, plant(0.5)) == uf.coprime_distance(F_one, plant(1.0))
+    with pytest.raises(DataError, match="sample time 0.5 but the factors 1.0"):
+        uf.coprime_distance(F_one, plant(0.5))
+    prem = uf.check_coprime_premise(F_true, u[:60, 0], y[:60, 0], 0.005, validation=(u[300:, 0], y[300:, 0]))
+    assert prem.error_frf is not None and prem.error_frf.dt == 1.0 and "cannot run" not in prem.reason

@@ -6,6 +6,7 @@ import pytest
 import unfalsify as uf
 import unfalsify.cost as cost
 from synthesis import DataError
+from synthesis.validation import InputTypeError
 
 
 def _fir_record(n, m=1, l=1, seed=0):
@@ -103,3 +104,22 @@ def test_the_guard_does_not_warn_at_ordinary_sizes(recwarn):
     uf.arx_unfalsify(u, y, 0, 0, 0.05)
     uf.subspace_unfalsify(u, y, 3, 0.05, backend="structured", progress=False)
     assert not [w for w in recwarn.list if issubclass(w.category, uf.LongSolveWarning)]
+
+
+@pytest.mark.parametrize("call, error, fragment", [
+    ("uf.solve_estimate(-5, 100, 'structured')", DataError, "horizon must be an integer ≥ 1, got -5"),
+    ("uf.solve_estimate(10.5, 100, 'structured')", DataError, "horizon must be an integer ≥ 1, got 10.5"),
+    ("uf.solve_estimate(10, 0, 'cvxpy')", DataError, "columns must be an integer ≥ 1, got 0"),
+    ("uf.solve_estimate(10, 100, 'bogus')", uf.UnknownSolverError, "backend must be 'structured' or 'cvxpy'"),
+    ("uf.solve_estimate(10, 100, 'structured', channels='ab')", InputTypeError, "channels must be a pair"),
+    ("uf.solve_estimate(10, 100, 'structured', channels=(1, 2, 3))", DataError, "got 3 entries"),
+    ("uf.solve_estimate(10, 100, 'structured', channels=(0, 2))", DataError, r"channels\[0\] \(inputs m\) must"),
+    ("uf.arx_solve_estimate(-5)", DataError, "n must be an integer ≥ 1, got -5"),
+    ("uf.arx_solve_estimate(40, channels=(1, 2.0))", DataError, r"channels\[1\] \(outputs l\) must be an integer"),
+])
+def test_the_estimates_refuse_bad_sizes(call, error, fragment):
+    """int() had read -5 and 10.5 silently (a complex time at i = -5), an unknown backend got cvxpy's numbers, and
+    channels='ab' raised int()'s ValueError."""
+    with pytest.raises(error, match=fragment):
+        eval(call, {"uf": uf})
+    assert uf.solve_estimate(10, 200, "structured", channels=[1, 1]) == uf.solve_estimate(10, 200, "structured")

@@ -145,6 +145,21 @@ def test_is_unfalsified_rejects_bad_gamma():
         uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], np.nan)
 
 
+
+@pytest.mark.parametrize("kw, fragment", [
+    (dict(gamma="1e9"), r"gamma \(the gain bound\) must be a finite number >= 0, got '1e9'"),
+    (dict(gamma=True), r"gamma \(the gain bound\) must be"),
+    (dict(gamma=1.0, rtol="1e-9"), r"rtol \(the relative tolerance of the comparison\) must be a finite number >= 0"),
+    (dict(gamma=1.0, rtol=-1e-9), r"rtol .* must be a finite number >= 0, got -1e-09"),
+])
+def test_is_unfalsified_refuses_strings_for_its_numbers(kw, fragment):
+    # gamma="1e9" had been parsed by float() silently, rtol="1e-9" reached numpy's sum (a bare TypeError)
+    gamma = kw.pop("gamma")
+    with pytest.raises(DataError, match=fragment):
+        uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], gamma, **kw)
+    assert uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], 0.5) and not uf.is_unfalsified([1.0, 0.0], [0.5, 0.0], 0.49)
+
+
 def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
     # a public helper must not leak ZeroDivisionError/IndexError: DataError names the problem and the fix
     with pytest.raises(DataError, match="u\\[0\\] == 0.*first non-zero"):
@@ -159,6 +174,27 @@ def test_deconvolve_and_norm_reject_bad_input_with_value_errors():
         with pytest.raises(DataError, match=match):
             uf.deconvolve(u, [1.0, 2.0, 3.0])
     assert uf.deconvolve([2.0, 1.0], [[2.0], [3.0]]).tolist() == [1.0, 1.0]  # a column (n, 1) is one channel
+
+
+
+@pytest.mark.parametrize("exact", [False, True])
+def test_deconvolve_refuses_a_solution_that_leaves_floating_point(exact):
+    """u[0] = 1e-300 makes T(u)⁻¹y overflow: deconvolve had returned inf/nan without a word (exact=True as well:
+    the data's own answer, not rounding).  unfalsified_gain keeps reading such data as γ = inf (method 'overflow'),
+    and toeplitz_cond as inf."""
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal(30), rng.standard_normal(30)
+    u[0] = 1e-300
+    with pytest.raises(DataError, match=r"leaves floating point at sample 1 .*too ill-conditioned.*\|u\[0\]\| = 1e-300"
+                                        r".*start the window at a sample where u is large"):
+        uf.deconvolve(u, y, exact=exact)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.IllConditionedWarning)
+        r = uf.unfalsified_gain_result(u, y, exact=exact)
+    assert r.gamma == np.inf and r.method == "overflow" and uf.toeplitz_cond(u) == np.inf
+    u[0] = 1e-3  # ill-conditioned but finite: still solved
+    h = uf.deconvolve(u, y, exact=exact)
+    assert np.all(np.isfinite(h)) and h[0] == pytest.approx(y[0] / 1e-3, rel=1e-12)
     for n in (2, 5):  # the method is checked for every size (n < 3 used to fall through to dense)
         with pytest.raises(ValueError, match="unknown method"):
             uf.toeplitz_norm(np.ones(n), method="svd")

@@ -815,6 +815,42 @@ def test_estimates_check_their_arguments():
         uf.low_band_estimate(u, y, 1.0, bins=2.5)
 
 
+@pytest.mark.parametrize("segments, error, fragment", [
+    (3, "InputTypeError", r"segments must be a list or tuple of \(u, y\) record pairs.*got int 3"),
+    ("x", "InputTypeError", "segments must be a list or tuple.*got str 'x'"),
+    ([np.ones(600)], "InputTypeError", r"segments\[0\] must be a pair \(u, y\).*got ndarray"),
+    ([(np.ones(600),)], "DataError", r"segments\[0\] has 1 entries; each segment is a pair \(u, y\)"),
+])
+def test_frequency_response_segments_must_be_pairs(segments, error, fragment):
+    # segments=3 had raised "'int' object is not iterable", "x" and a bare array Python's unpacking errors
+    from synthesis.validation import InputTypeError
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, [0.0, 0.5])[:600]
+    with pytest.raises({"InputTypeError": InputTypeError, "DataError": DataError}[error], match=fragment):
+        uf.frequency_response_estimate(u, y, segments=segments)
+    one = uf.frequency_response_estimate(u, y, segments=[(u, y)])  # a record twice: the same estimate, twice the data
+    np.testing.assert_allclose(one.response, uf.frequency_response_estimate(u, y, segments=((u, y),)).response)
+
+
+def test_operating_point_note_checks_its_record_and_names_constant_channels():
+    """A single sample and a constant channel had been named "inf times its standard deviation" (a zero input too),
+    and a y of another length than u was read as the same record."""
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(50))
+    with pytest.raises(DataError, match="one sample: it has no standard deviation"):
+        uf.operating_point_note([1.0], [2.0])
+    with pytest.raises(DataError, match="y has 49 samples but 50 were expected"):
+        uf.operating_point_note(u, u[:49])
+    note = uf.operating_point_note(np.full(50, 0.1), u)
+    assert note.startswith("u is constant at 0.1 over the record: the models have no constant term")
+    assert "inf" not in note
+    assert uf.operating_point_note(np.zeros(50), u) == ""  # zero throughout: no operating point
+    two = uf.operating_point_note(np.column_stack([u, np.full(50, -2.0)]), u)
+    assert two.startswith("u[:, 1] is constant at -2 over the record") and "mean of u[:, 0]" not in two
+
+
 def test_a_refusal_names_a_record_at_an_operating_point():
     """A sensor bias of 2 on outputs of about unit rms: the models have no constant term, the loop is refused, and the
     warning names the mean and the fix (it had named only the consequences: a nearly integrating P̂)."""

@@ -82,6 +82,9 @@ def test_tracking_floor_per_channel():
         uf.certify_loop(P, K, 0.0, tracking_floor=[0.3, 0.1, 0.2])
     with pytest.raises(DataError, match=r"tracking_floor\[1\]"):
         uf.tracking_floors([0.1, -1.0], 2)
+    for bad in (2.0, 0, "2", True):  # 2.0 had been taken as two channels
+        with pytest.raises(DataError, match=r"channels \(the plant's outputs l\) must be an integer ≥ 1"):
+            uf.tracking_floors(0.1, bad)
 
 
 def test_steady_state_across_the_ball_is_judged_per_channel():

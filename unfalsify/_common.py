@@ -8,9 +8,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from synthesis import DataError
+from synthesis import DataError, Predictor
 from synthesis.results import result
-from synthesis.validation import as_signal
+from synthesis.validation import as_signal, check_instance
 
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
@@ -142,6 +142,16 @@ def check_solver_options(solver_options) -> dict | None:
         raise DataError(f"solver_options must be a mapping of keyword arguments for cvxpy's Problem.solve "
                         f"(e.g. {{'max_iters': 5000}}) or None, got {solver_options!r}")
     return dict(solver_options)
+
+
+def check_predictor(predictor, name: str = "predictor"):
+    """``predictor`` when it is None or a :class:`synthesis.Predictor`; else
+    :class:`~synthesis.validation.InputTypeError` naming the fix (another object, e.g. a string, had failed deep
+    inside with an AttributeError)."""
+    if predictor is None:
+        return None
+    return check_instance(predictor, Predictor, name,
+                          "a synthesis.Predictor (e.g. synthesis.fit_predictor(u, y, i)) or None")
 
 
 def check_form(form: str) -> str:

@@ -194,6 +194,11 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     (na·l + nb·m columns) and Y is (n, l), so ``e(Θ) = ΦΘ + Y`` with ``Θ = [A₁ᵀ; …; A_naᵀ; B₁ᵀ; …; B_nbᵀ]``
     (the multi-output equation error ``e_t = y_t + Σ A_k y_{t−k} − Σ B_k u_{t−k}``).
 
+    Raises
+    ------
+    DataError
+        Bad data, orders that are not integers ≥ 0, or a record of no more than ``max(na, nb)`` samples.
+
     Examples
     --------
     >>> Phi, Y = arx_regressor([1.0, 2.0, 3.0], [0.5, 1.0, 1.5], 1, 2)
@@ -209,6 +214,10 @@ def arx_regressor(u, y, na: int, nb: int) -> tuple[np.ndarray, np.ndarray]:
     u, y = channel_pair(u, y)
     na, nb = _order(na, "na"), _order(nb, "nb")
     n = u.shape[0]
+    if n <= max(na, nb):
+        # a lag of n or more reaches no sample of the record (its column is zero); beyond n numpy broadcast
+        raise DataError(f"the record has n = {n} samples but the lags reach back max(na, nb) = {max(na, nb)}: record "
+                        f"at least {max(na, nb) + 1} samples or lower the orders (na = {na}, nb = {nb})")
     if u.ndim == 2:
         m, l = u.shape[1], y.shape[1]
         Phi = np.zeros((n, na * l + nb * m))

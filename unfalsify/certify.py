@@ -39,7 +39,8 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system, check_count, check_nonnegative, check_same_dt
+from synthesis.validation import (DataError, as_discrete_system, check_count, check_instance, check_nonnegative,
+                                  check_same_dt)
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
@@ -250,6 +251,11 @@ def coprime_channel(factors, controller) -> control.StateSpace:
     control.StateSpace
         Inputs ``v`` (l), outputs ``[u; y]`` (m + l).
 
+    Raises
+    ------
+    InputTypeError
+        ``factors`` is not a :class:`CoprimeFactors`.
+
     Examples
     --------
     >>> import numpy as np, control
@@ -260,6 +266,9 @@ def coprime_channel(factors, controller) -> control.StateSpace:
     >>> sorted(H.poles().real.round(6).tolist()), np.round(np.abs(control.dcgain(H)).ravel(), 6).tolist()
     ([0.0, 0.8], [10.0, 5.0])
     """
+    from .coprime import CoprimeFactors  # here: coprime imports premise, which imports this module
+
+    check_instance(factors, CoprimeFactors, "factors", "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
     G = factors.equation()
     P, C, l = loop_parts(factors.model(), controller)
     m = P.ninputs
@@ -379,7 +388,8 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     Raises
     ------
     DataError
-        A negative or NaN floor, a sequence whose length is not ``channels``, or no tracked output.
+        A negative or NaN floor, a sequence whose length is not ``channels``, no tracked output, or ``channels``
+        not None nor an integer ≥ 1.
 
     Examples
     --------
@@ -390,15 +400,17 @@ def tracking_floors(tracking_floor, channels: int | None) -> np.ndarray:
     >>> tracking_floors([0.1, 0.2, 0.3], None).tolist()            # count not known yet: the floors checked alone
     [0.1, 0.2, 0.3]
     """
+    if channels is not None:
+        channels = check_count(channels, "channels (the plant's outputs l)", 1)  # 2.0 had been accepted
     if not isinstance(tracking_floor, (list, tuple, np.ndarray)) or np.ndim(tracking_floor) == 0:
         if isinstance(tracking_floor, np.ndarray):
             tracking_floor = tracking_floor.item()
         check_nonnegative(tracking_floor, "tracking_floor")
-        return np.full(1 if channels is None else int(channels), float(tracking_floor))
+        return np.full(1 if channels is None else channels, float(tracking_floor))
     floors = list(tracking_floor)
     if not floors:
         raise DataError("tracking_floor is empty: give one number for all output channels or one per channel")
-    if channels is not None and len(floors) != int(channels):
+    if channels is not None and len(floors) != channels:
         raise DataError(f"tracking_floor has {len(floors)} entries but the plant has {channels} outputs: give one "
                         "number for all channels or one per output channel")
     for k, f in enumerate(floors):

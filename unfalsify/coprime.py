@@ -49,14 +49,15 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system, check_count, check_flag, check_sample_time
+from synthesis.validation import (DataError, as_discrete_system, check_count, check_flag, check_instance, check_level,
+                                  check_sample_time)
 
-from ._common import channel_pair
+from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _unit, frequency_response_estimate,
                                  low_band_estimate)
-from .premise import PremiseOptions, _fir_sigma, _low_bins
+from .premise import PremiseOptions, _fir_sigma, _low_bins, _premise_options
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
@@ -78,8 +79,8 @@ class CoprimeFactors:
         ``N̂(q) = Σ_d N[d] q^{−d}``.
     M : ndarray, shape (i + 1, l, l)
         ``M̂(q) = Σ_d M[d] q^{−d}``, ``M[0] = I``.
-    dt : float
-        Sample time.
+    dt : float or True
+        Sample time (True: unspecified, as python-control's ``dt=True``).
     """
 
     N: np.ndarray
@@ -89,7 +90,7 @@ class CoprimeFactors:
     def __post_init__(self):
         # the realisations (model, equation) read M[0] = I and degree ≥ 1 without looking: check them here, so that
         # hand-made factors cannot give a silently wrong P̂
-        N, M = np.asarray(self.N, dtype=float), np.asarray(self.M, dtype=float)
+        N, M = _taps(self.N, "N"), _taps(self.M, "M")
         if N.ndim != 3 or M.ndim != 3 or M.shape[1] != M.shape[2] or N.shape[:2] != M.shape[:2]:
             raise DataError(f"coprime factors need N of shape (i + 1, l, m) and M of shape (i + 1, l, l), got "
                             f"{np.shape(self.N)} and {np.shape(self.M)}")
@@ -103,7 +104,8 @@ class CoprimeFactors:
                             "factors on the left by M[0]")
         object.__setattr__(self, "N", N)
         object.__setattr__(self, "M", M)
-        object.__setattr__(self, "dt", float(check_sample_time(self.dt, "dt")))  # True (unspecified) reads as 1
+        # True (unspecified) is kept, as python-control keeps it: float(True) = 1.0 would claim a sample time of 1
+        object.__setattr__(self, "dt", check_sample_time(self.dt, "dt"))
 
     @property
     def horizon(self) -> int:
@@ -160,6 +162,28 @@ class CoprimeFactors:
         return np.hstack([Cu, Cy]), np.asarray(self.N[0], float)
 
 
+def _taps(x, name: str) -> np.ndarray:
+    """The taps ``N`` or ``M`` of :class:`CoprimeFactors` as a real float array (DataError otherwise: a string had
+    reached numpy's own conversion error, and a complex array would have lost its imaginary part silently)."""
+    if np.iscomplexobj(x):
+        raise DataError(f"coprime factors need real taps; {name} is complex")
+    try:
+        return np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"coprime factors need numeric taps: {name} must be an array of shape (i + 1, l, "
+                        f"{'m' if name == 'N' else 'l'}), got {type(x).__name__} {x!r:.40}") from exc
+
+
+def _factors(factors, name: str = "factors") -> CoprimeFactors:
+    """``factors`` when it is a :class:`CoprimeFactors`, else InputTypeError naming where they come from."""
+    return check_instance(factors, CoprimeFactors, name, "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
+
+
+def _nyquist(dt) -> float:
+    """π/dt in rad/s; π (rad/sample) for an unspecified sample time (``dt=True``)."""
+    return float(np.pi / (1.0 if dt is True else dt))
+
+
 def coprime_factors(pred, dt=None) -> CoprimeFactors:
     """The left coprime factors ``(N̂, M̂)`` of the predictor's first block row (module docstring).
 
@@ -200,7 +224,7 @@ def coprime_factors(pred, dt=None) -> CoprimeFactors:
         s = i - d  # the column block of lag d
         N[d] = C[:, s * m:(s + 1) * m]
         M[d] = -C[:, i * m + s * l: i * m + (s + 1) * l]
-    return CoprimeFactors(N=N, M=M, dt=float(model.dt))
+    return CoprimeFactors(N=N, M=M, dt=model.dt)  # model.dt: a positive float, or True (unspecified)
 
 
 def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np.ndarray:
@@ -223,6 +247,14 @@ def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np
     ndarray, shape (F,)
         NaN where the response is not finite; 0 where the radius is infinite.
 
+    Raises
+    ------
+    InputTypeError
+        ``factors`` is not a :class:`CoprimeFactors`.
+    DataError
+        Frequencies that are not finite or lie outside ``[0, π/dt]``; a response that is not numeric or whose shape
+        is not ``(F,)`` (one channel) or ``(F, l, m)``; a radius that is negative, NaN or not of length F.
+
     Examples
     --------
     >>> import numpy as np
@@ -235,17 +267,33 @@ def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np
     >>> np.round(coprime_gap(F, w, G2), 4).tolist()             # 0.1/√(1 + |G₂|²): finite, small near DC
     [0.005, 0.0447, 0.0979]
     """
-    w = np.atleast_1d(np.asarray(frequency, float))
-    G = np.asarray(response, complex)
-    siso = G.ndim == 1
-    G = G.reshape(w.size, factors.outputs, factors.inputs)
+    _factors(factors)
+    w = _gap_frequencies(frequency, factors.dt)
+    G = _numeric(response, "response").astype(complex)
+    l, m = factors.outputs, factors.inputs
+    siso = G.shape == (w.size,) and l == m == 1
+    if not (siso or G.shape == (w.size, l, m)):
+        raise DataError(f"response has shape {G.shape} for {w.size} frequencies; the factors are {l} × {m} (outputs × "
+                        f"inputs): pass ({w.size}, {l}, {m})" + (f" or ({w.size},)" if l == m == 1 else "")
+                        + ", one response per frequency")
+    G = G.reshape(w.size, l, m)
+    r = None
+    if radius is not None:
+        r = _numeric(radius, "radius")
+        if r.shape not in ((), (w.size,)):
+            raise DataError(f"radius has shape {r.shape}; pass one number or {w.size} (one per frequency)")
+        bad = np.isnan(r) | (r < 0)
+        if np.any(bad):
+            raise DataError(f"radius must be ≥ 0 (inf: nothing known), got {float(r[bad].flat[0]):g}; a confidence "
+                            "radius of the response is a distance")
+        r = np.broadcast_to(r.astype(float), w.shape)
     Nw, Mw = factors.response(w)
     out = np.full(w.size, np.nan)
     ok = np.all(np.isfinite(G), axis=(1, 2))
     if not np.any(ok):
         return out
     R = Mw[ok] @ G[ok] - Nw[ok]
-    r = None if radius is None else np.broadcast_to(np.asarray(radius, float), w.shape)[ok]
+    r = None if r is None else r[ok]
     if r is None or not np.any(r > 0):
         if siso:
             out[ok] = np.abs(R[:, 0, 0]) / np.sqrt(1.0 + np.abs(G[ok, 0, 0]) ** 2)
@@ -260,6 +308,33 @@ def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np
         low = np.maximum(norm(R) - r * norm(Mw[ok]), 0.0) / np.sqrt(1.0 + (norm(G[ok]) + r) ** 2)
     out[ok] = np.where(np.isfinite(r), low, 0.0)
     return out
+
+
+def _numeric(x, name: str) -> np.ndarray:
+    """``x`` as a numeric array (real or complex), DataError otherwise (a string had reached numpy's conversion)."""
+    arr = np.asarray(x)
+    if arr.dtype.kind not in "biufc":
+        raise DataError(f"{name} must be a numeric array, got {type(x).__name__} {x!r:.40}")
+    return arr
+
+
+def _gap_frequencies(frequency, dt) -> np.ndarray:
+    """Frequencies (rad/s) as a 1-D float array, each finite and in ``[0, π/dt]`` (DataError otherwise): the factors'
+    response is periodic in ω with period 2π/dt, so a frequency above Nyquist is another frequency's, and a NaN one
+    had given a NaN gap without a word."""
+    w = np.atleast_1d(_numeric(frequency, "frequency"))
+    if np.iscomplexobj(w) or w.ndim != 1:
+        raise DataError(f"frequency must be a 1-D array of real frequencies in rad/s, got shape {w.shape}"
+                        + (" (complex)" if np.iscomplexobj(w) else ""))
+    w = w.astype(float)
+    nyq = _nyquist(dt)
+    bad = ~(np.isfinite(w) & (w >= 0.0) & (w <= nyq * (1.0 + 1e-12)))
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"frequency[{k}] = {w[k]:g} lies outside [0, π/dt] = [0, {nyq:.6g}] rad/s (dt = {dt}); pass "
+                        "finite frequencies in rad/s up to the Nyquist frequency (a normalised frequency in "
+                        "rad/sample is ω·dt)")
+    return w
 
 
 def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple[float, float]:
@@ -291,18 +366,22 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     >>> bool(d < 1e-12)
     True
     """
+    _factors(factors)
     points = check_count(points, "points", 2)
     sys = control.ss(as_discrete_system(plant, "plant"))  # a continuous plant was read as if discrete
-    if sys.dt is not True and not np.isclose(float(sys.dt), factors.dt, rtol=1e-9, atol=0.0):
+    # True (unspecified) on either side matches any sample time, as in synthesis.validation.check_same_dt
+    if sys.dt is not True and factors.dt is not True and not np.isclose(float(sys.dt), factors.dt, rtol=1e-9,
+                                                                        atol=0.0):
         raise DataError(f"plant has sample time {sys.dt} but the factors {factors.dt}; compare systems at one sample "
                         "time")
     if (sys.noutputs, sys.ninputs) != (factors.outputs, factors.inputs):
         raise DataError(f"plant is {sys.noutputs} × {sys.ninputs} but the factors {factors.outputs} × "
                         f"{factors.inputs} (outputs × inputs)")
-    nyq = np.pi / factors.dt
+    dt = 1.0 if factors.dt is True else factors.dt  # rad/sample for an unspecified sample time
+    nyq = np.pi / dt
     w = np.concatenate([np.geomspace(1e-4 * nyq, nyq, points)])
     with np.errstate(divide="ignore", invalid="ignore"):
-        G = np.moveaxis(np.asarray(sys.horner(np.exp(1j * w * factors.dt)), complex), -1, 0)
+        G = np.moveaxis(np.asarray(sys.horner(np.exp(1j * w * dt)), complex), -1, 0)
     gap = coprime_gap(factors, w, G.reshape(w.size, factors.outputs, factors.inputs))
     k = int(np.nanargmax(gap)) if np.any(np.isfinite(gap)) else 0
     return float(gap[k]), float(w[k])
@@ -379,8 +458,11 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     >>> bool(0 <= cu.epsilon < 0.05), cu.unfalsification.certificate.verify()
     (True, True)
     """
-    opts = options or PremiseOptions()
+    _factors(factors)
+    opts = _premise_options(options)
     held_out = check_flag(held_out, "held_out")
+    if sigma is not None:
+        sigma = check_sigma(sigma)  # a string had reached float() below, and 0 or a negative σ the solver
     u, y = channel_pair(u, y)
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)
@@ -401,7 +483,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     w = np.hstack([U, Y[i:i + n]])
     e = e_all[:n]
     if sigma is not None:
-        sigma, rule = float(sigma), "given"
+        rule = "given"
     else:
         taps = opts.taps if opts.taps is not None else min((n - burn) // (4 * width), max(4 * i, 20))
         past = np.hstack([U, Y[i - 1:i - 1 + n]])  # u_k … and y_{k−1} …: the current output is left out
@@ -499,6 +581,9 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     >>> np.round(error_gap(F, est), 4).tolist()
     [0.0, 0.0786]
     """
+    _factors(factors)
+    check_instance(est, (FrequencyResponseEstimate, LowBandEstimate), "est",
+                   "a FrequencyResponseEstimate or LowBandEstimate of the equation error (CoprimePremise.error_frf)")
     w = np.asarray(est.frequency, float)
     Nw, Mw = factors.response(w)
     R = np.asarray(est.response, complex).reshape(w.size, factors.outputs, factors.inputs)
@@ -574,10 +659,14 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
     >>> p.ok, p.epsilon >= p.held_out.epsilon, p.decided_by in ("in sample", "held out")
     (True, True, True)
     """
-    opts = options or PremiseOptions()
+    # checked here: coprime_unfalsify's refusals below become reasons of the result, not errors
+    _factors(factors)
+    sigma_window = check_level(sigma_window, "sigma_window (the admissible rms noise of (7.5), e.g. "
+                                             "subspace_unfalsify(...).sigma)")
+    opts = _premise_options(options)
     u, y = channel_pair(u, y)
     reasons: list = []
-    inside = _solve_or_reason(factors, (u, y), False, float(sigma_window), opts, "window", reasons)
+    inside = _solve_or_reason(factors, (u, y), False, sigma_window, opts, "window", reasons)
     data = (u, y)
     if validation is not None:
         try:
@@ -601,8 +690,9 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
         # the equation error of the whole record (FIR: every row usable), already formed by the solve above
         e = outside.residual if outside is not None else factors.residual(*data)
         ue = uu[factors.horizon:]
+        dt = 1.0 if factors.dt is True else factors.dt  # the estimates need a number: rad/sample when unspecified
         try:
-            frf = frequency_response_estimate(ue, e, factors.dt, nperseg=opts.nperseg, confidence=opts.confidence)
+            frf = frequency_response_estimate(ue, e, dt, nperseg=opts.nperseg, confidence=opts.confidence)
         except DataError as exc:
             reasons.append(f"no frequency-response estimate of the equation error ({exc})")
     if frf is not None:
@@ -611,7 +701,7 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
             reasons.append(why)
         bins = _low_bins(e.shape[0], frf.nperseg, 1 if ue.ndim == 1 else ue.shape[1])
         if bins:
-            low = low_band_estimate(ue, e, factors.dt, bins=bins, confidence=opts.confidence)
+            low = low_band_estimate(ue, e, dt, bins=bins, confidence=opts.confidence)
             low_worst, why = _gap_reason(factors, low, eps, "at low frequency (below the Welch resolution)")
             worst = float(np.fmax(worst, low_worst))
             if why:

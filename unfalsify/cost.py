@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import warnings
 
-from synthesis.validation import DataError
+from synthesis.validation import DataError, check_count, check_instance
 
-from .exceptions import LongSolveWarning
+from .exceptions import LongSolveWarning, UnknownSolverError
 
 __all__ = ["solve_estimate", "arx_solve_estimate"]
 
@@ -36,6 +36,14 @@ def solve_estimate(horizon: int, columns: int, backend: str, channels: tuple[int
     j·i²·ml doubles``; cvxpy 73 s at (10, 200) -- the SISO estimate times ``(ml)^1.8`` s and ``(ml)²`` bytes.
     Estimates, not promises: they decide a warning or a refusal before the solve.
 
+    Raises
+    ------
+    DataError
+        ``horizon`` or ``columns`` not an integer ≥ 1; ``channels`` not a pair of integers ≥ 1
+        (:class:`~synthesis.validation.InputTypeError` when not a pair at all).
+    UnknownSolverError
+        ``backend`` neither ``"structured"`` nor ``"cvxpy"``.
+
     Examples
     --------
     >>> t, mem = solve_estimate(10, 200, "structured")             # i = 10, j = 200
@@ -48,8 +56,12 @@ def solve_estimate(horizon: int, columns: int, backend: str, channels: tuple[int
     >>> round(t), round(mem / 1e9, 1)
     (352, 1.1)
     """
-    i, j = int(horizon), int(columns)
-    ml = int(channels[0]) * int(channels[1])
+    # int() had read -5 and 2.7 silently, and an unknown backend got cvxpy's numbers
+    i, j = check_count(horizon, "horizon", 1), check_count(columns, "columns", 1)
+    if backend not in ("structured", "cvxpy"):
+        raise UnknownSolverError(f"backend must be 'structured' or 'cvxpy' (the two measured), got {backend!r}")
+    m, l = _channels(channels)
+    ml = m * l
     if ml > 1:
         if backend == "structured":
             return 11.0 * (j / 200.0) * (i / 10.0) ** 4 * (ml / 4.0) ** 2, 1.5e8 + 185 * 8.0 * j * i * i * ml
@@ -70,6 +82,11 @@ def arx_solve_estimate(n: int, channels: tuple[int, int] = (1, 1)) -> tuple[floa
     and ``0.17 GB + 10·s²`` bytes (the multichannel points lie below the fit).  The structured backend's memory
     grows like n², not n⁴, and it certifies n = 10⁴ on one channel.
 
+    Raises
+    ------
+    DataError
+        ``n`` not an integer ≥ 1; ``channels`` not a pair of integers ≥ 1.
+
     Examples
     --------
     >>> t, mem = arx_solve_estimate(80)                      # one channel, n = 80
@@ -79,9 +96,19 @@ def arx_solve_estimate(n: int, channels: tuple[int, int] = (1, 1)) -> tuple[floa
     >>> round(t), round(mem / 1e9, 1)
     (400, 8.5)
     """
-    d = int(n) * (int(channels[0]) + int(channels[1]))
+    m, l = _channels(channels)
+    d = check_count(n, "n", 1) * (m + l)
     s = d * (d + 1) / 2.0
     return 11.0 * (s / 7260.0) ** 2.6, 1.7e8 + 10.0 * s * s
+
+
+def _channels(channels) -> tuple[int, int]:
+    """``channels`` as a pair ``(m, l)`` of integers ≥ 1 (raises InputTypeError or DataError otherwise)."""
+    check_instance(channels, (tuple, list), "channels", "a pair (m, l): the numbers of inputs and outputs")
+    if len(channels) != 2:
+        raise DataError(f"channels must be a pair (m, l), the numbers of inputs and outputs; got {len(channels)} "
+                        f"entries {tuple(channels)!r}")
+    return check_count(channels[0], "channels[0] (inputs m)", 1), check_count(channels[1], "channels[1] (outputs l)", 1)
 
 
 def _memory_available() -> float:

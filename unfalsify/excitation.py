@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError
+from synthesis.validation import DataError, check_instance
 
 from .certify import additive_channel, coprime_channel
 from .frequency_response import EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands, _unit
@@ -177,6 +177,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
 
     Raises
     ------
+    InputTypeError
+        ``frf``, ``low_band`` or ``factors`` of another type.
     DataError
         The estimates' channels differ from the model's; ``delta`` negative or not a number.
 
@@ -206,6 +208,13 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     >>> ex.ok, "u[:, 1]" in ex.reason
     (False, True)
     """
+    # the estimates are read attribute by attribute below: another object had failed there with an AttributeError
+    check_instance(frf, FrequencyResponseEstimate, "frf",
+                   "a FrequencyResponseEstimate of the model error (PremiseTest.frf, or "
+                   "frequency_response_estimate(u, y − P̂u))")
+    if low_band is not None:
+        check_instance(low_band, LowBandEstimate, "low_band",
+                       "a LowBandEstimate (PremiseTest.low_band, or low_band_estimate(u, y − P̂u)) or None")
     if delta is not None and (isinstance(delta, bool) or not isinstance(delta, numbers.Real) or not delta >= 0):
         what = "ε of the coprime-factor form" if factors is not None else "δ of the additive form"
         raise DataError(f"delta must be a number ≥ 0 ({what}), got {delta!r}")

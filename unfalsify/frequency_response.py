@@ -33,7 +33,7 @@ import scipy.signal
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_count, check_sample_time
+from synthesis.validation import DataError, as_signal, check_count, check_instance, check_sample_time
 
 __all__ = ["EXCITATION_FLOOR", "FrequencyResponseEstimate", "frequency_response_estimate", "leaked_bins",
            "LowBandEstimate", "low_band_estimate"]
@@ -164,6 +164,19 @@ def _record_pair(u, y, prefix: str = "", m: int | None = None, l: int | None = N
     return u, y
 
 
+def _segment_pairs(segments) -> tuple:
+    """``segments`` of :func:`frequency_response_estimate` as a tuple of ``(u, y)`` pairs; InputTypeError otherwise (a
+    number had failed as "not iterable", a string or a bare array in Python's unpacking)."""
+    what = "a list or tuple of (u, y) record pairs, e.g. [(u2, y2)] ([] or () for none)"
+    check_instance(segments, (list, tuple), "segments", what)
+    for k, pair in enumerate(segments):
+        check_instance(pair, (list, tuple), f"segments[{k}]", "a pair (u, y) of one further record's input and output")
+        if len(pair) != 2:
+            raise DataError(f"segments[{k}] has {len(pair)} entries; each segment is a pair (u, y) of one further "
+                            "record's input and output")
+    return tuple(segments)
+
+
 def _segment_length(n: int) -> int:
     """A power of two giving at least eight Welch segments, within 16–256."""
     return int(min(256, max(16, 2 ** int(math.floor(math.log2(max(n // 8, 1)))))))
@@ -219,6 +232,8 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
 
     Raises
     ------
+    InputTypeError
+        ``segments`` not a list or tuple of ``(u, y)`` pairs.
     DataError
         NaN, mismatched lengths or channels, fewer samples than two segments, a confidence outside (0, 1).
 
@@ -249,6 +264,7 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     dt = check_sample_time(dt, "dt", allow_true=False)
     if nperseg is not None:
         nperseg = check_count(nperseg, "nperseg", 4)
+    segments = _segment_pairs(segments)
     first = _record_pair(u, y)
     m, l = first[0].shape[1], first[1].shape[1]
     pairs = [first] + [_record_pair(us, ys, f"segments[{k}] ", m, l) for k, (us, ys) in enumerate(segments)]

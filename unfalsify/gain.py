@@ -44,15 +44,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from synthesis import DataError
 from synthesis.results import result
 
-from synthesis.validation import as_signal, check_flag
+from synthesis.validation import as_signal, check_flag, check_nonnegative
 
 from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
 from .solvers.extension import minimal_extension
-from .solvers.toeplitz import block_toeplitz_norm, deconvolve, signal_toeplitz, toeplitz_cond, toeplitz_norm
+from .solvers.toeplitz import _deconvolve, block_toeplitz_norm, signal_toeplitz, toeplitz_cond, toeplitz_norm
+from .solvers.toeplitz import deconvolve  # noqa: F401 -- the examples below use it
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
 
@@ -219,7 +219,7 @@ def _mimo_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -
         if exact is None:
             exact = n <= 400
         with np.errstate(over="ignore", invalid="ignore"):
-            h = np.stack([deconvolve(u[:, 0], y[:, a], exact=exact) for a in range(y.shape[1])], axis=1)[:, :, None]
+            h = np.stack([_deconvolve(u[:, 0], y[:, a], exact=exact) for a in range(y.shape[1])], axis=1)[:, :, None]
         cond = toeplitz_cond(u[:, 0])
         if warn:
             _warn_cond(cond)
@@ -246,7 +246,7 @@ def _siso_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -
     if exact is None:
         exact = n <= 400
     with np.errstate(over="ignore", invalid="ignore"):
-        h = deconvolve(u, y, exact=exact)
+        h = _deconvolve(u, y, exact=exact)
     cond = toeplitz_cond(u)
     if warn:
         _warn_cond(cond)
@@ -282,6 +282,12 @@ def unfalsified_gain(u, y, **kwargs) -> float:
 def is_unfalsified(u, y, gamma: float, *, rtol: float = 1e-9, **kwargs) -> bool:
     """True if the data do not falsify "y = Δu with ‖Δ‖∞ ≤ gamma" (Thm 7.1), up to ``rtol``.
 
+    Raises
+    ------
+    DataError
+        ``gamma`` or ``rtol`` not a finite number ≥ 0 (a string is refused, not parsed); bad data
+        (:func:`unfalsified_gain`).
+
     Examples
     --------
     >>> import numpy as np
@@ -290,7 +296,7 @@ def is_unfalsified(u, y, gamma: float, *, rtol: float = 1e-9, **kwargs) -> bool:
     >>> is_unfalsified(u, y, 0.8), is_unfalsified(u, y, 0.7)
     (True, False)
     """
-    g = float(gamma)
-    if not np.isfinite(g) or g < 0:
-        raise DataError(f"gamma must be a finite number >= 0, got {gamma!r}")
+    # float("1e9") had parsed a string silently, and a string rtol reached the sum below
+    g = check_nonnegative(gamma, "gamma (the gain bound)")
+    rtol = check_nonnegative(rtol, "rtol (the relative tolerance of the comparison)")
     return bool(unfalsified_gain(u, y, **kwargs) <= g * (1.0 + rtol))

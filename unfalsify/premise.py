@@ -62,7 +62,7 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_nonnegative,
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_instance, check_nonnegative,
                                   check_sample_time)
 
 from ._common import channel_pair
@@ -134,6 +134,15 @@ class PremiseOptions:
         if self.time_limit is not None and (isinstance(self.time_limit, bool) or
                                             not isinstance(self.time_limit, numbers.Real) or not self.time_limit > 0):
             raise DataError(f"time_limit must be None or a number of seconds > 0, got {self.time_limit!r}")
+
+
+def _premise_options(options) -> PremiseOptions:
+    """``options``, or the defaults for None; :class:`~synthesis.validation.InputTypeError` for another object
+    (``options or PremiseOptions()`` had read an empty dict as the defaults and failed on a string deep inside)."""
+    if options is None:
+        return PremiseOptions()
+    return check_instance(options, PremiseOptions, "options",
+                          "a PremiseOptions (e.g. PremiseOptions(samples=400)) or None")
 
 
 @result
@@ -317,7 +326,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     >>> oe.held_out, oe.delta < 0.05, oe.unfalsification.certificate.verify()
     (True, True, True)
     """
-    opts = options or PremiseOptions()
+    opts = _premise_options(options)
     held_out = check_flag(held_out, "held_out")
     i = int(horizon)
     u, y = channel_pair(u, y)
@@ -501,7 +510,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     >>> test.output_error.held_out, test.validation_shared
     (False, 0.96)
     """
-    opts = options or PremiseOptions()
+    opts = _premise_options(options)
     delta_subspace = check_nonnegative(delta_subspace,
                                        "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
     dt = check_sample_time(dt, "dt", allow_true=False)
@@ -732,11 +741,17 @@ def operating_point_note(u, y) -> str:
     Parameters
     ----------
     u, y : array_like, shape (n,) or (n, k)
-        The record.
+        The record: two or more samples, u and y of one length.  A constant channel away from zero is named as
+        such (it has no standard deviation to compare its mean with); a channel that is zero throughout is not.
 
     Returns
     -------
     str
+
+    Raises
+    ------
+    DataError
+        Bad data, u and y of different lengths, or a single sample.
 
     Examples
     --------
@@ -748,13 +763,23 @@ def operating_point_note(u, y) -> str:
     >>> print(operating_point_note(u, 0.5 * u + 2.0)[:45])
     the mean of y (1.972) is 4 times its standard
     """
+    u = as_signal(u, "u")
+    y = as_signal(y, "y", n=u.shape[0])  # one record: a y of another length is another record's
+    if u.shape[0] < 2:
+        raise DataError("the record has one sample: it has no standard deviation to compare its mean with; pass the "
+                        "whole record (two samples or more)")
     notes = []
-    for what, x in (("u", as_signal(u, "u")), ("y", as_signal(y, "y"))):
+    for what, x in (("u", u), ("y", y)):
         mean, spread = x.mean(axis=0), x.std(axis=0)
         for k in range(x.shape[1]):
-            ratio = abs(float(mean[k])) / float(spread[k]) if spread[k] > 0 else math.inf
+            name = what if x.shape[1] == 1 else f"{what}[:, {k}]"
+            if np.ptp(x[:, k]) == 0.0:  # exactly: the std of a constant is rounding (1e-17 of it), not 0
+                # "inf times its standard deviation" said nothing; a channel that is zero throughout has no offset
+                if x[0, k] != 0.0:
+                    notes.append(f"{name} is constant at {float(x[0, k]):.4g} over the record")
+                continue
+            ratio = abs(float(mean[k])) / float(spread[k])
             if ratio > OFFSET_NOTE:
-                name = what if x.shape[1] == 1 else f"{what}[:, {k}]"
                 notes.append(f"the mean of {name} ({float(mean[k]):.4g}) is {ratio:.2g} times its standard deviation")
     if not notes:
         return ""

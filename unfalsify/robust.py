@@ -49,6 +49,7 @@ import functools
 import itertools
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import control
@@ -58,9 +59,10 @@ from scipy.optimize import brentq
 import synthesis
 from synthesis import Additive, HinfDesign, record_fingerprint
 from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
-from synthesis.validation import DataError, as_signal, check_horizon
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
+                                  check_level, check_nonnegative)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_sigma
+from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
@@ -345,6 +347,14 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
 
     Returns 0 when ``delta == 0``.  See the module docstring for why a root exists.
 
+    Raises
+    ------
+    InputTypeError
+        ``pred`` is not a :class:`synthesis.Predictor`.
+    DataError
+        ``delta`` or ``margin`` not a finite number ≥ 0, ``gamma_ratio`` not > 1, ``xtol`` not > 0,
+        ``max_doublings`` not an integer ≥ 1, ``causal`` not a bool.
+
     Examples
     --------
     >>> import numpy as np
@@ -361,12 +371,13 @@ def additive_weight_fixed_point(pred, W1, W2, delta: float, *, gamma_ratio: floa
     >>> additive_weight_fixed_point(pred, W1, W2, 0.0)
     0.0
     """
-    if not (np.isfinite(delta) and delta >= 0):
-        raise DataError(f"delta must be finite and >= 0, got {delta!r}")
-    if not (np.isfinite(margin) and margin >= 0):
-        raise DataError(f"margin must be finite and >= 0, got {margin!r}")
-    if not (np.isfinite(gamma_ratio) and gamma_ratio > 1.0):
-        raise DataError(f"gamma_ratio must be > 1 (the design needs γ > γ_min_a), got {gamma_ratio!r}")
+    check_instance(pred, synthesis.Predictor, "pred", "a synthesis.Predictor (e.g. synthesis.fit_predictor(u, y, i))")
+    delta, margin = check_nonnegative(delta, "delta"), check_nonnegative(margin, "margin")
+    gamma_ratio = check_level(gamma_ratio, "gamma_ratio (the design needs γ > γ_min_a)", minimum=1.0)
+    causal = check_flag(causal, "causal")
+    # brentq refuses xtol = 0 with a bare "xtol too small"; a string had reached the product below
+    xtol = check_level(xtol, "xtol (brentq's absolute tolerance on c, relative to max(c, 1))")
+    max_doublings = check_count(max_doublings, "max_doublings", 1)
     if delta == 0:
         return 0.0
     g = _gamma_of(pred, W1, W2, causal, gamma_ratio, pred.l, dt)
@@ -639,8 +650,14 @@ def robust_design_from_data(
     """
     design, certificate, estimation = _gather_options(design, certificate, estimation, legacy)
     search = _search_family(search)
-    if not isinstance(premise if premise is not None else PremiseOptions(), PremiseOptions):
-        raise DataError(f"premise must be a PremiseOptions, got {premise!r}")
+    if premise is not None:
+        check_instance(premise, PremiseOptions, "premise",
+                       "a PremiseOptions (e.g. PremiseOptions(samples=400)) or None")
+    predictor = check_predictor(predictor)
+    if predictor_for is not None:
+        check_instance(predictor_for, Callable, "predictor_for",
+                       "a callable horizon -> Predictor (e.g. lambda h: synthesis.fit_predictor(u_long, y_long, h)) "
+                       "or None")
     whole = (u, y) if window is not None else None
     span = None
     if window is not None:
@@ -798,7 +815,11 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
     >>> bool(unf.certificate.verify())
     True
     """
-    opts = estimation or EstimationOptions()
+    # `estimation or ...` had read an empty dict as the defaults and failed on any other object deep inside
+    opts = EstimationOptions() if estimation is None else check_instance(
+        estimation, EstimationOptions, "estimation", "an EstimationOptions (e.g. EstimationOptions(backend='cvxpy')) "
+        "or None")
+    predictor = check_predictor(predictor)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
     if isinstance(sigma, str) and sigma == "auto":
         sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]

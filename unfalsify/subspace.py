@@ -56,7 +56,8 @@ from synthesis.results import result
 from synthesis.validation import as_signal, check_flag, check_horizon
 
 from ._common import (COND_WARN, Certificate, certify, check_form, check_input_moves, check_noise_floor,
-                      check_noise_resolution, check_sigma, check_solver_options, into_ball, rms_or_one)
+                      check_noise_resolution, check_predictor, check_sigma, check_solver_options, into_ball,
+                      rms_or_one)
 from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -611,6 +612,8 @@ def subspace_unfalsify(
     form = check_form(form)
     eliminate_L, progress = check_flag(eliminate_L, "eliminate_L"), check_flag(progress, "progress")
     solver_options = check_solver_options(solver_options)
+    # here, not in SubspaceProblem.from_data: that one takes any object with Lw, Lu and horizon (tests build them)
+    predictor = check_predictor(predictor)
     name = resolve("subspace", backend, method)
     if backend == "structured" and form != "conditioned":
         raise DataError("backend='structured' solves the conditioned form; use form='conditioned'")

@@ -266,7 +266,9 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
     Raises
     ------
     DataError
-        ``u[0] == 0`` (``T(u)`` singular) or ``u``, ``y`` of different lengths.
+        ``u[0] == 0`` (``T(u)`` singular), ``u``, ``y`` of different lengths, or a solution that leaves floating
+        point (``T(u)`` too ill-conditioned: a ``u[0]`` tiny against the later samples, or a ``u(q)`` with zeros far
+        outside the unit circle, whose inverse filter grows geometrically).
 
     Examples
     --------
@@ -278,6 +280,25 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
     >>> deconvolve(u, y, exact=True).tolist()
     [0.0, 2.0, 1.0, 0.0]
     """
+    with np.errstate(over="ignore", invalid="ignore"):
+        h = _deconvolve(u, y, exact=exact)
+    finite = np.isfinite(h)
+    if not np.all(finite):
+        # the data's own answer, not rounding: exact arithmetic gives it too.  unfalsified_gain reads it as γ = inf
+        # (method 'overflow') through _deconvolve; a caller of this function had got inf/nan without a word
+        k = int(np.argmin(finite))
+        u0, top = abs(float(np.ravel(u)[0])), float(np.max(np.abs(np.ravel(u))))
+        raise DataError(
+            f"T(u)⁻¹ y leaves floating point at sample {k} (h[{k}] = {h[k]}): T(u) is too ill-conditioned to invert "
+            f"(|u[0]| = {u0:.3g} against max |u| = {top:.3g}; the inverse filter 1/u(q) grows geometrically when u(q) "
+            "has zeros outside the unit circle); start the window at a sample where u is large, or use a shorter "
+            "window (unfalsified_gain reports such data as γ = inf, method 'overflow')")
+    return h
+
+
+def _deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
+    """:func:`deconvolve` without its refusal of a solution that leaves floating point: inf/NaN entries are returned
+    (for callers that read them, such as ``unfalsified_gain``'s γ = inf and :func:`toeplitz_cond`'s inf)."""
     exact = check_flag(exact, "exact")
     if np.size(u) == 0 or np.size(y) == 0:
         raise DataError(f"u and y must be non-empty and of the same length, got {np.size(u)} and {np.size(y)} samples")
@@ -340,7 +361,7 @@ def toeplitz_cond(u) -> float:
     e1 = np.zeros_like(u)
     e1[0] = 1.0
     with np.errstate(over="ignore", invalid="ignore"):
-        g = deconvolve(u, e1)
+        g = _deconvolve(u, e1)
     if not np.all(np.isfinite(g)):
         return float("inf")
     return toeplitz_norm(u) * toeplitz_norm(g)
