@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from synthesis.validation import (DataError, as_discrete_system, check_count, check_instance, check_nonnegative,
+from synthesis.validation import (DataError, as_discrete_system, InputTypeError, check_count, check_nonnegative,
                                   check_same_dt)
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
@@ -266,9 +266,10 @@ def coprime_channel(factors, controller) -> control.StateSpace:
     >>> sorted(H.poles().real.round(6).tolist()), np.round(np.abs(control.dcgain(H)).ravel(), 6).tolist()
     ([0.0, 0.8], [10.0, 5.0])
     """
-    from .coprime import CoprimeFactors  # here: coprime imports premise, which imports this module
-
-    check_instance(factors, CoprimeFactors, "factors", "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
+    if not all(callable(getattr(factors, name, None)) for name in ("equation", "model")):
+        # by what it offers: importing CoprimeFactors would close a circle (coprime → premise → excitation → here)
+        raise InputTypeError("factors must be a CoprimeFactors (unfalsify.coprime_factors(pred, dt)), got "
+                             f"{type(factors).__name__}")
     G = factors.equation()
     P, C, l = loop_parts(factors.model(), controller)
     m = P.ninputs
