@@ -225,3 +225,15 @@ def test_toeplitz_matrix_is_scipys_and_a_column_is_one_sequence(n):
     np.testing.assert_array_equal(uf.toeplitz_matrix(x), scipy.linalg.toeplitz(x, np.zeros(n)))
     if n:
         assert uf.toeplitz_norm(x[:, None]) == uf.toeplitz_norm(x) == uf.toeplitz_norm(x[None, :])
+
+
+def test_deconvolve_returns_an_overflowing_solution_only_when_asked():
+    u = np.r_[1e-300, np.ones(9)]
+    y = np.ones(10)
+    with pytest.raises(DataError, match="leaves floating point"):
+        uf.deconvolve(u, y)
+    h = uf.deconvolve(u, y, overflow="return")  # what unfalsified_gain reads as γ = inf
+    assert not np.all(np.isfinite(h))
+    assert uf.unfalsified_gain_result(u, y, warn=False).method == "overflow"
+    with pytest.raises(DataError, match="overflow must be"):
+        uf.deconvolve(u, y, overflow="ignore")

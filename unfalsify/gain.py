@@ -51,8 +51,7 @@ from synthesis.validation import as_signal, check_flag, check_nonnegative
 from ._common import COND_WARN
 from .exceptions import IllConditionedWarning
 from .solvers.extension import minimal_extension
-from .solvers.toeplitz import _deconvolve, block_toeplitz_norm, signal_toeplitz, toeplitz_cond, toeplitz_norm
-from .solvers.toeplitz import deconvolve  # noqa: F401 -- the examples below use it
+from .solvers.toeplitz import block_toeplitz_norm, deconvolve, signal_toeplitz, toeplitz_cond, toeplitz_norm
 
 __all__ = ["GainResult", "unfalsified_gain", "unfalsified_gain_result", "is_unfalsified"]
 
@@ -219,7 +218,8 @@ def _mimo_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -
         if exact is None:
             exact = n <= 400
         with np.errstate(over="ignore", invalid="ignore"):
-            h = np.stack([_deconvolve(u[:, 0], y[:, a], exact=exact) for a in range(y.shape[1])], axis=1)[:, :, None]
+            h = np.stack([deconvolve(u[:, 0], y[:, a], exact=exact, overflow="return") for a in range(y.shape[1])],
+                         axis=1)[:, :, None]
         cond = toeplitz_cond(u[:, 0])
         if warn:
             _warn_cond(cond)
@@ -246,7 +246,7 @@ def _siso_result(u: np.ndarray, y: np.ndarray, exact, method: str, warn: bool) -
     if exact is None:
         exact = n <= 400
     with np.errstate(over="ignore", invalid="ignore"):
-        h = _deconvolve(u, y, exact=exact)
+        h = deconvolve(u, y, exact=exact, overflow="return")
     cond = toeplitz_cond(u)
     if warn:
         _warn_cond(cond)

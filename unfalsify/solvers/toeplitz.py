@@ -249,7 +249,7 @@ def toeplitz_norm(h, *, method: str = "auto", tol: float = 1e-12) -> float:
     return float(s[0]) * scale
 
 
-def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
+def deconvolve(u, y, *, exact: bool = False, overflow: str = "raise") -> np.ndarray:
     """Solve ``T(u) h = y`` (so that ``y = h * u`` on the window), requires ``u[0] != 0``.
 
     Parameters
@@ -262,6 +262,9 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
         cond ``T(u)`` (O(n²) big-number operations; fine for n up to a few hundred).
         If False, :func:`scipy.signal.lfilter` (IIR filter ``1/u(q)``), O(n²) flops,
         whose error grows like cond ``T(u)``.
+    overflow : {"raise", "return"}
+        A solution that leaves floating point: ``DataError`` (default), or returned with its inf/NaN entries
+        (what :func:`unfalsify.unfalsified_gain` reads as γ = ∞).
 
     Raises
     ------
@@ -280,12 +283,14 @@ def deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
     >>> deconvolve(u, y, exact=True).tolist()
     [0.0, 2.0, 1.0, 0.0]
     """
+    if overflow not in ("raise", "return"):
+        raise DataError(f"overflow must be 'raise' or 'return', got {overflow!r}")
     with np.errstate(over="ignore", invalid="ignore"):
         h = _deconvolve(u, y, exact=exact)
     finite = np.isfinite(h)
-    if not np.all(finite):
+    if overflow == "raise" and not np.all(finite):
         # the data's own answer, not rounding: exact arithmetic gives it too.  unfalsified_gain reads it as γ = inf
-        # (method 'overflow') through _deconvolve; a caller of this function had got inf/nan without a word
+        # (method 'overflow', overflow="return"); a caller of this function had got inf/nan without a word
         k = int(np.argmin(finite))
         u0, top = abs(float(np.ravel(u)[0])), float(np.max(np.abs(np.ravel(u))))
         raise DataError(
