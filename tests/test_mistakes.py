@@ -266,3 +266,29 @@ def test_additive_weight_fixed_point_checks_its_numbers(kw, fragment):
     args.update(kw)
     with pytest.raises(DataError, match=fragment):
         uf.additive_weight_fixed_point(synthesis.fit_predictor(u, y, 2), 1.0, 0.1, args.pop("delta"), **args)
+
+
+def test_horizons_and_predictors_of_the_premise_and_the_problem_are_checked():
+    # int(horizon) had passed 3.5 and "3"; a string predictor reached SubspaceProblem's AttributeError
+    import synthesis
+    import unfalsify as uf
+
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(300))
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:300] + 0.05 * rng.standard_normal(300)
+    model = uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3, dt=1.0))
+    for bad in (3.5, "3"):
+        with pytest.raises(synthesis.DataError, match="horizon must be an integer"):
+            uf.output_error_unfalsify(model, u[200:], y[200:], bad, held_out=True)
+        with pytest.raises(synthesis.DataError, match="horizon must be an integer"):
+            uf.check_premise(model, u[200:], y[200:], bad, 0.05, dt=1.0)
+    with pytest.raises(synthesis.validation.InputTypeError, match="predictor must be a synthesis.Predictor"):
+        uf.SubspaceProblem.from_data(u[:60], y[:60], 3, 0.01, predictor="x")
+
+
+def test_a_signal_of_text_is_refused_not_parsed():
+    from synthesis.validation import as_signal
+
+    with pytest.raises(DataError, match="holds text"):
+        as_signal(["1.5", "2.0", "3.0"], "u")  # numpy had parsed it
+    assert as_signal([1.5, 2.0, 3.0], "u").shape == (3, 1)

@@ -62,8 +62,8 @@ import scipy.stats
 
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
-from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_instance, check_nonnegative,
-                                  check_sample_time)
+from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
+                                  check_nonnegative, check_sample_time)
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
@@ -234,7 +234,7 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     """
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
     u, y = channel_pair(u, y)
-    i = int(horizon)
+    i = check_horizon(horizon)  # int() had passed 3.5 and '3'
     m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])
     if A.shape[0] != i * (m + l) or B.shape[1] != m or C.shape[0] != l:
         raise DataError(f"model must be the predictor_model of horizon {i} for {m} input(s) and {l} output(s) (order "
@@ -328,7 +328,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     """
     opts = _premise_options(options)
     held_out = check_flag(held_out, "held_out")
-    i = int(horizon)
+    i = check_horizon(horizon)  # int() had passed 3.5 and '3'
     u, y = channel_pair(u, y)
     burn = i if opts.burn_in is None else int(opts.burn_in)
     N = u.shape[0]
@@ -511,6 +511,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (False, 0.96)
     """
     opts = _premise_options(options)
+    check_horizon(horizon)  # here: the tests below turn their own DataErrors into reasons
     delta_subspace = check_nonnegative(delta_subspace,
                                        "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
     dt = check_sample_time(dt, "dt", allow_true=False)
@@ -838,7 +839,7 @@ def glitch_note(model, u, y, horizon: int) -> str:
         return ""
     e = np.asarray(output_error_residual(model, u, y, horizon), float)
     e = e.reshape(e.shape[0], -1)
-    i, n = int(horizon), e.shape[0]
+    i, n = check_horizon(horizon), e.shape[0]
     notes = []
     for ch in range(e.shape[1]):
         centred = e[:, ch] - np.median(e[:, ch])

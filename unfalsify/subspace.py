@@ -53,7 +53,7 @@ import numpy as np
 
 from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
-from synthesis.validation import as_signal, check_flag, check_horizon
+from synthesis.validation import InputTypeError, as_signal, check_flag, check_horizon
 
 from ._common import (COND_WARN, Certificate, certify, check_form, check_input_moves, check_noise_floor,
                       check_noise_resolution, check_predictor, check_sigma, check_solver_options, into_ball,
@@ -255,6 +255,9 @@ class SubspaceProblem:
         check_noise_resolution(sigma, Yf.size, Yf, "Y_f")
         L_fixed = None
         if predictor is not None:
+            if not all(hasattr(predictor, name) for name in ("Lw", "Lu", "horizon")):  # by what it offers, not its class
+                raise InputTypeError(f"predictor must be a synthesis.Predictor (synthesis.fit_predictor(u, y, {i})), "
+                                     f"got {type(predictor).__name__}")
             L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
             if int(predictor.horizon) != i or L_fixed.shape != (i * l, i * (2 * m + l)) or not np.all(
                     np.isfinite(L_fixed)):
