@@ -55,8 +55,8 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
             f"{name} is complex; the toolkit works on real sampled signals (pass the real part explicitly "
             "if that is what you mean)")
     if np.asarray(x).dtype.kind in "US":  # numpy would parse "1.5" as a number: text is not a signal
-        raise DataError(f"{name} holds text, not numbers; read the file as numbers (e.g. experiments.load_record, or "
-                        "np.loadtxt) before passing it")
+        raise DataError(f"{name} must be a numeric array, got text; read the file as numbers (e.g. "
+                        "experiments.load_record, or np.loadtxt) before passing it")
     try:
         arr = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -289,6 +289,6 @@ def test_horizons_and_predictors_of_the_premise_and_the_problem_are_checked():
 def test_a_signal_of_text_is_refused_not_parsed():
     from synthesis.validation import as_signal
 
-    with pytest.raises(DataError, match="holds text"):
+    with pytest.raises(DataError, match="numeric array, got text"):
         as_signal(["1.5", "2.0", "3.0"], "u")  # numpy had parsed it
     assert as_signal([1.5, 2.0, 3.0], "u").shape == (3, 1)
