@@ -141,3 +141,15 @@ def test_gain_at_rest_result_pickles_and_the_golden_example():
     assert r.gamma == pytest.approx((1 + np.sqrt(5)) / 2, rel=1e-12)
     assert r.impulse[:2].tolist() == [1.0, 1.0] and r.leading_zeros == 1
     assert pickle.loads(pickle.dumps(r)) == r
+
+
+def test_extension_above_the_dense_limit_is_proven_not_lanczos_checked():
+    # the extension puts most singular values of T(h) at γ: the Lanczos check of its norm had raised
+    # ArpackNoConvergence from n = 500 on (n > DENSE_LIMIT = 400), so records at rest of that length crashed
+    rng = np.random.default_rng(0)
+    h = rng.standard_normal(450) * 0.99 ** np.arange(450)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f = minimal_extension(h, 500)
+    assert np.all(np.isfinite(f)) and np.array_equal(f[:450], h)
+    assert _dense_norm(f) == pytest.approx(_dense_norm(h), rel=1e-9)
