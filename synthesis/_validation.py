@@ -50,15 +50,19 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
     ...
     synthesis.exceptions.DataError: u has shape (1, 500): more channels (500) than samples (1); time runs along axis 0: pass u.T (shape (500, 1))
     """
-    if np.iscomplexobj(x):
+    try:
+        raw = np.asarray(x)  # once: the complex and text checks and the float conversion all read it
+    except (TypeError, ValueError) as exc:  # a ragged nested list
+        raise DataError(f"{name} must be a numeric array, got {type(x).__name__}") from exc
+    if raw.dtype.kind == "c":
         raise DataError(
             f"{name} is complex; the toolkit works on real sampled signals (pass the real part explicitly "
             "if that is what you mean)")
-    if np.asarray(x).dtype.kind in "US":  # numpy would parse "1.5" as a number: text is not a signal
+    if raw.dtype.kind in "US":  # numpy would parse "1.5" as a number: text is not a signal
         raise DataError(f"{name} must be a numeric array, got text; read the file as numbers (e.g. "
                         "experiments.load_record, or np.loadtxt) before passing it")
     try:
-        arr = np.asarray(x, dtype=float)
+        arr = raw.astype(float, copy=False)
     except (TypeError, ValueError) as exc:
         raise DataError(f"{name} must be a numeric array, got {type(x).__name__}") from exc
     x_was_2d = arr.ndim == 2
