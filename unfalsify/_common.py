@@ -127,6 +127,13 @@ def channel_pair(u, y, prefix: str = "") -> tuple[np.ndarray, np.ndarray]:
     return u, y
 
 
+def samples_at_rest(u: np.ndarray) -> int:
+    """How many samples the input (1-D, or (n, m) with every channel) is exactly zero before it first moves; n when
+    it never does (a record that starts at rest: Theorem 7.1's answer and the auto window both begin after them)."""
+    moving = np.flatnonzero(np.any(u.reshape(u.shape[0], -1) != 0.0, axis=1))
+    return int(moving[0]) if moving.size else u.shape[0]
+
+
 def rms_or_one(x: np.ndarray) -> float:
     """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
     r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))

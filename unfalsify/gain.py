@@ -48,7 +48,7 @@ from synthesis.results import result
 
 from synthesis.validation import as_signal, check_flag, check_nonnegative
 
-from ._common import COND_WARN
+from ._common import COND_WARN, samples_at_rest
 from .exceptions import IllConditionedWarning
 from .solvers.extension import minimal_extension
 from .solvers.toeplitz import block_toeplitz_norm, deconvolve, signal_toeplitz, toeplitz_cond, toeplitz_norm
@@ -102,12 +102,6 @@ def _checked_pair(u, y) -> tuple[np.ndarray, np.ndarray]:
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
     return u, y
-
-
-def _leading_zeros(u: np.ndarray) -> int:
-    """How many samples the input vector is exactly zero before it first moves (n when it never does)."""
-    moved = np.flatnonzero(np.any(u != 0.0, axis=1))
-    return int(moved[0]) if moved.size else u.shape[0]
 
 
 def _at_rest_result(u: np.ndarray, y: np.ndarray, p: int) -> GainResult | None:
@@ -188,7 +182,7 @@ def unfalsified_gain_result(u, y, *, exact: bool | None = None, method: str = "a
     u, y = _checked_pair(u, y)
     exact = None if exact is None else check_flag(exact, "exact")
     warn = check_flag(warn, "warn")
-    n, p = u.shape[0], _leading_zeros(u)
+    n, p = u.shape[0], samples_at_rest(u)
     answer = _at_rest_result(u, y, p) if p else None
     if answer is not None:
         return answer
