@@ -60,9 +60,9 @@ import synthesis
 from synthesis import Additive, HinfDesign, record_fingerprint
 from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
-                                  check_level, check_nonnegative)
+                                  check_level, check_nonnegative, check_predictor_dt)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma
+from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
@@ -674,7 +674,7 @@ def robust_design_from_data(
         raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
     pred = _model_predictor(unf, predictor)
     # a predictor fitted with dt= knows the data's sample time: prefer it to the weights' (hinf_design does too)
-    model = predictor_model(pred, _data_dt(dt if dt is not None else getattr(pred, "dt", None), W1, W2))
+    model = predictor_model(pred, _data_dt(check_predictor_dt(pred, dt), W1, W2))
     prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
                          fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions())
     delta = prem.delta
@@ -1096,8 +1096,8 @@ def _auto_window_start(u: np.ndarray, i: int) -> int:
     """Where ``window="auto"`` starts: i samples before the input first moves, so that the first column's future
     begins with it.  A record that starts at rest would otherwise give (7.5) columns whose outputs are all noise
     (their input is zero since the column's start), which a noise budget of half the residual cannot hold."""
-    moving = np.flatnonzero(np.any(u.reshape(u.shape[0], -1) != 0.0, axis=1))
-    return max(0, int(moving[0]) - i) if moving.size else 0
+    rest = samples_at_rest(u)
+    return max(0, rest - i) if rest < u.shape[0] else 0
 
 
 def _warn_few_columns(predictor) -> None:
