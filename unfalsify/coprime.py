@@ -179,9 +179,14 @@ def _factors(factors, name: str = "factors") -> CoprimeFactors:
     return check_instance(factors, CoprimeFactors, name, "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
 
 
+def _step(dt) -> float:
+    """The sample time as a number: 1 (frequencies in rad/sample) for an unspecified one (``dt=True``)."""
+    return 1.0 if dt is True else float(dt)
+
+
 def _nyquist(dt) -> float:
     """π/dt in rad/s; π (rad/sample) for an unspecified sample time (``dt=True``)."""
-    return float(np.pi / (1.0 if dt is True else dt))
+    return float(np.pi / _step(dt))
 
 
 def coprime_factors(pred, dt=None) -> CoprimeFactors:
@@ -377,8 +382,8 @@ def coprime_distance(factors: CoprimeFactors, plant, points: int = 512) -> tuple
     if (sys.noutputs, sys.ninputs) != (factors.outputs, factors.inputs):
         raise DataError(f"plant is {sys.noutputs} × {sys.ninputs} but the factors {factors.outputs} × "
                         f"{factors.inputs} (outputs × inputs)")
-    dt = 1.0 if factors.dt is True else factors.dt  # rad/sample for an unspecified sample time
-    nyq = np.pi / dt
+    dt = _step(factors.dt)
+    nyq = _nyquist(dt)
     w = np.concatenate([np.geomspace(1e-4 * nyq, nyq, points)])
     with np.errstate(divide="ignore", invalid="ignore"):
         G = np.moveaxis(np.asarray(sys.horner(np.exp(1j * w * dt)), complex), -1, 0)
@@ -690,7 +695,7 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
         # the equation error of the whole record (FIR: every row usable), already formed by the solve above
         e = outside.residual if outside is not None else factors.residual(*data)
         ue = uu[factors.horizon:]
-        dt = 1.0 if factors.dt is True else factors.dt  # the estimates need a number: rad/sample when unspecified
+        dt = _step(factors.dt)  # the estimates need a number
         try:
             frf = frequency_response_estimate(ue, e, dt, nperseg=opts.nperseg, confidence=opts.confidence)
         except DataError as exc:
