@@ -44,8 +44,8 @@ import numpy as np
 import scipy.linalg as sla
 
 from ._repr import result
-from ._validation import check_level
-from .hinfnorm import _as_n_grid, _grid, _Sys
+from ._validation import check_count, check_level
+from .hinfnorm import _grid, _Sys
 
 __all__ = ["BoundedRealCertificate", "bounded_real_certificate"]
 
@@ -241,7 +241,7 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     (True, False)
     """
     gamma = check_level(gamma, "gamma")
-    n_grid = _as_n_grid(n_grid)
+    n_grid = check_count(n_grid, "n_grid", 2)
     s = _Sys(sys, "sys")
     none = dict(P=None, lmi_max=float("nan"), lmi_allowance=float("nan"), p_min=float("nan"),
                 p_allowance=float("nan"), epsilon=float("nan"), A=s.given[0], B=s.given[1], C=s.given[2], D=s.D)

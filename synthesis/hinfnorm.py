@@ -361,11 +361,6 @@ def _grid(s: _Sys, n_grid: int) -> np.ndarray:
     return np.unique(np.concatenate([np.linspace(0.0, np.pi, n_grid), ang]))
 
 
-def _as_n_grid(n_grid) -> int:
-    """``n_grid`` checked up front (``int()`` had parsed "5" and cut 10.5, 0 and -5 had become 2 silently)."""
-    return check_count(n_grid, "n_grid", 2)
-
-
 def _refine(s: _Sys, w: np.ndarray, g: np.ndarray, top: int = 3) -> tuple[float, float]:
     """Best ``(gain, ω)`` after a bounded local search around the ``top`` highest grid points."""
     k0 = int(np.argmax(g))
@@ -473,7 +468,7 @@ def hinf_norm(sys, *, tol: float = 1e-8, n_grid: int = 64) -> NormBracket:
     True
     """
     tol = _as_tol(tol)
-    n_grid = _as_n_grid(n_grid)
+    n_grid = check_count(n_grid, "n_grid", 2)  # int() had parsed "5" and cut 10.5; 0 and -5 became 2
     s = _Sys(sys, "sys")
     stable, reason = s.stability()
     near = tuple(complex(p) for p in s.poles if 1.0 - abs(p) <= NEAR_UNIT_CIRCLE * (1 + 1e-6))
@@ -541,7 +536,7 @@ def _norm_below(sys, gamma: float, *, n_grid: int = 16, allowance: bool = True) 
     (the bisection of :func:`~synthesis.discrete_mixsyn`).
     """
     gamma = check_level(gamma, "gamma")
-    n_grid = _as_n_grid(n_grid)
+    n_grid = check_count(n_grid, "n_grid", 2)
     s = _Sys(sys, "sys")
     stable, reason = s.stability()
     if not stable:
