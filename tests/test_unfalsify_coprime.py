@@ -136,6 +136,21 @@ def test_error_gap_is_a_lower_bound_of_the_distance():
         assert np.all(low <= uf.coprime_gap(F, w, P) + 1e-12)
 
 
+
+def test_error_gap_refuses_an_estimate_of_another_sample_time():
+    """The estimate's frequencies are rad/s of its own dt: read with the factors' dt they named other points of the
+    unit circle, and the bound was that of another frequency without a word.  With the same dt it is unchanged."""
+    F = uf.coprime_factors(sy.fit_predictor(*_arx_data(1, 1, seed=3)[1:], 3), 0.1)
+    w = np.linspace(0.5, 30.0, 8)                      # rad/s at dt = 0.1
+    kw = dict(response=np.full(8, 0.3 + 0.1j), radius=np.full(8, 0.02), confidence=0.99, window=16, degree=2,
+              samples=100)
+    same = uf.error_gap(F, uf.LowBandEstimate(frequency=w, dt=0.1, **kw))
+    Nw, Mw = F.response(w)
+    x, mu, nu = 0.3162277660168 - 0.02, np.abs(Mw[:, 0, 0]), np.abs(Nw[:, 0, 0])
+    assert same == pytest.approx(x * mu / np.sqrt(mu ** 2 + (nu + x) ** 2), rel=1e-9)
+    with pytest.raises(DataError, match=r"estimated with dt = 1 but the sample time of the factors is 0.1.*dt=0.1"):
+        uf.error_gap(F, uf.LowBandEstimate(frequency=w / 10, dt=1.0, **kw))
+
 def _integrator(n, seed, noise=0.02):
     rng = np.random.default_rng(seed)
     u = np.sign(rng.standard_normal(n))

@@ -320,6 +320,19 @@ def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
     assert not far.ok and "differs from P̂" in far.reason
 
 
+
+def test_excitation_check_refuses_estimates_of_another_sample_time():
+    """An estimate made with the default dt = 1 of a record sampled at 0.1 s is refused, naming the fix."""
+    P = control.ss(control.tf([0.5], [1, -0.5], 0.1))
+    K = control.ss([], [], [], [[0.4, -0.4]], 0.1)
+    frf = _fake_frf(0.01)
+    assert frf.dt == 1.0
+    with pytest.raises(DataError, match=r"frf was estimated with dt = 1 but the sample time of the model P̂ is "
+                                        r"0.1.*estimate it with dt=0.1"):
+        uf.check_excitation(P, K, frf)
+    unspecified = control.ss(control.tf([0.5], [1, -0.5], True))     # dt=True reads as 1 rad/sample
+    assert uf.check_excitation(unspecified, control.ss([], [], [], [[0.4, -0.4]], True), frf).ok
+
 def test_a_constant_input_is_named_not_divided_by():
     """A constant input leaves no power once the Welch segments are detrended: the check refuses and says so (it had
     raised ZeroDivisionError while wording the reason)."""

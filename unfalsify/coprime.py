@@ -55,8 +55,8 @@ from synthesis.validation import (DataError, as_discrete_system, check_count, ch
 from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
-from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _unit, frequency_response_estimate,
-                                 low_band_estimate)
+from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _unit,
+                                 frequency_response_estimate, low_band_estimate)
 from .premise import PremiseOptions, _fir_sigma, _low_bins, _premise_options
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
@@ -575,6 +575,13 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     within a bin), while R is smooth there.  Where ``M̂`` vanishes (P̂'s integrator) the bound is 0: the data
     cannot show a coprime error at a pole.
 
+    Raises
+    ------
+    InputTypeError
+        ``factors`` or ``est`` of another type.
+    DataError
+        ``est`` estimated with another sample time than the factors' (its frequencies would name other points).
+
     Examples
     --------
     >>> import numpy as np
@@ -589,6 +596,7 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     _factors(factors)
     check_instance(est, (FrequencyResponseEstimate, LowBandEstimate), "est",
                    "a FrequencyResponseEstimate or LowBandEstimate of the equation error (CoprimePremise.error_frf)")
+    _check_estimate_dt(est, factors.dt, "est", "the factors")
     w = np.asarray(est.frequency, float)
     Nw, Mw = factors.response(w)
     R = np.asarray(est.response, complex).reshape(w.size, factors.outputs, factors.inputs)

@@ -31,7 +31,8 @@ from synthesis.results import result
 from synthesis.validation import DataError, check_instance
 
 from .certify import additive_channel, coprime_channel
-from .frequency_response import EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands, _unit
+from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt,
+                                 _unit)
 
 __all__ = ["ExcitationCheck", "check_excitation"]
 
@@ -180,7 +181,7 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     InputTypeError
         ``frf``, ``low_band`` or ``factors`` of another type.
     DataError
-        The estimates' channels differ from the model's; ``delta`` negative or not a number.
+        The estimates' channels or sample time differ from the model's; ``delta`` negative or not a number.
 
     Examples
     --------
@@ -215,6 +216,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     if low_band is not None:
         check_instance(low_band, LowBandEstimate, "low_band",
                        "a LowBandEstimate (PremiseTest.low_band, or low_band_estimate(u, y − P̂u)) or None")
+    for name, est in (("frf", frf), ("low_band", low_band)):
+        _check_estimate_dt(est, model.dt, name, "the model P̂")
     if delta is not None and (isinstance(delta, bool) or not isinstance(delta, numbers.Real) or not delta >= 0):
         what = "ε of the coprime-factor form" if factors is not None else "δ of the additive form"
         raise DataError(f"delta must be a number ≥ 0 ({what}), got {delta!r}")
