@@ -283,5 +283,6 @@ def load_controller(path):
         if names is not None:
             kwargs[kw] = names
     if "Name" in data:
-        kwargs["name"] = str(np.asarray(data["Name"]).ravel()[0]) if np.asarray(data["Name"]).size else None
+        # MATLAB stores '' as an empty array: it is the empty name, not "no name" (python-control's default)
+        kwargs["name"] = str(np.asarray(data["Name"]).ravel()[0]) if np.asarray(data["Name"]).size else ""
     return control.ss(A, B, C, D, dt, **kwargs)

@@ -179,3 +179,12 @@ def test_save_controller_refuses_a_path_or_name_of_another_type(tmp_path, contro
     # any string is a valid Name: it is stored as a value, not as a MATLAB variable name
     assert synthesis.load_controller(synthesis.save_controller(str(tmp_path / "K.mat"), controller,
                                                                name="my K[1]")).name == "my K[1]"
+
+
+@pytest.mark.parametrize("fmt", synthesis.CONTROLLER_FORMATS)
+@pytest.mark.parametrize("name", ["", " ", "K 2"])
+def test_the_stored_name_round_trips_even_when_empty(tmp_path, controller, fmt, name):
+    """MATLAB stores '' as an empty array; a .mat controller saved with name='' had come back under python-control's
+    default name ('sys[3]') while the .npz one kept ''."""
+    path = synthesis.save_controller(tmp_path / f"k{fmt}", controller, name=name)
+    assert synthesis.load_controller(path).name == name
