@@ -31,8 +31,8 @@ from synthesis.results import result
 from synthesis.validation import DataError, check_instance
 
 from .certify import additive_channel, coprime_channel
-from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt,
-                                 _unit)
+from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands,
+                                 _check_estimate_dt, _unit)
 
 __all__ = ["ExcitationCheck", "check_excitation"]
 

@@ -702,4 +702,5 @@ def _check_estimate_dt(est, dt, name: str, owner: str) -> None:
     step = 1.0 if dt is True or dt is None else float(dt)
     if est is not None and not math.isclose(float(est.dt), step, rel_tol=1e-9):
         raise DataError(f"{name} was estimated with dt = {est.dt:g} but the sample time of {owner} is {step:g}: "
-                        f"its frequencies would be read at other points of the unit circle; estimate it with dt={step:g}")
+                        f"its frequencies would be read at other points of the unit circle; estimate it with "
+                        f"dt={step:g}")
