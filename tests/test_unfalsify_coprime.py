@@ -249,6 +249,8 @@ def test_hand_made_factors_refuse_strings_and_complex_taps():
     M = np.array([[[1.0]], [[-1.0]]])
     with pytest.raises(DataError, match=r"numeric taps: N must be an array of shape \(i \+ 1, l, m\), got str"):
         uf.CoprimeFactors(N="x", M=M, dt=1.0)
+    with pytest.raises(DataError, match=r"numeric taps: M must be an array .*got ndarray"):   # text is not parsed
+        uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=M.astype(str), dt=1.0)
     with pytest.raises(DataError, match="real taps; M is complex"):
         uf.CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=M + 0.5j, dt=1.0)
 

@@ -168,6 +168,8 @@ def _taps(x, name: str) -> np.ndarray:
     if np.iscomplexobj(x):
         raise DataError(f"coprime factors need real taps; {name} is complex")
     try:
+        if np.asarray(x).dtype.kind in "US":  # numpy parses "0.5" as a number: text is refused, not read
+            raise TypeError("text")
         return np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
         raise DataError(f"coprime factors need numeric taps: {name} must be an array of shape (i + 1, l, "
