@@ -70,6 +70,26 @@ def test_subspace_recovers_a_mimo_plant():
     assert np.max(np.abs(_freq(sid.model) - _freq(P))) < 1e-6 * np.max(np.abs(_freq(P)))
 
 
+@pytest.mark.parametrize("unit", [1e-2, 1e-5, 1e3])
+def test_subspace_order_and_model_do_not_depend_on_the_output_units(unit):
+    # one output in another unit: the singular values of L_w W_p mix the channels, and the noise-floor
+    # criterion had read the floor off the weak channel (unit 1e-2: order 8 instead of 3, rms output error 2.6
+    # on data with noise 0.01; 1e-5: LinAlgError in the fit of B, D, x0).  The channels are scaled to unit rms.
+    rng = np.random.default_rng(97)
+    P = control.ss(np.diag([0.9, 0.7, -0.5]), np.ones((3, 1)), [[1.0, 1.0, 0.0], [0.0, 0.0, 1.0]], np.zeros((2, 1)),
+                   DT)
+    u = rng.standard_normal(3000)
+    y = control.forced_response(P, U=u).outputs.T + 0.01 * rng.standard_normal((3000, 2))
+    ref = sy.subspace_id(u, y, 8, dt=DT)
+    sid = sy.subspace_id(u, y * [1.0, unit], 8, dt=DT)
+    assert ref.order == sid.order == 3
+    G, Gref = _freq(sid.model), _freq(ref.model)  # (output, input, frequency)
+    np.testing.assert_allclose(G[0], Gref[0], rtol=1e-3)
+    np.testing.assert_allclose(G[1] / unit, Gref[1], rtol=1e-3)
+    noise = 0.01 * np.sqrt((1 + unit**2) / 2)  # the rms of the noise over both channels, in the data's units
+    assert 0.8 < sid.fit_rms / noise < 1.2
+
+
 def _po_moesp(u, y, i, n):
     """Independent PO-MOESP: LQ of [U_f; U_p; Y_p; Y_f], SVD of L_42, B and D by dlsim regressors."""
     N = len(u)
