@@ -49,14 +49,18 @@ class Predictor:
         fast (well-conditioned) Cholesky path they are not needed for the predictor and are
         computed on first access (an SVD of the ``i(2m+l)``-square factor), then cached.
     rank : int
-        Numerical rank ``q`` kept in the pseudo-inverse.
+        Numerical rank ``q`` kept in the pseudo-inverse.  The Gram methods (``"cholesky"``, ``"recursive"``)
+        decide it on the regressor with each ``u`` and ``y`` channel scaled to unit rms by a power of two
+        (exact), so that it does not depend on the signals' units; the predictor is then the minimum-norm one
+        of rank ``q`` for the data themselves.
     method : str
         How it was computed (``"cholesky"``, ``"qr"``, ``"lstsq"``, ``"recursive"``).
     input_rank : int or None
         Numerical rank of the input part ``[U_p; U_f]`` (full when it equals ``2mi``, i.e. the
         input is persistently exciting of order ``2mi``); ``None`` when not computed.
     rcond : float or None
-        Relative tolerance that decided ``rank`` (singular values ``<= rcond * σ₁`` discarded).
+        Relative tolerance that decided ``rank`` (singular values ``<= rcond * σ₁`` discarded; for the Gram
+        methods those of the channel-scaled regressor, see ``rank``).
     solver : str or None
         How ``[Lw Lu]`` was obtained from the factor ``R``: ``"triangular"`` (``R3 R1⁻¹`` by
         triangular solves, taken when ``R1`` is well conditioned: a power-iteration estimate of
@@ -205,8 +209,9 @@ def default_rcond(method: str, n_regressors: int, n_columns: int) -> float:
     ``max(i(2m+l), j)·eps·σ₁``.  ``"cholesky"`` and ``"recursive"`` work on the Gram matrix
     ``AAᵀ``, whose rounding errors (``≈ eps·‖AAᵀ‖``) put a floor of ``≈ √eps·σ₁`` under the
     singular values of its factor; their default is ``10·√(max(i(2m+l), j)·eps)`` (≈ 1e-6 for
-    the thesis's sizes), i.e. a regressor whose condition number exceeds ~10⁶ is treated as
-    rank deficient.  Data that are that ill-conditioned (noise-free outputs of a low-order
+    the thesis's sizes), i.e. a regressor whose condition number exceeds ~10⁶ -- once each
+    ``u`` and ``y`` channel is scaled to unit rms, so that the units do not matter -- is treated
+    as rank deficient.  Data that are that ill-conditioned (noise-free outputs of a low-order
     plant) have a gap of many decades there, so the decision is robust.
 
     Parameters
@@ -263,7 +268,7 @@ def _square_factor(R: np.ndarray) -> np.ndarray:
     return R
 
 
-def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float, *, squared: bool = False):
+def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float, *, squared: bool = False, scale=None):
     """Given lower-triangular ``L`` with ``A = L Qᵀ`` (2.7), return ``[Lw Lu]``, singular values, rank.
 
     ``[Lw Lu] = [R31 R32] V_q Σ_q⁻¹ U_qᵀ`` with the SVD ``R1 = [R11 0; R21 R22] = U Σ Vᵀ`` (§2.2).
@@ -272,6 +277,12 @@ def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float, *, squared: bool = Fa
     eigendecomposition of ``R1 R1ᵀ`` and ``R3 V_q Σ_q⁻¹ = (R3 R1ᵀ) U_q Σ_q⁻²`` — an exact identity,
     about 3× cheaper than the SVD, and no less accurate here: a factor of the rounded ``AAᵀ``
     only carries singular values down to ``≈ √eps·σ₁`` either way (see :func:`default_rcond`).
+
+    ``scale``: ``R`` is the factor of the data divided row-wise by ``scale`` (:func:`_channel_scales`); the rank
+    ``q`` is decided on it (the tolerance is then independent of the units) and ``[Lw Lu]`` is returned for the
+    data themselves, still the minimum-norm one: with ``D = diag(scale)`` the rank-``q`` regressor is
+    ``D_r U_q Σ_q V_qᵀ Qᵀ``, whose pseudo-inverse gives ``D_f R3 V_q Σ_q⁻¹ (D_r U_q)⁺`` (``= D_f L' D_r⁻¹`` when
+    ``q`` is full).
     """
     R1 = R[:n_reg, :n_reg]
     R3 = R[n_reg:, :n_reg]
@@ -280,12 +291,16 @@ def _solve_from_r(R: np.ndarray, n_reg: int, rcond: float, *, squared: bool = Fa
         lam, U = np.maximum(lam[::-1], 0.0), U[:, ::-1]
         s = np.sqrt(lam)
         q = _rank(s, rcond)
-        L = ((R3 @ R1.T) @ U[:, :q] / lam[:q]) @ U[:, :q].T
-        return L, s, q
-    U, s, Vt = np.linalg.svd(R1)
-    q = _rank(s, rcond)
-    L = ((R3 @ Vt[:q].T) / s[:q]) @ U[:, :q].T
-    return L, s, q
+        K = (R3 @ R1.T) @ U[:, :q] / lam[:q]
+    else:
+        U, s, Vt = np.linalg.svd(R1)
+        q = _rank(s, rcond)
+        K = (R3 @ Vt[:q].T) / s[:q]
+    if scale is None:
+        return K @ U[:, :q].T, s, q
+    Qm, Rm = np.linalg.qr(scale[:n_reg, None] * U[:, :q])  # (D_r U_q)⁺ = Rm⁻¹ Qmᵀ: full column rank q
+    K = _trsolve(np.asfortranarray(Rm.T), np.asfortranarray(K.T), trans=0).T if q else K  # K Rm⁻¹
+    return scale[n_reg:, None] * (K @ Qm.T), s, q
 
 
 def _input_rows(i: int, m: int, l: int) -> np.ndarray:
@@ -409,6 +424,37 @@ def _well_conditioned(R1: np.ndarray, rcond: float, warm: dict | None = None, *,
     return bool(np.isfinite(kappa) and kappa < limit)
 
 
+def _channel_scales(diag: np.ndarray, i: int, m: int, l: int, j: int) -> np.ndarray | None:
+    """Power-of-two scale of every row of ``A = [U_p; Y_p; U_f; Y_f]`` from the diagonal of ``AAᵀ``, or None.
+
+    Each channel's rows get ``2^round(log2(rms))``, ``rms`` the channel's root mean square over its rows of
+    ``A`` (its ``2i`` lags, ``j`` columns), an all-zero channel 1; ``None`` when every scale is 1 (channels within a
+    factor √2 of unit rms).  The Gram methods decide the rank against a tolerance relative to the
+    largest singular value (:func:`default_rcond`, ``≈ √eps``), which is not invariant under a change of units
+    of one channel: measured, a ±1 input with its output in units ``1e-4`` (or ``1e5``) times the natural ones
+    gave regressor rank 13 of 18 and an ``Lu`` off by 100 % (``γ_min`` of the §5.4 example off by 61 % at
+    ``1e5``), where the least-squares predictor itself only changes units.  Powers of two scale exactly.
+    """
+    c = m + l
+    ch = np.concatenate([np.tile(np.arange(m), i), m + np.tile(np.arange(l), i)] * 2)
+    ms = np.bincount(ch, weights=diag, minlength=c) / (np.bincount(ch, minlength=c) * j)
+    if not np.all(np.isfinite(ms)):  # pragma: no cover - the Gram route refuses data whose squares overflow
+        return None
+    e = np.round(0.5 * np.log2(np.where(ms > 0, ms, 1.0))).astype(int)
+    return np.ldexp(1.0, e)[ch] if np.any(e) else None
+
+
+def _unscaled(L: np.ndarray, d) -> np.ndarray:
+    """``[Lw Lu]`` of the data from that of the data divided row-wise by ``d`` (:func:`_channel_scales`).
+
+    ``y_f / d_f = L' (r / d_r)`` gives ``L = diag(d_f) L' diag(d_r)⁻¹`` (exact: powers of two).
+    """
+    if d is None:
+        return L
+    n_reg = L.shape[1]
+    return d[n_reg:, None] * L / d[None, :n_reg]
+
+
 def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
     """``L = [Lw Lu]`` (the fields are copied by the constructor); ``R1`` or its transpose, for the singular values."""
     n_reg = i * (2 * m + l)
@@ -417,25 +463,35 @@ def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
     return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
 
 
-def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
+def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None,
+                           scale=False) -> Predictor:
     """Predictor from a lower-triangular factor ``R`` of ``A`` (``A = R Qᵀ``, (2.7)).
 
     ``route="auto"``: for the Gram methods (``"cholesky"``, ``"recursive"``) try
     :func:`_well_conditioned` first and fall back to the rank-revealing spectral
     pseudo-inverse (:func:`_solve_from_r`) when ``R1`` is not found well conditioned;
-    ``"spectral"`` always takes the rank-revealing route (``"qr"`` always does).
+    ``"spectral"`` always takes the rank-revealing route (``"qr"`` always does).  The Gram methods first
+    scale the channels to unit rms (:func:`_channel_scales`, exact) unless ``scale`` gives the row scales
+    ``R`` was already divided by (``None``: unscaled).
     """
     n_reg = i * (2 * m + l)
     squared = method in _GRAM_METHODS
+    if scale is False:  # the Gram methods work on channels of unit rms (:func:`_channel_scales`)
+        scale = _channel_scales(np.einsum("ij,ij->i", R, R), i, m, l, j) if squared else None
+        if scale is not None:
+            R = R / scale[:, None]  # the factor of the scaled data: A/d = (R/d) Qᵀ, still lower triangular
+    unscaled = R[:n_reg, :n_reg] if scale is None else R[:n_reg, :n_reg] * scale[:n_reg, None]
     if squared and route == "auto":
         R1 = np.asfortranarray(R[:n_reg, :n_reg])
         if _well_conditioned(R1, rcond, warm):
             L = _trsolve(R1, R[n_reg:, :n_reg].T, trans=1).T  # R3 R1⁻¹
-            return _triangular_predictor(L, R1, i, m, l, j, rcond, method)
-    L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared)
+            return _triangular_predictor(_unscaled(L, scale), unscaled, i, m, l, j, rcond, method)
+    L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared, scale=scale)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
     Lw, Lu = _split(L, i, m, l)
+    if scale is not None:  # the singular values of the regressor itself, not of the scaled one q was decided on
+        s = _Deferred(_factor_singular_values, unscaled)
     return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral")
 
 
@@ -446,20 +502,27 @@ def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="a
     ``G11 = R1 R1ᵀ`` (``n = i(2m+l)``, not the whole ``2i(m+l)``), and
     ``[Lw Lu]ᵀ = G11⁻¹ G13 = R1⁻ᵀ R1⁻¹ G13`` by two triangular solves (LAPACK ``dpotrs``) — i.e.
     ``R3 R1⁻¹`` with the ``R3 = G31 R1⁻ᵀ`` a full Cholesky factor would hold, without factoring
-    the ``Y_f`` block nobody uses.  Reads only the lower triangle of ``G``: LAPACK factors
+    the ``Y_f`` block nobody uses.  The Gram methods work on the data with every channel scaled to unit rms
+    by a power of two (:func:`_channel_scales`: exact, so the rank decisions do not depend on the units) and
+    scale the predictor back.  Reads only the lower triangle of ``G``: LAPACK factors
     ``G11ᵀ`` (Fortran order, a plain copy of the C-ordered block) as ``R1ᵀ R1`` through its upper
     triangle — the same numbers, without the transposing copy of ``G11``.
     """
     n_reg = i * (2 * m + l)
+    scale = _channel_scales(np.diagonal(G), i, m, l, j) if method in _GRAM_METHODS else None
+    if scale is not None:
+        G = G / np.outer(scale, scale)  # the Gram matrix of the data divided row-wise by the (power-of-two) scales
     if method in _GRAM_METHODS and route == "auto":
         R1t, info = lapack.dpotrf(G[:n_reg, :n_reg].T, lower=0, clean=1)  # upper factor: R1ᵀ
         if info == 0 and _well_conditioned(R1t, rcond, warm, lower=False):
             X, info = lapack.dpotrs(R1t, G[n_reg:, :n_reg].T, lower=0)
             if info == 0:
-                return _triangular_predictor(X.T, R1t, i, m, l, j, rcond, method)
+                unscaled = R1t if scale is None else R1t * scale[None, :n_reg]
+                return _triangular_predictor(_unscaled(X.T, scale), unscaled, i, m, l, j, rcond, method)
         route = "spectral"  # R1 is not (well) conditioned: the full factor's triangular route would refuse too
     R = _psd_cholesky(G)
-    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm)
+    return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm,
+                                  scale=scale)
 
 
 def _split(L: np.ndarray, i: int, m: int, l: int):
@@ -608,9 +671,9 @@ def _warn_rank(q: int, r_in: int, i: int, m: int, l: int, j: int, rcond: float, 
             f"only j = {j} columns for {n_reg} regressors: collect at least {n_reg + 2 * i - 1} samples"
             if j < n_reg
             else "the outputs are (nearly) noise free, i.e. an exact function of the past data "
-            "(plant order < i·l), or the channels are badly scaled (singular values below rcond times the "
-            "largest are dropped: normalise each u and y channel to unit rms before fitting, or use "
-            f"method='qr', whose default tolerance is eps-relative), or rcond = {rcond:.3g} is too large"
+            f"(plant order < i·l), or rcond = {rcond:.3g} is too large (singular values below rcond times the "
+            "largest are dropped; method='cholesky' decides on the channels scaled to unit rms, method='qr' has "
+            "an eps-relative default)"
         )
         warnings.warn(
             f"regressor [W_p; U_f] has numerical rank {q} < {n_reg} although the input is persistently "

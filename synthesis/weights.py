@@ -75,13 +75,15 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
         raise WeightError("tustin needs a continuous-time system (dt = 0); the weight is already discrete")
     if isinstance(dt, bool) or not (isinstance(dt, numbers.Real) and np.isfinite(dt) and dt > 0):
         raise WeightError(f"dt must be a positive finite sample time in seconds, got {dt!r}")
-    # python-control's sampling fails on an improper or NaN weight with a bare ValueError: check it first (the
-    # conversion is only a check; the original is sampled, so the realisation is the one it always was)
+    # python-control's sampling fails on an improper or NaN weight with a bare ValueError: check it first
     ss = to_state_space(sys_continuous, "the weight given to tustin", error=WeightError)
     if not all(np.all(np.isfinite(M)) for M in (ss.A, ss.B, ss.C, ss.D)):
         raise WeightError("the weight given to tustin has NaN or infinite entries; check how it was computed")
-    sysd = control.sample_system(sys_continuous, float(dt), method="bilinear")
-    return control.ss(sysd)
+    # the state-space form is sampled, never the transfer function: python-control maps a transfer function's
+    # polynomial coefficients to z, which loses the weight when its poles crowd z = 1 (measured: a sixth-order
+    # weight at dt = 1e-3 came out with a frequency response off by 790 %, at dt = 1e-2 by 1.5e-6; the
+    # state-space route, 3e-14), and it refuses a MIMO transfer function
+    return control.ss(control.sample_system(ss, float(dt), method="bilinear"))
 
 
 def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace:

@@ -244,20 +244,54 @@ def test_rcond_as_text_is_refused_not_parsed():
         synthesis.RecursivePredictor(3, 1, 1, rcond=True)
 
 
-def test_badly_scaled_output_warns_and_names_the_fix():
-    # y in a tiny unit (e.g. metres for a micro-positioner): the Gram route's √eps-relative tolerance
-    # drops the y rows, so the cholesky predictor is wrong — it must say so and name the fix;
-    # normalised data (or method="qr") gives the right predictor.
+@pytest.mark.parametrize("scale", [1e-7, 1e-4, 1e5])
+def test_badly_scaled_output_gives_the_same_predictor_in_its_units(scale):
+    # y in another unit (metres for a micro-positioner, encoder counts): the least-squares predictor only
+    # changes units.  The Gram route's √eps-relative rank tolerance had dropped the y rows (with a
+    # PersistenceWarning): at 1e-4 or 1e5 the cholesky Lu was off by 100 % or 14 %, and γ_min of the §5.4
+    # example by 61 % at 1e5.  The channels are now scaled to unit rms (by powers of two) before the decision.
     u, y = noisy_mimo(seed=4, n=600)
-    scale = 1e-7
-    with pytest.warns(PersistenceWarning, match="badly scaled.*unit rms"):
-        p = fit_predictor(u, scale * y, 4)
     ref = fit_predictor(u, y, 4)
-    assert p.rank < p.n_regressors == ref.rank
     with warnings.catch_warnings():
         warnings.simplefilter("error", PersistenceWarning)
+        p = fit_predictor(u, scale * y, 4)
         q = fit_predictor(u, scale * y, 4, method="qr")
-    assert rel(q.Lu / scale, ref.Lu) < 1e-6
+        rp = synthesis.RecursivePredictor.from_data(u[:400], scale * y[:400], 4, window=300)
+        rp.push(u[400:], scale * y[400:])
+        r = rp.predictor()
+        rf = synthesis.RecursivePredictor.from_data(u, scale * y, 4, track="factor").predictor()
+    assert p.rank == p.n_regressors == ref.rank
+    for pred in (p, q, rf):
+        assert rel(pred.Lu / scale, ref.Lu) < 1e-6
+        assert rel(pred.Lw[:, : 4 * 2] / scale, ref.Lw[:, : 4 * 2]) < 1e-6  # the u_p columns
+        assert rel(pred.Lw[:, 4 * 2:], ref.Lw[:, 4 * 2:]) < 1e-6  # the y_p columns: unitless
+    window = fit_predictor(u[600 - 300 - 7:], scale * y[600 - 300 - 7:], 4)
+    assert rel(r.Lu, window.Lu) < 1e-9
+    np.testing.assert_allclose(p.singular_values, q.singular_values, rtol=1e-6)  # those of the regressor itself
+
+
+def test_badly_scaled_rank_deficient_data_keep_the_minimum_norm_predictor():
+    # noise-free outputs in a tiny unit: the rank is decided on the channels scaled to unit rms, and the
+    # predictor is still the minimum-norm one of the data themselves (pinv with that rank, not of the scaled data)
+    rng = np.random.default_rng(5)
+    A = np.array([[0.5, 0.2, 0.0], [0.0, 0.3, 0.1], [0.1, 0.0, -0.4]])
+    B, C = rng.standard_normal((3, 2)), 1e-4 * rng.standard_normal((2, 3))
+    u = rng.standard_normal((800, 2))
+    x, y = np.zeros(3), np.empty((800, 2))
+    for k in range(800):
+        y[k] = C @ x
+        x = A @ x + B @ u[k]
+    i = 5
+    with pytest.warns(PersistenceWarning, match="numerical rank"):
+        p = fit_predictor(u, y, i)
+    j = 800 - 2 * i + 1
+    H = lambda s, k: synthesis.block_hankel(s, i, j, k)  # noqa: E731
+    Phi = np.vstack([H(u, 0), H(y, 0), H(u, i)])
+    U, s, Vt = np.linalg.svd(Phi, full_matrices=False)
+    q = p.rank
+    assert q == 2 * 2 * i + 3  # the input rows and the plant's three states
+    ref = H(y, i) @ (Vt[:q].T / s[:q]) @ U[:, :q].T
+    assert rel(np.hstack([p.Lw, p.Lu]), ref) < 1e-6
 
 
 def test_explicit_rcond_truncates():
@@ -265,7 +299,19 @@ def test_explicit_rcond_truncates():
     with pytest.warns(PersistenceWarning, match="rcond = 0.5 is too large"):
         p = fit_predictor(u, y, 3, rcond=0.5)
     assert p.rank < p.n_regressors and p.rcond == 0.5
-    assert np.all(p.singular_values[: p.rank] > 0.5 * p.singular_values[0])
+    # the Gram route decides on the regressor with each channel scaled to unit rms (over its 2i lags) by a power
+    # of two
+    Up, Yp, Uf, Yf = data_matrices(u, y, 3)
+    u_ch, y_ch = np.tile([0, 1], 3), np.tile([2, 3], 3)  # rows: lag-major, 2 channels per lag
+    ch = np.r_[u_ch, y_ch, u_ch, y_ch]
+    A = np.vstack([Up, Yp, Uf, Yf])
+    rms = np.array([np.sqrt(np.mean(A[ch == c] ** 2)) for c in range(4)])
+    Phi = (A / 2.0 ** np.round(np.log2(rms))[ch][:, None])[:18]
+    sv = np.linalg.svd(Phi, compute_uv=False)
+    assert p.rank == np.count_nonzero(sv > 0.5 * sv[0])
+    with pytest.warns(PersistenceWarning, match="rcond = 0.5 is too large"):
+        q = fit_predictor(u, y, 3, method="qr", rcond=0.5)  # the QR route decides on the regressor itself
+    assert np.all(q.singular_values[: q.rank] > 0.5 * q.singular_values[0])
 
 
 # ----------------------------------------------------------------------------- bad input

@@ -32,6 +32,29 @@ def test_tustin_matches_bilinear_frequency_map():
     assert np.isclose(Wd(-1.0), 0.2, rtol=1e-9)
 
 
+def test_tustin_keeps_a_high_order_weight_sampled_fast():
+    # a sixth-order transfer function at dt = 1e-3: sampling its polynomial coefficients (the former route) gave a
+    # frequency response off by up to 790 % (poles crowding z = 1); the state-space route is exact to rounding
+    s = control.tf("s")
+    Wc = 0.5
+    for wn, zeta in [(1.0, 0.5), (5.0, 0.3), (20.0, 0.7)]:
+        Wc = Wc * (s**2 + 1.8 * wn * s + wn**2) / (s**2 + 2 * zeta * wn * s + wn**2)
+    dt = 1e-3
+    Wd = tustin(Wc, dt)
+    for w in [0.0, 0.1, 1.0, 5.0, 20.0, 300.0, 3000.0]:
+        z = np.exp(1j * w * dt)
+        assert np.isclose(complex(Wd(z)), complex(Wc(2 / dt * (z - 1) / (z + 1))), rtol=1e-10, atol=0)
+
+
+def test_tustin_takes_a_mimo_transfer_function():
+    # python-control cannot sample a MIMO transfer function (ControlMIMONotImplemented had escaped)
+    Wc = control.tf([[[1, 1], [0.5]], [[0.2], [2, 1]]], [[[1, 3], [1, 2]], [[1, 4], [1, 5]]])
+    Wd = tustin(Wc, DT)
+    assert Wd.dt == DT and (Wd.noutputs, Wd.ninputs) == (2, 2)
+    z = np.exp(0.7j * DT)
+    assert np.allclose(Wd(z), Wc(2 / DT * (z - 1) / (z + 1)), rtol=1e-12, atol=0)
+
+
 def test_tustin_rejects_discrete_and_bad_dt():
     s = control.tf("s")
     with pytest.raises(WeightError):
