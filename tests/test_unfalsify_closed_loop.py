@@ -66,3 +66,21 @@ def test_closed_loop_ry_refuses_an_ill_posed_loop():
     K = control.ss([], [], [], [[0.0, 1.0]], 1.0)  # u = y and y = u: I − D_P D_y singular
     with pytest.raises(DataError, match="ill-posed"):
         uf.closed_loop_ry(control.ss([], [], [], [[1.0]], 1.0), K)
+
+
+@pytest.mark.parametrize("B, D, error", [([[1.0, -1.0]], [[0.5, -0.5]], 0.0),     # PI on r − y: tracks
+                                         ([[0.0, -1.0]], [[0.5, 0.0]], 1.0),      # integrates y alone: T(1) = 0
+                                         ([[1.0, 0.0]], [[0.0, -0.5]], np.inf)])  # integrates r alone: no steady state
+def test_steady_error_at_a_static_gain_with_an_integrating_controller(B, D, error):
+    """The tracking check's ``|1 − T(1)|`` at a static plant gain (the data's, or one of the coprime ball's) had read
+    every controller with a pole at 1 as integral action (python-control's DC gain is then infinite in every entry):
+    T(1) = 1 for all three.  Second route: python-control's step of the loop around the static plant 2."""
+    from unfalsify.tracking import _dc_errors_at_gain
+
+    K = control.ss([[1.0]], B, [[0.2]], D, 1.0)
+    e = _dc_errors_at_gain(K, 2.0, np.array([0.1]))
+    assert e[0] == pytest.approx(error, abs=1e-12) if np.isfinite(error) else np.isinf(e[0])
+    if np.isfinite(error):  # python-control: the loop around the static plant 2, stepped
+        T = uf.closed_loop_ry(control.ss([], [], [], [[2.0]], 1.0), K)
+        y = np.asarray(control.step_response(T, T=np.arange(400)).outputs).reshape(-1)
+        assert abs(1.0 - y[-1]) == pytest.approx(error, abs=1e-9)
