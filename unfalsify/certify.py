@@ -306,7 +306,29 @@ def closed_loop_ry(plant, controller) -> control.StateSpace:
 
 
 def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
-    return control.feedback(P, C[:, l:], sign=+1) * C[:, :l]
+    """``r → y`` with the controller's one state, shared by its ``r`` and ``y`` inputs.
+
+    ``feedback(P, C_y) * C_r`` had realised ``C_r`` as a second copy of that state, outside the loop: its poles (an
+    open-loop unstable or integrating controller's) made the realisation of a stable loop unstable, and
+    :func:`step_metrics` then refused the loop as not tracking.  With ``u = C_c x_c + D_r r + D_y y`` and
+    ``y = C_p x_p + D_p u``: ``y = E (C_p x_p + D_p C_c x_c + D_p D_r r)``, ``E = (I − D_p D_y)⁻¹``.
+    """
+    Ap, Bp, Cp, Dp = (np.asarray(X, float) for X in control.ssdata(P))
+    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(C))
+    n_p, n_c, m = Ap.shape[0], Ac.shape[0], Dp.shape[1]
+    Bp, Cp = Bp.reshape(n_p, m), Cp.reshape(l, n_p)
+    Bc, Cc = Bc.reshape(n_c, 2 * l), Cc.reshape(m, n_c)
+    Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
+    I_DD = np.eye(l) - Dp @ Dy
+    if np.linalg.cond(I_DD) > 1.0 / np.finfo(float).eps:
+        raise DataError("the loop is ill-posed: I − D_P D_y is singular (the plant's and the controller's direct "
+                        "feedthrough close an algebraic loop); the controller must not cancel the plant's D")
+    E = np.linalg.inv(I_DD)
+    Yp, Yc, Yr = E @ Cp, E @ Dp @ Cc, E @ Dp @ Dr  # y = Yp x_p + Yc x_c + Yr r
+    Up, Uc, Ur = Dy @ Yp, Cc + Dy @ Yc, Dr + Dy @ Yr  # u likewise
+    A = np.block([[Ap + Bp @ Up, Bp @ Uc], [By @ Yp, Ac + By @ Yc]])
+    B = np.vstack([Bp @ Ur, Br + By @ Yr])
+    return control.ss(A, B.reshape(n_p + n_c, l), np.hstack([Yp, Yc]).reshape(l, n_p + n_c), Yr, P.dt)
 
 
 def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepMetrics:

@@ -130,19 +130,40 @@ def _gain_text(G) -> str:
 
 def _dc_errors_at_gain(controller, p, floors: np.ndarray) -> np.ndarray:
     """Per output, ``max_c |I − T(1)|`` of ``u = C_r r + C_y y`` around a static plant of gain ``p`` (l × m),
-    over the tracked references ``c`` (finite ``floors``)."""
+    over the tracked references ``c`` (finite ``floors``); ``inf`` where the loop has a pole at 1.
+
+    ``T(1)`` comes from the loop with the controller's one state (:func:`_static_loop_dc`).  It had been taken from
+    the controller's DC gain, with ``T(1) = I`` whenever that was infinite ("integral action"): python-control
+    reports every entry infinite for a pole at 1, so a controller integrating ``y`` alone (``T(1) = 0``, a steady
+    error of 1) or ``r`` alone (no steady state) was read as tracking perfectly."""
     G = np.atleast_2d(np.asarray(p, complex))
     l = G.shape[0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        C = np.atleast_2d(np.asarray(control.dcgain(controller), complex))
-        cr, cy = C[:, :l], C[:, l:]
-        if not np.all(np.isfinite(cy)):  # integral action: T(1) = I
-            return np.zeros(l)
-        try:
-            T = np.linalg.solve(np.eye(l) - G @ cy, G @ cr)
-        except np.linalg.LinAlgError:
-            return np.full(l, np.inf)
-        return _tracked_errors(np.abs(np.eye(l) - T), floors)
+    T = _static_loop_dc(controller, G)
+    if T is None:
+        return np.full(l, np.inf)
+    return _tracked_errors(np.abs(np.eye(l) - T), floors)
+
+
+def _static_loop_dc(controller, G: np.ndarray) -> np.ndarray | None:
+    """``T(1)`` of ``y = G u``, ``u = C [r; y]`` (G static, l × m, complex allowed), None where the loop is ill-posed or
+    has a pole at 1.  With ``E = (I − G D_y)⁻¹``: ``y = E G (C_c x + D_r r)``, ``x⁺ = A_c x + B_r r + B_y y``."""
+    l = G.shape[0]
+    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(controller))
+    n, m = Ac.shape[0], Dc.shape[0]
+    Bc, Cc = Bc.reshape(n, 2 * l), Cc.reshape(m, n)
+    Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
+    I_GD = np.eye(l) - G @ Dy
+    if np.linalg.cond(I_GD) > 1e12:
+        return None
+    EG = np.linalg.solve(I_GD, G)
+    D = EG @ Dr
+    if not n:
+        return D
+    A, B, C = Ac + By @ EG @ Cc, Br + By @ EG @ Dr, EG @ Cc
+    I_A = np.eye(n) - A
+    if np.linalg.cond(I_A) > 1e12:
+        return None
+    return C @ np.linalg.solve(I_A, B) + D
 
 
 def _coprime_data_gain(factors, low_band):
