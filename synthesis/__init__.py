@@ -123,6 +123,7 @@ Errors and warnings
    StageSaddleError       -- a stage of the H∞ Riccati recursion (4.17) has no saddle point
    DowndateError          -- a Cholesky downdate is impossible
    PersistenceWarning     -- the input is not persistently exciting (rank-deficient data)
+   OrderWarning           -- ``subspace_id``'s order criterion chose its largest order: the order may be capped
    RefactorWarning        -- a downdate lost definiteness; the factor was recomputed from the window
    NearGammaMinWarning    -- γ < 1.03 γ_min: huge gains
 
@@ -289,7 +290,7 @@ from .adaptive import AdaptiveHinf, AdaptiveUpdate, GammaPolicy
 from .noise import NoiseEstimate, estimate_noise
 from .fingerprint import RecordFingerprint, record_fingerprint
 from .export import CONTROLLER_FORMATS, ControllerFileError, load_controller, read_variables, save_controller
-from .subspace_id import SubspaceModel, subspace_id
+from .subspace_id import OrderWarning, SubspaceModel, subspace_id
 from .arx_id import ArxModel, arx_id
 from .horizon import HorizonCandidate, HorizonChoice, choose_horizon
 
@@ -297,6 +298,7 @@ __all__ = [
     "DataError",
     "InputTypeError",
     "PersistenceWarning",
+    "OrderWarning",
     "Predictor",
     "block_hankel",
     "fit_predictor",

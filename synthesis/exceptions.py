@@ -13,6 +13,7 @@ __all__ = [
     "WeightError",
     "ControllerFileError",
     "PersistenceWarning",
+    "OrderWarning",
     "DowndateError",
     "RefactorWarning",
     "InfeasibleGammaError",
@@ -42,6 +43,10 @@ class ControllerFileError(DataError):
 
 class PersistenceWarning(UserWarning):
     """The input is not persistently exciting of order 2mi (§5.1, comment 1)."""
+
+
+class OrderWarning(UserWarning):
+    """An order criterion chose the largest order it considered: the plant's order may be higher."""
 
 
 class DowndateError(np.linalg.LinAlgError):

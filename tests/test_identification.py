@@ -257,3 +257,19 @@ def test_arx_id_warns_when_the_data_do_not_determine_the_model():
     with warnings.catch_warnings():
         warnings.simplefilter("error", sy.PersistenceWarning)
         assert sy.arx_id(u, y, order=2).order == 2  # an exciting input: no warning
+
+
+def test_an_order_at_the_cap_warns_and_names_the_fix():
+    """A fifth-order plant at i = 8 (one output: the default max_order is 4) had come out of order 4 without a word
+    (rms output error 0.56 on noise-free data); at i = 12 the same data give order 5 and no warning."""
+    rng = np.random.default_rng(0)
+    P = control.ss(control.zpk([], [0.9, 0.8, 0.7, -0.5, 0.3], 1.0, 1.0))
+    u = rng.standard_normal(800)
+    y = control.forced_response(P, U=u).outputs
+    for order in ("floor", "validation"):
+        with pytest.warns(sy.OrderWarning, match=rf"'{order}' criterion chose order 4 = max_order.*raise"):
+            assert sy.subspace_id(u, y, 8, order=order).order == 4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sy.OrderWarning)
+        assert sy.subspace_id(u, y, 12).order == 5
+        assert sy.subspace_id(u, y, 8, order=4).order == 4      # a stated order is the user's
