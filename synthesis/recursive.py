@@ -233,12 +233,12 @@ class RecursivePredictor:
     def _drifted(self, downdated: bool) -> bool:
         """Whether a row's energy fell so far below its peak since the last recomputation (:data:`_DRIFT`) that
         the rounding of the updates and downdates would show; keeps the peak up to date."""
-        diag = np.diagonal(self._S).copy() if self.track == "gram" else np.einsum("ij,ij->j", self._S, self._S)
+        diag = self._S.diagonal() if self.track == "gram" else np.einsum("ij,ij->j", self._S, self._S)  # a view
         if self._peak is None:
-            self._peak = diag
+            self._peak = diag.copy()
             return False
         np.maximum(self._peak, diag, out=self._peak)
-        return downdated and bool(np.any(diag < _DRIFT * self._peak))
+        return downdated and bool((diag < _DRIFT * self._peak).any())
 
     def predictor(self) -> Predictor:
         """Current predictor ``(Lw, Lu)`` (``O(i³)``), method ``"recursive"``.
