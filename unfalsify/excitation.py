@@ -437,8 +437,9 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     ω²)``, ω 1.5–3 rad/s, ζ 0.001–0.01, c 0.01–0.03, seeds 0–2, white PRBS and uniform input; record mode): without
     this test 95 of 108 runs certified, 74 of them unstable or without the δ margin on the plant; with it 41 (24 of the
     74 certify a design that holds, 10 are refused, and one run's search moved to a design that fails), and one loop
-    that held is refused.  On the adversarial catalogue (record protocol, seeds 0–1, 104 runs) no verdict changed.
-    A mode whose line stays below the noise -- sharper or weaker -- is not seen: no finite record excludes it.
+    that held is refused.  On the adversarial catalogue (record protocol seeds 0–2, validation protocol seed 0; 208
+    runs) no verdict changed.  A mode whose line stays below the noise -- sharper or weaker -- is not seen: no finite
+    record excludes it.
 
     Parameters
     ----------
