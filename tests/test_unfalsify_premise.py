@@ -1,4 +1,5 @@
 """The certificate's premise tested on the data (unfalsify.premise and its use by the §7.4 pipeline)."""
+import re
 import types
 import warnings
 
@@ -892,3 +893,33 @@ def test_a_refusal_names_glitches_in_the_output():
     assert "note: 3 samples of y" in text and "glitches" in text
     assert all(f"y[{k - 900}]" in text for k in held)                  # indices of the record it was given
     assert uf.glitch_note(r.model, d.u[900:, 0], d.y[900:, 0], 10) == ""
+
+
+def test_a_lightly_damped_mode_p_hat_misses_is_seen_as_a_line_in_its_output_error(prbs_record):
+    # the third-order plant in parallel with 0.03·ω²/(s² + 2ζωs + ω²), ω = 2 rad/s, ζ = 0.003: a peak of 5 in a band
+    # of 0.012 rad/s, far narrower than the Welch resolution of the held-out third (1.96 rad/s).  Before the line
+    # test the first design certified, and its loop was unstable on this plant.
+    from experiments.lab.plants import damped_pair, modal_ss, zoh
+    w, zeta, c = 2.0, 0.003, 0.03
+    mode = zoh(modal_ss({"y": np.array([c * w * w])}, damped_pair(zeta, w), name="mode"), 0.1)
+    P = control.ss(third_order()) + mode
+    u = prbs(1200, seed=0)
+    rng = np.random.default_rng(100)
+    y = collect_data(P, u + 0.05 * rng.standard_normal(1200)).y[:, 0] + 0.05 * rng.standard_normal(1200)
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
+                                       search=uf.DesignSearch(horizons=(20,)))
+    if r.certified:  # a design the line does not fault: it must hold on the plant with its δ margin
+        true = uf.additive_robustness(P, r.controller)
+        assert true.stable and r.delta * true.peak < 1.0
+    lines = [s for s in r.search if s.excitation is not None and "narrow line" in s.excitation.reason]
+    assert lines and abs(float(re.search(r"narrow line at ([0-9.]+) rad/s", lines[0].excitation.reason)[1]) - w) < 0.1
+    # no line where P̂ misses nothing narrow: the plain third-order record
+    P0, u0, y0 = prbs_record
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r0 = uf.robust_design_from_data(u0, y0, 10, W["W11"], W["W21"], "auto", dt=P0.dt, window=(0, 49))
+    gain, _ = uf.residual_line(r0.model, r0.controller, u0, y0, 10, 0.1)
+    assert r0.certified and gain < uf.excitation.LINE_LOOP_GAIN

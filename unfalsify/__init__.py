@@ -110,6 +110,7 @@ The certificate's premise, tested on the data
    LowBandEstimate        -- result of ``low_band_estimate``
    check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
    ExcitationCheck        -- result of ``check_excitation``
+   residual_line          -- the loop gain of the strongest narrow line in P̂'s output error over a whole record
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
 
 Coprime-factor uncertainty (finite for integrating plants)
@@ -241,7 +242,7 @@ from .certify import (AdditiveRobustness, LoopCertificate, StepMetrics, additive
                       certify_loop, closed_loop_ry, coprime_channel, loop_parts, step_metrics, tracking_floors)
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
                                  frequency_response_estimate, leaked_bins, low_band_estimate)
-from .excitation import ExcitationCheck, check_excitation
+from .excitation import ExcitationCheck, check_excitation, residual_line
 from .premise import (
     LEVEL_SPREAD,
     GLITCH_LEVEL,
@@ -317,6 +318,7 @@ __all__ = [
     "PremiseOptions",
     "PremiseTest",
     "check_excitation",
+    "residual_line",
     "check_premise",
     "frequency_response_estimate",
     "leaked_bins",

@@ -70,7 +70,8 @@ from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
-from .excitation import ExcitationCheck, check_excitation
+from .excitation import LINE_LOOP_GAIN, ExcitationCheck, check_excitation, residual_line
+from .frequency_response import _unit
 from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
                       _positive_real)
 from .premise import (PremiseOptions, PremiseTest, check_premise, glitch_note, operating_point_note,
@@ -503,6 +504,9 @@ def robust_design_from_data(
       over the band the input excites;
     * the data must determine the plant where the loop is sensitive: at every Welch frequency
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
+    * P̂'s output error over the longest record (the whole record in record mode) must show no narrow line where
+      the loop is sensitive, ``|Ê/Û|·|M̂| < 0.2`` (:func:`unfalsify.residual_line`, one input and one output): a
+      lightly damped mode that P̂ misses is far narrower than the Welch resolution, and is seen only there;
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
     What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a certified
@@ -694,7 +698,8 @@ def robust_design_from_data(
     premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason,
                                            untested_reason, invariance.reason if invariance is not None else "")
                                if r)
-    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball)
+    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
+                       line_record=(*record, i))
     if premise_reason or judge.missing is not None:
         search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
     chosen, c, rec, records = _search_designs(space, judge, search, i)
@@ -908,8 +913,9 @@ class _LoopJudge:
     """Every check a design's loop must pass: certificates on P̂ and P̂_ref, the premise, excitation, tracking."""
 
     def __init__(self, model, ref_model, ref_note, prem, premise_reason, delta, options: CertificateOptions,
-                 ball: "_CoprimeBall | None" = None):
+                 ball: "_CoprimeBall | None" = None, line_record=None):
         self.model, self.ref_model, self.prem, self.ball = model, ref_model, prem, ball
+        self.line_record = line_record  # (u, y, i): the record whose output error is searched for narrow lines
         self.premise_reason, self.delta = premise_reason, delta
         self.margin = _positive_real(options.margin, "certificate_margin", allow_equal=True)
         self.floor = options.tracking_floor  # one number, or one per output channel (certify.tracking_floors)
@@ -932,10 +938,29 @@ class _LoopJudge:
         cert = certify_loop(self.model, d.controller, self.delta, **self.cert_opts)
         exc = (check_excitation(self.model, d.controller, prem.frf, prem.low_band, delta=self.delta)
                if prem.frf is not None and cert.stable else None)
+        if exc is not None and exc.ok:
+            exc = self._line_check(exc, d.controller)
         gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
         track = (_steady_state_reason(self.model, d.controller, (1.0 + self.margin) * self.delta, self.floor, gain)
                  if cert.stable else "")
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+
+    def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
+        """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
+        tolerate (:func:`unfalsify.excitation.residual_line`; one input and one output, P̂ stable)."""
+        if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
+            return exc
+        if not np.all(np.abs(np.linalg.eigvals(np.asarray(self.model.A, float))) < 1.0):
+            return exc
+        u, y, i = self.line_record
+        gain, freq = residual_line(self.model, controller, u, y, i, float(self.model.dt))
+        if gain < LINE_LOOP_GAIN:
+            return exc
+        unit = _unit(float(self.model.dt))
+        why = (f"P̂'s output error over the record has a narrow line at {freq:.3g} {unit} where the loop is sensitive "
+               f"(|Ê/Û|·|M̂| = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
+               "Welch resolution of the premise test; raise the horizon, or record longer")
+        return dataclasses.replace(exc, ok=False, worst=max(exc.worst, gain), frequency=freq, reason=why)
 
     def _coprime_record(self, h, cz, ratio, c, d) -> SearchRecord:
         """The same checks in coprime-factor form: small gain ``ε‖[K; I](M̂+N̂K)⁻¹‖∞`` on P̂ and P̂_ref.
