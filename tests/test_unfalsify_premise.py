@@ -922,4 +922,4 @@ def test_a_lightly_damped_mode_p_hat_misses_is_seen_as_a_line_in_its_output_erro
         warnings.simplefilter("ignore")
         r0 = uf.robust_design_from_data(u0, y0, 10, W["W11"], W["W21"], "auto", dt=P0.dt, window=(0, 49))
     gain, _ = uf.residual_line(r0.model, r0.controller, u0, y0, 10, 0.1)
-    assert r0.certified and gain < uf.excitation.LINE_LOOP_GAIN
+    assert r0.certified and gain < uf.LINE_LOOP_GAIN

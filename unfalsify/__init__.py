@@ -111,6 +111,7 @@ The certificate's premise, tested on the data
    check_excitation       -- do the data determine the plant where the loop (P̂, K) is sensitive?
    ExcitationCheck        -- result of ``check_excitation``
    residual_line          -- the loop gain of the strongest narrow line in P̂'s output error over a whole record
+   LINE_LOOP_GAIN         -- such a line refuses the loop from this loop gain on (0.2)
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
 
 Coprime-factor uncertainty (finite for integrating plants)
@@ -242,9 +243,10 @@ from .certify import (AdditiveRobustness, LoopCertificate, StepMetrics, additive
                       certify_loop, closed_loop_ry, coprime_channel, loop_parts, step_metrics, tracking_floors)
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate,
                                  frequency_response_estimate, leaked_bins, low_band_estimate)
-from .excitation import ExcitationCheck, check_excitation, residual_line
+from .excitation import ExcitationCheck, check_excitation
 from .premise import (
     LEVEL_SPREAD,
+    LINE_LOOP_GAIN,
     GLITCH_LEVEL,
     OFFSET_NOTE,
     glitch_note,
@@ -255,6 +257,7 @@ from .premise import (
     check_premise,
     output_error_residual,
     output_error_unfalsify,
+    residual_line,
     untested_premises,
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
@@ -307,6 +310,7 @@ __all__ = [
     "tracking_floors",
     "EXCITATION_FLOOR",
     "LEVEL_SPREAD",
+    "LINE_LOOP_GAIN",
     "OFFSET_NOTE",
     "operating_point_note",
     "GLITCH_LEVEL",

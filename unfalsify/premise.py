@@ -67,13 +67,15 @@ from synthesis.validation import (DataError, as_signal, check_count, check_flag,
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
+from .certify import additive_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
+from .excitation import _bin_peak
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _channels, _check_confidence,
                                  _lpm_window, _unit, frequency_response_estimate, low_band_estimate)
 
 __all__ = ["PremiseOptions", "OutputErrorResult", "output_error_residual", "output_error_unfalsify", "PremiseTest",
            "check_premise", "untested_premises", "LEVEL_SPREAD", "operating_point_note", "OFFSET_NOTE", "glitch_note",
-           "GLITCH_LEVEL"]
+           "GLITCH_LEVEL", "residual_line", "LINE_LOOP_GAIN"]
 
 #: growth of the model's free response over the segment above which its output error cannot be simulated.
 _GROWTH_LIMIT = 10.0
@@ -887,3 +889,98 @@ def _low_band_inconsistency(est: LowBandEstimate, delta: float) -> tuple[float, 
                    f"{gap[k]:.3g} at {est.frequency[k]:.3g} {unit}{_channels(est.response, k)}, more than "
                    f"δ = {delta:.4g}: P̂ misses slow dynamics (an integrator, a slow pole); raise the horizon, or fit "
                    "on a longer record")
+
+
+#: the line test's level: the chance that one record of Gaussian noise flags a line anywhere (Bonferroni over bins)
+LINE_LEVEL = 1e-3
+#: bins on each side of a DFT bin whose medians give the local noise level of the output error's periodogram
+LINE_HALF_WIDTH = 8
+#: bins next to a DFT bin left out of its local level: a line leaks into them through the record's window
+LINE_GAP = 2
+#: a significant line refuses where ``|Ê/Û|·|M̂| ≥ LINE_LOOP_GAIN`` (the raw DFT ratio underestimates a mode narrower
+#: than the bin spacing, so the limit sits well below 1: measured, below)
+LINE_LOOP_GAIN = 0.2
+
+
+def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[float, float]:
+    """The loop gain of the strongest narrow line in P̂'s output error over a whole record (one input, one output).
+
+    The Welch estimate of the premise test sees ``P − P̂`` at the resolution ``2π/(nperseg·dt)`` of short segments of
+    the held-out record (16 points over the band for 400 samples).  A lightly damped mode that P̂ misses is narrower
+    than that: its output error is a line in the periodogram of the *whole* record, which is many times finer.  Where
+    the periodogram ``I_k`` of ``e = y − P̂u`` (:func:`output_error_residual`) stands above
+    ``ln(K/LINE_LEVEL)`` times its local level on *both* sides (the larger of the medians of the ``LINE_HALF_WIDTH``
+    bins below and above it, ``LINE_GAP`` bins away, over ``ln 2``: an exponential variable's median; ``K`` bins),
+    the data show such a line, and its size is measured where the loop sees it: ``|E_k/U_k|·|M̂(e^{jω_k dt})|``.
+    Both sides, and only bins with a full window on each: noise that rises towards DC (a drift, AR(0.999)) stands
+    above the bins to its right, and was taken for a line at the lowest bins when the level was the median around
+    the bin (measured: 6 of 18 loops that held refused, on records with a trend, AR(0.995–0.999) noise, a pole at
+    0.99 or 200 samples; none with both sides).
+
+    Measured (records of 1200 samples at 10 Hz, the third-order plant in parallel with a mode ``c·ω²/(s² + 2ζωs +
+    ω²)``, ω 1.5–3 rad/s, ζ 0.001–0.01, c 0.01–0.03, seeds 0–2, white PRBS and uniform input; record mode): without
+    this test 95 of 108 runs certified, 74 of them unstable or without the δ margin on the plant; with it 41 (24 of the
+    74 certify a design that holds, 10 are refused, and one run's search moved to a design that fails), and one loop
+    that held is refused.  On the adversarial catalogue (record protocol seeds 0–2, validation protocol seed 0; 208
+    runs) no verdict changed.  A mode whose line stays below the noise -- sharper or weaker -- is not seen: no finite
+    record excludes it.
+
+    Parameters
+    ----------
+    model : control.StateSpace
+        P̂, :func:`unfalsify.predictor_model` of horizon ``horizon`` (one input, one output, stable).
+    controller : control.StateSpace
+        ``K`` with inputs ``[r; y]``.
+    u, y : array_like, shape (n,)
+        The record.
+    horizon : int
+    dt : float
+
+    Returns
+    -------
+    (float, float)
+        The largest ``|E_k/U_k|·|M̂|`` over the significant lines (0 without one) and its frequency (NaN without).
+
+    Examples
+    --------
+    A FIR plant and the loop ``u = 0.2(r − y)``; then the same plant with a mode at 0.8 rad/sample (pole radius
+    0.999) that the predictor of horizon 3 cannot follow:
+
+    >>> import control
+    >>> import numpy as np
+    >>> import scipy.signal
+    >>> import synthesis as sy
+    >>> from unfalsify import predictor_model
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(600)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:600] + 0.01 * rng.standard_normal(600)
+    >>> K = control.ss([], [], [], [[0.2, -0.2]], 1.0)                     # inputs [r; y]
+    >>> residual_line(predictor_model(sy.fit_predictor(u, y, 3), 1.0), K, u, y, 3, 1.0)
+    (0.0, nan)
+    >>> y2 = y + scipy.signal.lfilter([0.0, 0.02], [1.0, -2 * 0.999 * np.cos(0.8), 0.999 ** 2], u)
+    >>> gain, w = residual_line(predictor_model(sy.fit_predictor(u, y2, 3), 1.0), K, u, y2, 3, 1.0)
+    >>> bool(gain >= LINE_LOOP_GAIN), round(w, 2)
+    (True, 0.8)
+    """
+    e = output_error_residual(model, u, y, horizon)
+    x = np.asarray(u, float).reshape(-1)[horizon:]
+    if e.ndim != 1 or e.size < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
+        return 0.0, float("nan")
+    E = np.fft.rfft(e - e.mean())[1:-1]
+    U = np.fft.rfft(x - x.mean())[1:-1]
+    power = np.abs(E) ** 2
+    h, g = LINE_HALF_WIDTH, LINE_GAP
+    sides = np.lib.stride_tricks.sliding_window_view(power, h)           # sides[k] = power[k : k + h]
+    level = np.full(power.size, np.inf)
+    reach = h + g                                                        # bins k with a full window on each side
+    level[reach:-reach] = np.maximum(np.median(sides[: power.size - 2 * reach], axis=1),
+                                     np.median(sides[reach + g + 1:], axis=1)) / np.log(2.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        line = (power > np.log(power.size / LINE_LEVEL) * level) & (np.abs(U) > 0)
+    if not line.any():
+        return 0.0, float("nan")
+    freq = 2.0 * np.pi * np.arange(1, power.size + 1)[line] / (e.size * dt)
+    M = additive_channel(model, controller)
+    gain = np.abs(E[line] / U[line]) * _bin_peak(M, freq, 0.0, dt, points=1)
+    k = int(np.argmax(gain))
+    return float(gain[k]), float(freq[k])

@@ -70,12 +70,12 @@ from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
-from .excitation import LINE_LOOP_GAIN, ExcitationCheck, check_excitation, residual_line
+from .excitation import ExcitationCheck, check_excitation
 from .frequency_response import _unit
 from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
                       _positive_real)
-from .premise import (PremiseOptions, PremiseTest, check_premise, glitch_note, operating_point_note,
-                      untested_premises)
+from .premise import (LINE_LOOP_GAIN, PremiseOptions, PremiseTest, check_premise, glitch_note, operating_point_note,
+                      residual_line, untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
@@ -947,7 +947,7 @@ class _LoopJudge:
 
     def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
         """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
-        tolerate (:func:`unfalsify.excitation.residual_line`; one input and one output, P̂ stable)."""
+        tolerate (:func:`unfalsify.residual_line`; one input and one output, P̂ stable)."""
         if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
             return exc
         if not np.all(np.abs(np.linalg.eigvals(np.asarray(self.model.A, float))) < 1.0):
