@@ -70,6 +70,11 @@ class InfeasibleGammaError(ValueError):
             f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = "
             f"{1.1 * self.gamma_min:.6g} (§5.1 comment 4)")
 
+    def __reduce__(self):
+        # pickling rebuilds an exception from ``args`` (here the message alone), which this signature does not take:
+        # unpickling had raised TypeError, and a process pool whose task raised this error broke ("terminated abruptly")
+        return type(self), (self.gamma, self.gamma_min, self.threshold)
+
 
 class NearGammaMinWarning(UserWarning):
     """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
@@ -81,4 +86,8 @@ class StageSaddleError(InfeasibleGammaError):
     def __init__(self, gamma: float, message: str):
         self.gamma = float(gamma)
         self.gamma_min = float("nan")
+        self.threshold = self.gamma_min
         ValueError.__init__(self, message)
+
+    def __reduce__(self):
+        return type(self), (self.gamma, str(self))

@@ -143,3 +143,28 @@ def test_results_pickled_before_the_modules_were_split_still_load():
         assert module != then and module in stream
         old = pickle.loads(stream.replace(module, then))
         assert type(old) is type(obj) and old == obj
+
+
+def _raise_infeasible(gamma):
+    raise synthesis.InfeasibleGammaError(gamma, 2.0, 2.1)
+
+
+@pytest.mark.parametrize("exc", [synthesis.InfeasibleGammaError(1.0, 2.0, 2.1),
+                                 synthesis.InfeasibleGammaError(1.0, 2.0),
+                                 synthesis.StageSaddleError(0.5, "stage 3 of (4.17) has no saddle point")])
+def test_errors_with_their_own_arguments_pickle(exc):
+    """Pickling rebuilds an exception from its ``args`` (the message alone), which these signatures do not take:
+    unpickling had raised TypeError."""
+    back = pickle.loads(pickle.dumps(exc))
+    assert type(back) is type(exc) and str(back) == str(exc)
+    assert (back.gamma, back.threshold) == (exc.gamma, exc.threshold) or np.isnan(back.threshold)
+
+
+def test_an_infeasible_gamma_in_a_process_pool_reaches_the_caller():
+    """A task that raised InfeasibleGammaError had broken the whole pool ('terminated abruptly'): the error could not
+    be unpickled in the parent."""
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(1) as pool:
+        with pytest.raises(synthesis.InfeasibleGammaError, match="not above gamma_min = 2") as info:
+            pool.submit(_raise_infeasible, 1.0).result(timeout=120)
+    assert info.value.threshold == 2.1
