@@ -962,10 +962,18 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     >>> bool(gain >= LINE_LOOP_GAIN), round(w, 2)
     (True, 0.8)
     """
+    return _line_gain(_residual_lines(model, u, y, horizon, dt), model, controller, dt)
+
+
+def _residual_lines(model, u, y, horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The significant narrow lines of P̂'s output error over a record (:func:`residual_line`): their frequencies and
+    ``|Ê/Û|`` there, empty arrays without one.  They depend on P̂ and the record only, not on the controller: the
+    design search computes them once and weighs them with each loop (:func:`_line_gain`)."""
+    none = np.zeros(0), np.zeros(0)
     e = output_error_residual(model, u, y, horizon)
     x = np.asarray(u, float).reshape(-1)[horizon:]
     if e.ndim != 1 or e.size < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
-        return 0.0, float("nan")
+        return none
     E = np.fft.rfft(e - e.mean())[1:-1]
     U = np.fft.rfft(x - x.mean())[1:-1]
     power = np.abs(E) ** 2
@@ -978,9 +986,16 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     with np.errstate(divide="ignore", invalid="ignore"):
         line = (power > np.log(power.size / LINE_LEVEL) * level) & (np.abs(U) > 0)
     if not line.any():
-        return 0.0, float("nan")
+        return none
     freq = 2.0 * np.pi * np.arange(1, power.size + 1)[line] / (e.size * dt)
-    M = additive_channel(model, controller)
-    gain = np.abs(E[line] / U[line]) * _bin_peak(M, freq, 0.0, dt, points=1)
+    return freq, np.abs(E[line] / U[line])
+
+
+def _line_gain(lines: tuple[np.ndarray, np.ndarray], model, controller, dt: float) -> tuple[float, float]:
+    """The largest ``|Ê/Û|·|M̂|`` over the lines of :func:`_residual_lines` and its frequency ((0, NaN) without)."""
+    freq, ratio = lines
+    if not freq.size:
+        return 0.0, float("nan")
+    gain = ratio * _bin_peak(additive_channel(model, controller), freq, 0.0, dt, points=1)
     k = int(np.argmax(gain))
     return float(gain[k]), float(freq[k])

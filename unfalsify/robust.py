@@ -74,8 +74,8 @@ from .excitation import ExcitationCheck, check_excitation
 from .frequency_response import _unit
 from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
                       _positive_real)
-from .premise import (LINE_LOOP_GAIN, PremiseOptions, PremiseTest, check_premise, glitch_note, operating_point_note,
-                      residual_line, untested_premises)
+from .premise import (LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _line_gain, _residual_lines, check_premise,
+                      glitch_note, operating_point_note, untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
@@ -945,15 +945,24 @@ class _LoopJudge:
                  if cert.stable else "")
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
 
+    @functools.cached_property
+    def _lines(self):
+        """The narrow lines of P̂'s output error over the longest record (:func:`unfalsify.residual_line`), found once
+        for the whole search (they do not depend on the loop); None where the test does not apply (several channels,
+        P̂ unstable, no record)."""
+        if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
+            return None
+        if not np.all(np.abs(np.linalg.eigvals(np.asarray(self.model.A, float))) < 1.0):
+            return None
+        u, y, i = self.line_record
+        return _residual_lines(self.model, u, y, i, float(self.model.dt))
+
     def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
         """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
         tolerate (:func:`unfalsify.residual_line`; one input and one output, P̂ stable)."""
-        if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
+        if self._lines is None:
             return exc
-        if not np.all(np.abs(np.linalg.eigvals(np.asarray(self.model.A, float))) < 1.0):
-            return exc
-        u, y, i = self.line_record
-        gain, freq = residual_line(self.model, controller, u, y, i, float(self.model.dt))
+        gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt))
         if gain < LINE_LOOP_GAIN:
             return exc
         unit = _unit(float(self.model.dt))
