@@ -440,8 +440,15 @@ def _channel_scales(diag: np.ndarray, i: int, m: int, l: int, j: int) -> np.ndar
     ms = np.bincount(ch, weights=diag, minlength=c) / (np.bincount(ch, minlength=c) * j)
     if not np.all(np.isfinite(ms)):  # pragma: no cover - the Gram route refuses data whose squares overflow
         return None
-    e = np.round(0.5 * np.log2(np.where(ms > 0, ms, 1.0))).astype(int)
-    return np.ldexp(1.0, e)[ch] if np.any(e) else None
+    units = _power_of_two_rms(ms)
+    return units[ch] if np.any(units != 1.0) else None
+
+
+def _power_of_two_rms(mean_square: np.ndarray) -> np.ndarray:
+    """``2^round(log2(rms))`` for each mean square (1 where it is 0): a unit that scales a channel to about unit rms
+    exactly (:func:`_channel_scales`, and ``subspace_id``'s channels)."""
+    ms = np.asarray(mean_square, float)
+    return np.ldexp(1.0, np.round(0.5 * np.log2(np.where(ms > 0, ms, 1.0))).astype(int))
 
 
 def _unscaled(L: np.ndarray, d) -> np.ndarray:

@@ -46,7 +46,7 @@ from scipy.signal import fftconvolve
 from ._repr import result
 from ._validation import DataError, as_signal, check_flag, check_horizon, check_sample_time
 from .exceptions import OrderWarning
-from .predictor import block_hankel, fit_predictor
+from .predictor import _power_of_two_rms, block_hankel, fit_predictor
 
 __all__ = ["SubspaceModel", "subspace_id"]
 
@@ -142,9 +142,7 @@ def _channel_units(x: np.ndarray) -> np.ndarray:
     took the largest order (8 instead of 3: a model with rms output error 2.6 on data with noise 0.01), and at
     ``1e-5`` the fit of ``B``, ``D`` and ``x0`` raised ``LinAlgError``.
     """
-    ms = np.mean(x * x, axis=0)
-    e = np.round(0.5 * np.log2(np.where(ms > 0, ms, 1.0))).astype(int)
-    return np.ldexp(1.0, e)
+    return _power_of_two_rms(np.mean(x * x, axis=0))
 
 
 def _bd_x0(A, C, u, y, feedthrough, y_units=None):
