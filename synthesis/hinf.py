@@ -360,11 +360,6 @@ def _build_map(Lw, Lu, i, m, l, W1, W2, unc_kind, unc, causal):
     return PerformanceMap(Md, Mu, Mx, tuple(disturbances), tuple(columns))
 
 
-def _data_dt(pred, dt):
-    """The data's sample time: ``dt`` if given, else the predictor's (``fit_predictor(..., dt=)``); both must agree."""
-    return check_predictor_dt(pred, dt, error=WeightError)
-
-
 def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) -> PerformanceMap:
     """Performance map ``z = M_d d + M_u u + M_x x`` of a law ((3.21), Thm 3.2, (3.49), Thm 3.7).
 
@@ -389,7 +384,7 @@ def performance_map(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=
     ((('r', 4),), (('w_p', 8), ('x_w1', 0), ('x_w2', 0)))
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    dt = _data_dt(pred, dt)
+    dt = check_predictor_dt(pred, dt, error=WeightError)
     W1, W2, unc, _ = _weights(m, l, W1, W2, uncertainty, dt)
     return _build_map(Lw, Lu, i, m, l, W1, W2, type(uncertainty) if unc else None, unc,
                       check_flag(causal, "causal"))
@@ -514,7 +509,8 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     True
     """
     Lw, Lu, i, m, l = _predictor_parts(pred)
-    plan = _map_plan(i, m, l, W1, W2, causal=causal, uncertainty=uncertainty, dt=_data_dt(pred, dt))
+    plan = _map_plan(i, m, l, W1, W2, causal=causal, uncertainty=uncertainty,
+                     dt=check_predictor_dt(pred, dt, error=WeightError))
     if gamma is None:
         ratio = check_level(gamma_ratio, "gamma_ratio")
         gamma = lambda g0: ratio * g0 if g0 > 0 else np.inf  # noqa: E731 - a γ policy
