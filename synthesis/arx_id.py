@@ -79,17 +79,16 @@ class ArxModel:
     residual_rms: float
 
 
-def _fit(u, y, n, nk, *, rank: bool = False):
-    """Least-squares ``(a, b, residual)``; equations for ``k = n + nk − 1 … N − 1`` (all lags available).
-    ``rank=True``: the regressor's numerical rank (``lstsq``'s) is appended."""
+def _fit(u, y, n, nk):
+    """Least-squares ``(a, b, residual, rank)``; equations for ``k = n + nk − 1 … N − 1`` (all lags available),
+    ``rank`` the regressor's numerical rank (``lstsq``'s)."""
     N = y.size
     k0 = max(n, n + nk - 1)
     rows = np.arange(k0, N)
     Phi = np.column_stack([-y[rows - t] for t in range(1, n + 1)] + [u[rows - nk - t] for t in range(n)])
     theta, _, r, _ = np.linalg.lstsq(Phi, y[rows], rcond=None)
     res = y[rows] - Phi @ theta
-    out = np.concatenate([[1.0], theta[:n]]), theta[n:], res
-    return (*out, int(r)) if rank else out
+    return np.concatenate([[1.0], theta[:n]]), theta[n:], res, int(r)
 
 
 def _num(b, nk):
@@ -178,7 +177,7 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
         # (noise-free data of a second-order plant had given AIC orders 2, 3 or 4 with the seed of the data)
         floor = max((_AIC_ROUNDING * np.finfo(float).eps) ** 2 * float(np.mean(y ** 2)), 1e-300)
         for n in range(1, max_order + 1):
-            _, _, res = _fit(u, y, n, delay)
+            _, _, res, _ = _fit(u, y, n, delay)
             V = max(float(np.mean(res ** 2)), floor)
             scores[n - 1] = res.size * np.log(V) + 2 * (2 * n)
         n, criterion = int(np.argmin(scores)) + 1, "aic"
@@ -190,7 +189,7 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
         scores = np.full(max_order, np.inf)
         warm = max_order + delay
         for n in range(1, max_order + 1):
-            a, b, _ = _fit(u[:N_est], y[:N_est], n, delay)
+            a, b, _, _ = _fit(u[:N_est], y[:N_est], n, delay)
             if np.max(np.abs(np.roots(a))) >= 1.05:
                 continue                                   # diverges on the hold-out: not a candidate
             # run over the whole record (no reset at the split), score on the hold-out only
@@ -200,7 +199,7 @@ def arx_id(u, y, *, order="aic", max_order: int = 10, delay: int = 1, dt=None,
         n, criterion = int(np.argmin(scores)) + 1, "validation"
     else:
         n, scores, criterion = int(order), np.zeros(0), "given"
-    a, b, res, r = _fit(u, y, n, delay, rank=True)
+    a, b, res, r = _fit(u, y, n, delay)
     if r < 2 * n:
         warnings.warn(
             f"the ARX regressor of order {n} has rank {r} of {2 * n}: the record does not determine a and b (an input "
