@@ -55,7 +55,7 @@ from synthesis.validation import (DataError, as_discrete_system, check_count, ch
 from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
-from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _unit,
+from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
                                  frequency_response_estimate, low_band_estimate)
 from .premise import PremiseOptions, _fir_sigma, _low_bins, _premise_options
 
@@ -179,11 +179,6 @@ def _taps(x, name: str) -> np.ndarray:
 def _factors(factors, name: str = "factors") -> CoprimeFactors:
     """``factors`` when it is a :class:`CoprimeFactors`, else InputTypeError naming where they come from."""
     return check_instance(factors, CoprimeFactors, name, "a CoprimeFactors (unfalsify.coprime_factors(pred, dt))")
-
-
-def _step(dt) -> float:
-    """The sample time as a number: 1 (frequencies in rad/sample) for an unspecified one (``dt=True``)."""
-    return 1.0 if dt is True else float(dt)
 
 
 def _nyquist(dt) -> float:

@@ -693,13 +693,18 @@ def _unit(dt: float) -> str:
     return "rad/sample" if dt == 1.0 else "rad/s"
 
 
+def _step(dt) -> float:
+    """The sample time as a number: 1 (frequencies in rad/sample) for an unspecified one (``dt=True`` or None)."""
+    return 1.0 if dt is True or dt is None else float(dt)
+
+
 def _check_estimate_dt(est, dt, name: str, owner: str) -> None:
     """Refuse an estimate whose sample time differs from the system it is compared with.
 
     Its frequencies are in rad/s of its own ``dt``: read with another sample time they would name other points
     of the unit circle.  ``dt=True`` (unspecified) is read as 1 (rad/sample), as the estimates do.
     """
-    step = 1.0 if dt is True or dt is None else float(dt)
+    step = _step(dt)
     if est is not None and not math.isclose(float(est.dt), step, rel_tol=1e-9):
         raise DataError(f"{name} was estimated with dt = {est.dt:g} but the sample time of {owner} is {step:g}: "
                         f"its frequencies would be read at other points of the unit circle; estimate it with "
