@@ -305,6 +305,14 @@ def closed_loop_ry(plant, controller) -> control.StateSpace:
     return _closed_loop_ry(*loop_parts(plant, controller))
 
 
+def _controller_parts(C, l: int) -> tuple[np.ndarray, ...]:
+    """``(A_c, B_r, B_y, C_c, D_r, D_y)`` of a controller ``u = C [r; y]`` with ``l`` references and outputs."""
+    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(C))
+    n, m = Ac.shape[0], Dc.shape[0]
+    Bc, Cc = Bc.reshape(n, 2 * l), Cc.reshape(m, n)
+    return Ac, Bc[:, :l], Bc[:, l:], Cc, Dc[:, :l], Dc[:, l:]
+
+
 def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     """``r → y`` with the controller's one state, shared by its ``r`` and ``y`` inputs.
 
@@ -314,11 +322,10 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     ``y = C_p x_p + D_p u``: ``y = E (C_p x_p + D_p C_c x_c + D_p D_r r)``, ``E = (I − D_p D_y)⁻¹``.
     """
     Ap, Bp, Cp, Dp = (np.asarray(X, float) for X in control.ssdata(P))
-    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(C))
-    n_p, n_c, m = Ap.shape[0], Ac.shape[0], Dp.shape[1]
+    n_p, m = Ap.shape[0], Dp.shape[1]
     Bp, Cp = Bp.reshape(n_p, m), Cp.reshape(l, n_p)
-    Bc, Cc = Bc.reshape(n_c, 2 * l), Cc.reshape(m, n_c)
-    Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
+    Ac, Br, By, Cc, Dr, Dy = _controller_parts(C, l)
+    n_c = Ac.shape[0]
     I_DD = np.eye(l) - Dp @ Dy
     if np.linalg.cond(I_DD) > 1.0 / np.finfo(float).eps:
         raise DataError("the loop is ill-posed: I − D_P D_y is singular (the plant's and the controller's direct "

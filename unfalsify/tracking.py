@@ -14,7 +14,7 @@ from __future__ import annotations
 import control
 import numpy as np
 
-from .certify import additive_channel, closed_loop_ry, tracking_floors
+from .certify import _controller_parts, additive_channel, closed_loop_ry, tracking_floors
 
 
 def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
@@ -148,10 +148,8 @@ def _static_loop_dc(controller, G: np.ndarray) -> np.ndarray | None:
     """``T(1)`` of ``y = G u``, ``u = C [r; y]`` (G static, l × m, complex allowed), None where the loop is ill-posed or
     has a pole at 1.  With ``E = (I − G D_y)⁻¹``: ``y = E G (C_c x + D_r r)``, ``x⁺ = A_c x + B_r r + B_y y``."""
     l = G.shape[0]
-    Ac, Bc, Cc, Dc = (np.asarray(X, float) for X in control.ssdata(controller))
-    n, m = Ac.shape[0], Dc.shape[0]
-    Bc, Cc = Bc.reshape(n, 2 * l), Cc.reshape(m, n)
-    Br, By, Dr, Dy = Bc[:, :l], Bc[:, l:], Dc[:, :l], Dc[:, l:]
+    Ac, Br, By, Cc, Dr, Dy = _controller_parts(controller, l)
+    n = Ac.shape[0]
     I_GD = np.eye(l) - G @ Dy
     if np.linalg.cond(I_GD) > 1e12:
         return None
