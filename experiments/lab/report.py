@@ -69,14 +69,7 @@ def strict_json(obj):
     >>> strict_json({"a": float("nan"), "b": [1.0, np.inf], "c": np.array([-np.inf, 2.0]), "d": "x"})
     {'a': 'nan', 'b': [1.0, 'inf'], 'c': ['-inf', 2.0], 'd': 'x'}
     """
-    try:
-        import numpy as np
-    except ImportError:  # pragma: no cover
-        np = None
-    if np is not None and isinstance(obj, np.ndarray):
-        obj = obj.tolist()
-    elif np is not None and isinstance(obj, np.generic):
-        obj = obj.item()
+    obj = _from_numpy(obj)
     if isinstance(obj, float):
         return obj if obj == obj and abs(obj) != float("inf") else str(obj)
     if isinstance(obj, dict):
@@ -86,17 +79,24 @@ def strict_json(obj):
     return obj
 
 
-def json_default(obj):
-    """``default=`` of :func:`json.dumps` for the summaries: numpy scalars and arrays, paths."""
+def _from_numpy(obj):
+    """A numpy scalar or array as the Python value (``.item()``, ``.tolist()``); anything else unchanged."""
     try:
         import numpy as np
-
-        if isinstance(obj, np.generic):
-            return obj.item()
-        if isinstance(obj, np.ndarray):
-            return obj.tolist()
     except ImportError:  # pragma: no cover
-        pass
+        return obj
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return obj
+
+
+def json_default(obj):
+    """``default=`` of :func:`json.dumps` for the summaries: numpy scalars and arrays, paths."""
+    value = _from_numpy(obj)
+    if value is not obj:
+        return value
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
