@@ -58,22 +58,27 @@ class RefactorWarning(RuntimeWarning):
 
 
 class InfeasibleGammaError(ValueError):
-    """γ ≤ γ_min: no saddle point, the level-γ problem has no solution (3.29)."""
+    """γ ≤ γ_min: no saddle point, the level-γ problem has no solution (3.29).
 
-    def __init__(self, gamma: float, gamma_min: float, threshold: float | None = None):
+    Also raised by :func:`synthesis.discrete_mixsyn` for a level it cannot achieve; there ``gamma_min`` holds the
+    least level proven by its bisection and ``message`` says so.
+    """
+
+    def __init__(self, gamma: float, gamma_min: float, threshold: float | None = None, message: str | None = None):
         self.gamma = float(gamma)
         self.gamma_min = float(gamma_min)
         #: smallest accepted level (γ_min plus the accuracy of its computation), when known
         self.threshold = self.gamma_min if threshold is None else float(threshold)
-        super().__init__(
-            f"gamma = {self.gamma:.6g} is not above gamma_min = {self.gamma_min:.6g}: the level-gamma "
-            f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = "
-            f"{1.1 * self.gamma_min:.6g} (§5.1 comment 4)")
+        # ``message`` lets a problem other than the finite-horizon game (3.29) say what its threshold is
+        super().__init__(message if message is not None else
+                         f"gamma = {self.gamma:.6g} is not above gamma_min = {self.gamma_min:.6g}: the level-gamma "
+                         f"problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min "
+                         f"= {1.1 * self.gamma_min:.6g} (§5.1 comment 4)")
 
     def __reduce__(self):
         # pickling rebuilds an exception from ``args`` (here the message alone), which this signature does not take:
         # unpickling had raised TypeError, and a process pool whose task raised this error broke ("terminated abruptly")
-        return type(self), (self.gamma, self.gamma_min, self.threshold)
+        return type(self), (self.gamma, self.gamma_min, self.threshold, str(self))
 
 
 class NearGammaMinWarning(UserWarning):

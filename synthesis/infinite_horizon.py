@@ -479,7 +479,11 @@ def _discrete_mixsyn(P, W1, W2, gamma=None, *, gamma_ratio=1.1, rtol=1e-4, epsil
         gamma = gamma_ratio * gamma_opt
     res = attempt(float(gamma), n_grid=4000, final=True)
     if res is None:
-        raise InfeasibleGammaError(float(gamma), gamma_opt)
+        raise InfeasibleGammaError(float(gamma), gamma_opt, message=(
+            f"gamma = {float(gamma):.6g} is not achieved: no controller of this mixed-sensitivity problem was proven "
+            f"to hold the closed-loop norm below it. The least level proven by bisection is gamma_opt = "
+            f"{gamma_opt:.6g} (an upper bound of the optimum, within rtol = {rtol:g}). Choose gamma above gamma_opt, "
+            f"e.g. gamma = {gamma_ratio:g} * gamma_opt = {gamma_ratio * gamma_opt:.6g}, or leave gamma=None"))
     Kd, cl, nrm, br = res
     K = control.ss(*Kd, dt, inputs=[f"e[{c}]" for c in range(l)], outputs=[f"u[{c}]" for c in range(m)],
                    name="discrete_mixsyn")

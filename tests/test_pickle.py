@@ -151,6 +151,7 @@ def _raise_infeasible(gamma):
 
 @pytest.mark.parametrize("exc", [synthesis.InfeasibleGammaError(1.0, 2.0, 2.1),
                                  synthesis.InfeasibleGammaError(1.0, 2.0),
+                                 synthesis.InfeasibleGammaError(1.0, 2.0, message="gamma_opt = 2 of another problem"),
                                  synthesis.StageSaddleError(0.5, "stage 3 of (4.17) has no saddle point")])
 def test_errors_with_their_own_arguments_pickle(exc):
     """Pickling rebuilds an exception from its ``args`` (the message alone), which these signatures do not take:
