@@ -10,6 +10,7 @@ import pickle
 import control
 import numpy as np
 import pytest
+import scipy.signal
 
 import synthesis as sy
 import unfalsify as uf
@@ -324,3 +325,26 @@ def test_an_unspecified_sample_time_is_kept():
         uf.coprime_distance(F_one, plant(0.5))
     prem = uf.check_coprime_premise(F_true, u[:60, 0], y[:60, 0], 0.005, validation=(u[300:, 0], y[300:, 0]))
     assert prem.error_frf is not None and prem.error_frf.dt == 1.0 and "cannot run" not in prem.reason
+
+
+def test_noise_free_record_certifies_epsilon_at_the_sigma_floor():
+    """A noise-free record of factors perturbed by a known [ΔN ΔM]: the estimated σ was rounding (3e-14), a noise
+    ball neither structured method resolved, and ε came back NaN.  σ now has a floor of 1e-8 × the error's rms, the
+    rule says so, and ε is certified and not above the true perturbation's norm (the perturbation explains the
+    record, so the least unfalsified ε is at most its norm)."""
+    rng = np.random.default_rng(8)
+    u = np.sign(rng.standard_normal(600))
+    y = scipy.signal.lfilter(np.r_[0.0, rng.standard_normal(2)], np.poly(rng.uniform(-0.9, 0.9, 2)), u)
+    F = uf.coprime_factors(sy.fit_predictor(u, y + 0.02 * rng.standard_normal(600), 3, dt=1.0))
+    dN, dM = 0.03 * rng.standard_normal(2), np.r_[0.0, 0.03 * rng.standard_normal()]
+    pad = np.zeros(F.horizon - 1)
+    F2 = uf.CoprimeFactors(N=F.N + np.r_[dN, pad][:, None, None], M=F.M + np.r_[dM, pad][:, None, None], dt=1.0)
+    u2 = np.sign(rng.standard_normal(400))
+    y2 = np.asarray(control.forced_response(F2.model(), T=np.arange(400.0), U=u2).outputs).ravel()
+    cu = uf.coprime_unfalsify(F, u2, y2, held_out=True, options=uf.PremiseOptions(coprime_samples=60))
+    z = np.exp(-1j * np.linspace(0.0, np.pi, 20001))
+    true_norm = np.max(np.hypot(np.abs(dN[0] + dN[1] * z), np.abs(dM[1] * z)))
+    assert cu.unfalsification.status == "optimal" and cu.unfalsification.certificate.verify()
+    assert 0.5 * true_norm < cu.epsilon <= true_norm * (1 + 1e-9)
+    rows = cu.residual[cu.burn_in:cu.burn_in + 60]                      # the rows the noise ball covers
+    assert "at its floor" in cu.sigma_rule and cu.sigma == pytest.approx(1e-8 * np.sqrt(np.mean(rows ** 2)))

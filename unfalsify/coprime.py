@@ -57,7 +57,7 @@ from .arx import ArxResult, arx_unfalsify
 from .model import _delay_line, predictor_model
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
                                  frequency_response_estimate, low_band_estimate)
-from .premise import PremiseOptions, _fir_sigma, _low_bins, _premise_options
+from .premise import PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
@@ -489,10 +489,9 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     else:
         taps = opts.taps if opts.taps is not None else min((n - burn) // (4 * width), max(4 * i, 20))
         past = np.hstack([U, Y[i - 1:i - 1 + n]])  # u_k … and y_{k−1} …: the current output is left out
-        sigma = _fir_sigma(past, e, int(taps), burn)
-        sigma = max(sigma, 1e-12 * max(float(np.sqrt(np.mean(e ** 2))), 1e-300))
+        sigma, floored = _fir_sigma(past, e, int(taps), burn)
         rule = (f"residual rms of a least-squares fit of the equation error on the input's last {taps} samples and "
-                f"the output's past {taps}, per degree of freedom (rows {burn}…{n - 1})")
+                f"the output's past {taps}, per degree of freedom (rows {burn}…{n - 1})" + _floor_note(floored))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a non-optimal status is read from the result below
         res = arx_unfalsify(w, e, 0, 0, sigma, backend="structured", tol=opts.tol, time_limit=opts.time_limit,
