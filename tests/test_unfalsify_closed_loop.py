@@ -68,6 +68,22 @@ def test_closed_loop_ry_refuses_an_ill_posed_loop():
         uf.closed_loop_ry(control.ss([], [], [], [[1.0]], 1.0), K)
 
 
+@pytest.mark.parametrize("gap", [1e-14, 3e-16])
+def test_a_loop_that_cancels_to_rounding_is_ill_posed_in_the_realisation_and_at_dc(gap):
+    """``1 − D_P D_y`` = 1e-14: a scalar's condition number is 1, so the realisation had been built with a gain of
+    1e14 and the tracking check had read T(1) off it.  Both now call it ill-posed (one test of near-singularity)."""
+    from unfalsify.tracking import _dc_errors_at_gain
+    dy = (1.0 - gap) / 2.0
+    K = control.ss([], [], [], [[0.0, dy]], 1.0)
+    with pytest.raises(DataError, match="ill-posed"):
+        uf.closed_loop_ry(control.ss([], [], [], [[2.0]], 1.0), K)
+    assert np.isinf(_dc_errors_at_gain(K, 2.0, np.array([0.1]))).all()
+    # a loop that does not cancel is unchanged: y = 2u, u = r − 0.25y, T = 2/(1 + 0.5)
+    K_ok = control.ss([], [], [], [[1.0, -0.25]], 1.0)
+    np.testing.assert_allclose(uf.closed_loop_ry(control.ss([], [], [], [[2.0]], 1.0), K_ok).D, [[2.0 / 1.5]])
+    np.testing.assert_allclose(_dc_errors_at_gain(K_ok, 2.0, np.array([0.1])), [abs(1.0 - 2.0 / 1.5)])
+
+
 @pytest.mark.parametrize("B, D, error", [([[1.0, -1.0]], [[0.5, -0.5]], 0.0),     # PI on r − y: tracks
                                          ([[0.0, -1.0]], [[0.5, 0.0]], 1.0),      # integrates y alone: T(1) = 0
                                          ([[1.0, 0.0]], [[0.0, -0.5]], np.inf)])  # integrates r alone: no steady state

@@ -51,6 +51,9 @@ __all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop",
 TRACKING_FLOOR = 0.1
 #: Default length of the step used for the performance floor (samples).
 STEP_SAMPLES = 300
+# a matrix counts as singular when its least singular value is below this fraction of the size of its terms
+# (:func:`_near_singular`)
+_SINGULAR_REL = 1e-12
 
 
 @result
@@ -313,6 +316,21 @@ def _controller_parts(C, l: int) -> tuple[np.ndarray, ...]:
     return Ac, Bc[:, :l], Bc[:, l:], Cc, Dc[:, :l], Dc[:, l:]
 
 
+def _near_singular(M: np.ndarray, scale: float) -> bool:
+    """Whether ``M`` is singular to within ``_SINGULAR_REL`` of ``scale``, the size of the terms that formed it
+    (``1 + ‖X‖₂`` for ``I − X``).
+
+    One test for the loop's realisation and the tracking check's ``T(1)``, which had used condition numbers of 1/eps
+    and 1e12: a condition number cannot see a scalar ``1 − x`` that cancels to 1e-14 (its condition number is 1), and
+    such a loop had been realised with a gain of 1e14."""
+    return not np.linalg.svd(M, compute_uv=False)[-1] > _SINGULAR_REL * scale
+
+
+def _ill_posed(X: np.ndarray) -> bool:
+    """Whether the loop equation ``(I − X) z = b`` is ill-posed (:func:`_near_singular`)."""
+    return _near_singular(np.eye(X.shape[0]) - X, 1.0 + np.linalg.norm(X, 2))
+
+
 def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     """``r → y`` with the controller's one state, shared by its ``r`` and ``y`` inputs.
 
@@ -327,7 +345,7 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     Ac, Br, By, Cc, Dr, Dy = _controller_parts(C, l)
     n_c = Ac.shape[0]
     I_DD = np.eye(l) - Dp @ Dy
-    if np.linalg.cond(I_DD) > 1.0 / np.finfo(float).eps:
+    if _ill_posed(Dp @ Dy):
         raise DataError("the loop is ill-posed: I − D_P D_y is singular (the plant's and the controller's direct "
                         "feedthrough close an algebraic loop); the controller must not cancel the plant's D")
     E = np.linalg.inv(I_DD)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import control
 import numpy as np
 
-from .certify import _controller_parts, additive_channel, closed_loop_ry, tracking_floors
+from .certify import _controller_parts, _ill_posed, _near_singular, additive_channel, closed_loop_ry, tracking_floors
 
 
 def _steady_state_reason(model, controller, radius: float, floor: float, data_gain=None) -> str:
@@ -150,18 +150,17 @@ def _static_loop_dc(controller, G: np.ndarray) -> np.ndarray | None:
     l = G.shape[0]
     Ac, Br, By, Cc, Dr, Dy = _controller_parts(controller, l)
     n = Ac.shape[0]
-    I_GD = np.eye(l) - G @ Dy
-    if np.linalg.cond(I_GD) > 1e12:
+    if _ill_posed(G @ Dy):
         return None
+    I_GD = np.eye(l) - G @ Dy
     EG = np.linalg.solve(I_GD, G)
     D = EG @ Dr
     if not n:
         return D
     A, B, C = Ac + By @ EG @ Cc, Br + By @ EG @ Dr, EG @ Cc
-    I_A = np.eye(n) - A
-    if np.linalg.cond(I_A) > 1e12:
+    if _ill_posed(A):
         return None
-    return C @ np.linalg.solve(I_A, B) + D
+    return C @ np.linalg.solve(np.eye(n) - A, B) + D
 
 
 def _coprime_data_gain(factors, low_band):
@@ -189,7 +188,7 @@ def _coprime_static_gains(factors, radius: float, angles: int = 64) -> list:
     gains = []
     for t in np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False):
         Mp = M1 + radius * np.sin(t) * np.eye(l)
-        if np.linalg.cond(Mp) > 1e12:
+        if _near_singular(Mp, np.linalg.norm(M1, 2) + radius):
             continue  # the family holds a plant with a pole at 1 here: its neighbours on the circle stand for it
         gains.append(np.linalg.solve(Mp, N1 + radius * np.cos(t) * DN))
     return gains
