@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from ..exceptions import SolverWarning, UnfalsificationError
 from .base import SolverOutput, SolverStatus
 from .columns import ColumnForm
-from .toeplitz import _deconvolve, adjoint, block_conv_cols, conv_cols, toeplitz_matrix
+from .toeplitz import adjoint, block_conv_cols, conv_cols, deconvolve, toeplitz_matrix
 
 __all__ = ["solve"]
 
@@ -186,8 +186,7 @@ def _arx_model(P, form: str, solver: str, solver_options) -> SolverOutput:
     else:
         xi_out = np.asarray(xi_v.value, dtype=float) * sy if xi_v.value is not None else np.full(n, np.nan)
         if np.all(np.isfinite(xi_out)):
-            with np.errstate(over="ignore", invalid="ignore"):
-                h_out = _deconvolve(P.u, e_out - xi_out, exact=n <= 400)
+            h_out = deconvolve(P.u, e_out - xi_out, exact=n <= 400, overflow="return")
         else:
             h_out = np.full(n, np.nan)
         Z = cons[1].dual_value
@@ -278,8 +277,8 @@ def _subspace_model(P, form, solver, solver_options, eliminate_L=False) -> Solve
         Xi_out = np.asarray(Xi.value, float) * sy if Xi.value is not None else np.full((i, j), np.nan)
         G_out = Yf - L_out @ A - Xi_out
         if np.all(np.isfinite(G_out)):
-            with np.errstate(over="ignore", invalid="ignore"):
-                impulses = np.column_stack([_deconvolve(Uf[:, k], G_out[:, k], exact=True) for k in range(j)])
+            impulses = np.column_stack([deconvolve(Uf[:, k], G_out[:, k], exact=True, overflow="return")
+                                        for k in range(j)])
         else:
             impulses = np.full((i, j), np.nan)
         Zs = [c.dual_value for c in lmis]

@@ -302,8 +302,8 @@ def deconvolve(u, y, *, exact: bool = False, overflow: str = "raise") -> np.ndar
 
 
 def _deconvolve(u, y, *, exact: bool = False) -> np.ndarray:
-    """:func:`deconvolve` without its refusal of a solution that leaves floating point: inf/NaN entries are returned
-    (for callers that read them, such as ``unfalsified_gain``'s γ = inf and :func:`toeplitz_cond`'s inf)."""
+    """:func:`deconvolve`'s arithmetic: inf/NaN entries are returned, and numpy's overflow warnings are the caller's
+    (:func:`deconvolve` silences them and refuses or returns such a solution)."""
     exact = check_flag(exact, "exact")
     if np.size(u) == 0 or np.size(y) == 0:
         raise DataError(f"u and y must be non-empty and of the same length, got {np.size(u)} and {np.size(y)} samples")
@@ -365,8 +365,7 @@ def toeplitz_cond(u) -> float:
         return float("inf")
     e1 = np.zeros_like(u)
     e1[0] = 1.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        g = _deconvolve(u, e1)
+    g = deconvolve(u, e1, overflow="return")
     if not np.all(np.isfinite(g)):
         return float("inf")
     return toeplitz_norm(u) * toeplitz_norm(g)
