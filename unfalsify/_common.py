@@ -134,6 +134,12 @@ def samples_at_rest(u: np.ndarray) -> int:
     return int(moving[0]) if moving.size else u.shape[0]
 
 
+def spectral_radius(A) -> float:
+    """Largest modulus of the eigenvalues of a square matrix ``A`` (0 for an empty one, i.e. a static system)."""
+    A = np.asarray(A)
+    return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+
+
 def rms_or_one(x: np.ndarray) -> float:
     """Root mean square of ``x``, or 1 when it is 0 (a safe scale factor for the LMIs)."""
     r = float(np.sqrt(np.mean(np.asarray(x, float) ** 2)))

@@ -44,6 +44,8 @@ from synthesis.validation import (DataError, as_discrete_system, InputTypeError,
 from synthesis import BoundedRealCertificate, NormBracket, bounded_real_certificate, hinf_norm
 from synthesis.results import result
 
+from ._common import spectral_radius
+
 __all__ = ["LoopCertificate", "StepMetrics", "additive_channel", "certify_loop", "closed_loop_ry", "coprime_channel",
            "loop_parts", "step_metrics", "tracking_floors", "AdditiveRobustness", "additive_robustness"]
 
@@ -385,7 +387,7 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
     loop = as_discrete_system(loop, "loop", hint="the step run counts samples")
     samples = check_count(samples, "samples", 1)
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(loop))
-    if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+    if spectral_radius(A) >= 1.0:
         return StepMetrics(final_error=float("inf"), overshoot=float("inf"), rise_samples=-1, samples=int(samples))
     p, l = B.shape[1], C.shape[0]
     # all references at once, one column of the state per stepped channel: y[k] is (l, p)
@@ -531,8 +533,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
     else:
         _check_factors(P, factors)
         M, kind, name = coprime_channel(factors, C), "coprime", "‖[K; I](M̂+N̂K)⁻¹‖∞"
-    Am = np.asarray(M.A, float)
-    rho = float(np.max(np.abs(np.linalg.eigvals(Am)))) if Am.size else 0.0
+    rho = spectral_radius(np.asarray(M.A, float))
     common = dict(delta=float(delta), margin=float(margin), spectral_radius=rho, tracking_floor=tracking_floor,
                   uncertainty=kind)
     if not rho < 1.0:

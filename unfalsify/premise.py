@@ -65,7 +65,7 @@ from synthesis.results import result
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_nonnegative, check_sample_time)
 
-from ._common import channel_pair
+from ._common import channel_pair, spectral_radius
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
@@ -358,7 +358,7 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
         raise DataError(f"the output-error segment has {N} samples; it needs at least "
                         f"{i + max(burn + 4 * i, 2 * burn)} (horizon {i}, burn-in {burn}, 4i rows): pass a longer "
                         "validation record")
-    rho = _spectral_radius(model)
+    rho = spectral_radius(control.ssdata(model)[0])
     with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)
         growth = float(np.float64(rho) ** (N - i)) if rho > 0 else 0.0
     seg_u = u[i:i + n]
@@ -856,7 +856,7 @@ def glitch_note(model, u, y, horizon: int) -> str:
     >>> print(glitch_note(model, u, y, 3)[:60])
     1 sample of y (y[400]) lies more than 8 robust standard devi
     """
-    if not _spectral_radius(model) < 1.0:
+    if not spectral_radius(control.ssdata(model)[0]) < 1.0:
         return ""
     e = np.asarray(output_error_residual(model, u, y, horizon), float)
     e = e.reshape(e.shape[0], -1)
@@ -878,12 +878,6 @@ def glitch_note(model, u, y, horizon: int) -> str:
     if not notes:
         return ""
     return "; ".join(notes) + ", as a sensor's glitches do: remove or interpolate them (they enlarge δ and bias P̂)"
-
-
-def _spectral_radius(model) -> float:
-    """Largest modulus of the model's poles (0 for a static model)."""
-    A = np.asarray(control.ssdata(model)[0], float)
-    return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
 
 
 def _low_bins(n: int, nperseg: int, inputs: int = 1) -> int:

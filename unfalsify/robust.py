@@ -62,7 +62,7 @@ from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_level, check_nonnegative, check_predictor_dt)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
+from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest, spectral_radius
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
@@ -952,7 +952,7 @@ class _LoopJudge:
         P̂ unstable, no record)."""
         if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
             return None
-        if not np.all(np.abs(np.linalg.eigvals(np.asarray(self.model.A, float))) < 1.0):
+        if not spectral_radius(np.asarray(self.model.A, float)) < 1.0:
             return None
         u, y, i = self.line_record
         return _residual_lines(self.model, u, y, i, float(self.model.dt))

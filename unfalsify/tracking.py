@@ -14,6 +14,7 @@ from __future__ import annotations
 import control
 import numpy as np
 
+from ._common import spectral_radius
 from .certify import _controller_parts, _ill_posed, _near_singular, additive_channel, closed_loop_ry, tracking_floors
 
 
@@ -43,8 +44,7 @@ def _steady_state_reason(model, controller, radius: float, floor: float, data_ga
     for E in _static_offsets(model, controller, radius):
         try:
             loop = closed_loop_ry(model + control.ss([], [], [], E, model.dt), controller)
-            A = np.asarray(loop.A, float)
-            if A.size and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+            if spectral_radius(np.asarray(loop.A, float)) >= 1.0:
                 return (f"the loop is unstable with the static perturbation {_offset_text(E)} of P̂, inside the "
                         f"ball of radius {radius:.4g} the certificate claims")
             e = _tracked_errors(np.abs(np.eye(l) - np.atleast_2d(control.dcgain(loop))), floors)
