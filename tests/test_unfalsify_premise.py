@@ -647,6 +647,40 @@ def test_record_mode_tests_time_invariance_on_the_whole_record(prbs_record):
     assert f"needs {uf.min_record_length(1, 1)}" in short.assumed[-1] and "validation=" in short.assumed[-1]
 
 
+def test_record_mode_tests_time_invariance_where_the_held_out_part_begins():
+    """A plant that changes near the boundary of the held-out third: P̂ is fitted on one plant and tested on another.
+    The halves dilute such a change (p = 0.004 here, above the level; with its default options the pipeline had
+    certified); the test at the boundary rejects it and refuses, naming the boundary."""
+    P = third_order()
+    u = prbs(1200, seed=2)
+    gain = np.where(np.arange(1200) < 720, 1.0, 1.5)  # the input gain steps by half at sample 720
+    y = collect_data(P, gain * u, process_noise=0.05, sensor_noise=0.05, seed=102).y[:, 0]
+    assert not uf.check_time_invariance(u, y).rejected  # the halves alone miss it
+    boundary = uf.check_time_invariance(u, y, split=800)
+    assert boundary.rejected and boundary.split == 800 and "before and from sample 800" in boundary.reason
+    W = design_weights()
+    with pytest.warns(uf.NotCertifiedWarning, match="before and from sample 800"):
+        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False,
+                                       certificate=uf.CertificateOptions(uncertainty="additive"))
+    assert not r.certified and r.invariance.rejected and r.invariance.p_value == boundary.p_value
+    # with validation= given, the pipeline did not split the record itself: the halves' test as before
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", uf.NotCertifiedWarning)
+        separate = uf.robust_design_from_data(u[:800], y[:800], 10, W["W11"], W["W21"], "auto", dt=P.dt, search=False,
+                                              window=(0, 49), validation=(u[800:], y[800:]),
+                                              certificate=uf.CertificateOptions(uncertainty="additive"))
+    assert separate.invariance.split == 0 and separate.invariance.samples == 800
+
+
+def test_time_invariance_split_is_checked():
+    u, y = prbs(400, seed=0), prbs(400, seed=1)
+    for bad in (0, 400, 1.5):
+        with pytest.raises(DataError, match="split"):
+            uf.check_time_invariance(u, y, split=bad)
+    with pytest.raises(DataError, match="too short to test time invariance at that split"):
+        uf.check_time_invariance(u, y, split=50)
+
+
 def test_an_untested_time_invariance_warns_when_certified_and_refuses_on_request():
     """A window alone cannot show a plant that changed during the experiment: a certificate on it warns
     (UntestedPremiseWarning naming the fix) and ``untested="refuse"`` refuses it; a validation record long enough

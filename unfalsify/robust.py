@@ -193,7 +193,9 @@ class RobustDesignResult:
         Chow's test of time invariance (:func:`unfalsify.check_time_invariance`) on the longest record the
         pipeline has: the whole record with ``window=``, else the validation record, else the window.  A rejection
         refuses the certificate (``premise_reason``).  None where that record is too short
-        (``invariance_note`` says so).
+        (``invariance_note`` says so).  When the pipeline holds out the record's last third itself, the record is
+        also tested at that boundary (``split=``: P̂ fitted before it and tested after it speaks of two plants if
+        the plant changed there); this field is then the test that rejected, or the halves' test.
     invariance_note : str
         Why time invariance was not tested (``''`` when it was).
     window : tuple of int or None
@@ -663,6 +665,7 @@ def robust_design_from_data(
                        "a callable horizon -> Predictor (e.g. lambda h: synthesis.fit_predictor(u_long, y_long, h)) "
                        "or None")
     whole = (u, y) if window is not None else None
+    held_out_here = window is not None and validation is None  # record mode holds out the record's last third
     span = None
     if window is not None:
         u, y, validation, predictor, predictor_for, span = _record_mode(u, y, horizon, window, validation, predictor,
@@ -691,7 +694,7 @@ def robust_design_from_data(
                                            ref_model, persistence)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
-    invariance, invariance_note = _time_invariance(record)
+    invariance, invariance_note = _time_invariance(record, _held_out_start(np.shape(record[0])[0]) if held_out_here else None)
     assumed = (untested_premises(u, validation) + _in_sample(prem)
                + (_untested_invariance(*record, whole is not None) if invariance is None else ()))
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
@@ -764,12 +767,32 @@ def _longest(u, y, validation) -> tuple:
     return u, y
 
 
-def _time_invariance(record) -> tuple[InvarianceTest | None, str]:
-    """:func:`check_time_invariance` of ``(u, y)``, or None and why it could not run (a record too short)."""
+def _time_invariance(record, split: int | None = None) -> tuple[InvarianceTest | None, str]:
+    """:func:`check_time_invariance` of ``(u, y)``, or None and why it could not run (a record too short).
+
+    With ``split`` (where record mode's held-out part begins) the record is tested there too, each test at the
+    level: the halves dilute a change that lies near the held-out boundary, which is the change that matters to
+    a P̂ fitted before it and tested after it (a gain stepping 1 → 1.5 at 720 of 1200 samples: p = 0.004 on the
+    halves, 1e-4 at 800, and a loop certified that lacked its δ margin on the plant after the step; measured,
+    a script).  On the adversarial catalogue's 480 LTI records (seeds 0–9) no p-value at the boundary fell below
+    0.009, so the two tests' false-rejection rate stays that of the halves' (module :mod:`unfalsify.invariance`)
+    plus at most the level.  A part too short for the test at the boundary leaves the halves' test alone."""
     try:
-        return check_time_invariance(*record), ""
+        halves = check_time_invariance(*record)
     except DataError as exc:
         return None, f"time invariance not tested: {exc}"
+    if split is None or halves.rejected:
+        return halves, ""
+    try:
+        boundary = check_time_invariance(*record, split=split)
+    except DataError:
+        return halves, ""
+    return (boundary if boundary.rejected else halves), ""
+
+
+def _held_out_start(n: int) -> int:
+    """The sample where record mode's held-out part of an ``n``-sample record begins (:func:`_record_mode`)."""
+    return n - int(n * HELD_OUT_FRACTION)
 
 
 def _untested_invariance(u, y, whole: bool) -> tuple[str]:
@@ -1079,7 +1102,7 @@ def _record_mode(u, y, horizon, window, validation, predictor, predictor_for):
     n = u_all.shape[0]
     m, l = _channels(u_all, y_all)
     i = check_horizon(horizon, n)
-    fit_end = n if validation is not None else n - int(n * HELD_OUT_FRACTION)
+    fit_end = n if validation is not None else _held_out_start(n)
     if window == "auto":
         start = _auto_window_start(u_all, i)
         j = min(3 * i * (2 * m + l), fit_end - start - 2 * i + 1)  # three columns per regressor of the predictor
