@@ -100,6 +100,11 @@ The certificate's premise, tested on the data
    InvarianceTest         -- result of ``check_time_invariance``
    TIME_INVARIANCE_LEVEL  -- the default level of ``check_time_invariance`` (1e-3)
    min_record_length      -- the shortest record ``check_time_invariance`` tests at its default order
+   check_feedback         -- was the record taken under feedback? (the input's innovation against the output's)
+   FeedbackTest           -- result of ``check_feedback``
+   FEEDBACK_LEVEL         -- the level of ``check_feedback`` (1e-3)
+   FEEDBACK_NOTED         -- the correlation from which feedback is stated in ``assumed`` (0.1)
+   FEEDBACK_REFUSED       -- the correlation from which it refuses the certificate (0.5)
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
@@ -266,6 +271,7 @@ from .options import CertificateOptions, DesignOptions, DesignSearch, Estimation
 from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta,
                      robust_design_from_data)
 from .cost import arx_solve_estimate, solve_estimate
+from .feedback import FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FeedbackTest, check_feedback
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 
 __all__ = [
@@ -346,6 +352,11 @@ __all__ = [
     "solve_estimate",
     "arx_solve_estimate",
     "check_time_invariance",
+    "check_feedback",
+    "FeedbackTest",
+    "FEEDBACK_LEVEL",
+    "FEEDBACK_NOTED",
+    "FEEDBACK_REFUSED",
     "min_record_length",
     "InvarianceTest",
     "TIME_INVARIANCE_LEVEL",

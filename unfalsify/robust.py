@@ -68,6 +68,7 @@ from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning,
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
 from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
+from .feedback import FeedbackTest, check_feedback
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
 from .excitation import ExcitationCheck, check_excitation
@@ -198,6 +199,10 @@ class RobustDesignResult:
         the plant changed there); this field is then the test that rejected, or the halves' test.
     invariance_note : str
         Why time invariance was not tested (``''`` when it was).
+    feedback : FeedbackTest or None
+        :func:`unfalsify.check_feedback` on the same record: whether its input depends on the output's noise (a
+        closed-loop record).  Detected, it is stated in ``assumed``; when the input is largely the loop's response
+        to that noise the certificate is refused (``premise_reason``).  None where the record is too short.
     window : tuple of int or None
         Record mode (``window=``): the samples ``[start, stop)`` of the record that form the (7.5) window;
         None when ``u, y`` were the window itself.
@@ -230,6 +235,7 @@ class RobustDesignResult:
     invariance: InvarianceTest | None = None
     invariance_note: str = ""
     window: tuple | None = None
+    feedback: FeedbackTest | None = None
 
     @property
     def controller(self) -> control.StateSpace:
@@ -694,12 +700,16 @@ def robust_design_from_data(
                                            ref_model, persistence)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
-    invariance, invariance_note = _time_invariance(record, _held_out_start(np.shape(record[0])[0]) if held_out_here else None)
+    split = _held_out_start(np.shape(record[0])[0]) if held_out_here else None
+    invariance, invariance_note = _time_invariance(record, split)
+    feedback = check_feedback(*record)
     assumed = (untested_premises(u, validation) + _in_sample(prem)
-               + (_untested_invariance(*record, whole is not None) if invariance is None else ()))
+               + (_untested_invariance(*record, whole is not None) if invariance is None else ())
+               + ((feedback.statement,) if feedback is not None and feedback.detected else ()))
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
-    premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason,
-                                           untested_reason, invariance.reason if invariance is not None else "")
+    premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason, untested_reason,
+                                           invariance.reason if invariance is not None else "",
+                                           feedback.reason if feedback is not None else "")
                                if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
                        line_record=(*record, i))
@@ -728,7 +738,7 @@ def robust_design_from_data(
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span)
+        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback)
 
 
 def _fitted_on(predictor, u, y, validation):

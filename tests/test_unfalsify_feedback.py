@@ -1,0 +1,55 @@
+"""Is a record closed-loop?  unfalsify.check_feedback and what the §7.4 pipeline does with it."""
+import warnings
+
+import control
+import numpy as np
+import pytest
+
+import unfalsify as uf
+from experiments.lab.plants import third_order
+from experiments.lab.servo_setup import design_weights
+from experiments.lab.signals import prbs
+from experiments.lab.simulate import closed_loop, collect_data
+from synthesis import DataError
+
+
+def _closed_loop_record(dither, sensor=0.2, seed=0):
+    """The third-order plant under u = r − y, r a ±dither PRBS: with dither 0.05 the sensor noise dominates u."""
+    P = third_order()
+    res = closed_loop(P, control.ss(control.tf([1.0], [1.0], P.dt)), dither * prbs(1200, seed=seed),
+                      process_noise=0.05, sensor_noise=sensor, seed=100 + seed)
+    return P, res.u[:, 0], res.y_measured[:, 0]
+
+
+def test_a_closed_loop_record_whose_input_is_mostly_fed_back_noise_is_refused():
+    # measured before the check: certified, and the loop is unstable on the true plant (P̂ biased towards −1/K; the
+    # held-out third, from the same loop, shares the bias)
+    P, u, y = _closed_loop_record(0.05)
+    W = design_weights()
+    with pytest.warns(uf.NotCertifiedWarning, match="largely the loop's response to the output's noise"):
+        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=P.dt, window=(0, 49), search=False,
+                                       certificate=uf.CertificateOptions(uncertainty="additive"))
+    assert not r.certified and r.feedback.detected and r.feedback.correlation < -uf.FEEDBACK_REFUSED
+    assert r.feedback.lag == 0 and "Record in open loop" in r.reason
+    assert any(a.startswith("the record is that of a closed loop") for a in r.assumed)
+
+
+def test_open_loop_records_are_not_flagged_and_a_strong_reference_is_only_stated():
+    P = third_order()
+    for seed in range(5):
+        d = collect_data(P, prbs(1200, seed=seed), process_noise=0.05, sensor_noise=0.2, seed=100 + seed)
+        t = uf.check_feedback(d.u, d.y)
+        assert not t.detected and t.p_value > 1e-3 and t.statement == t.reason == ""
+    # feedback with a reference of amplitude 0.2 against noise 0.2: detected and stated, not refused by itself
+    _, u, y = _closed_loop_record(0.2, sensor=0.05)
+    t = uf.check_feedback(u, y)
+    assert t.detected and uf.FEEDBACK_NOTED <= abs(t.correlation) < uf.FEEDBACK_REFUSED and t.reason == ""
+
+
+def test_check_feedback_checks_its_input():
+    u = prbs(300, seed=0)
+    assert uf.check_feedback(u, u) is None  # too short for ten rows per parameter of the ARX(16) fit
+    with pytest.raises(DataError, match="level"):
+        uf.check_feedback(u, u, level=1.0)
+    with pytest.raises(DataError):
+        uf.check_feedback(u, u[:-1])
