@@ -53,3 +53,16 @@ def test_check_feedback_checks_its_input():
         uf.check_feedback(u, u, level=1.0)
     with pytest.raises(DataError):
         uf.check_feedback(u, u[:-1])
+
+
+def test_a_feedback_record_without_a_reference_names_the_feedback_not_noise_free_data():
+    # u = −y exactly (r = 0): the predictor fits the window to rounding, which had been reported as noise-free data
+    _, u, y = _closed_loop_record(0.0)
+    W = design_weights()
+    with pytest.raises(DataError, match="feedback loop without a reference") as info:
+        uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49), search=False)
+    assert "noise-free" not in str(info.value)
+    # noise-free open-loop data keep their own reason
+    d = collect_data(third_order(), prbs(1200, seed=0))
+    with pytest.raises(DataError, match="noise-free"):
+        uf.robust_design_from_data(d.u, d.y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49), search=False)

@@ -5,7 +5,7 @@ data: noise that does not reach the input.  Under feedback ``u = K(r − y)`` th
 least-squares predictor is biased (towards ``−1/K`` where the noise dominates the reference's share of ``u``), and
 held-out data from the same loop share the bias, so the premise test cannot see it.  Measured (a script: a
 third-order plant under ``u = k(r − y)``, k = 0.5, 1, 3 and a PI controller, a ±1 PRBS reference of amplitude 0.05
-or 0.2, white or AR(0.9) sensor noise of rms 0.2, seeds 0–2, both protocols of the adversarial catalogue): 23 of 84
+or 0.2, white or AR(0.9) sensor noise of rms 0.2, seeds 0–2, both protocols of the adversarial catalogue): 27 of 84
 runs certified, every one a loop unstable on the true plant, premise ratios ‖P − P̂‖∞/δ of 2.7–10.
 
 The test (the classical check of residuals against future inputs): the output's innovation ``e`` (residual of an
@@ -21,7 +21,7 @@ Measured with p = 16, M = 10 (a script): on the adversarial catalogue's 144 open
 smallest p-value was 2.9e-5 (a low-band multisine, whose AR(16) residual is not white; ``|ρ| = 0.07``), every other
 above 1e-3 and every ``|ρ|`` at most 0.11; on 138 open-loop records of the same hunt (AR(0.9), Student-t and
 outlier noise, offsets, fractional delays, aliased modes, clipped outputs, gaps) none below 1e-3.  Closed loop: the
-23 false certificates above had ``|ρ|`` of 0.78–0.97 (p below 1e-150); the catalogue's closed loops with a white
+27 false certificates above (14 records) had ``|ρ|`` of 0.78–0.97 (p below 1e-150); the catalogue's closed loops with a white
 PRBS reference (which dominates the input) gave p 0.1–0.8, ``|ρ| ≤ 0.11``, and their certified loops held; with a
 low-pass reference ``|ρ| ≈ 0.65``.  Hence :data:`FEEDBACK_NOTED` (a premise stated in ``assumed``) and
 :data:`FEEDBACK_REFUSED` (the certificate refused).

@@ -436,6 +436,7 @@ def _check_window(u, y, i: int, sigma: float, predictor) -> None:
                 "on it: the fit absorbs much of the noise and δ is optimistic. Use a longer window or pass a "
                 "predictor fitted on a longer record (predictor=...)", FewDataWarning, stacklevel=3)
     if not relative > NOISE_RESOLUTION:
+        _refuse_pure_feedback(u, y, i)
         # σ must lie below the residual rms and its budget above rounding: both cannot hold, so say why once
         raise DataError(
             f"the model fits this window to rounding (residual {relative:.2g} of the data, rms {rms:.3g}): noise-free "
@@ -447,6 +448,26 @@ def _check_window(u, y, i: int, sigma: float, predictor) -> None:
             f"sigma = {sigma:.4g} is not below the residual rms {rms:.4g} of the model on this window: every "
             "residual is explained as noise and δ = 0 says nothing about the uncertainty. σ is the noise level "
             f"you assume; it must be below the residual rms (e.g. sigma = {0.5 * rms:.3g}, half of it)")
+
+
+def _refuse_pure_feedback(u, y, i: int) -> None:
+    """Refuse a window whose input is, to rounding, a causal linear function of the output (of its current and past i
+    samples and the input's past i): a feedback record without a reference, which the predictor also fits to rounding.
+    Such data say nothing of the plant (every plant fits them with the controller's inverse), and calling them
+    noise-free would name the wrong cause (measured: the third-order plant under u = −y, r = 0, with noise)."""
+    u, y = as_signal(u, "u"), as_signal(y, "y")
+    n = u.shape[0]
+    if n <= 3 * i + 1:
+        return
+    rows = [np.hstack([y[t - i: t + 1][::-1].ravel(), u[t - i: t][::-1].ravel()]) for t in range(i, n)]
+    X, target = np.array(rows), u[i:]
+    residual = target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
+    if float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * max(float(np.linalg.norm(target)), np.finfo(float).tiny):
+        raise DataError(
+            "the input is, to rounding, a causal linear function of the output on this window: the record is that of a "
+            "feedback loop without a reference (u = −K·y), which every plant explains together with the controller's "
+            "inverse, so these data say nothing of the plant. Use a reference excitation that moves the input (u = "
+            "K(r − y), r a PRBS or multisine), or record in open loop")
 
 
 def _design(pred, W1, W2, delta, *, c, gamma_ratio, causal, dt):
