@@ -105,6 +105,8 @@ The certificate's premise, tested on the data
    FEEDBACK_LEVEL         -- the level of ``check_feedback`` (1e-3)
    FEEDBACK_NOTED         -- the correlation from which feedback is stated in ``assumed`` (0.1)
    FEEDBACK_REFUSED       -- the correlation from which it refuses the certificate (0.5)
+   clipped_outputs        -- which outputs of a record pile up at an extreme value (a clipped sensor), or ''
+   CLIP_FRACTION          -- the fraction of samples at an extreme from which an output counts as clipped
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
    output_error_residual  -- ``y − P̂u`` with P̂ simulated from the measured past
    OutputErrorResult      -- result of ``output_error_unfalsify``
@@ -271,6 +273,7 @@ from .options import CertificateOptions, DesignOptions, DesignSearch, Estimation
 from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta,
                      robust_design_from_data)
 from .cost import arx_solve_estimate, solve_estimate
+from .clipping import CLIP_FRACTION, clipped_outputs
 from .feedback import FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FeedbackTest, check_feedback
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 
@@ -353,6 +356,8 @@ __all__ = [
     "arx_solve_estimate",
     "check_time_invariance",
     "check_feedback",
+    "clipped_outputs",
+    "CLIP_FRACTION",
     "FeedbackTest",
     "FEEDBACK_LEVEL",
     "FEEDBACK_NOTED",

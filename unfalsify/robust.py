@@ -68,6 +68,7 @@ from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning,
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
 from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
+from .clipping import clipped_outputs
 from .feedback import FeedbackTest, check_feedback
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
@@ -157,7 +158,8 @@ class RobustDesignResult:
         error by Theorem 7.1 beside δ of (7.5) (``delta`` is the larger, ``premise.decided_by`` says
         which), and P̂ against the nonparametric frequency response.  None only for results built by hand.
     premise_reason : str
-        Why the data falsify (or cannot test) the premise, the predictors' persistence of excitation
+        Why the data falsify (or cannot test) the premise, the predictors' persistence of excitation, time
+        invariance, feedback (``feedback``) and outputs clipped in the record (:func:`unfalsify.clipped_outputs`)
         included (``''`` when they do not).
     excitation : ExcitationCheck or None
         Whether the data determine the plant where the returned loop is sensitive.
@@ -730,7 +732,8 @@ def robust_design_from_data(
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
     premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason, untested_reason,
                                            invariance.reason if invariance is not None else "",
-                                           feedback.reason if feedback is not None else "")
+                                           feedback.reason if feedback is not None else "",
+                                           clipped_outputs(record[1]))
                                if r)
     judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
                        line_record=(*record, i))
