@@ -39,3 +39,16 @@ def test_unclipped_and_quantised_outputs_are_not_flagged():
     assert uf.clipped_outputs(np.round(y / step) * step) == ""
     two = np.column_stack([y, np.clip(y, None, 0.5 * np.max(y))])
     assert uf.clipped_outputs(two).startswith("output 1 sits at its largest value")
+
+
+def test_a_record_at_rest_at_its_ends_is_not_called_clipped():
+    """A noise-free record at rest for its first 50 samples under a 0/1 input sits at its smallest value, 0, there:
+    that run is rest, not a sensor's limit (it had been refused as clipped).  Clipping later in the record is still
+    found."""
+    u = np.r_[np.zeros(50), (np.random.default_rng(0).standard_normal(950) > 0).astype(float), np.zeros(40)]
+    y = np.zeros(u.size)
+    for k in range(1, u.size):
+        y[k] = 0.8 * y[k - 1] + 0.5 * u[k - 1]
+    y[-40:] = y[-41]  # and held at its last value
+    assert uf.clipped_outputs(y) == ""
+    assert uf.clipped_outputs(np.clip(y, None, 0.8 * np.max(y))).startswith("output 0 sits at its largest value")
