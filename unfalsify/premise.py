@@ -69,7 +69,7 @@ from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
-from .excitation import _bin_peak
+from .excitation import _bin_response
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _channels, _check_confidence,
                                  _lpm_window, _unit, frequency_response_estimate, low_band_estimate)
 
@@ -903,7 +903,7 @@ LINE_LOOP_GAIN = 0.2
 
 
 def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[float, float]:
-    """The loop gain of the strongest narrow line in P̂'s output error over a whole record (one input, one output).
+    """The loop gain of the strongest narrow line in P̂'s output error over a whole record.
 
     The Welch estimate of the premise test sees ``P − P̂`` at the resolution ``2π/(nperseg·dt)`` of short segments of
     the held-out record (16 points over the band for 400 samples).  A lightly damped mode that P̂ misses is narrower
@@ -912,6 +912,18 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     ``ln(K/LINE_LEVEL)`` times its local level on *both* sides (the larger of the medians of the ``LINE_HALF_WIDTH``
     bins below and above it, ``LINE_GAP`` bins away, over ``ln 2``: an exponential variable's median; ``K`` bins),
     the data show such a line, and its size is measured where the loop sees it: ``|E_k/U_k|·|M̂(e^{jω_k dt})|``.
+
+    Several inputs and outputs: one bin does not identify the line's transfer ``G`` (``m`` unknowns per output, one
+    equation ``E_k = G U_k``), but ``‖G(ω_k)‖₂ ≥ ‖E_k‖/‖U_k‖``, so ``‖E_k‖/‖U_k‖·σ̄(M̂(e^{jω_k dt}))`` (``M̂`` the loop's
+    additive channel, :func:`unfalsify.additive_channel`) is a lower bound of the small-gain product ``‖G‖·‖M̂‖``
+    at that frequency, the one number the certificate bounds (one input and output: the same ``|E_k/U_k|·|M̂|``).
+    The line is searched in each output channel against its own local level (channels can have different noise
+    levels, and a sum over them would dilute a line that is in one only), with the ``K`` of the threshold counting
+    every bin of every output (Bonferroni).  The coprime-factor form is judged on the same number: a line is a fact
+    of ``P − P̂``, whichever form bounds it.  An unstable P̂ cannot be simulated, but its equation error
+    ``ε = M̂_f y − N̂_f u`` (the predictor's one-step error on measured data, finite memory; ``P̂ = M̂_f⁻¹N̂_f``,
+    :mod:`unfalsify.coprime`) can: ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
+    record's edges (measured on a stable P̂: within 1.5 % of the simulated one's DFT).
     Both sides, and only bins with a full window on each: noise that rises towards DC (a drift, AR(0.999)) stands
     above the bins to its right, and was taken for a line at the lowest bins when the level was the median around
     the bin (measured: 6 of 18 loops that held refused, on records with a trend, AR(0.995–0.999) noise, a pole at
@@ -928,10 +940,10 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     Parameters
     ----------
     model : control.StateSpace
-        P̂, :func:`unfalsify.predictor_model` of horizon ``horizon`` (one input, one output, stable).
+        P̂, :func:`unfalsify.predictor_model` of horizon ``horizon`` (m inputs, l outputs, stable or not).
     controller : control.StateSpace
         ``K`` with inputs ``[r; y]``.
-    u, y : array_like, shape (n,)
+    u, y : array_like, shape (n,) or (n, m) and (n, l)
         The record.
     horizon : int
     dt : float
@@ -939,7 +951,7 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     Returns
     -------
     (float, float)
-        The largest ``|E_k/U_k|·|M̂|`` over the significant lines (0 without one) and its frequency (NaN without).
+        The largest ``‖E_k‖/‖U_k‖·σ̄(M̂)`` over the significant lines (0 without one) and its frequency (NaN without).
 
     Examples
     --------
@@ -967,35 +979,78 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
 
 def _residual_lines(model, u, y, horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The significant narrow lines of P̂'s output error over a record (:func:`residual_line`): their frequencies and
-    ``|Ê/Û|`` there, empty arrays without one.  They depend on P̂ and the record only, not on the controller: the
-    design search computes them once and weighs them with each loop (:func:`_line_gain`)."""
+    ``‖E_k‖/‖U_k‖`` there, empty arrays without one.  They depend on P̂ and the record only, not on the controller:
+    the design search computes them once and weighs them with each loop (:func:`_line_gain`)."""
     none = np.zeros(0), np.zeros(0)
-    e = output_error_residual(model, u, y, horizon)
-    x = np.asarray(u, float).reshape(-1)[horizon:]
-    if e.ndim != 1 or e.size < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
+    x = np.asarray(u, float)
+    if x.shape[0] - horizon < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
         return none
-    E = np.fft.rfft(e - e.mean())[1:-1]
-    U = np.fft.rfft(x - x.mean())[1:-1]
-    power = np.abs(E) ** 2
+    E, U = _output_error_dft(model, u, y, horizon)
+    power = np.abs(E) ** 2                                               # (K, l): each output channel on its own
     h, g = LINE_HALF_WIDTH, LINE_GAP
-    sides = np.lib.stride_tricks.sliding_window_view(power, h)           # sides[k] = power[k : k + h]
-    level = np.full(power.size, np.inf)
+    sides = np.lib.stride_tricks.sliding_window_view(power, h, axis=0)   # sides[k] = power[k : k + h]
+    level = np.full(power.shape, np.inf)
     reach = h + g                                                        # bins k with a full window on each side
-    level[reach:-reach] = np.maximum(np.median(sides[: power.size - 2 * reach], axis=1),
-                                     np.median(sides[reach + g + 1:], axis=1)) / np.log(2.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        line = (power > np.log(power.size / LINE_LEVEL) * level) & (np.abs(U) > 0)
+    level[reach:-reach] = np.maximum(np.median(sides[: power.shape[0] - 2 * reach], axis=-1),
+                                     np.median(sides[reach + g + 1:], axis=-1)) / np.log(2.0)
+    size = np.linalg.norm(U, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # Bonferroni over every bin of every output channel
+        line = np.any(power > np.log(power.size / LINE_LEVEL) * level, axis=1) & (size > 0)
     if not line.any():
         return none
-    freq = 2.0 * np.pi * np.arange(1, power.size + 1)[line] / (e.size * dt)
-    return freq, np.abs(E[line] / U[line])
+    freq = 2.0 * np.pi * np.arange(1, power.shape[0] + 1)[line] / ((x.shape[0] - horizon) * dt)
+    return freq, np.linalg.norm(E[line], axis=1) / size[line]
+
+
+def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(E, U)``: the DFT of P̂'s output error and of the input over the record after the first ``horizon`` samples,
+    bins 1 … n/2 − 1, shapes (K, l) and (K, m).
+
+    A stable P̂ is simulated (:func:`output_error_residual`).  An unstable one cannot be (its simulation diverges),
+    but its equation error ``ε = M̂y − N̂u`` (the one-step error of the predictor on measured data: finite memory,
+    no simulation) can, and ``M̂(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the record's edges
+    (``M̂ = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂⁻¹N̂``, :mod:`unfalsify.coprime`).
+    """
+    x = np.asarray(u, float).reshape(np.shape(u)[0], -1)[horizon:]
+    if _spectral_radius(model) < 1.0:
+        e = output_error_residual(model, u, y, horizon)
+        E = np.fft.rfft(e.reshape(e.shape[0], -1) - e.reshape(e.shape[0], -1).mean(axis=0), axis=0)[1:-1]
+    else:
+        e, Mz = _equation_error(model, u, y, horizon)
+        E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
+        zinv = np.exp(-2j * np.pi * np.arange(1, E.shape[0] + 1) / e.shape[0])  # bin k: ω = 2πk/n rad/sample
+        E = (np.linalg.pinv(Mz(zinv)) @ E[:, :, None])[:, :, 0]  # pinv: a pole of P̂ on the unit circle stays finite
+    return E, np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1]
+
+
+def _equation_error(model, u, y, horizon: int):
+    """The predictor's equation error ``ε_k = y_k − C w_p(k) − D u_k`` on measured data, (n − i, l), and
+    ``z⁻¹ ↦ M̂`` evaluated on an array of ``z⁻¹`` (F, l, l)."""
+    output_error_residual(model, u[: horizon + 1], y[: horizon + 1], horizon)  # checks the model against the data
+    C, D = np.asarray(model.C, float), np.asarray(model.D, float)
+    U, Y = channel_pair(u, y)
+    U, Y = U.reshape(U.shape[0], -1), Y.reshape(Y.shape[0], -1)
+    i, m, l = horizon, U.shape[1], Y.shape[1]
+    n = U.shape[0]
+    past = np.hstack([U[s: n - i + s] for s in range(i)] + [Y[s: n - i + s] for s in range(i)])  # w_p(k), k ≥ i
+    e = Y[i:] - past @ C.T - U[i:] @ D.T
+    taps = [-C[:, i * m + s * l: i * m + (s + 1) * l] for s in range(i)]  # lag i − s
+
+    def Mz(zinv):
+        out = np.broadcast_to(np.eye(l, dtype=complex), (zinv.size, l, l)).copy()
+        for s, T in enumerate(taps):
+            out += zinv[:, None, None] ** (i - s) * T
+        return out
+    return e, Mz
 
 
 def _line_gain(lines: tuple[np.ndarray, np.ndarray], model, controller, dt: float) -> tuple[float, float]:
-    """The largest ``|Ê/Û|·|M̂|`` over the lines of :func:`_residual_lines` and its frequency ((0, NaN) without)."""
+    """The largest ``‖E_k‖/‖U_k‖·σ̄(M̂)`` over the lines of :func:`_residual_lines` and its frequency ((0, NaN)
+    without)."""
     freq, ratio = lines
     if not freq.size:
         return 0.0, float("nan")
-    gain = ratio * _bin_peak(additive_channel(model, controller), freq, 0.0, dt, points=1)
+    channel = _bin_response(additive_channel(model, controller), freq, 0.0, dt, points=1)[:, 0]  # (F, m, l)
+    gain = ratio * np.linalg.norm(channel, ord=2, axis=(1, 2))
     k = int(np.argmax(gain))
     return float(gain[k]), float(freq[k])
