@@ -67,7 +67,7 @@ from synthesis.validation import (DataError, as_signal, check_count, check_flag,
 
 from ._common import channel_pair
 from .arx import ArxResult, arx_unfalsify
-from .certify import additive_channel
+from .certify import additive_channel, coprime_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
 from .excitation import _bin_response
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _channels, _check_confidence,
@@ -902,7 +902,7 @@ LINE_GAP = 2
 LINE_LOOP_GAIN = 0.2
 
 
-def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[float, float]:
+def residual_line(model, controller, u, y, horizon: int, dt: float, factors=None) -> tuple[float, float]:
     """The loop gain of the strongest narrow line in P̂'s output error over a whole record.
 
     The Welch estimate of the premise test sees ``P − P̂`` at the resolution ``2π/(nperseg·dt)`` of short segments of
@@ -919,8 +919,12 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     at that frequency, the one number the certificate bounds (one input and output: the same ``|E_k/U_k|·|M̂|``).
     The line is searched in each output channel against its own local level (channels can have different noise
     levels, and a sum over them would dilute a line that is in one only), with the ``K`` of the threshold counting
-    every bin of every output (Bonferroni).  The coprime-factor form is judged on the same number: a line is a fact
-    of ``P − P̂``, whichever form bounds it.  An unstable P̂ cannot be simulated, but its equation error
+    every bin of every output (Bonferroni).  The coprime-factor form: a line is a fact of ``P − P̂`` whichever form
+    bounds it, so the same number counts; and the equation error's line ``M̂_f E_k`` is at most ``‖[Δ_N Δ_M]‖`` times
+    ``‖[U_k; Y_k]‖`` (``M̂_f y − N̂_f u = [Δ_N −Δ_M][u; y]``), so ``‖M̂_f E_k‖/‖[U_k; Y_k]‖·σ̄(H)`` bounds the coprime
+    small-gain product at that frequency from below; the larger of the two counts (measured: a loop that held on
+    the plant, certified with ε = 0.030 for a plant 0.19 from P̂'s factors at its mode, where the additive number
+    was 0.14 and the coprime one 0.55).  An unstable P̂ cannot be simulated, but its equation error
     ``ε = M̂_f y − N̂_f u`` (the predictor's one-step error on measured data, finite memory; ``P̂ = M̂_f⁻¹N̂_f``,
     :mod:`unfalsify.coprime`) can: ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
     record's edges (measured on a stable P̂: within 1.5 % of the simulated one's DFT).
@@ -947,11 +951,15 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
         The record.
     horizon : int
     dt : float
+    factors : CoprimeFactors, optional
+        P̂'s coprime factors (:func:`unfalsify.coprime_factors`), for a loop certified in coprime-factor form: each
+        line then counts with the larger of ``‖E_k‖/‖U_k‖·σ̄(M̂)`` and ``‖M̂_f E_k‖/‖[U_k; Y_k]‖·σ̄(H)``, ``H`` the
+        coprime channel (:func:`unfalsify.coprime_channel`).
 
     Returns
     -------
     (float, float)
-        The largest ``‖E_k‖/‖U_k‖·σ̄(M̂)`` over the significant lines (0 without one) and its frequency (NaN without).
+        The largest loop gain over the significant lines (0 without one) and its frequency (NaN without).
 
     Examples
     --------
@@ -970,22 +978,28 @@ def residual_line(model, controller, u, y, horizon: int, dt: float) -> tuple[flo
     >>> residual_line(predictor_model(sy.fit_predictor(u, y, 3), 1.0), K, u, y, 3, 1.0)
     (0.0, nan)
     >>> y2 = y + scipy.signal.lfilter([0.0, 0.02], [1.0, -2 * 0.999 * np.cos(0.8), 0.999 ** 2], u)
-    >>> gain, w = residual_line(predictor_model(sy.fit_predictor(u, y2, 3), 1.0), K, u, y2, 3, 1.0)
+    >>> pred = sy.fit_predictor(u, y2, 3)
+    >>> gain, w = residual_line(predictor_model(pred, 1.0), K, u, y2, 3, 1.0)
     >>> bool(gain >= LINE_LOOP_GAIN), round(w, 2)
     (True, 0.8)
+    >>> from unfalsify import coprime_factors                             # the loop in coprime-factor form
+    >>> gain_c, _ = residual_line(predictor_model(pred, 1.0), K, u, y2, 3, 1.0, coprime_factors(pred, 1.0))
+    >>> bool(gain_c >= gain)                                              # the larger of the two numbers
+    True
     """
-    return _line_gain(_residual_lines(model, u, y, horizon, dt), model, controller, dt)
+    return _line_gain(_residual_lines(model, u, y, horizon, dt), model, controller, dt, factors)
 
 
-def _residual_lines(model, u, y, horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The significant narrow lines of P̂'s output error over a record (:func:`residual_line`): their frequencies and
-    ``‖E_k‖/‖U_k‖`` there, empty arrays without one.  They depend on P̂ and the record only, not on the controller:
-    the design search computes them once and weighs them with each loop (:func:`_line_gain`)."""
-    none = np.zeros(0), np.zeros(0)
+def _residual_lines(model, u, y, horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The significant narrow lines of P̂'s output error over a record (:func:`residual_line`): their frequencies,
+    ``‖E_k‖/‖U_k‖`` and ``‖M̂_f E_k‖/‖[U_k; Y_k]‖`` there (the additive and the coprime-factor perturbation the line
+    shows at least), empty arrays without one.  They depend on P̂ and the record only, not on the controller: the
+    design search computes them once and weighs them with each loop (:func:`_line_gain`)."""
+    none = np.zeros(0), np.zeros(0), np.zeros(0)
     x = np.asarray(u, float)
     if x.shape[0] - horizon < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
         return none
-    E, U = _output_error_dft(model, u, y, horizon)
+    E, U, Y, M = _output_error_dft(model, u, y, horizon)
     power = np.abs(E) ** 2                                               # (K, l): each output channel on its own
     h, g = LINE_HALF_WIDTH, LINE_GAP
     sides = np.lib.stride_tricks.sliding_window_view(power, h, axis=0)   # sides[k] = power[k : k + h]
@@ -999,36 +1013,40 @@ def _residual_lines(model, u, y, horizon: int, dt: float) -> tuple[np.ndarray, n
     if not line.any():
         return none
     freq = 2.0 * np.pi * np.arange(1, power.shape[0] + 1)[line] / ((x.shape[0] - horizon) * dt)
-    return freq, np.linalg.norm(E[line], axis=1) / size[line]
+    coprime = (np.linalg.norm((M[line] @ E[line][:, :, None])[:, :, 0], axis=1)
+               / np.hypot(size[line], np.linalg.norm(Y[line], axis=1)))
+    return freq, np.linalg.norm(E[line], axis=1) / size[line], coprime
 
 
-def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(E, U)``: the DFT of P̂'s output error and of the input over the record after the first ``horizon`` samples,
-    bins 1 … n/2 − 1, shapes (K, l) and (K, m).
+def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(E, U, Y, M)``: the DFT of P̂'s output error, of the input and of the output over the record after the first
+    ``horizon`` samples, bins 1 … n/2 − 1, shapes (K, l), (K, m), (K, l), and ``M̂_f`` at those bins (K, l, l).
 
     A stable P̂ is simulated (:func:`output_error_residual`).  An unstable one cannot be (its simulation diverges),
-    but its equation error ``ε = M̂y − N̂u`` (the one-step error of the predictor on measured data: finite memory,
-    no simulation) can, and ``M̂(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the record's edges
-    (``M̂ = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂⁻¹N̂``, :mod:`unfalsify.coprime`).
+    but its equation error ``ε = M̂_f y − N̂_f u`` (the one-step error of the predictor on measured data: finite
+    memory, no simulation) can, and ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
+    record's edges (``M̂_f = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂_f⁻¹N̂_f``, :mod:`unfalsify.coprime`).
     """
     x = np.asarray(u, float).reshape(np.shape(u)[0], -1)[horizon:]
+    e, Mz = _equation_error(model, u, y, horizon)
+    K = e.shape[0] // 2 - 1                                        # rfft's bins without 0 and the last
+    M = Mz(np.exp(-2j * np.pi * np.arange(1, K + 1) / e.shape[0]))  # bin k: ω = 2πk/(n − i) rad/sample
     if _spectral_radius(model) < 1.0:
-        e = output_error_residual(model, u, y, horizon)
-        E = np.fft.rfft(e.reshape(e.shape[0], -1) - e.reshape(e.shape[0], -1).mean(axis=0), axis=0)[1:-1]
-    else:
-        e, Mz = _equation_error(model, u, y, horizon)
+        e = output_error_residual(model, u, y, horizon).reshape(e.shape)
         E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
-        zinv = np.exp(-2j * np.pi * np.arange(1, E.shape[0] + 1) / e.shape[0])  # bin k: ω = 2πk/n rad/sample
-        E = (np.linalg.pinv(Mz(zinv)) @ E[:, :, None])[:, :, 0]  # pinv: a pole of P̂ on the unit circle stays finite
-    return E, np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1]
+    else:
+        E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
+        E = (np.linalg.pinv(M) @ E[:, :, None])[:, :, 0]  # pinv: a pole of P̂ on the unit circle stays finite
+    z = np.asarray(y, float).reshape(np.shape(y)[0], -1)[horizon:]
+    return E, np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1], np.fft.rfft(z - z.mean(axis=0), axis=0)[1:-1], M
 
 
 def _equation_error(model, u, y, horizon: int):
     """The predictor's equation error ``ε_k = y_k − C w_p(k) − D u_k`` on measured data, (n − i, l), and
     ``z⁻¹ ↦ M̂`` evaluated on an array of ``z⁻¹`` (F, l, l)."""
-    output_error_residual(model, u[: horizon + 1], y[: horizon + 1], horizon)  # checks the model against the data
-    C, D = np.asarray(model.C, float), np.asarray(model.D, float)
     U, Y = channel_pair(u, y)
+    output_error_residual(model, U[: horizon + 1], Y[: horizon + 1], horizon)  # checks the model against the data
+    C, D = np.asarray(model.C, float), np.asarray(model.D, float)
     U, Y = U.reshape(U.shape[0], -1), Y.reshape(Y.shape[0], -1)
     i, m, l = horizon, U.shape[1], Y.shape[1]
     n = U.shape[0]
@@ -1044,13 +1062,21 @@ def _equation_error(model, u, y, horizon: int):
     return e, Mz
 
 
-def _line_gain(lines: tuple[np.ndarray, np.ndarray], model, controller, dt: float) -> tuple[float, float]:
+def _line_gain(lines: tuple[np.ndarray, np.ndarray, np.ndarray], model, controller, dt: float,
+               factors=None) -> tuple[float, float]:
     """The largest ``‖E_k‖/‖U_k‖·σ̄(M̂)`` over the lines of :func:`_residual_lines` and its frequency ((0, NaN)
-    without)."""
-    freq, ratio = lines
+    without); with ``factors`` (P̂'s coprime factors) the larger of that and ``‖M̂_f E_k‖/‖[U_k; Y_k]‖·σ̄(H)``,
+    ``H`` the coprime channel (:func:`unfalsify.coprime_channel`)."""
+    freq, ratio, coprime = lines
     if not freq.size:
         return 0.0, float("nan")
-    channel = _bin_response(additive_channel(model, controller), freq, 0.0, dt, points=1)[:, 0]  # (F, m, l)
-    gain = ratio * np.linalg.norm(channel, ord=2, axis=(1, 2))
+    gain = ratio * _peak_gain(additive_channel(model, controller), freq, dt)
+    if factors is not None:
+        gain = np.maximum(gain, coprime * _peak_gain(coprime_channel(factors, controller), freq, dt))
     k = int(np.argmax(gain))
     return float(gain[k]), float(freq[k])
+
+
+def _peak_gain(sys, freq: np.ndarray, dt: float) -> np.ndarray:
+    """``σ̄(sys(e^{jω dt}))`` at each frequency."""
+    return np.linalg.norm(_bin_response(sys, freq, 0.0, dt, points=1)[:, 0], ord=2, axis=(1, 2))

@@ -958,17 +958,19 @@ class _LoopJudge:
 
     def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
         """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
-        tolerate (:func:`unfalsify.residual_line`).  In both forms: a line is a fact of ``P − P̂`` (the plant's
-        additive error), so it is weighed with the loop's additive channel also when the loop is certified in
-        coprime-factor form."""
+        tolerate (:func:`unfalsify.residual_line`).  A line is a fact of ``P − P̂`` (the plant's additive error), so
+        it is weighed with the loop's additive channel also in coprime-factor form, where its coprime-factor size
+        weighed with the coprime channel counts too (the larger)."""
         if self._lines is None:
             return exc
-        gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt))
+        factors = self.ball.factors if self.ball is not None else None
+        gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt), factors)
         if gain < LINE_LOOP_GAIN:
             return exc
         unit = _unit(float(self.model.dt))
+        measure = "‖Ê‖/‖Û‖·σ̄(M̂)" if factors is None else "max(‖Ê‖/‖Û‖·σ̄(M̂), ‖M̂Ê‖/‖[Û; Ŷ]‖·σ̄([K; I](M̂+N̂K)⁻¹))"
         why = (f"P̂'s output error over the record has a narrow line at {freq:.3g} {unit} where the loop is sensitive "
-               f"(‖Ê‖/‖Û‖·σ̄(M̂) = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
+               f"({measure} = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
                "Welch resolution of the premise test; raise the horizon, or record longer")
         return dataclasses.replace(exc, ok=False, worst=max(exc.worst, gain), frequency=freq, reason=why)
 
