@@ -913,6 +913,11 @@ def residual_line(model, controller, u, y, horizon: int, dt: float, factors=None
     bins below and above it, ``LINE_GAP`` bins away, over ``ln 2``: an exponential variable's median; ``K`` bins),
     the data show such a line, and its size is measured where the loop sees it: ``|E_k/U_k|·|M̂(e^{jω_k dt})|``.
 
+    Both sides, and only bins with a full window on each: noise that rises towards DC (a drift, AR(0.999)) stands
+    above the bins to its right, and was taken for a line at the lowest bins when the level was the median around
+    the bin (measured: 6 of 18 loops that held refused, on records with a trend, AR(0.995–0.999) noise, a pole at
+    0.99 or 200 samples; none with both sides).
+
     Several inputs and outputs: one bin does not identify the line's transfer ``G`` (``m`` unknowns per output, one
     equation ``E_k = G U_k``), but ``‖G(ω_k)‖₂ ≥ ‖E_k‖/‖U_k‖``, so ``‖E_k‖/‖U_k‖·σ̄(M̂(e^{jω_k dt}))`` (``M̂`` the loop's
     additive channel, :func:`unfalsify.additive_channel`) is a lower bound of the small-gain product ``‖G‖·‖M̂‖``
@@ -928,17 +933,20 @@ def residual_line(model, controller, u, y, horizon: int, dt: float, factors=None
     ``ε = M̂_f y − N̂_f u`` (the predictor's one-step error on measured data, finite memory; ``P̂ = M̂_f⁻¹N̂_f``,
     :mod:`unfalsify.coprime`) can: ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
     record's edges (measured on a stable P̂: within 1.5 % of the simulated one's DFT).
-    Both sides, and only bins with a full window on each: noise that rises towards DC (a drift, AR(0.999)) stands
-    above the bins to its right, and was taken for a line at the lowest bins when the level was the median around
-    the bin (measured: 6 of 18 loops that held refused, on records with a trend, AR(0.995–0.999) noise, a pole at
-    0.99 or 200 samples; none with both sides).
 
     Measured (records of 1200 samples at 10 Hz, the third-order plant in parallel with a mode ``c·ω²/(s² + 2ζωs +
     ω²)``, ω 1.5–3 rad/s, ζ 0.001–0.01, c 0.01–0.03, seeds 0–2, white PRBS and uniform input; record mode): without
     this test 95 of 108 runs certified, 74 of them unstable or without the δ margin on the plant; with it 41 (24 of the
     74 certify a design that holds, 10 are refused, and one run's search moved to a design that fails), and one loop
     that held is refused.  On the adversarial catalogue (record protocol seeds 0–2, validation protocol seed 0; 208
-    runs) no verdict changed.  A mode whose line stays below the noise -- sharper or weaker -- is not seen: no finite
+    runs) no verdict changed.  With several channels, the coprime-factor form and an unstable P̂ covered (2026-11-28,
+    old and new tree in one session): of the 41, 5 were certified in coprime form; 3 are now refused, the other 2
+    show no significant line (38 remain); 2 × 2 coupled lags with a ζ = 0.003 mode at 0.2 rad/s (from u₁ to y₁, or
+    from both inputs to both outputs; PRBS and uniform input, seeds 0–2, the protocol of
+    :mod:`experiments.studies.mimo_pipeline`): 9 of 12 runs certified, 8 false, before; 1 certified, none false,
+    after (one loop that held refused, its premise false on the plant: ``‖P − P̂‖∞/δ`` = 167); no verdict changed on
+    the catalogue (record protocol seeds 0–1, validation protocol seed 0; 156 runs, 10 loops certified in coprime
+    form among them).  A mode whose line stays below the noise -- sharper or weaker -- is not seen: no finite
     record excludes it.
 
     Parameters
