@@ -536,8 +536,9 @@ def robust_design_from_data(
     * the data must determine the plant where the loop is sensitive: at every Welch frequency
       ``(|P̂ − Ĝ| + r)·|K(I+P̂K)⁻¹| < 1`` (``r`` the confidence radius, large where the input is silent);
     * P̂'s output error over the longest record (the whole record in record mode) must show no narrow line where
-      the loop is sensitive, ``|Ê/Û|·|M̂| < 0.2`` (:func:`unfalsify.residual_line`, one input and one output): a
-      lightly damped mode that P̂ misses is far narrower than the Welch resolution, and is seen only there;
+      the loop is sensitive, ``‖Ê‖/‖Û‖·σ̄(M̂) < 0.2`` (:func:`unfalsify.residual_line`; any number of channels, P̂
+      stable or not, in both forms of the uncertainty): a lightly damped mode that P̂ misses is far narrower than
+      the Welch resolution, and is seen only there;
     * the predictors' data must be persistently exciting (a ``PersistenceWarning`` means not certified).
 
     What the data cannot test is stated in ``result.assumed`` (:func:`unfalsify.untested_premises`) and, for a certified
@@ -1005,26 +1006,28 @@ class _LoopJudge:
     @functools.cached_property
     def _lines(self):
         """The narrow lines of P̂'s output error over the longest record (:func:`unfalsify.residual_line`), found once
-        for the whole search (they do not depend on the loop); None where the test does not apply (several channels,
-        P̂ unstable, no record)."""
-        if self.line_record is None or self.model.ninputs != 1 or self.model.noutputs != 1:
-            return None
-        if not spectral_radius(np.asarray(self.model.A, float)) < 1.0:
+        for the whole search (they do not depend on the loop, nor on the form of the uncertainty); None without a
+        record."""
+        if self.line_record is None:
             return None
         u, y, i = self.line_record
         return _residual_lines(self.model, u, y, i, float(self.model.dt))
 
     def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
         """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
-        tolerate (:func:`unfalsify.residual_line`; one input and one output, P̂ stable)."""
+        tolerate (:func:`unfalsify.residual_line`).  A line is a fact of ``P − P̂`` (the plant's additive error), so
+        it is weighed with the loop's additive channel also in coprime-factor form, where its coprime-factor size
+        weighed with the coprime channel counts too (the larger)."""
         if self._lines is None:
             return exc
-        gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt))
+        factors = self.ball.factors if self.ball is not None else None
+        gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt), factors)
         if gain < LINE_LOOP_GAIN:
             return exc
         unit = _unit(float(self.model.dt))
+        measure = "‖Ê‖/‖Û‖·σ̄(M̂)" if factors is None else "max(‖Ê‖/‖Û‖·σ̄(M̂), ‖M̂Ê‖/‖[Û; Ŷ]‖·σ̄([K; I](M̂+N̂K)⁻¹))"
         why = (f"P̂'s output error over the record has a narrow line at {freq:.3g} {unit} where the loop is sensitive "
-               f"(|Ê/Û|·|M̂| = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
+               f"({measure} = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
                "Welch resolution of the premise test; raise the horizon, or record longer")
         return dataclasses.replace(exc, ok=False, worst=max(exc.worst, gain), frequency=freq, reason=why)
 
@@ -1039,6 +1042,8 @@ class _LoopJudge:
         cert = certify_loop(self.model, d.controller, b.eps, factors=b.factors, **self.cert_opts)
         exc = (check_excitation(self.model, d.controller, b.frf, b.low_band, factors=b.factors, delta=b.eps)
                if b.frf is not None and cert.stable else None)
+        if exc is not None and exc.ok:
+            exc = self._line_check(exc, d.controller)
         track = (_coprime_tracking_reason(b.factors, b.data_gain, d.controller, (1.0 + self.margin) * b.eps,
                                           self.floor) if cert.stable else "")
         ref = self.missing
