@@ -1052,7 +1052,7 @@ def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray
     e, Mz = _equation_error(model, u, y, horizon)
     K = e.shape[0] // 2 - 1                                        # rfft's bins without 0 and the last
     M = Mz(np.exp(-2j * np.pi * np.arange(1, K + 1) / e.shape[0]))  # bin k: ω = 2πk/(n − i) rad/sample
-    if _spectral_radius(model) < 1.0:
+    if spectral_radius(control.ssdata(model)[0]) < 1.0:
         e = output_error_residual(model, u, y, horizon).reshape(e.shape)
         E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
     else:

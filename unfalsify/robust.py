@@ -62,7 +62,7 @@ from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_level, check_nonnegative, check_predictor_dt)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest, spectral_radius
+from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
