@@ -1057,3 +1057,64 @@ def test_the_coprime_form_refuses_a_loop_where_a_line_shows():
     assert len(r.search) == 2 and second.certificate.certified and not r.certified
     assert abs(float(re.search(r"narrow line at ([0-9.]+) rad/s", second.excitation.reason)[1]) - w) < 0.1
     assert "‖[Û; Ŷ]‖" in second.excitation.reason
+
+
+def _mode_record(w, zeta, c, seed=0, noise=0.05):
+    """The third-order plant in parallel with ``c·ω²/(s² + 2ζωs + ω²)`` (none with c = 0), 1200 samples at 10 Hz of a
+    uniform input (the catalogue's ``steps/1``), process and sensor noise ``noise``."""
+    from experiments.lab.plants import damped_pair, modal_ss, zoh
+    from experiments.studies.adversarial import Excitation
+    P = control.ss(third_order())
+    if c:
+        P = P + zoh(modal_ss({"y": np.array([c * w * w])}, damped_pair(zeta, w), name="m"), 0.1)
+    u = Excitation("steps", hold=1).signal(1200, seed)
+    rng = np.random.default_rng(seed + 100)
+    y = collect_data(P, u + noise * rng.standard_normal(1200)).y[:, 0] + noise * rng.standard_normal(1200)
+    return P, u, y
+
+
+def _record_design(u, y, **options):
+    W = design_weights()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
+                                          search=uf.DesignSearch(horizons=(20,)), **options)
+
+
+def _hidden_statements(r):
+    return [a for a in r.assumed if "hidden_line_gain" in a]
+
+
+def test_a_mode_below_the_noise_is_stated_as_assumed_with_the_loop_gain_it_could_carry():
+    # 0.01·ω²/(s² + 2ζωs + ω²), ω = 1.5 rad/s, ζ = 0.001: its line stays below the noise, the line test does not see
+    # it, and the certified loop is unstable on the plant.  Before, nothing in `assumed` said what the certificate
+    # assumed about such a mode; now the record's hidden-line gain X is reported and stated
+    P, u, y = _mode_record(1.5, 0.001, 0.01)
+    r = _record_design(u, y)
+    assert r.certified and not uf.additive_robustness(P, r.controller).stable
+    assert uf.residual_line(r.model, r.controller, u, y, 10, 0.1)[0] == 0.0   # no significant line
+    assert r.hidden_line_gain >= uf.HIDDEN_LINE_LIMIT and 0.0 < r.hidden_line_frequency < np.pi / 0.1
+    (statement,) = _hidden_statements(r)
+    assert f"{r.hidden_line_gain:.3g}" in statement and "longer record" in statement
+    gain, w = uf.hidden_line_gain(r.model, r.controller, u, y, 10, 0.1)
+    assert (gain, w) == (r.hidden_line_gain, r.hidden_line_frequency)
+    # under untested="refuse" the designs that need the assumption are refused on it, and the search moves on to a
+    # loop that does not (here it holds on the plant)
+    strict = _record_design(u, y, certificate=uf.CertificateOptions(untested="refuse"))
+    assert any("hidden_line_gain" in s.excitation.reason for s in strict.search if s.excitation is not None)
+    assert not strict.certified or (strict.hidden_line_gain < uf.HIDDEN_LINE_LIMIT and not strict.assumed)
+
+
+def test_a_clean_low_noise_record_hides_no_line_the_loop_could_not_tolerate():
+    _, u, y = _mode_record(0.0, 0.0, 0.0, noise=0.005)
+    r = _record_design(u, y)
+    assert r.certified and r.hidden_line_gain < uf.HIDDEN_LINE_LIMIT and not _hidden_statements(r)
+
+
+def test_the_hidden_line_gain_pickles_with_the_result():
+    import pickle
+    _, u, y = _mode_record(0.0, 0.0, 0.0, noise=0.005)
+    r = _record_design(u, y)
+    again = pickle.loads(pickle.dumps(r))
+    assert np.isfinite(r.hidden_line_gain) and again == r
+    assert (again.hidden_line_gain, again.hidden_line_frequency) == (r.hidden_line_gain, r.hidden_line_frequency)

@@ -119,6 +119,8 @@ The certificate's premise, tested on the data
    ExcitationCheck        -- result of ``check_excitation``
    residual_line          -- the loop gain of the strongest narrow line in P̂'s output error over a whole record
    LINE_LOOP_GAIN         -- such a line refuses the loop from this loop gain on (0.2)
+   hidden_line_gain       -- the loop gain of the largest line a record could hide below that test's threshold
+   HIDDEN_LINE_LIMIT      -- from this hidden-line gain on a certificate states it assumes no such line
    EXCITATION_FLOOR       -- input power below this fraction of its peak: not excited (1e-3)
 
 Coprime-factor uncertainty (finite for integrating plants)
@@ -254,6 +256,8 @@ from .excitation import ExcitationCheck, check_excitation
 from .premise import (
     LEVEL_SPREAD,
     LINE_LOOP_GAIN,
+    HIDDEN_LINE_LIMIT,
+    hidden_line_gain,
     GLITCH_LEVEL,
     OFFSET_NOTE,
     glitch_note,
@@ -320,6 +324,8 @@ __all__ = [
     "EXCITATION_FLOOR",
     "LEVEL_SPREAD",
     "LINE_LOOP_GAIN",
+    "HIDDEN_LINE_LIMIT",
+    "hidden_line_gain",
     "OFFSET_NOTE",
     "operating_point_note",
     "GLITCH_LEVEL",

@@ -76,7 +76,8 @@ from .excitation import ExcitationCheck, check_excitation
 from .frequency_response import _unit
 from .options import (CertificateOptions, DesignOptions, DesignSearch, EstimationOptions, _gather_options,
                       _positive_real)
-from .premise import (LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _line_gain, _residual_lines, check_premise,
+from .premise import (HIDDEN_LINE_LIMIT, LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _hidden_gain,
+                      _hidden_line_statement, _line_gain, _line_spectra, check_premise,
                       glitch_note, operating_point_note, untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
@@ -208,6 +209,13 @@ class RobustDesignResult:
     window : tuple of int or None
         Record mode (``window=``): the samples ``[start, stop)`` of the record that form the (7.5) window;
         None when ``u, y`` were the window itself.
+    hidden_line_gain : float
+        ``X``: the loop gain of the largest narrow line the longest record could hide below the narrow-line test's
+        threshold (:func:`unfalsify.hidden_line_gain`, for the returned loop; inf where the record is too short for
+        the test).  From :data:`unfalsify.HIDDEN_LINE_LIMIT` on (a loop stable on P̂) ``assumed`` states that
+        ``P − P̂`` has no such mode; NaN on results made before it was measured.
+    hidden_line_frequency : float
+        The frequency where ``X`` is reached (NaN without).
     """
 
     unfalsification: SubspaceResult
@@ -238,6 +246,8 @@ class RobustDesignResult:
     invariance_note: str = ""
     window: tuple | None = None
     feedback: FeedbackTest | None = None
+    hidden_line_gain: float = float("nan")
+    hidden_line_frequency: float = float("nan")
 
     @property
     def controller(self) -> control.StateSpace:
@@ -751,6 +761,9 @@ def robust_design_from_data(
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
+    hidden, hidden_freq = judge.hidden_gain(chosen.controller)
+    if hidden >= HIDDEN_LINE_LIMIT and rec.certificate.stable:  # an unstable loop's channel bounds nothing
+        assumed = assumed + (_hidden_line_statement(hidden, hidden_freq, float(model.dt)),)
     if rec.certified and assumed:
         warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
                       UntestedPremiseWarning, stacklevel=2)
@@ -763,7 +776,8 @@ def robust_design_from_data(
         reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback)
+        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback,
+        hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq))
 
 
 def _fitted_on(predictor, u, y, validation):
@@ -975,6 +989,7 @@ class _LoopJudge:
         self.model, self.ref_model, self.prem, self.ball = model, ref_model, prem, ball
         self.line_record = line_record  # (u, y, i): the record whose output error is searched for narrow lines
         self.premise_reason, self.delta = premise_reason, delta
+        self.refuse_hidden = options.untested == "refuse"  # a hidden line the loop could not tolerate refuses it too
         self.margin = _positive_real(options.margin, "certificate_margin", allow_equal=True)
         self.floor = options.tracking_floor  # one number, or one per output channel (certify.tracking_floors)
         self.cert_opts = dict(margin=self.margin, tracking_floor=options.tracking_floor,
@@ -1004,14 +1019,25 @@ class _LoopJudge:
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
 
     @functools.cached_property
-    def _lines(self):
-        """The narrow lines of P̂'s output error over the longest record (:func:`unfalsify.residual_line`), found once
-        for the whole search (they do not depend on the loop, nor on the form of the uncertainty); None without a
-        record."""
+    def _spectra(self):
+        """The narrow lines of P̂'s output error over the longest record (:func:`unfalsify.residual_line`) and the
+        lines it could hide (:func:`unfalsify.hidden_line_gain`), found once for the whole search (they do not depend
+        on the loop, nor on the form of the uncertainty); ``(None, None)`` without a record."""
         if self.line_record is None:
-            return None
+            return None, None
         u, y, i = self.line_record
-        return _residual_lines(self.model, u, y, i, float(self.model.dt))
+        return _line_spectra(self.model, u, y, i, float(self.model.dt))
+
+    @property
+    def _lines(self):
+        return self._spectra[0]
+
+    def hidden_gain(self, controller) -> tuple[float, float]:
+        """:func:`unfalsify.hidden_line_gain` of the loop on the longest record (NaN, NaN without a record)."""
+        if self.line_record is None:
+            return float("nan"), float("nan")
+        factors = self.ball.factors if self.ball is not None else None
+        return _hidden_gain(self._spectra[1], self.model, controller, float(self.model.dt), factors)
 
     def _line_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
         """``exc`` failed when P̂'s output error over the longest record shows a narrow line the loop does not
@@ -1023,12 +1049,22 @@ class _LoopJudge:
         factors = self.ball.factors if self.ball is not None else None
         gain, freq = _line_gain(self._lines, self.model, controller, float(self.model.dt), factors)
         if gain < LINE_LOOP_GAIN:
-            return exc
+            return self._hidden_check(exc, controller) if self.refuse_hidden else exc
         unit = _unit(float(self.model.dt))
         measure = "‖Ê‖/‖Û‖·σ̄(M̂)" if factors is None else "max(‖Ê‖/‖Û‖·σ̄(M̂), ‖M̂Ê‖/‖[Û; Ŷ]‖·σ̄([K; I](M̂+N̂K)⁻¹))"
         why = (f"P̂'s output error over the record has a narrow line at {freq:.3g} {unit} where the loop is sensitive "
                f"({measure} = {gain:.3g} ≥ {LINE_LOOP_GAIN:g}): a lightly damped mode P̂ misses, narrower than the "
                "Welch resolution of the premise test; raise the horizon, or record longer")
+        return dataclasses.replace(exc, ok=False, worst=max(exc.worst, gain), frequency=freq, reason=why)
+
+    def _hidden_check(self, exc: ExcitationCheck, controller) -> ExcitationCheck:
+        """``exc`` failed, under ``CertificateOptions(untested="refuse")``, when a line below the record's noise could
+        carry a loop gain of :data:`unfalsify.HIDDEN_LINE_LIMIT` or more (:func:`unfalsify.hidden_line_gain`): the
+        statement ``assumed`` would hold, so the search looks for a loop that needs no such assumption."""
+        gain, freq = self.hidden_gain(controller)
+        if not gain >= HIDDEN_LINE_LIMIT:
+            return exc
+        why = _untested_reason((_hidden_line_statement(gain, freq, float(self.model.dt)),))
         return dataclasses.replace(exc, ok=False, worst=max(exc.worst, gain), frequency=freq, reason=why)
 
     def _coprime_record(self, h, cz, ratio, c, d) -> SearchRecord:

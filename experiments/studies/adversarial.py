@@ -649,6 +649,9 @@ def run_case(case: Case, untested: str = "warn", protocol: str = "validation") -
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
     out["assumed"] = list(getattr(rd, "assumed", ()))
+    # what the record could hide below the narrow-line test (NaN on revisions without it)
+    out["hidden_line_gain"] = float(getattr(rd, "hidden_line_gain", float("nan")))
+    out["hidden_line_frequency"] = float(getattr(rd, "hidden_line_frequency", float("nan")))
     # the data's evidence against the returned loop's δ (ε) margin on the plant: NaN where it was not measured
     out["margin_evidence"] = float(rd.excitation.margin) if rd.excitation is not None else float("nan")
     try:
