@@ -558,7 +558,10 @@ def robust_design_from_data(
     input and one output) cannot show a plant that changes during the experiment, so the certificate then assumes one
     time-invariant plant; and P̂'s output error tested in sample -- without ``validation``, or on a ``validation``
     record that shares samples with the data P̂ was fitted on (found by :attr:`synthesis.Predictor.fingerprint`,
-    ``result.premise.validation_shared``) -- can miss a bias of P̂ that held-out data would show.
+    ``result.premise.validation_shared``) -- can miss a bias of P̂ that held-out data would show.  No record excludes a
+    lightly damped mode whose line stays below its noise: ``result.hidden_line_gain`` is the loop gain such a line
+    could carry (:func:`unfalsify.hidden_line_gain`), and from :data:`unfalsify.HIDDEN_LINE_LIMIT` = 1 on (beyond
+    what the small-gain condition covers) ``assumed`` states that the plant has no such mode there.
 
     **Coprime-factor form** (``CertificateOptions.uncertainty``, default ``"auto"``).  For an integrating plant
     ``‖P − P̂‖∞`` is infinite, so the additive premise is false and the data refute it.  ``"auto"`` then
