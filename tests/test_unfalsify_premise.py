@@ -936,13 +936,8 @@ def test_a_lightly_damped_mode_p_hat_misses_is_seen_as_a_line_in_its_output_erro
     # the third-order plant in parallel with 0.03·ω²/(s² + 2ζωs + ω²), ω = 2 rad/s, ζ = 0.003: a peak of 5 in a band
     # of 0.012 rad/s, far narrower than the Welch resolution of the held-out third (1.96 rad/s).  Before the line
     # test the first design certified, and its loop was unstable on this plant.
-    from experiments.lab.plants import damped_pair, modal_ss, zoh
     w, zeta, c = 2.0, 0.003, 0.03
-    mode = zoh(modal_ss({"y": np.array([c * w * w])}, damped_pair(zeta, w), name="mode"), 0.1)
-    P = control.ss(third_order()) + mode
-    u = prbs(1200, seed=0)
-    rng = np.random.default_rng(100)
-    y = collect_data(P, u + 0.05 * rng.standard_normal(1200)).y[:, 0] + 0.05 * rng.standard_normal(1200)
+    P, u, y = _mode_record(w, zeta, c, u=prbs(1200, seed=0))
     W = design_weights()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -1042,12 +1037,8 @@ def test_the_coprime_form_refuses_a_loop_where_a_line_shows():
     # that judge did not apply the line test, and the second design (γ ratio 2) certified ε = 0.0297 for a plant more
     # than 6 ε from P̂'s factors (pointwise, at the mode).  Its loop holds on the plant and the line's additive number
     # is 0.14 (it passed with the additive number alone); the line's coprime-factor number is 0.55
-    from experiments.lab.plants import damped_pair, modal_ss, zoh
     w, zeta, c = 3.0, 0.01, 0.03
-    P = control.ss(third_order()) + zoh(modal_ss({"y": np.array([c * w * w])}, damped_pair(zeta, w), name="m"), 0.1)
-    u = prbs(1200, seed=0)
-    rng = np.random.default_rng(100)
-    y = collect_data(P, u + 0.05 * rng.standard_normal(1200)).y[:, 0] + 0.05 * rng.standard_normal(1200)
+    P, u, y = _mode_record(w, zeta, c, u=prbs(1200, seed=0))
     W = design_weights()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -1062,15 +1053,15 @@ def test_the_coprime_form_refuses_a_loop_where_a_line_shows():
     assert "‖[Û; Ŷ]‖" in second.excitation.reason
 
 
-def _mode_record(w, zeta, c, seed=0, noise=0.05):
-    """The third-order plant in parallel with ``c·ω²/(s² + 2ζωs + ω²)`` (none with c = 0), 1200 samples at 10 Hz of a
-    uniform input (the catalogue's ``steps/1``), process and sensor noise ``noise``."""
+def _mode_record(w, zeta, c, seed=0, noise=0.05, u=None):
+    """The third-order plant in parallel with ``c·ω²/(s² + 2ζωs + ω²)`` (none with c = 0), 1200 samples at 10 Hz of
+    the input ``u`` (default a uniform input, the catalogue's ``steps/1``), process and sensor noise ``noise``."""
     from experiments.lab.plants import damped_pair, modal_ss, zoh
     from experiments.studies.adversarial import Excitation
     P = control.ss(third_order())
     if c:
         P = P + zoh(modal_ss({"y": np.array([c * w * w])}, damped_pair(zeta, w), name="m"), 0.1)
-    u = Excitation("steps", hold=1).signal(1200, seed)
+    u = Excitation("steps", hold=1).signal(1200, seed) if u is None else u
     rng = np.random.default_rng(seed + 100)
     y = collect_data(P, u + noise * rng.standard_normal(1200)).y[:, 0] + noise * rng.standard_normal(1200)
     return P, u, y

@@ -21,9 +21,9 @@ Measured with p = 16, M = 10 (a script): on the adversarial catalogue's 144 open
 smallest p-value was 2.9e-5 (a low-band multisine, whose AR(16) residual is not white; ``|ρ| = 0.07``), every other
 above 1e-3 and every ``|ρ|`` at most 0.11; on 138 open-loop records of the same hunt (AR(0.9), Student-t and
 outlier noise, offsets, fractional delays, aliased modes, clipped outputs, gaps) none below 1e-3.  Closed loop: the
-27 false certificates above (14 records) had ``|ρ|`` of 0.78–0.97 (p below 1e-150); the catalogue's closed loops with a white
-PRBS reference (which dominates the input) gave p 0.1–0.8, ``|ρ| ≤ 0.11``, and their certified loops held; with a
-low-pass reference ``|ρ| ≈ 0.65``.  Hence :data:`FEEDBACK_NOTED` (a premise stated in ``assumed``) and
+27 false certificates above (14 records) had ``|ρ|`` of 0.78–0.97 (p below 1e-150); the catalogue's closed loops with
+a white PRBS reference (which dominates the input) gave p 0.1–0.8, ``|ρ| ≤ 0.11``, and their certified loops held;
+with a low-pass reference ``|ρ| ≈ 0.65``.  Hence :data:`FEEDBACK_NOTED` (a premise stated in ``assumed``) and
 :data:`FEEDBACK_REFUSED` (the certificate refused).
 
 What the data cannot tell apart: a plant with a direct feedthrough (``y_k`` depends on ``u_k``) correlates the

@@ -932,8 +932,8 @@ def residual_line(model, controller, u, y, horizon: int, dt: float, factors=None
     0.99 or 200 samples; none with both sides).
 
     Several inputs and outputs: one bin does not identify the line's transfer ``G`` (``m`` unknowns per output, one
-    equation ``E_k = G U_k``), but ``‖G(ω_k)‖₂ ≥ ‖E_k‖/‖U_k‖``, so ``‖E_k‖/‖U_k‖·σ̄(M̂(e^{jω_k dt}))`` (``M̂`` the loop's
-    additive channel, :func:`unfalsify.additive_channel`) is a lower bound of the small-gain product ``‖G‖·‖M̂‖``
+    equation ``E_k = G U_k``), but ``‖G(ω_k)‖₂ ≥ ‖E_k‖/‖U_k‖``, so ``‖E_k‖/‖U_k‖·σ̄(M̂(e^{jω_k dt}))`` (``M̂`` the
+    loop's additive channel, :func:`unfalsify.additive_channel`) is a lower bound of the small-gain product ``‖G‖·‖M̂‖``
     at that frequency, the one number the certificate bounds (one input and output: the same ``|E_k/U_k|·|M̂|``).
     The line is searched in each output channel against its own local level (channels can have different noise
     levels, and a sum over them would dilute a line that is in one only), with the ``K`` of the threshold counting
@@ -1160,7 +1160,8 @@ def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray
     A stable P̂ is simulated (:func:`output_error_residual`).  An unstable one cannot be (its simulation diverges),
     but its equation error ``ε = M̂_f y − N̂_f u`` (the one-step error of the predictor on measured data: finite
     memory, no simulation) can, and ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
-    record's edges (``M̂_f = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂_f⁻¹N̂_f``, :mod:`unfalsify.coprime`).
+    record's edges (``M̂_f = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂_f⁻¹N̂_f``,
+    :mod:`unfalsify.coprime`).
     """
     x = np.asarray(u, float).reshape(np.shape(u)[0], -1)[horizon:]
     e, Mz = _equation_error(model, u, y, horizon)
