@@ -938,11 +938,7 @@ def test_a_lightly_damped_mode_p_hat_misses_is_seen_as_a_line_in_its_output_erro
     # test the first design certified, and its loop was unstable on this plant.
     w, zeta, c = 2.0, 0.003, 0.03
     P, u, y = _mode_record(w, zeta, c, u=prbs(1200, seed=0))
-    W = design_weights()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
-                                       search=uf.DesignSearch(horizons=(20,)))
+    r = _record_design(u, y)
     if r.certified:  # a design the line does not fault: it must hold on the plant with its δ margin
         true = uf.additive_robustness(P, r.controller)
         assert true.stable and r.delta * true.peak < 1.0
@@ -950,6 +946,7 @@ def test_a_lightly_damped_mode_p_hat_misses_is_seen_as_a_line_in_its_output_erro
     assert lines and abs(float(re.search(r"narrow line at ([0-9.]+) rad/s", lines[0].excitation.reason)[1]) - w) < 0.1
     # no line where P̂ misses nothing narrow: the plain third-order record
     P0, u0, y0 = prbs_record
+    W = design_weights()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         r0 = uf.robust_design_from_data(u0, y0, 10, W["W11"], W["W21"], "auto", dt=P0.dt, window=(0, 49))
@@ -1039,13 +1036,9 @@ def test_the_coprime_form_refuses_a_loop_where_a_line_shows():
     # is 0.14 (it passed with the additive number alone); the line's coprime-factor number is 0.55
     w, zeta, c = 3.0, 0.01, 0.03
     P, u, y = _mode_record(w, zeta, c, u=prbs(1200, seed=0))
-    W = design_weights()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
-                                       search=uf.DesignSearch(gamma_ratios=(2.0,), w3_factors=(1.0,), causal=(False,)),
-                                       certificate=uf.CertificateOptions(uncertainty="coprime"),
-                                       premise=uf.PremiseOptions(samples=150, coprime_samples=100))  # 2 s, not 7
+    r = _record_design(u, y, search=uf.DesignSearch(gamma_ratios=(2.0,), w3_factors=(1.0,), causal=(False,)),
+                       certificate=uf.CertificateOptions(uncertainty="coprime"),
+                       premise=uf.PremiseOptions(samples=150, coprime_samples=100))  # 2 s, not 7
     assert r.uncertainty == "coprime" and uf.coprime_distance(r.coprime.factors, P)[0] > 6 * r.epsilon
     second = r.search[-1]
     assert len(r.search) == 2 and second.certificate.certified and not r.certified
@@ -1067,12 +1060,15 @@ def _mode_record(w, zeta, c, seed=0, noise=0.05, u=None):
     return P, u, y
 
 
-def _record_design(u, y, **options):
+def _record_design(u, y, search=None, **options):
+    """The record-mode pipeline at i = 10 on a 10 Hz record, σ auto, the servo weights, warnings silenced; the search
+    over horizon 20 by default."""
     W = design_weights()
+    search = uf.DesignSearch(horizons=(20,)) if search is None else search
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
-                                          search=uf.DesignSearch(horizons=(20,)), **options)
+                                          search=search, **options)
 
 
 def _hidden_statements(r):
