@@ -70,8 +70,9 @@ from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
 from .excitation import _bin_response
+from .factors import _model_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _channels, _check_confidence,
-                                 _lpm_window, _unit, frequency_response_estimate, low_band_estimate)
+                                 _lpm_window, _step, _unit, frequency_response_estimate, low_band_estimate)
 
 __all__ = ["PremiseOptions", "OutputErrorResult", "output_error_residual", "output_error_unfalsify", "PremiseTest",
            "check_premise", "untested_premises", "LEVEL_SPREAD", "operating_point_note", "OFFSET_NOTE", "glitch_note",
@@ -1159,43 +1160,24 @@ def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray
 
     A stable P̂ is simulated (:func:`output_error_residual`).  An unstable one cannot be (its simulation diverges),
     but its equation error ``ε = M̂_f y − N̂_f u`` (the one-step error of the predictor on measured data: finite
-    memory, no simulation) can, and ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the
-    record's edges (``M̂_f = I − Σ C_y,d z^{−d}`` from the predictor's row; ``P̂ = M̂_f⁻¹N̂_f``,
-    :mod:`unfalsify.coprime`).
+    memory, no simulation; :meth:`~unfalsify.CoprimeFactors.residual` of P̂'s factors ``P̂ = M̂_f⁻¹N̂_f``) can, and
+    ``M̂_f(e^{jω})⁻¹ Ε(ω)`` is the output error in the frequency domain, up to the record's edges.
     """
-    x = np.asarray(u, float).reshape(np.shape(u)[0], -1)[horizon:]
-    e, Mz = _equation_error(model, u, y, horizon)
+    u, y = channel_pair(u, y)
+    output_error_residual(model, u[: horizon + 1], y[: horizon + 1], horizon)  # checks the model against the data
+    factors = _model_factors(model, horizon)
+    x = u.reshape(u.shape[0], -1)[horizon:]
+    e = factors.residual(u, y).reshape(x.shape[0], -1)
     K = e.shape[0] // 2 - 1                                        # rfft's bins without 0 and the last
-    M = Mz(np.exp(-2j * np.pi * np.arange(1, K + 1) / e.shape[0]))  # bin k: ω = 2πk/(n − i) rad/sample
+    M = factors.response(2.0 * np.pi * np.arange(1, K + 1) / (e.shape[0] * _step(model.dt)))[1]
     if spectral_radius(control.ssdata(model)[0]) < 1.0:
         e = output_error_residual(model, u, y, horizon).reshape(e.shape)
         E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
     else:
         E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
         E = (np.linalg.pinv(M) @ E[:, :, None])[:, :, 0]  # pinv: a pole of P̂ on the unit circle stays finite
-    z = np.asarray(y, float).reshape(np.shape(y)[0], -1)[horizon:]
+    z = y.reshape(y.shape[0], -1)[horizon:]
     return E, np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1], np.fft.rfft(z - z.mean(axis=0), axis=0)[1:-1], M
-
-
-def _equation_error(model, u, y, horizon: int):
-    """The predictor's equation error ``ε_k = y_k − C w_p(k) − D u_k`` on measured data, (n − i, l), and
-    ``z⁻¹ ↦ M̂`` evaluated on an array of ``z⁻¹`` (F, l, l)."""
-    U, Y = channel_pair(u, y)
-    output_error_residual(model, U[: horizon + 1], Y[: horizon + 1], horizon)  # checks the model against the data
-    C, D = np.asarray(model.C, float), np.asarray(model.D, float)
-    U, Y = U.reshape(U.shape[0], -1), Y.reshape(Y.shape[0], -1)
-    i, m, l = horizon, U.shape[1], Y.shape[1]
-    n = U.shape[0]
-    past = np.hstack([U[s: n - i + s] for s in range(i)] + [Y[s: n - i + s] for s in range(i)])  # w_p(k), k ≥ i
-    e = Y[i:] - past @ C.T - U[i:] @ D.T
-    taps = [-C[:, i * m + s * l: i * m + (s + 1) * l] for s in range(i)]  # lag i − s
-
-    def Mz(zinv):
-        out = np.broadcast_to(np.eye(l, dtype=complex), (zinv.size, l, l)).copy()
-        for s, T in enumerate(taps):
-            out += zinv[:, None, None] ** (i - s) * T
-        return out
-    return e, Mz
 
 
 def _line_gain(lines: tuple[np.ndarray, np.ndarray, np.ndarray], model, controller, dt: float,
