@@ -346,11 +346,11 @@ def _closed_loop_ry(P, C, l: int) -> control.StateSpace:
     Bp, Cp = Bp.reshape(n_p, m), Cp.reshape(l, n_p)
     Ac, Br, By, Cc, Dr, Dy = _controller_parts(C, l)
     n_c = Ac.shape[0]
-    I_DD = np.eye(l) - Dp @ Dy
-    if _ill_posed(Dp @ Dy):
+    DD = Dp @ Dy
+    if _ill_posed(DD):
         raise DataError("the loop is ill-posed: I − D_P D_y is singular (the plant's and the controller's direct "
                         "feedthrough close an algebraic loop); the controller must not cancel the plant's D")
-    E = np.linalg.inv(I_DD)
+    E = np.linalg.inv(np.eye(l) - DD)
     Yp, Yc, Yr = E @ Cp, E @ Dp @ Cc, E @ Dp @ Dr  # y = Yp x_p + Yc x_c + Yr r
     Up, Uc, Ur = Dy @ Yp, Cc + Dy @ Yc, Dr + Dy @ Yr  # u likewise
     A = np.block([[Ap + Bp @ Up, Bp @ Uc], [By @ Yp, Ac + By @ Yc]])

@@ -150,10 +150,10 @@ def _static_loop_dc(controller, G: np.ndarray) -> np.ndarray | None:
     l = G.shape[0]
     Ac, Br, By, Cc, Dr, Dy = _controller_parts(controller, l)
     n = Ac.shape[0]
-    if _ill_posed(G @ Dy):
+    GD = G @ Dy
+    if _ill_posed(GD):
         return None
-    I_GD = np.eye(l) - G @ Dy
-    EG = np.linalg.solve(I_GD, G)
+    EG = np.linalg.solve(np.eye(l) - GD, G)
     D = EG @ Dr
     if not n:
         return D
