@@ -104,12 +104,6 @@ def _innovation(target: np.ndarray, regressor: np.ndarray) -> np.ndarray:
     return target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
 
 
-def _input_regressor(u: np.ndarray, p: int) -> np.ndarray:
-    """Rows ``[u_{k−1}ᵀ … u_{k−p}ᵀ]`` for k = p … n − 1."""
-    n = u.shape[0]
-    return np.hstack([u[p - d: n - d] for d in range(1, p + 1)])
-
-
 def _pair(e: np.ndarray, eps: np.ndarray, lags: int) -> tuple[float, float, int]:
     """p-value of ``N Σ ρ(τ)²`` (χ² with lags + 1 degrees of freedom), the largest ρ and its lag."""
     ne, nu = float(np.linalg.norm(e)), float(np.linalg.norm(eps))
@@ -169,7 +163,7 @@ def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL) -> FeedbackTest | Non
     if n - p < _ROWS_PER_PARAMETER * (p * (l + m) + 1):
         return None
     Phi = arx_regressor(u, y, p, p)[0][p:]
-    U = _input_regressor(u, p)
+    U = arx_regressor(u, u, p, 0)[0][p:]  # rows [u_{k−1}ᵀ … u_{k−p}ᵀ]: the input's own past
     es = [_innovation(y[p:, c], Phi) for c in range(l)]
     eps = [_innovation(u[p:, j], U) for j in range(m)]
     tests = [(_pair(es[c], eps[j], _LAGS), (j, c)) for j in range(m) for c in range(l)]
