@@ -70,6 +70,7 @@ from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .clipping import clipped_outputs
 from .feedback import FeedbackTest, check_feedback
+from .arx import arx_regressor
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
 from .excitation import ExcitationCheck, check_excitation
@@ -471,8 +472,8 @@ def _refuse_pure_feedback(u, y, i: int) -> None:
     n = u.shape[0]
     if n <= 3 * i + 1:
         return
-    rows = [np.hstack([y[t - i: t + 1][::-1].ravel(), u[t - i: t][::-1].ravel()]) for t in range(i, n)]
-    X, target = np.array(rows), u[i:]
+    # rows [y_tᵀ, u_{t−1}ᵀ … u_{t−i}ᵀ, −y_{t−1}ᵀ … −y_{t−i}ᵀ] for t ≥ i (the signs do not change the fit)
+    X, target = np.hstack([y[i:], arx_regressor(y, u, i, i)[0][i:]]), u[i:]
     residual = target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
     if float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * max(float(np.linalg.norm(target)), np.finfo(float).tiny):
         raise DataError(
