@@ -104,6 +104,11 @@ def test_text_output_names_verdict_and_paths(design_run, capsys):
                  "--out", str(tmp / "strict")]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert not summary["certified"] and "several amplitudes" in summary["reason"]
+    # --feedthrough: the plant declared to respond within the sample, which the record cannot confirm
+    assert main(["design", str(csv), "--horizon", "10", "--window", "0:49", "--feedthrough", "--json",
+                 "--out", str(tmp / "feedthrough")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert uf.FEEDTHROUGH_STATEMENT in summary["assumed"]
 
 
 def _bad(tmp_path, capsys, argv):

@@ -66,3 +66,45 @@ def test_a_feedback_record_without_a_reference_names_the_feedback_not_noise_free
     d = collect_data(third_order(), prbs(1200, seed=0))
     with pytest.raises(DataError, match="noise-free"):
         uf.robust_design_from_data(d.u, d.y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49), search=False)
+
+
+def _feedthrough_record(D, seed=0):
+    """The third-order plant with a direct feedthrough D added, in open loop under a ±1 PRBS."""
+    P = control.parallel(third_order(), control.ss([], [], [], [[D]], 0.1))
+    d = collect_data(P, prbs(1200, seed=seed), process_noise=0.05, sensor_noise=0.2, seed=100 + seed)
+    return P, d.u[:, 0], d.y[:, 0]
+
+
+def test_a_direct_feedthrough_is_not_read_as_feedback_once_declared():
+    _, u, y = _feedthrough_record(0.5)
+    default = uf.check_feedback(u, y)  # strictly proper assumed: the feedthrough looks like feedback at lag 0
+    assert default.lag == 0 and abs(default.correlation) >= uf.FEEDBACK_REFUSED
+    assert "direct feedthrough" in default.reason and "feedthrough=True" in default.reason
+    declared = uf.check_feedback(u, y, feedthrough=True)
+    assert declared.feedthrough and not declared.detected and declared.lag >= 1 and declared.p_value > 1e-3
+    # a controller a sample late is still seen with lag 0 left out
+    P = third_order()
+    res = closed_loop(P, control.ss(control.tf([1.0], [1.0, 0.0], P.dt)), 0.05 * prbs(1200, seed=0),
+                      process_noise=0.05, sensor_noise=0.2, seed=100)
+    late = uf.check_feedback(res.u[:, 0], res.y_measured[:, 0], feedthrough=True)
+    assert late.detected and late.lag == 1 and late.reason and "direct feedthrough" not in late.reason
+    with pytest.raises(DataError, match="feedthrough"):
+        uf.check_feedback(u, y, feedthrough="yes")
+
+
+def test_the_pipeline_refuses_an_undeclared_feedthrough_and_states_a_declared_one():
+    P, u, y = _feedthrough_record(0.5)
+    W = design_weights()
+    args = (u, y, 10, W["W11"], W["W21"], "auto")
+    kw = dict(dt=P.dt, window=(0, 49), search=False)
+    with pytest.warns(uf.NotCertifiedWarning, match="direct feedthrough"):
+        r = uf.robust_design_from_data(*args, **kw, certificate=uf.CertificateOptions(uncertainty="additive"))
+    assert not r.certified and "direct feedthrough" in r.premise_reason
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = uf.robust_design_from_data(*args, **kw, certificate=uf.CertificateOptions(uncertainty="additive",
+                                                                                      feedthrough=True))
+    assert r.feedback.feedthrough and not r.feedback.detected
+    assert uf.FEEDTHROUGH_STATEMENT in r.assumed and "feedback" not in r.premise_reason
+    with pytest.raises(DataError, match="feedthrough"):
+        uf.CertificateOptions(feedthrough=1)

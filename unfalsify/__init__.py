@@ -105,6 +105,7 @@ The certificate's premise, tested on the data
    FEEDBACK_LEVEL         -- the level of ``check_feedback`` (1e-3)
    FEEDBACK_NOTED         -- the correlation from which feedback is stated in ``assumed`` (0.1)
    FEEDBACK_REFUSED       -- the correlation from which it refuses the certificate (0.5)
+   FEEDTHROUGH_STATEMENT  -- what ``assumed`` says when the plant is declared to have a direct feedthrough
    clipped_outputs        -- which outputs of a record pile up at an extreme value (a clipped sensor), or ''
    CLIP_FRACTION          -- the fraction of samples at an extreme from which an output counts as clipped
    output_error_unfalsify -- smallest additive LTI uncertainty on P̂ explaining ``y − P̂u`` (Thm 7.1, two-sided)
@@ -278,7 +279,8 @@ from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_poi
                      robust_design_from_data)
 from .cost import arx_solve_estimate, solve_estimate
 from .clipping import CLIP_FRACTION, clipped_outputs
-from .feedback import FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FeedbackTest, check_feedback
+from .feedback import (FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FEEDTHROUGH_STATEMENT, FeedbackTest,
+                       check_feedback)
 from .invariance import TIME_INVARIANCE_LEVEL, InvarianceTest, check_time_invariance, min_record_length
 
 __all__ = [
@@ -365,6 +367,7 @@ __all__ = [
     "clipped_outputs",
     "CLIP_FRACTION",
     "FeedbackTest",
+    "FEEDTHROUGH_STATEMENT",
     "FEEDBACK_LEVEL",
     "FEEDBACK_NOTED",
     "FEEDBACK_REFUSED",

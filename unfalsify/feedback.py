@@ -27,7 +27,13 @@ with a low-pass reference ``|ρ| ≈ 0.65``.  Hence :data:`FEEDBACK_NOTED` (a pr
 :data:`FEEDBACK_REFUSED` (the certificate refused).
 
 What the data cannot tell apart: a plant with a direct feedthrough (``y_k`` depends on ``u_k``) correlates the
-innovations at lag 0 as a static controller does; the pipeline's plants are strictly proper.
+innovations at lag 0 as a controller acting within the sample does (``u_k`` from ``y_k``): jointly, both records are
+the same pair of correlated white sequences.  By default the plant is taken to be strictly proper (a sampled plant
+whose output is measured before the input is applied) and lag 0 is tested.  ``feedthrough=True`` declares a direct
+feedthrough: the output's ARX fit then includes ``u_k``, which absorbs the lag-0 correlation, and only lags ``1 … M``
+are tested, so feedback within the sample goes unseen (the pipeline states that).  Measured (a script: the
+first-order plant of the Examples with ``D`` added, open loop, a ±1 PRBS): by default ``|ρ|`` at lag 0 was 0.43 for
+``D = 0.05``, 0.88 for 0.2 and 0.97 for 0.5, each a refusal or a statement of feedback that is not there.
 """
 from __future__ import annotations
 
@@ -37,11 +43,12 @@ import numpy as np
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal
+from synthesis.validation import DataError, as_signal, check_flag
 
 from .arx import arx_regressor
 
-__all__ = ["FeedbackTest", "check_feedback", "FEEDBACK_LEVEL", "FEEDBACK_NOTED", "FEEDBACK_REFUSED"]
+__all__ = ["FeedbackTest", "check_feedback", "FEEDBACK_LEVEL", "FEEDBACK_NOTED", "FEEDBACK_REFUSED",
+           "FEEDTHROUGH_STATEMENT"]
 
 #: p-values below it say the input depends on the output's noise (with ``|ρ|`` at least :data:`FEEDBACK_NOTED`).
 FEEDBACK_LEVEL = 1e-3
@@ -55,6 +62,15 @@ FEEDBACK_REFUSED = 0.5
 _ORDER, _LAGS = 16, 10
 #: Rows per parameter of the ARX fit below which the test is not run.
 _ROWS_PER_PARAMETER = 10
+#: In ``assumed`` whenever the plant is declared to have a direct feedthrough: what lag 0 can then no longer show.
+FEEDTHROUGH_STATEMENT = ("the plant has a direct feedthrough (declared): a controller acting within the sample (u_k "
+                         "computed from y_k) correlates the record at lag 0 as the feedthrough does, so feedback there "
+                         "is not tested; the certificate assumes the record has none (record in open loop, or with a "
+                         "controller that acts a sample later)")
+#: Said with every finding at lag 0 of a plant taken to be strictly proper: the other cause the data cannot exclude.
+_LAG0_ALTERNATIVE = ("; at lag 0 a direct feedthrough of the plant (y_k responding to u_k) gives the same correlation "
+                     "in open loop: if the plant has one, say so (CertificateOptions(feedthrough=True) in "
+                     "robust_design_from_data, feedthrough=True here)")
 
 
 @result
@@ -76,6 +92,8 @@ class FeedbackTest:
     order : int
         ARX / AR order of the innovations.
     level : float
+    feedthrough : bool
+        The plant was declared to have a direct feedthrough: lag 0 was not tested (module docstring).
     statement : str
         For ``RobustDesignResult.assumed`` when feedback is detected (``p < level`` and ``|correlation|`` at least
         :data:`FEEDBACK_NOTED`), else ``''``.
@@ -92,6 +110,7 @@ class FeedbackTest:
     level: float
     statement: str
     reason: str
+    feedthrough: bool = False
 
     @property
     def detected(self) -> bool:
@@ -104,18 +123,20 @@ def _innovation(target: np.ndarray, regressor: np.ndarray) -> np.ndarray:
     return target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
 
 
-def _pair(e: np.ndarray, eps: np.ndarray, lags: int) -> tuple[float, float, int]:
-    """p-value of ``N Σ ρ(τ)²`` (χ² with lags + 1 degrees of freedom), the largest ρ and its lag."""
+def _pair(e: np.ndarray, eps: np.ndarray, first: int, last: int) -> tuple[float, float, int]:
+    """p-value of ``N Σ ρ(τ)²`` over lags ``first … last`` (χ² with as many degrees of freedom), the largest ρ and
+    its lag."""
     ne, nu = float(np.linalg.norm(e)), float(np.linalg.norm(eps))
     N = e.size
     if not (ne > 0.0 and nu > 0.0):
-        return 1.0, 0.0, 0  # an exact fit or a silent channel: no innovation to correlate
-    rho = np.array([e[: N - t] @ eps[t:] for t in range(lags + 1)]) / (ne * nu)
+        return 1.0, 0.0, first  # an exact fit or a silent channel: no innovation to correlate
+    lags = range(first, last + 1)
+    rho = np.array([e[: N - t] @ eps[t:] for t in lags]) / (ne * nu)
     k = int(np.argmax(np.abs(rho)))
-    return float(scipy.stats.chi2.sf(N * float(rho @ rho), lags + 1)), float(rho[k]), k
+    return float(scipy.stats.chi2.sf(N * float(rho @ rho), len(lags))), float(rho[k]), lags[k]
 
 
-def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL) -> FeedbackTest | None:
+def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL, feedthrough: bool = False) -> FeedbackTest | None:
     """Test whether the input of ``(u, y)`` depends on the output's noise (module docstring).
 
     Parameters
@@ -124,6 +145,9 @@ def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL) -> FeedbackTest | Non
         The record, time along axis 0.
     level : float
         p-values below it (with ``|ρ| ≥`` :data:`FEEDBACK_NOTED`) detect feedback.
+    feedthrough : bool
+        The plant has a direct feedthrough (``y_k`` responds to ``u_k``): lag 0, where it correlates the innovations as
+        feedback within the sample would, is not tested (module docstring).  Default False: strictly proper.
 
     Returns
     -------
@@ -152,37 +176,50 @@ def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL) -> FeedbackTest | Non
     >>> t = check_feedback(u, y)
     >>> t.detected, t.correlation < -0.5, bool(t.reason)
     (True, True, True)
+
+    An open-loop plant with a direct feedthrough looks like feedback at lag 0 unless it is declared:
+
+    >>> y = scipy.signal.lfilter([0.3, 0.5], [1.0, -0.8], r) + 0.1 * v
+    >>> t = check_feedback(r, y)
+    >>> t.detected, t.lag, "direct feedthrough" in t.reason
+    (True, 0, True)
+    >>> check_feedback(r, y, feedthrough=True).detected
+    False
     """
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
     if not 0.0 < float(level) < 1.0:
         raise DataError(f"level must lie in (0, 1), got {level!r}")
+    feedthrough = check_flag(feedthrough, "feedthrough")
     n, m = u.shape
     l = y.shape[1]
     p = _ORDER
-    if n - p < _ROWS_PER_PARAMETER * (p * (l + m) + 1):
+    if n - p < _ROWS_PER_PARAMETER * (p * (l + m) + 1 + m * feedthrough):
         return None
     Phi = arx_regressor(u, y, p, p)[0][p:]
+    if feedthrough:
+        Phi = np.hstack([u[p:], Phi])  # u_k in the output's fit: its feedthrough is not an innovation
     U = arx_regressor(u, u, p, 0)[0][p:]  # rows [u_{k−1}ᵀ … u_{k−p}ᵀ]: the input's own past
     es = [_innovation(y[p:, c], Phi) for c in range(l)]
     eps = [_innovation(u[p:, j], U) for j in range(m)]
-    tests = [(_pair(es[c], eps[j], _LAGS), (j, c)) for j in range(m) for c in range(l)]
+    tests = [(_pair(es[c], eps[j], int(feedthrough), _LAGS), (j, c)) for j in range(m) for c in range(l)]
     (pv, rho, lag), pair = min(tests, key=lambda t: t[0][0])
     pv = min(1.0, pv * m * l)
     statement, reason = "", ""
     if pv < level and abs(rho) >= FEEDBACK_NOTED:
         where = f"input {pair[0]} on output {pair[1]}, " if m * l > 1 else ""
+        alternative = _LAG0_ALTERNATIVE if lag == 0 else ""
         statement = (f"the record is that of a closed loop: the input's innovation follows the output's ({where}"
                      f"correlation {rho:+.2f} at lag {lag}, p = {pv:.2g}), so the output's noise reaches the input "
                      "through a controller and biases P̂ (towards −1/K where the noise dominates the reference's share "
                      "of u), and held-out data of the same loop share the bias, which the premise test therefore "
                      "cannot see; the certificate assumes the reference dominates the input (record in open loop, or "
-                     "raise the reference's excitation)")
+                     f"raise the reference's excitation){alternative}")
         if abs(rho) >= FEEDBACK_REFUSED:
             reason = (f"the input is largely the loop's response to the output's noise (correlation {rho:+.2f} of the "
                       f"input's and the output's innovations at lag {lag}, p = {pv:.2g}; from "
                       f"{FEEDBACK_REFUSED:g} on, a quarter or more of the input's fresh variance): P̂ is biased "
                       "towards −1/K, and held-out data of the same loop share the bias. Record in open loop, or with "
-                      "a reference excitation that dominates the input")
+                      f"a reference excitation that dominates the input{alternative}")
     return FeedbackTest(p_value=float(pv), correlation=float(rho), lag=int(lag), pair=tuple(int(x) for x in pair),
-                        order=p, level=float(level), statement=statement, reason=reason)
+                        order=p, level=float(level), statement=statement, reason=reason, feedthrough=feedthrough)

@@ -151,6 +151,12 @@ class CertificateOptions:
         ``"refuse"``: not certified, the reason names the fix (several input amplitudes; a longer validation record).
         Measured on the adversarial catalogue's saturation case (a ±1 PRBS, seeds 0–9): four of the ten loops ``"warn"``
         certifies fail the true-plant judge.
+    feedthrough : bool
+        The plant has a direct feedthrough (``y_k`` responds to ``u_k``).  Default False: strictly proper, and a
+        correlation of the input's and the output's innovations at lag 0 is read as feedback
+        (:func:`unfalsify.check_feedback`), which an open-loop record of a plant with a feedthrough also shows.
+        ``True``: the feedback test leaves lag 0 out, and ``assumed`` states that feedback within the sample is not
+        tested (:data:`unfalsify.FEEDTHROUGH_STATEMENT`).
     """
 
     margin: float = CERTIFICATE_MARGIN
@@ -160,6 +166,7 @@ class CertificateOptions:
     require_reference: bool = True
     uncertainty: str = "auto"
     untested: str = "warn"
+    feedthrough: bool = False
 
     def __post_init__(self):
         _positive_real(self.margin, "margin", allow_equal=True)
@@ -168,6 +175,7 @@ class CertificateOptions:
         if self.reference_horizon is not None:
             check_horizon(self.reference_horizon)
         check_flag(self.require_reference, "require_reference")
+        check_flag(self.feedthrough, "feedthrough")
         if self.uncertainty not in UNCERTAINTY_FORMS:
             raise DataError(f"unknown uncertainty {self.uncertainty!r}; use one of "
                             f"{', '.join(repr(u) for u in UNCERTAINTY_FORMS)}")

@@ -69,7 +69,7 @@ from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before 
 from .certify import LoopCertificate, certify_loop
 from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
 from .clipping import clipped_outputs
-from .feedback import FeedbackTest, check_feedback
+from .feedback import FEEDTHROUGH_STATEMENT, FeedbackTest, check_feedback
 from .arx import arx_regressor
 from .invariance import InvarianceTest, check_time_invariance, min_record_length
 from .model import predictor_model
@@ -740,10 +740,11 @@ def robust_design_from_data(
     record = whole or _longest(u, y, validation)
     split = _held_out_start(np.shape(record[0])[0]) if held_out_here else None
     invariance, invariance_note = _time_invariance(record, split)
-    feedback = check_feedback(*record)
+    feedback = check_feedback(*record, feedthrough=certificate.feedthrough)
     assumed = (untested_premises(u, validation) + _in_sample(prem)
                + (_untested_invariance(*record, whole is not None) if invariance is None else ())
-               + ((feedback.statement,) if feedback is not None and feedback.detected else ()))
+               + ((feedback.statement,) if feedback is not None and feedback.detected else ())
+               + ((FEEDTHROUGH_STATEMENT,) if certificate.feedthrough else ()))
     untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
     premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason, untested_reason,
                                            invariance.reason if invariance is not None else "",

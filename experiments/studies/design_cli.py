@@ -276,9 +276,10 @@ def _vector(x) -> str:
     return f"{float(x[0]):.4g}" if len(x) == 1 else "[" + ", ".join(f"{float(v):.4g}" for v in x) + "]"
 
 
-def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn"):
-    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested`` is
-    :attr:`unfalsify.CertificateOptions.untested`.
+def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn",
+                  feedthrough=False):
+    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested`` and
+    ``feedthrough`` are those of :class:`unfalsify.CertificateOptions`.
 
     Returns
     -------
@@ -291,7 +292,8 @@ def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = uf.robust_design_from_data(_channels(u), _channels(y), horizon, W1, W2, sigma, dt=dt, window=window,
-                                         certificate=uf.CertificateOptions(untested=untested))
+                                         certificate=uf.CertificateOptions(untested=untested,
+                                                                           feedthrough=feedthrough))
     return res, [f"{w.category.__name__}: {w.message}" for w in caught]
 
 
@@ -580,7 +582,7 @@ def run(opts) -> dict:
     window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
     horizon = ex["horizon"]
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
-                                untested=ex.get("untested") or "warn")
+                                untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")))
     return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
                          weights_text=weights_text, t_start=t_start, operating=(point, point_text))
 
@@ -621,4 +623,7 @@ OPTIONS = (
     (("--untested",), dict(dest="untested", choices=("warn", "refuse"), default="warn",
                            help="a premise the record cannot test (a two-level input shows no saturation): certify "
                                 "on it and say so (warn, the default) or refuse")),
+    (("--feedthrough",), dict(dest="feedthrough", action="store_true",
+                              help="the plant has a direct feedthrough (y_k responds to u_k): the feedback test leaves "
+                                   "lag 0 out, where a feedthrough looks like feedback (default: strictly proper)")),
 )
