@@ -61,7 +61,7 @@ def test_a_feedback_record_without_a_reference_names_the_feedback_not_noise_free
     W = design_weights()
     with pytest.raises(DataError, match="feedback loop without a reference") as info:
         uf.robust_design_from_data(u, y, 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49), search=False)
-    assert "noise-free" not in str(info.value)
+    assert "fits this window to rounding" not in str(info.value)  # not the noise-free reason alone
     # noise-free open-loop data keep their own reason
     d = collect_data(third_order(), prbs(1200, seed=0))
     with pytest.raises(DataError, match="noise-free"):
@@ -108,3 +108,14 @@ def test_the_pipeline_refuses_an_undeclared_feedthrough_and_states_a_declared_on
     assert uf.FEEDTHROUGH_STATEMENT in r.assumed and "feedback" not in r.premise_reason
     with pytest.raises(DataError, match="feedthrough"):
         uf.CertificateOptions(feedthrough=1)
+
+
+def test_noise_free_data_of_a_plant_with_a_feedthrough_name_both_causes():
+    # u_k is recovered from y_k as under feedback within the sample: the message had named feedback alone
+    P = control.parallel(third_order(), control.ss([], [], [], [[0.5]], 0.1))
+    d = collect_data(P, prbs(1200, seed=0))
+    W = design_weights()
+    with pytest.raises(DataError, match="direct feedthrough") as info:
+        uf.robust_design_from_data(d.u[:, 0], d.y[:, 0], 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
+                                   search=False)
+    assert "feedback loop without a reference" in str(info.value)

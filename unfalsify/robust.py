@@ -467,20 +467,31 @@ def _refuse_pure_feedback(u, y, i: int) -> None:
     """Refuse a window whose input is, to rounding, a causal linear function of the output (of its current and past i
     samples and the input's past i): a feedback record without a reference, which the predictor also fits to rounding.
     Such data say nothing of the plant (every plant fits them with the controller's inverse), and calling them
-    noise-free would name the wrong cause (measured: the third-order plant under u = −y, r = 0, with noise)."""
+    noise-free would name the wrong cause (measured: the third-order plant under u = −y, r = 0, with noise).  When the
+    fit needs the current output, noise-free open-loop data of a plant with a direct feedthrough fit the same way (u_k
+    recovered from y_k): the message then names both causes."""
     u, y = as_signal(u, "u"), as_signal(y, "y")
     n = u.shape[0]
     if n <= 3 * i + 1:
         return
-    # rows [y_tᵀ, u_{t−1}ᵀ … u_{t−i}ᵀ, −y_{t−1}ᵀ … −y_{t−i}ᵀ] for t ≥ i (the signs do not change the fit)
-    X, target = np.hstack([y[i:], arx_regressor(y, u, i, i)[0][i:]]), u[i:]
+    past = arx_regressor(y, u, i, i)[0][i:]  # rows [u_{t−1}ᵀ … u_{t−i}ᵀ, −y_{t−1}ᵀ … −y_{t−i}ᵀ] for t ≥ i
+    if not _fits_to_rounding(np.hstack([y[i:], past]), u[i:]):
+        return
+    within_sample = not _fits_to_rounding(past, u[i:])
+    raise DataError(
+        "the input is, to rounding, a causal linear function of the output on this window: the record is that of a "
+        "feedback loop without a reference (u = −K·y), which every plant explains together with the controller's "
+        "inverse, so these data say nothing of the plant"
+        + (", or noise-free data of a plant with a direct feedthrough (u_k recovered from y_k), which leave no noise "
+           "level to set σ by" if within_sample else "")
+        + ". Use a reference excitation that moves the input (u = K(r − y), r a PRBS or multisine), or record in open "
+        "loop" + (" with noise" if within_sample else ""))
+
+
+def _fits_to_rounding(X: np.ndarray, target: np.ndarray) -> bool:
+    """Does a least-squares fit on the columns of ``X`` leave ``target`` at rounding?"""
     residual = target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
-    if float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * max(float(np.linalg.norm(target)), np.finfo(float).tiny):
-        raise DataError(
-            "the input is, to rounding, a causal linear function of the output on this window: the record is that of a "
-            "feedback loop without a reference (u = −K·y), which every plant explains together with the controller's "
-            "inverse, so these data say nothing of the plant. Use a reference excitation that moves the input (u = "
-            "K(r − y), r a PRBS or multisine), or record in open loop")
+    return float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * max(float(np.linalg.norm(target)), np.finfo(float).tiny)
 
 
 def _design(pred, W1, W2, delta, *, c, gamma_ratio, causal, dt):
