@@ -69,8 +69,8 @@ FEEDTHROUGH_STATEMENT = ("the plant has a direct feedthrough (declared): a contr
                          "controller that acts a sample later)")
 #: Said with every finding at lag 0 of a plant taken to be strictly proper: the other cause the data cannot exclude.
 _LAG0_ALTERNATIVE = ("; at lag 0 a direct feedthrough of the plant (y_k responding to u_k) gives the same correlation "
-                     "in open loop: if the plant has one, say so (CertificateOptions(feedthrough=True) in "
-                     "robust_design_from_data, feedthrough=True here)")
+                     "in open loop: if the plant has one, declare it (CertificateOptions(feedthrough=True), "
+                     "check_feedback(..., feedthrough=True), or --feedthrough of python -m experiments design)")
 
 
 @result
