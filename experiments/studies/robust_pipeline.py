@@ -113,11 +113,16 @@ def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -
 
     From a realisation ``(A, B, C, D)`` of order n: ``M = det(zI − A) z^{−n}`` and, input by input,
     ``N_j = (det(zI − A + b_j C) − det(zI − A) + d_j det(zI − A)) z^{−n}`` (``C adj(zI − A) b = det(zI − A + bC) −
-    det(zI − A)``).  With ``like`` (P̂'s factors, degree i) both are multiplied by the FIR ``Q`` of degree i that
-    brings ``[NQ  MQ]`` closest to ``[N̂  M̂]`` in least squares over ``points`` frequencies: P̂'s factors carry a
-    near-common factor (an ARX model of order i above the plant's), and a coprime ball is only meaningful in the
-    factorisation it was measured in.  ``[NQ − N̂  MQ − M̂]`` is then one admissible perturbation: its H∞ norm
-    bounds the plant's distance from the family from above (:func:`result_premise_ratio`).
+    det(zI − A)``).  With ``like`` (P̂'s factors, degree i) both are multiplied by the FIR ``Q``, ``Q(∞) = 1``, that
+    brings ``[NQ  MQ]`` closest to ``[N̂  M̂]``: P̂'s factors carry a near-common factor (an ARX model of order i above
+    the plant's), and a coprime ball is only meaningful in the factorisation it was measured in.  ``[NQ − N̂  MQ − M̂]``
+    is then one admissible perturbation: its H∞ norm bounds the plant's distance from the family from above
+    (:func:`result_premise_ratio`), and the pointwise distance (:func:`unfalsify.coprime_distance`) from below.  Q
+    minimises the largest distance over ``points`` frequencies (a second-order cone program, Clarabel) at degrees i,
+    2i, 4i, … 16i until the bound meets the pointwise one to 1 %, or the least-squares Q where that is closer.
+    Measured on four coprime certificates of the adversarial catalogue: the least-squares Q of degree i (the former
+    rule) bounded the premise ratio by 5.9, 7.0, 6.4 and 21; these Q by 0.39, 0.91, 0.78 and 0.38, each equal to the
+    pointwise lower bound (degree 2i for the first three, 16i for a mode of damping 0.02 that P̂ misses).
     """
     sys = control.ss(P)
     if sys.noutputs != 1:
@@ -127,18 +132,72 @@ def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -
     num = np.array([np.poly(A - np.outer(B[:, j], C[0])) - den + D[0, j] * den if A.size else D[0, j] * den
                     for j in range(sys.ninputs)])                                  # (m, n + 1)
     if like is not None:
-        w = np.linspace(0.0, np.pi, points)
-        zq = np.exp(-1j * np.outer(w, np.arange(like.horizon + 1)))              # Q's taps z^{−d}, d = 0 … i
-        zp = np.exp(-1j * np.outer(w, np.arange(den.size)))                      # the plant's, d = 0 … n (n > i too)
-        Nh, Mh = like.response(w / like.dt)
-        rows = [(zp @ c)[:, None] * zq for c in (*num, den)]                     # [N_j; M] Q as functions of Q
-        target = [Nh[:, 0, j] for j in range(sys.ninputs)] + [Mh[:, 0, 0]]
-        Aq, bq = np.vstack(rows), np.concatenate(target)
-        q = np.linalg.lstsq(np.vstack([Aq.real, Aq.imag]), np.concatenate([bq.real, bq.imag]), rcond=None)[0]
+        q = _closest_multiplier(num, den, like, sys, points)
         num = np.array([np.convolve(c, q) for c in num])
         den = np.convolve(den, q)
     scale = den[0]
     return uf.CoprimeFactors(N=(num.T / scale)[:, None, :], M=(den / scale).reshape(-1, 1, 1), dt=float(sys.dt))
+
+
+#: :func:`true_factors`: the largest degree of Q, in multiples of P̂'s degree i
+_Q_DEGREE_FACTOR = 16
+
+
+def _closest_multiplier(num: np.ndarray, den: np.ndarray, like: uf.CoprimeFactors, sys, points: int) -> np.ndarray:
+    """Q's taps for :func:`true_factors`: the candidate whose ``[NQ − N̂  MQ − M̂]`` has the least H∞ norm."""
+    w = np.linspace(0.0, np.pi, points)
+    zp = np.exp(-1j * np.outer(w, np.arange(den.size)))                          # the plant's taps, d = 0 … n
+    plant = [zp @ c for c in (*num, den)]                                          # N_j(ω), M(ω)
+    Nh, Mh = like.response(w / like.dt)
+    target = [Nh[:, 0, j] for j in range(num.shape[0])] + [Mh[:, 0, 0]]
+    lower = uf.coprime_distance(like, sys)[0]
+    candidates = [_least_squares_multiplier(plant, target, w, like.horizon)]
+    degree = like.horizon
+    while degree <= _Q_DEGREE_FACTOR * like.horizon:
+        q = _minimax_multiplier(plant, target, w, degree)
+        if q is not None:
+            candidates.append(q)
+            if _gap(num, den, q, like) <= 1.01 * lower:
+                break
+        degree *= 2
+    return min(candidates, key=lambda q: _gap(num, den, q, like))
+
+
+def _least_squares_multiplier(plant, target, w: np.ndarray, degree: int) -> np.ndarray:
+    """Q of ``degree`` fitting ``[N_j Q, M Q]`` to ``[N̂_j, M̂]`` in least squares over ``w`` (scaled to Q(∞) = 1)."""
+    zq = np.exp(-1j * np.outer(w, np.arange(degree + 1)))
+    Aq = np.vstack([p[:, None] * zq for p in plant])
+    bq = np.concatenate(target)
+    q = np.linalg.lstsq(np.vstack([Aq.real, Aq.imag]), np.concatenate([bq.real, bq.imag]), rcond=None)[0]
+    return q / q[0]
+
+
+def _minimax_multiplier(plant, target, w: np.ndarray, degree: int) -> np.ndarray | None:
+    """Q of ``degree``, ``Q(∞) = 1``, minimising ``max_ω ‖[N_j Q − N̂_j, M Q − M̂]‖₂`` over ``w`` (None if the solve
+    fails)."""
+    import cvxpy as cp
+
+    zq = np.exp(-1j * np.outer(w, np.arange(degree + 1)))
+    q, t = cp.Variable(degree + 1), cp.Variable()
+    rows = []
+    for p, b in zip(plant, target):
+        Aq = p[:, None] * zq
+        rows += [Aq.real @ q - b.real, Aq.imag @ q - b.imag]
+    problem = cp.Problem(cp.Minimize(t), [cp.norm(cp.vstack(rows), 2, axis=0) <= t, q[0] == 1.0])
+    try:
+        problem.solve(solver="CLARABEL")
+    except cp.error.SolverError:
+        return None
+    if problem.status != cp.OPTIMAL or q.value is None or not np.all(np.isfinite(q.value)):
+        return None
+    return np.asarray(q.value, float)
+
+
+def _gap(num: np.ndarray, den: np.ndarray, q: np.ndarray, like: uf.CoprimeFactors) -> float:
+    """The H∞ norm (dense grid) of ``[NQ − N̂  MQ − M̂]`` with ``Q(∞) = 1``."""
+    numq, denq = np.array([np.convolve(c, q) for c in num]), np.convolve(den, q)
+    F = uf.CoprimeFactors(N=(numq.T / denq[0])[:, None, :], M=(denq / denq[0]).reshape(-1, 1, 1), dt=like.dt)
+    return _fir_gap(F, like)
 
 
 def _fir_gap(F: uf.CoprimeFactors, G: uf.CoprimeFactors, points: int = 8192) -> float:
@@ -167,8 +226,9 @@ def _coprime_perturbations(F: uf.CoprimeFactors, eps: float) -> list:
 def result_premise_ratio(P, rd) -> tuple[float, str]:
     """The premise ratio of a pipeline result in the form it was certified in.
 
-    Additive: ``‖P − P̂‖∞/δ`` (:func:`premise_ratio`).  Coprime: the true plant's largest pointwise coprime
-    distance from P̂'s factors over ε (:func:`unfalsify.coprime_distance`, a lower bound of the true ratio).
+    Additive: ``‖P − P̂‖∞/δ`` (:func:`premise_ratio`).  Coprime: the upper end of the bracket of the true plant's
+    distance from the family over ε -- the H∞ norm of the perturbation of :func:`true_factors` -- with the note
+    giving the lower end, the largest pointwise distance (:func:`unfalsify.coprime_distance`).
     """
     if getattr(rd, "uncertainty", "additive") != "coprime":
         return premise_ratio(P, rd.model, rd.delta)
