@@ -137,3 +137,62 @@ def test_noise_free_records_are_tested_not_rejected_by_rounding(noise):
     y += noise * rng.standard_normal(n)
     changed = uf.check_time_invariance(u, y, order=p)
     assert changed.rejected and "time-invariant" in changed.reason
+
+
+# ---- against=: two records of one plant? ------------------------------------------------------------------------
+
+def test_against_sees_a_plant_that_changed_between_two_records_which_neither_record_shows():
+    """A fitting record and a validation record, each of one LTI plant, but the input gain is 1.5 times larger in the
+    second: each record alone passes the test, the comparison of the two rejects one model for both."""
+    first = _arx_record(700, 11)
+    second = _arx_record(500, 12, gain=(1.5, 1.5))
+    assert not uf.check_time_invariance(*first).rejected and not uf.check_time_invariance(*second).rejected
+    t = uf.check_time_invariance(*first, against=second)
+    assert t.rejected and t.p_value < 1e-6 and t.order == 16 and t.segments == 2
+    assert t.samples == 1200 and t.split == 700
+    assert "between the experiments" in t.reason and "Use records of the plant as it is now" in t.reason
+    same = uf.check_time_invariance(*first, against=_arx_record(500, 13))
+    assert not same.rejected and same.reason == ""
+
+
+def test_against_is_chows_test_on_the_stacked_rows_of_the_two_records():
+    # second route: the textbook interaction regression, every row regressed on its own record's past only
+    (u1, y1), (u2, y2) = _arx_record(400, 21), _arx_record(300, 22, gain=(1.1, 1.1))
+    t = uf.check_time_invariance(u1, y1, order=3, against=(u2, y2))
+
+    def rows(u, y):
+        n = len(u)
+        return np.column_stack([y[3 - d : n - d] for d in (1, 2, 3)] + [u[3 - d : n - d] for d in (1, 2, 3)]), y[3:]
+
+    (P1, t1), (P2, t2) = rows(u1, y1), rows(u2, y2)
+    Phi, target = np.vstack([P1, P2]), np.r_[t1, t2]
+    second = np.arange(len(target)) >= len(t1)
+    full = np.hstack([Phi * ~second[:, None], Phi * second[:, None]])
+    rss = lambda X: float(np.sum((target - X @ np.linalg.lstsq(X, target, rcond=None)[0]) ** 2))  # noqa: E731
+    d1, d2 = Phi.shape[1], len(target) - full.shape[1]
+    F = (rss(Phi) - rss(full)) / d1 / (rss(full) / d2)
+    assert t.dof == (d1, d2) and t.statistic == pytest.approx(F, rel=1e-9)
+    assert t.p_value == pytest.approx(scipy.stats.f.sf(F, d1, d2), rel=1e-9)
+
+
+def test_against_p_values_of_one_plant_are_uniform():
+    p = np.array([uf.check_time_invariance(*_arx_record(300, s), order=2, against=_arx_record(200, 1000 + s)).p_value
+                  for s in range(200)])
+    assert 2 <= np.sum(p < 0.05) <= 20
+    assert scipy.stats.kstest(p, "uniform").pvalue > 1e-3
+
+
+def test_against_bad_input_raises_data_error_naming_the_fix():
+    u, y = _arx_record(400, 0)
+    with pytest.raises(DataError, match="not both"):
+        uf.check_time_invariance(u, y, split=200, against=(u, y))
+    with pytest.raises(DataError, match="a pair"):
+        uf.check_time_invariance(u, y, against=u)
+    with pytest.raises(DataError, match="same channels"):
+        uf.check_time_invariance(u, y, against=(np.ones((400, 2)), y))
+    need = uf.min_record_length(1, 1) // 2
+    assert uf.check_time_invariance(u, y, against=(u[:need], y[:need])).order == 8
+    with pytest.raises(DataError, match=f"need {need} samples in each"):
+        uf.check_time_invariance(u, y, against=(u[: need - 1], y[: need - 1]))
+    with pytest.raises(DataError, match="smaller order"):
+        uf.check_time_invariance(u, y, order=40, against=(u[:100], y[:100]))

@@ -481,8 +481,11 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
     assert p.inconsistency < 1
     # the claim on the true plant
     assert uf.additive_robustness(P, r.controller).certifies(r.delta)
-    # a ±1 input cannot show a saturation: the result says what it assumes, and warns
-    assert _not_hidden(r.assumed) == uf.untested_premises(d.u[:, 0]) and len(uf.untested_premises(d.u[:, 0])) == 1
+    # a ±1 input cannot show a saturation, and the window (49 samples) is too short to compare with the validation
+    # record: the result says what it assumes, and warns
+    assumed = _not_hidden(r.assumed)
+    assert assumed[:-1] == uf.untested_premises(d.u[:, 0]) and len(uf.untested_premises(d.u[:, 0])) == 1
+    assert assumed[-1].startswith("one plant made the fitting data and the validation record: they were not compared")
     _, untested = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), category=uf.UntestedPremiseWarning)
     assert len(untested) == 1 and "cannot test: input 0 takes the values {-1, 1}" in str(untested[0].message)
     assert "{-1, 1}" in r.assumed[0] and "linear at the amplitudes" in r.assumed[0]
@@ -490,7 +493,8 @@ def test_white_prbs_still_certifies_and_says_which_delta_decided():
 
 def test_untested_refuse_names_the_fix_and_several_amplitudes_certify():
     """``CertificateOptions(untested="refuse")``: a ±1 PRBS is refused with the fix; the same plant excited at several
-    amplitudes (uniform levels) certifies in that mode, with nothing assumed and no warning."""
+    amplitudes (uniform levels) certifies in that mode, with nothing assumed and no warning, given its fitting record
+    beside the validation record."""
     P = third_order()
     strict = uf.CertificateOptions(untested="refuse")
     d = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
@@ -502,8 +506,15 @@ def test_untested_refuse_names_the_fix_and_several_amplitudes_certify():
     levels = lambda n: rng.uniform(-1.0, 1.0, (n, 1))  # noqa: E731
     d = collect_data(P, levels(1000), process_noise=0.05, sensor_noise=0.05, seed=100)
     held = collect_data(P, levels(500), process_noise=0.05, sensor_noise=0.05, seed=101)
-    r, untested = _pipeline(d.u[:, 0], d.y[:, 0], (held.u[:, 0], held.y[:, 0]), certificate=strict,
-                            category=uf.UntestedPremiseWarning)
+    # the fitting record beside the validation record (window=, validation=): the two are compared, so nothing about
+    # them is assumed either (the window alone beside validation= is too short to compare: stated, refused here)
+    W = design_weights()
+    with warnings.catch_warnings(record=True) as log:
+        warnings.simplefilter("always")
+        r = uf.robust_design_from_data(d.u[:, 0], d.y[:, 0], 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
+                                       validation=(held.u[:, 0], held.y[:, 0]), certificate=strict,
+                                       search=uf.DesignSearch(horizons=(20,)))
+    untested = [w for w in log if issubclass(w.category, uf.UntestedPremiseWarning)]
     assert r.certified and r.assumed == () and not untested, r.reason
     with pytest.raises(DataError, match="unknown untested 'ignore'"):
         uf.CertificateOptions(untested="ignore")
@@ -646,7 +657,9 @@ def test_record_mode_tests_time_invariance_on_the_whole_record(prbs_record):
     assert held.invariance.samples == 500
     assert short.invariance is None and "too short to test time invariance" in short.invariance_note
     # what the short record cannot test is stated with what the prbs cannot (linearity), and nothing more when tested
-    assert _not_hidden(held.assumed) == uf.untested_premises(u[:49], (u[1000:], y[1000:]))
+    across = _not_hidden(held.assumed)[-1]  # the window (49 samples) is too short to compare with the validation record
+    assert _not_hidden(held.assumed)[:-1] == uf.untested_premises(u[:49], (u[1000:], y[1000:]))
+    assert across.startswith("one plant made the fitting data and the validation record: they were not compared")
     short_assumed = _not_hidden(short.assumed)
     assert short_assumed[:-1] == uf.untested_premises(u[:49])
     assert short_assumed[-1].startswith("one time-invariant plant made the data")
@@ -677,6 +690,43 @@ def test_record_mode_tests_time_invariance_where_the_held_out_part_begins():
                                               window=(0, 49), validation=(u[800:], y[800:]),
                                               certificate=uf.CertificateOptions(uncertainty="additive"))
     assert separate.invariance.split == 0 and separate.invariance.samples == 800
+
+
+def test_a_validation_record_is_compared_with_the_fitting_record_or_the_comparison_is_stated():
+    """A validation record from another experiment shows a plant that changed between the experiments only where P̂'s
+    output error on it sees the change: with the window alone (49 samples, too short for Chow's test of the two
+    records) the pipeline states that it assumes one plant, whatever the data (a plant whose poles moved ×0.6
+    between the records had been certified without its δ margin on the new plant); given the fitting record with
+    window= beside validation=, it compares the two records and states a rejection."""
+    P = third_order()
+    rng = np.random.default_rng(7)
+    levels = lambda n: rng.uniform(-1.0, 1.0, (n, 1))  # noqa: E731 - several amplitudes: nothing else is assumed
+    fit = collect_data(P, levels(1000), process_noise=0.05, sensor_noise=0.05, seed=100)
+    same = collect_data(P, levels(500), process_noise=0.05, sensor_noise=0.05, seed=101)
+    moved = collect_data(1.5 * P, levels(500), process_noise=0.05, sensor_noise=0.05, seed=101)
+    W = design_weights()
+
+    def across(r):
+        return [a for a in r.assumed if a.startswith("one plant made the fitting data and the validation record")]
+
+    for held in (same, moved):
+        r, _ = _pipeline(fit.u[:, 0], fit.y[:, 0], (held.u[:, 0], held.y[:, 0]))
+        (statement,) = across(r)
+        assert "not compared" in statement and "the window has 49" in statement and "window= beside" in statement
+    strict, _ = _pipeline(fit.u[:, 0], fit.y[:, 0], (same.u[:, 0], same.y[:, 0]),
+                          certificate=uf.CertificateOptions(untested="refuse"))
+    assert not strict.certified and "not compared" in strict.reason
+
+    def record_mode(held):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return uf.robust_design_from_data(fit.u[:, 0], fit.y[:, 0], 10, W["W11"], W["W21"], "auto", dt=P.dt,
+                                              window=(0, 49), validation=(held.u[:, 0], held.y[:, 0]), search=False)
+
+    assert across(record_mode(same)) == []
+    test = uf.check_time_invariance(fit.u, fit.y, against=(moved.u, moved.y))
+    (statement,) = across(record_mode(moved))
+    assert test.rejected and f"p = {test.p_value:.2g}" in statement and "changed between the experiments" in statement
 
 
 def test_time_invariance_split_is_checked():
@@ -719,10 +769,19 @@ def test_an_untested_time_invariance_warns_when_certified_and_refuses_on_request
     assert len(untested) == 1 and all(a in untested[0] for a in short.assumed)
     strict, _ = run(certificate=uf.CertificateOptions(untested="refuse"))
     assert not strict.certified and "cannot test the premise" in strict.reason and "validation=" in strict.reason
-    # a held-out validation record of exactly the length the test needs: tested, nothing assumed, no warning
+    # a held-out validation record of exactly the length the test needs: tested, that statement lifted; what remains
+    # is the comparison of the two records, which the window (45 samples) is too short for
     tested, untested = run(validation=(u[fit:], y[fit:]))
     assert tested.invariance is not None and tested.invariance.samples == need
-    assert tested.certified and tested.assumed == () and not untested  # the line test ran too: X = 0.03
+    assert tested.certified and len(tested.assumed) == 1 and len(untested) == 1
+    assert tested.assumed[0].startswith("one plant made the fitting data and the validation record: they were not")
+    # the fitting record beside it (window=, validation=): the records are compared; nothing assumed, no warning
+    with warnings.catch_warnings(record=True) as log:
+        warnings.simplefilter("always")
+        whole = uf.robust_design_from_data(u[:fit], y[:fit], 3, W1, W2, "auto", dt=1.0, window=(0, 45),
+                                           validation=(u[fit:], y[fit:]))
+    assert whole.certified and whole.assumed == ()  # the line test ran too
+    assert not [w for w in log if issubclass(w.category, uf.UntestedPremiseWarning)]
     # record mode on a record too short for the test: the fix is a longer experiment, not another keyword
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
