@@ -300,15 +300,10 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     # row r of Φ predicts sample r + p: the part after the split starts at row split − p
     parts = (np.array_split(np.arange(n - p), segments) if split is None else
              [np.arange(max(split - p, 0)), np.arange(max(split - p, 0), n - p)])
-    tests = [_chow(Phi, y[p:, c], parts) for c in range(l)]
-    worst = min(range(l), key=lambda c: tests[c][1])
-    F, pv, dof = tests[worst]
-    pv = min(1.0, pv * l)
+    F, pv, dof, worst = _worst_output(Phi, y[p:], parts)
     reason = ""
     if pv < level:
-        where = f" (output {worst})" if l > 1 else ""
-        how = (f"Chow's F = {F:.3g} on {dof} degrees of freedom, p = {pv:.2g} < {level:g}" if np.isfinite(F) else
-               "each segment is fitted exactly, to rounding, but not by one model")
+        where, how = _evidence(F, pv, dof, worst, l, level, "segment")
         what = (f"its {segments} consecutive segments" if split is None else
                 f"its parts before and from sample {split}")
         reason = (f"the record is not that of one time-invariant plant: ARX({p}) fits on {what} differ{where} ({how}); "
@@ -341,17 +336,30 @@ def _across(u: np.ndarray, y: np.ndarray, against, order: int | None, level: flo
     Phi = np.vstack([arx_regressor(u, y, p, p)[0][p:], arx_regressor(u2, y2, p, p)[0][p:]])
     Y = np.vstack([y[p:], y2[p:]])
     parts = [np.arange(n1 - p), np.arange(n1 - p, Phi.shape[0])]
-    tests = [_chow(Phi, Y[:, c], parts) for c in range(l)]
-    worst = min(range(l), key=lambda c: tests[c][1])
-    F, pv, dof = tests[worst]
-    pv = min(1.0, pv * l)
+    F, pv, dof, worst = _worst_output(Phi, Y, parts)
     reason = ""
     if pv < level:
-        where = f" (output {worst})" if l > 1 else ""
-        how = (f"Chow's F = {F:.3g} on {dof} degrees of freedom, p = {pv:.2g} < {level:g}" if np.isfinite(F) else
-               "each record is fitted exactly, to rounding, but not by one model")
+        where, how = _evidence(F, pv, dof, worst, l, level, "record")
         reason = (f"the two records are not those of one time-invariant plant: ARX({p}) fits on the record and on the "
                   f"second record differ{where} ({how}); the plant, or the noise, changed between the experiments. "
                   "Use records of the plant as it is now (both taken after the change), or model the change")
     return InvarianceTest(p_value=float(pv), statistic=float(F), dof=tuple(dof), order=p, segments=2,
                           samples=int(n1 + u2.shape[0]), level=level, reason=reason, split=int(n1))
+
+
+def _worst_output(Phi: np.ndarray, Y: np.ndarray, parts) -> tuple[float, float, tuple, int]:
+    """Chow's test of every output column of ``Y`` on ``Phi`` over ``parts``: ``(F, p, dof, output)`` of the smallest
+    p-value, the p-value multiplied by the number of outputs (Bonferroni, at most 1)."""
+    l = Y.shape[1]
+    tests = [_chow(Phi, Y[:, c], parts) for c in range(l)]
+    worst = min(range(l), key=lambda c: tests[c][1])
+    F, pv, dof = tests[worst]
+    return F, min(1.0, pv * l), dof, worst
+
+
+def _evidence(F: float, pv: float, dof, worst: int, outputs: int, level: float, part: str) -> tuple[str, str]:
+    """The rejection's output (``''`` for one output) and its statistic, for a reason naming each ``part``."""
+    where = f" (output {worst})" if outputs > 1 else ""
+    how = (f"Chow's F = {F:.3g} on {dof} degrees of freedom, p = {pv:.2g} < {level:g}" if np.isfinite(F) else
+           f"each {part} is fitted exactly, to rounding, but not by one model")
+    return where, how

@@ -492,7 +492,8 @@ def _refuse_pure_feedback(u, y, i: int) -> None:
 def _fits_to_rounding(X: np.ndarray, target: np.ndarray) -> bool:
     """Does a least-squares fit on the columns of ``X`` leave ``target`` at rounding?"""
     residual = target - X @ np.linalg.lstsq(X, target, rcond=None)[0]
-    return float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * max(float(np.linalg.norm(target)), np.finfo(float).tiny)
+    size = max(float(np.linalg.norm(target)), np.finfo(float).tiny)
+    return float(np.linalg.norm(residual)) <= NOISE_RESOLUTION * size
 
 
 def _design(pred, W1, W2, delta, *, c, gamma_ratio, causal, dt):
