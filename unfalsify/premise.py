@@ -1141,12 +1141,10 @@ def _line_spectra(model, u, y, horizon: int, dt: float) -> tuple[tuple, tuple | 
         return none, None
     E, U, Y, M = _output_error_dft(model, u, y, horizon)
     power = np.abs(E) ** 2                                               # (K, l): each output channel on its own
-    h, g = LINE_HALF_WIDTH, LINE_GAP
-    sides = np.lib.stride_tricks.sliding_window_view(power, h, axis=0)   # sides[k] = power[k : k + h]
+    sides = np.lib.stride_tricks.sliding_window_view(power, LINE_HALF_WIDTH, axis=0)  # power[k : k + LINE_HALF_WIDTH]
     level = np.full(power.shape, np.inf)
-    reach = h + g                                                        # bins k with a full window on each side
-    level[reach:-reach] = np.maximum(np.median(sides[: power.shape[0] - 2 * reach], axis=-1),
-                                     np.median(sides[reach + g + 1:], axis=-1)) / np.log(2.0)
+    reach = LINE_HALF_WIDTH + LINE_GAP                                   # bins k with a full window on each side
+    level[reach:-reach] = _local_level(sides, np.arange(reach, power.shape[0] - reach), 1)
     size = np.linalg.norm(U, axis=1)
     threshold = np.log(power.size / LINE_LEVEL)  # Bonferroni over every bin of every output channel
     freq = 2.0 * np.pi * np.arange(1, power.shape[0] + 1) / ((x.shape[0] - horizon) * dt)
@@ -1184,8 +1182,7 @@ def _wide_lines(E, M, power, sides, size, joint, freq, w: int) -> tuple[np.ndarr
     if starts.size == 0:
         return none
     group = np.sum([power[starts + j] for j in range(w)], axis=0)  # (groups, l)
-    level = np.maximum(np.median(sides[starts - reach], axis=-1),
-                       np.median(sides[starts + w - 1 + LINE_GAP + 1], axis=-1)) / np.log(2.0)
+    level = _local_level(sides, starts, w)
     threshold = float(scipy.special.gammainccinv(w, LINE_LEVEL / power.size))  # Bonferroni as the one-bin test
     u2 = _group_input(size ** 2, starts, w)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -1198,6 +1195,15 @@ def _wide_lines(E, M, power, sides, size, joint, freq, w: int) -> tuple[np.ndarr
     centre = np.sum(weight * np.array([freq[b] for b in bins]), axis=0) / np.sum(weight, axis=0)
     coprime2 = np.sum([np.sum(np.abs((M[b] @ E[b][:, :, None])[:, :, 0]) ** 2, axis=1) for b in bins], axis=0)
     return centre, np.sqrt(np.sum(group, axis=1) / u2), np.sqrt(coprime2 / _group_input(joint ** 2, starts, w))
+
+
+def _local_level(sides: np.ndarray, starts: np.ndarray, w: int) -> np.ndarray:
+    """The periodogram's local level beside each group of ``w`` bins from ``starts``: the larger median of the
+    ``LINE_HALF_WIDTH`` bins ``LINE_GAP`` away on either side (``sides[k]`` = the bins ``k … k + LINE_HALF_WIDTH − 1``),
+    over ``ln 2`` (an exponential variable's median over its mean)."""
+    reach = LINE_HALF_WIDTH + LINE_GAP
+    return np.maximum(np.median(sides[starts - reach], axis=-1),
+                      np.median(sides[starts + w + LINE_GAP], axis=-1)) / np.log(2.0)
 
 
 def _group_input(x2: np.ndarray, starts: np.ndarray, w: int) -> np.ndarray:
@@ -1239,18 +1245,20 @@ def _output_error_dft(model, u, y, horizon: int) -> tuple[np.ndarray, np.ndarray
     u, y = channel_pair(u, y)
     output_error_residual(model, u[: horizon + 1], y[: horizon + 1], horizon)  # checks the model against the data
     factors = _model_factors(model, horizon)
-    x = u.reshape(u.shape[0], -1)[horizon:]
-    e = factors.residual(u, y).reshape(x.shape[0], -1)
-    K = e.shape[0] // 2 - 1                                        # rfft's bins without 0 and the last
-    M = factors.response(2.0 * np.pi * np.arange(1, K + 1) / (e.shape[0] * _step(model.dt)))[1]
+    x, z = u.reshape(u.shape[0], -1)[horizon:], y.reshape(y.shape[0], -1)[horizon:]
+    n = x.shape[0]
+    M = factors.response(2.0 * np.pi * np.arange(1, n // 2) / (n * _step(model.dt)))[1]  # rfft's bins 1 … n/2 − 1
     if spectral_radius(control.ssdata(model)[0]) < 1.0:
-        e = output_error_residual(model, u, y, horizon).reshape(e.shape)
-        E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
+        E = _centred_dft(output_error_residual(model, u, y, horizon).reshape(n, -1))
     else:
-        E = np.fft.rfft(e - e.mean(axis=0), axis=0)[1:-1]
+        E = _centred_dft(factors.residual(u, y).reshape(n, -1))
         E = (np.linalg.pinv(M) @ E[:, :, None])[:, :, 0]  # pinv: a pole of P̂ on the unit circle stays finite
-    z = y.reshape(y.shape[0], -1)[horizon:]
-    return E, np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1], np.fft.rfft(z - z.mean(axis=0), axis=0)[1:-1], M
+    return E, _centred_dft(x), _centred_dft(z), M
+
+
+def _centred_dft(x: np.ndarray) -> np.ndarray:
+    """The DFT of ``x`` (time along axis 0) less its mean, bins 1 … n/2 − 1."""
+    return np.fft.rfft(x - x.mean(axis=0), axis=0)[1:-1]
 
 
 def _line_gain(lines: tuple[np.ndarray, np.ndarray, np.ndarray], model, controller, dt: float,
