@@ -151,16 +151,17 @@ def _closest_multiplier(num: np.ndarray, den: np.ndarray, like: uf.CoprimeFactor
     Nh, Mh = like.response(w / like.dt)
     target = [Nh[:, 0, j] for j in range(num.shape[0])] + [Mh[:, 0, 0]]
     lower = uf.coprime_distance(like, sys)[0]
-    candidates = [_least_squares_multiplier(plant, target, w, like.horizon)]
+    q = _least_squares_multiplier(plant, target, w, like.horizon)
+    candidates = [(_gap(num, den, q, like), q)]
     degree = like.horizon
     while degree <= _Q_DEGREE_FACTOR * like.horizon:
         q = _minimax_multiplier(plant, target, w, degree)
         if q is not None:
-            candidates.append(q)
-            if _gap(num, den, q, like) <= 1.01 * lower:
+            candidates.append((_gap(num, den, q, like), q))
+            if candidates[-1][0] <= 1.01 * lower:
                 break
         degree *= 2
-    return min(candidates, key=lambda q: _gap(num, den, q, like))
+    return min(candidates, key=lambda c: c[0])[1]
 
 
 def _least_squares_multiplier(plant, target, w: np.ndarray, degree: int) -> np.ndarray:
