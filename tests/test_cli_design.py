@@ -14,7 +14,7 @@ import pytest
 
 import unfalsify as uf
 from experiments.cli import main
-from experiments.studies.design_cli import default_weights
+from experiments.studies.design_cli import default_weights, design_record
 from experiments.lab.plants import third_order
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop, collect_data
@@ -211,6 +211,45 @@ def test_design_of_a_two_by_two_record(tmp_path, capsys):
     assert (K.ninputs, K.noutputs) == (4, 2)
     assert len(summary["step_final"]) == 2
     assert_reports_complete(tmp_path / "design", "design")
+
+
+def _one_input_two_outputs(tmp_path):
+    """A lag and a resonance driven by one input, both measured (a plant with fewer inputs than outputs)."""
+    import control
+
+    dt, n = 0.1, 900
+    lag, mode = (control.ss(control.c2d(control.tf(b, a), dt)) for b, a in (([1.0], [1, 1]), ([0.5], [1, 0.8, 1])))
+    P = control.ss(control.append(lag, mode) * control.ss([], [], [], [[1.0], [1.0]], dt))
+    rng = np.random.default_rng(5)
+    u = rng.uniform(-1.0, 1.0, n)
+    y = control.forced_response(P, T=np.arange(n) * dt, U=u).outputs.T + 0.02 * rng.standard_normal((n, 2))
+    rows = (",".join(repr(float(v)) for v in (u[k], *y[k])) for k in range(n))
+    path = tmp_path / "simo.csv"
+    path.write_text("u,y1,y2\n" + "\n".join(rows) + "\n")
+    return path, u, y, dt
+
+
+def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys):
+    """One input, two outputs: no loop tracks independent steps on both, and the refusal names --tracking-floor;
+    ``--tracking-floor 0.2,inf`` is the certificate's floor per output (the library's verdict and δ with it)."""
+    path, u, y, dt = _one_input_two_outputs(tmp_path)
+    args = ["design", str(path), "--u", "u", "--y", "y1,y2", "--dt", str(dt), "--horizon", "8", "--json"]
+    assert main([*args, "--out", str(tmp_path / "default")]) == 0
+    default = json.loads(capsys.readouterr().out)
+    assert not default["certified"] and "--tracking-floor 0.1,inf" in default["reason"]
+    assert default["tracking_floor"] == 0.1
+    assert main([*args, "--tracking-floor", "0.2,inf", "--out", str(tmp_path / "floors")]) == 0
+    floors = json.loads(capsys.readouterr().out)
+    assert floors["tracking_floor"] == [0.2, None] and "fewer inputs" not in (floors["reason"] or "")
+    W1, W2, _ = default_weights(dt, 1, 2)
+    res, _ = design_record(u, y, dt, 8, W1, W2, tracking_floor=(0.2, np.inf))
+    assert res.certificate.tracking_floor == (0.2, np.inf)
+    assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
+    md = (tmp_path / "floors" / "design" / "design.md").read_text()
+    assert not floors["certified"] or "at most (0.2, inf) per output" in md
+    for bad, words in (("0.1,x", "must be a number"), ("-1", "must be a number"), ("0.1,0.1,0.1", "3 floors for 2")):
+        err = _bad(tmp_path, capsys, [*args, "--tracking-floor", bad, "--out", str(tmp_path)])
+        assert words in err, err
 
 
 def test_an_operating_point_is_named_and_removed_with_detrend(tmp_path, capsys):

@@ -407,7 +407,8 @@ def step_metrics(loop: control.StateSpace, samples: int = STEP_SAMPLES) -> StepM
 
 
 _TALL_HINT = ("; the plant has fewer inputs ({m}) than outputs ({l}), so no controller tracks independent steps on "
-              "every output: give tracking_floor per output channel, inf for the outputs not tracked")
+              "every output: give tracking_floor per output channel, inf for the outputs not tracked "
+              "(CertificateOptions(tracking_floor=...), or --tracking-floor 0.1,inf of python -m experiments design)")
 
 
 def _check_step_samples(step_samples) -> int:

@@ -44,8 +44,8 @@ from synthesis.validation import DataError
 
 from ..lab.records import RecordError, load_record, record_columns
 
-__all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "operating_point",
-           "INPUT_ERRORS"]
+__all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
+           "operating_point", "INPUT_ERRORS"]
 
 #: errors that mean bad input, not a bug: ``cli.main`` turns them into a usage message and exit status 2
 INPUT_ERRORS = (DataError, FileNotFoundError)
@@ -165,6 +165,32 @@ def _parse_sigma(text):
         raise DataError(f"--sigma must be a positive number or auto, got {text!r}") from None
 
 
+def parse_tracking_floor(text):
+    """``"F"`` or ``"F1,F2,..."`` (one floor per output channel; ``inf`` for an output not tracked) → a float or a
+    tuple; None → None (the certificate's default).
+
+    Raises
+    ------
+    DataError
+        Anything but numbers ≥ 0 or ``inf``.
+
+    Examples
+    --------
+    >>> parse_tracking_floor("0.2"), parse_tracking_floor("0.1, inf")
+    (0.2, (0.1, inf))
+    """
+    if text is None:
+        return None
+    try:
+        floors = tuple(float(x) for x in str(text).split(","))
+    except ValueError:
+        floors = ()
+    if not floors or any(not f >= 0.0 for f in floors):
+        raise DataError(f"--tracking-floor must be a number >= 0 or one per output channel (e.g. 0.1,inf: output 1 "
+                        f"not tracked), got {text!r}")
+    return floors[0] if len(floors) == 1 else floors
+
+
 def _column(text):
     """A column given on the command line: an integer index or a name; a comma list stays a list."""
     if text is None:
@@ -277,9 +303,9 @@ def _vector(x) -> str:
 
 
 def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn",
-                  feedthrough=False):
-    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested`` and
-    ``feedthrough`` are those of :class:`unfalsify.CertificateOptions`.
+                  feedthrough=False, tracking_floor=None):
+    """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested``,
+    ``feedthrough`` and ``tracking_floor`` (None: the default) are those of :class:`unfalsify.CertificateOptions`.
 
     Returns
     -------
@@ -289,11 +315,12 @@ def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma
     """
     import unfalsify as uf
 
+    floor = {} if tracking_floor is None else {"tracking_floor": tracking_floor}
+    options = uf.CertificateOptions(untested=untested, feedthrough=feedthrough, **floor)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = uf.robust_design_from_data(_channels(u), _channels(y), horizon, W1, W2, sigma, dt=dt, window=window,
-                                         certificate=uf.CertificateOptions(untested=untested,
-                                                                           feedthrough=feedthrough))
+                                         certificate=options)
     return res, [f"{w.category.__name__}: {w.message}" for w in caught]
 
 
@@ -510,7 +537,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     rep.section("Verdict", f"**{verdict}** for {_family(res)}."
                 + (f"\n\nReason: {res.reason}" if res.reason else
                    f"\n\nThe loop is stable on P̂ and P̂_ref, small gain is proven for "
-                   f"{'δ' if res.uncertainty == 'additive' else 'ε'}, the step tracks, and the held-out data do not "
+                   f"{'δ' if res.uncertainty == 'additive' else 'ε'}, the step tracks (mean error over its last "
+                   f"quarter at most {_floors_text(res.certificate.tracking_floor)}), and the held-out data do not "
                    "falsify the premise.")
                 + (f"\n\nThe additive form was left: {res.additive_reason}" if res.additive_reason else "")
                 + "".join(f"\n\nAssumed, not testable on these data: {a}." for a in res.assumed))
@@ -528,7 +556,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "uncertainty": res.uncertainty, "epsilon": float(res.epsilon) if res.uncertainty == "coprime" else None,
         "margin": float(res.margin), "additive_reason": res.additive_reason,
-        "assumed": list(res.assumed),
+        "tracking_floor": _floors_json(res.certificate.tracking_floor), "assumed": list(res.assumed),
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
         "excitation_worst": excitation_worst, "margin_evidence": margin_evidence,
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
@@ -543,6 +571,19 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     }
     return finish_report(rep, summary, out, name, warn_log=warned, figures=figs, t_start=t_start,
                          warnings_heading="Warnings raised")
+
+
+def _floors_text(floor) -> str:
+    """The tracking floor as the report states it: one number, or one per output (``inf``: not tracked)."""
+    floors = np.atleast_1d(np.asarray(floor, float))
+    return f"{floors[0]:g}" if floors.size == 1 else "(" + ", ".join(f"{f:g}" for f in floors) + ") per output"
+
+
+def _floors_json(floor):
+    """The tracking floor for ``design.json``: a number or a list, ``None`` for an output not tracked (JSON has no
+    infinity)."""
+    floors = [None if math.isinf(f) else float(f) for f in np.atleast_1d(np.asarray(floor, float))]
+    return floors[0] if len(floors) == 1 else floors
 
 
 def _family(res) -> str:
@@ -581,8 +622,13 @@ def run(opts) -> dict:
     W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l)
     window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
     horizon = ex["horizon"]
+    floor = parse_tracking_floor(ex.get("tracking_floor"))
+    if isinstance(floor, tuple) and len(floor) != rec.l:
+        raise DataError(f"--tracking-floor gives {len(floor)} floors for {rec.l} output channels: give one number, or "
+                        f"one per output")
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
-                                untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")))
+                                untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")),
+                                tracking_floor=floor)
     return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
                          weights_text=weights_text, t_start=t_start, operating=(point, point_text))
 
@@ -623,6 +669,10 @@ OPTIONS = (
     (("--untested",), dict(dest="untested", choices=("warn", "refuse"), default="warn",
                            help="a premise the record cannot test (a two-level input shows no saturation): certify "
                                 "on it and say so (warn, the default) or refuse")),
+    (("--tracking-floor",), dict(dest="tracking_floor", default=None, metavar="F[,F...]",
+                                 help="largest mean step error over the step's last quarter, one number or one per "
+                                      "output (inf: that output not tracked, e.g. 0.1,inf for a plant with fewer "
+                                      "inputs than outputs) (default: 0.1)")),
     (("--feedthrough",), dict(dest="feedthrough", action="store_true",
                               help="the plant has a direct feedthrough (y_k responds to u_k): the feedback test leaves "
                                    "lag 0 out, where a feedthrough looks like feedback (default: strictly proper)")),
