@@ -242,3 +242,50 @@ def test_non_finite_weights_and_levels_are_named():
     for bad in ("1.0", None, np.nan):
         with pytest.raises(DataError, match="gamma"):
             hinf_riccati(A, B, C, D, gamma=bad, horizon=3, n_disturbances=1)
+
+
+def test_non_symmetric_weights_are_refused_not_misread():
+    """A non-symmetric Q had given, with a feedthrough D, the gains of another cost (1.46 off those of its
+    symmetric part, which has the same cost ``yᵀQy``): the recursion's ``CᵀQD`` and ``DᵀQD`` assume ``Q = Qᵀ``."""
+    from synthesis import DataError
+
+    A, B, C, D = np.array([[0.5, 0.1], [0.0, 0.3]]), np.eye(2), np.eye(2), np.array([[1.0, 0.5], [0.2, 1.0]])
+    Q = np.array([[1.0, 2.0], [0.0, 1.0]])
+    with pytest.raises(DataError, match=r"Q must be symmetric.*\(Q \+ Qᵀ\)/2"):
+        lqr_riccati(A, B, C, D, Q, np.eye(2), horizon=3)
+    with pytest.raises(DataError, match="R must be symmetric"):
+        lqr_riccati(A, B, C, D, np.eye(2), Q, horizon=3)
+    with pytest.raises(DataError, match="terminal must be symmetric"):
+        lqr_riccati(A, B, C, D, np.eye(2), np.eye(2), horizon=3, terminal=Q)
+    # the symmetric part is accepted, and an indefinite symmetric R (Thm 4.3's −R_γ) still is
+    lqr_riccati(A, B, C, D, 0.5 * (Q + Q.T), np.eye(2), horizon=3)
+    lqr_riccati(A, B, C, D, np.eye(2), np.diag([1.0, -0.01]), horizon=3)
+
+
+@pytest.mark.parametrize("bad", [1.5, True, "1", np.float64(1.0)])
+def test_n_disturbances_must_be_an_integer(bad):
+    """int() had read 1.5, True and "1" as 1: the split of w = [r; u] was not the one asked for."""
+    from synthesis import DataError
+
+    A, B, C, D = _random_system(np.random.default_rng(1), 2, 2, 2)
+    with pytest.raises(DataError, match="n_disturbances must be an integer"):
+        hinf_riccati(A, B, C, D, gamma=50.0, horizon=3, n_disturbances=bad)
+    assert hinf_riccati(A, B, C, D, gamma=50.0, horizon=3, n_disturbances=np.int64(1)).n_disturbances == 1
+
+
+def test_refusal_just_above_the_batch_gamma_min_names_the_exact_route():
+    """Near γ_min the stage test is decided by rounding: at 1 + 1e-6 times the batch γ_min (where the exact
+    saddle exists) this plant's recursion refuses; the refusal says so and names the batch route."""
+    P = ct.ss([[0.65]], [[0.32, 1.34]], [[1.13]], [[0.0, 0.0]], 1.0)
+    W1 = ct.ss([[0.74]], [[1.0]], [[4.66]], [[8.51]], 1.0)
+    W2 = ct.ss(np.diag([0.42, 0.43]), np.diag([1.0, 0.1]), np.diag([3.01, -0.67]), np.diag([6.4, 0.28]), 1.0)
+    i = 15
+    gp = generalized_plant(P, W1, W2)
+    H = synthesis.markov_toeplitz(gp.system, i)
+    Md, Mu = H[:, 0::3], np.hstack([H[:, 1::3], H[:, 2::3]])  # w_t = [r_t; u_t]
+    gmin = synthesis.minimax_gamma_min(Md, Mu)
+    with pytest.warns(synthesis.NearGammaMinWarning):  # the batch saddle exists there
+        synthesis.solve_minimax(Md, Mu, synthesis.observability(gp.system, i), (1 + 1e-6) * gmin)
+    with pytest.raises(StageSaddleError, match=r"rounding.*minimax_gamma_min"):
+        hinf_riccati(gp, gamma=(1 + 1e-6) * gmin, horizon=i)
+    hinf_riccati(gp, gamma=1.1 * gmin, horizon=i)
