@@ -213,6 +213,10 @@ def _matrices(A, B, C, D):
     return A, B, C, D
 
 
+#: Relative tolerance of the stage saddle tests of :func:`hinf_riccati` (about 1e4 eps: the recursion's rounding).
+_STAGE_TOL = 1e-12
+
+
 def _check_symmetric(M: np.ndarray, name: str) -> None:
     """Refuse a non-symmetric weight: the recursion's cross term ``CᵀQD`` and stage matrix ``DᵀQD + R`` assume ``Q = Qᵀ``.
 
@@ -322,22 +326,30 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
     Rg[:l, :l] = gamma**2 * np.eye(l)
 
     def check(M, t):
-        Muu, Mur, Mrr = M[l:, l:], M[l:, :l], M[:l, :l]
-        scale = max(1.0, np.abs(M).max())
+        # the inertia is tested on the diagonally scaled M̃ = S M S, S = diag(|M_kk|^(-1/2)) (a congruence, so the
+        # same inertia): tolerances relative to max|M| had mixed channels of very different scales, refusing a
+        # diagonal control block diag(0.26, 1e14) as "not positive definite" (W2 = diag(0.1, 1e7))
+        d = np.sqrt(np.abs(np.diagonal(M)))
+        d[d == 0] = 1.0
+        Ms = M / np.outer(d, d)
+        Muu, Mur, Mrr = Ms[l:, l:], Ms[l:, :l], Ms[:l, :l]
         eu = np.linalg.eigvalsh(0.5 * (Muu + Muu.T))
-        if eu.min() <= 1e-12 * scale:
+        if eu.min() <= _STAGE_TOL * np.abs(Muu).max():
             raise StageSaddleError(
                 gamma, f"stage {t}: control block of B'XB + D'D - R_gamma is not positive definite "
-                f"(min eigenvalue {eu.min():.3g}); gamma = {gamma:.6g} is too small, increase it")
-        S = Mrr - Mur.T @ np.linalg.solve(Muu, Mur)
+                f"(min eigenvalue {eu.min() * d[l:].min() ** 2:.3g}); gamma = {gamma:.6g} is too small, increase it")
+        T2 = Mur.T @ np.linalg.solve(Muu, Mur)
+        S = Mrr - T2
         es = np.linalg.eigvalsh(0.5 * (S + S.T))
-        tol = 1e-12 * scale
+        # the tolerance is relative to the terms S is formed from (B_rᵀXB_r + D_rᵀD_r, γ² and T2)
+        Gr = np.diag(gamma**2 / d[:l] ** 2)
+        tol = _STAGE_TOL * max(np.abs(Mrr + Gr).max(), np.abs(Gr).max(), np.abs(T2).max())
         if es.max() >= -tol:
             # near gamma_min X grows like 1/(gamma - gamma_min) and the Schur complement shrinks: the recursion's
             # rounding then decides its sign (a level 1.6e-6 above the batch gamma_min was refused, exact
             # rational arithmetic accepting it), so the message names the exact batch route
             raise StageSaddleError(
-                gamma, f"stage {t}: no saddle point (Schur complement in r has eigenvalue {es.max():.3g} >= "
+                gamma, f"stage {t}: no saddle point (Schur complement in r, diagonally scaled, has eigenvalue {es.max():.3g} >= "
                 f"{-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the finite-horizon "
                 "gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused by this "
                 "recursion's rounding: synthesis.minimax_gamma_min on the batch map z = H w + Γ x decides exactly")

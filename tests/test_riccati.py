@@ -289,3 +289,20 @@ def test_refusal_just_above_the_batch_gamma_min_names_the_exact_route():
     with pytest.raises(StageSaddleError, match=r"rounding.*minimax_gamma_min"):
         hinf_riccati(gp, gamma=(1 + 1e-6) * gmin, horizon=i)
     hinf_riccati(gp, gamma=1.1 * gmin, horizon=i)
+
+
+@pytest.mark.parametrize("big", [1e3, 1e7])
+def test_stage_test_does_not_depend_on_channel_scales(big):
+    """The stage saddle test is made on the diagonally scaled stage matrix (a congruence: same inertia). Its
+    tolerance had been relative to max|M|, so a control weight diag(0.1, 1e7) refused the diagonal control block
+    diag(0.26, 1e14) as "not positive definite" at 1.1 γ_min, where the batch law exists and equals the recursion's."""
+    P = ct.ss([[0.5]], [[1.0, 1.0]], [[1.0]], [[0.5, 0.0]], 1.0)
+    gp = generalized_plant(P, 1.0, np.diag([0.1, big]))
+    i = 3
+    Gam, H = _batch(gp.A, gp.B, gp.C, gp.D, i)
+    Md, Mu = H[:, 0::3], np.hstack([H[:, 1::3], H[:, 2::3]])  # w_t = [r_t; u1_t; u2_t]
+    gamma = 1.1 * synthesis.minimax_gamma_min(Md, Mu)
+    law = hinf_riccati(gp, gamma=gamma, horizon=i)
+    x0 = np.ones(gp.A.shape[0])
+    u = synthesis.solve_minimax(Md, Mu, Gam, gamma).u_gain @ x0  # [u1 over the horizon; u2 over the horizon]
+    np.testing.assert_allclose(law.controls(x0), u.reshape(2, i).T.reshape(-1), rtol=1e-9, atol=1e-12 * np.abs(u).max())
