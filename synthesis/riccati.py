@@ -218,7 +218,8 @@ _STAGE_TOL = 1e-12
 
 
 def _check_symmetric(M: np.ndarray, name: str) -> None:
-    """Refuse a non-symmetric weight: the recursion's cross term ``CᵀQD`` and stage matrix ``DᵀQD + R`` assume ``Q = Qᵀ``.
+    """Refuse a non-symmetric weight: the recursion's cross term ``CᵀQD`` and stage matrix ``DᵀQD + R`` assume
+    ``Q = Qᵀ``.
 
     The cost ``yᵀQy`` sees only the symmetric part of ``Q``, but the recursion (4.21)–(4.22) uses ``Q`` itself, so a
     non-symmetric ``Q`` (with a feedthrough ``D``), ``R`` or ``terminal`` gave the gains of another cost, silently.
@@ -306,7 +307,7 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
     >>> hinf_riccati(gp, gamma=0.9 * gmin, horizon=i)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    synthesis.exceptions.StageSaddleError: stage 4: no saddle point ... is at or below the finite-horizon gamma_min, increase it; ...
+    synthesis.exceptions.StageSaddleError: stage 4: no saddle point ... at or below the finite-horizon gamma_min, ...
     """
     if isinstance(A, GeneralizedPlant):
         gp = A
@@ -349,8 +350,8 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
             # rounding then decides its sign (a level 1.6e-6 above the batch gamma_min was refused, exact
             # rational arithmetic accepting it), so the message names the exact batch route
             raise StageSaddleError(
-                gamma, f"stage {t}: no saddle point (Schur complement in r, diagonally scaled, has eigenvalue {es.max():.3g} >= "
-                f"{-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the finite-horizon "
+                gamma, f"stage {t}: no saddle point (Schur complement in r, diagonally scaled, has eigenvalue "
+                f"{es.max():.3g} >= {-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the finite-horizon "
                 "gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused by this "
                 "recursion's rounding: synthesis.minimax_gamma_min on the batch map z = H w + Γ x decides exactly")
 
