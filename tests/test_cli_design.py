@@ -14,7 +14,7 @@ import pytest
 
 import unfalsify as uf
 from experiments.cli import main
-from experiments.studies.design_cli import default_weights, design_record
+from experiments.studies.design_cli import default_weights, design_record, parse_tracking_floor
 from experiments.lab.plants import third_order
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop, collect_data
@@ -241,12 +241,13 @@ def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys):
     assert main([*args, "--tracking-floor", "0.2,inf", "--out", str(tmp_path / "floors")]) == 0
     floors = json.loads(capsys.readouterr().out)
     assert floors["tracking_floor"] == [0.2, None] and "fewer inputs" not in (floors["reason"] or "")
-    W1, W2, _ = default_weights(dt, 1, 2)
+    W1, W2, _ = default_weights(dt, 1, 2, untracked=(1,))  # the untracked output weighed by UNTRACKED_WEIGHT
     res, _ = design_record(u, y, dt, 8, W1, W2, tracking_floor=(0.2, np.inf))
     assert res.certificate.tracking_floor == (0.2, np.inf)
     assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
     md = (tmp_path / "floors" / "design" / "design.md").read_text()
-    assert not floors["certified"] or "at most (0.2, inf) per output" in md
+    assert floors["certified"] and "at most (0.2, inf) per output" in md
+    assert "W1 = 0.01 (static) on output 1 (not tracked)" in md
     for bad, words in (("0.1,x", "must be a number"), ("-1", "must be a number"), ("0.1,0.1,0.1", "3 floors for 2")):
         err = _bad(tmp_path, capsys, [*args, "--tracking-floor", bad, "--out", str(tmp_path)])
         assert words in err, err
@@ -373,3 +374,21 @@ def test_summaries_are_strict_json(tmp_path):
     data = json.loads(text, parse_constant=refuse)  # NaN / Infinity would be refused, as jq and JavaScript do
     assert (data["a"], data["b"], data["c"]) == ("nan", ["inf", 1.0], "-inf")
     assert np.isnan(summary["a"])  # the returned summary keeps its numbers
+
+
+def test_an_untracked_output_gets_a_small_static_weight():
+    """``--tracking-floor 0.1,inf``: W1 (default or ``--w1``) weighs output 1 by UNTRACKED_WEIGHT, not like output 0
+    (the same W1 on both had left every one-input two-output record of the hunt uncertified)."""
+    from experiments.studies.design_cli import UNTRACKED_WEIGHT, _weights, untracked_outputs
+
+    floor = parse_tracking_floor("0.1,inf")
+    assert untracked_outputs(floor) == (1,)
+    for extra in ({}, {"w1": "100,1,1,0.2", "w2": "0.05,3,0.3,1"}):
+        W1, W2, text = _weights(extra, 0.1, 1, 2, untracked_outputs(floor))
+        tracked = _weights(extra, 0.1, 1, 1)[0]
+        assert W1.noutputs == 2 and W2.noutputs == 1
+        assert float(np.asarray(W1.D)[1, 1]) == UNTRACKED_WEIGHT and np.asarray(W1.D)[0, 1] == 0.0
+        assert float(np.asarray(W1.D)[0, 0]) == float(np.asarray(tracked.D)[0, 0])  # output 0 as before
+        assert W1.nstates == tracked.nstates  # the untracked output's weight has no dynamics
+        assert "(not tracked)" in text
+    assert "not tracked" not in _weights({}, 0.1, 1, 2, untracked_outputs(parse_tracking_floor("0.1")))[2]

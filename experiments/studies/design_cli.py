@@ -28,7 +28,8 @@ weights W11, W21 relative to the Nyquist frequency ``ω_N = π/dt`` (at the serv
 
 ``--weights W1FILE W2FILE`` reads two weights saved with :func:`synthesis.save_controller` (one
 system per file, ``.npz`` or ``.mat``); ``--w1 DC,FREQ,MAG,HF`` (FREQ in rad/s) builds one with
-:func:`synthesis.makeweight`.
+:func:`synthesis.makeweight`.  An output ``--tracking-floor`` leaves untracked (``inf``) gets the static
+weight :data:`UNTRACKED_WEIGHT` in W1 (defaults and ``--w1``; weights from files are used as given).
 """
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ from synthesis.validation import DataError
 from ..lab.records import RecordError, load_record, record_columns
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
-           "operating_point", "INPUT_ERRORS"]
+           "untracked_outputs", "operating_point", "INPUT_ERRORS", "UNTRACKED_WEIGHT"]
 
 #: errors that mean bad input, not a bug: ``cli.main`` turns them into a usage message and exit status 2
 INPUT_ERRORS = (DataError, FileNotFoundError)
@@ -58,7 +59,7 @@ W1_DEFAULT = (100.0, 1.0 / 30.0, 1.0, 0.2)
 W2_DEFAULT = (0.05, 1.0 / 10.0, 0.3, 1.0)
 
 
-def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
+def default_weights(dt: float, inputs: int = 1, outputs: int = 1, untracked=()) -> tuple:
     """The default W1, W2 at sample time ``dt`` (module docstring) and a sentence stating them.
 
     Parameters
@@ -68,6 +69,9 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     inputs, outputs : int
         The record's channels: W1 is ``outputs × outputs`` and W2 ``inputs × inputs``, the same
         weight on every channel (:func:`synthesis.diagonal_weight`).
+    untracked : sequence of int
+        Outputs not tracked (``--tracking-floor`` ``inf``): W1 weighs them by the static
+        :data:`UNTRACKED_WEIGHT` instead, so the design does not chase them.
 
     Returns
     -------
@@ -84,6 +88,9 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     >>> W1, W2, _ = default_weights(1.0, inputs=2, outputs=3)
     >>> W1.ninputs, W2.ninputs
     (3, 2)
+    >>> W1, _, text = default_weights(1.0, inputs=1, outputs=2, untracked=[1])
+    >>> W1.nstates, float(W1.D[1, 1]), text.endswith("output 1 (not tracked)")
+    (1, 0.01, True)
     """
     from synthesis import makeweight
 
@@ -92,15 +99,45 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     for name, (dc, frac, mag, hf) in (("W1", W1_DEFAULT), ("W2", W2_DEFAULT)):
         parts.append(makeweight(dc, (frac * wn, mag), hf, dt))
         text.append(f"{name} = makeweight({dc:g}, ({frac * wn:.4g} rad/s = ω_N/{1 / frac:g}, {mag:g}), {hf:g}, dt)")
-    W1, W2 = _diagonal(parts[0], outputs), _diagonal(parts[1], inputs)
+    W1, W2 = _diagonal(parts[0], outputs, untracked), _diagonal(parts[1], inputs)
     note = "" if inputs == outputs == 1 else ", the same on every channel (diagonal)"
-    return W1, W2, "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s){note}"
+    return W1, W2, "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s){note}" + _untracked_text(untracked)
 
 
-def _diagonal(W, channels: int):
+#: W1's static weight on an output that is not tracked (``--tracking-floor`` ``inf``), as in the MIMO pipeline
+#: study: with fewer inputs than outputs the loop cannot track every output, and the same W1 on all of them made
+#: the design trade the tracked output's error against the others' (a step error 0.14–0.94 on output 0 of three
+#: one-input two-output records, none certified; all three certified with this weight)
+UNTRACKED_WEIGHT = 0.01
+
+
+def _diagonal(W, channels: int, untracked=()):
+    """``W`` on every channel, or :data:`UNTRACKED_WEIGHT` on the channels in ``untracked``."""
     from synthesis import diagonal_weight
 
-    return W if channels == 1 else diagonal_weight(W, channels=channels)
+    if channels == 1 and not untracked:
+        return W
+    return diagonal_weight(*(UNTRACKED_WEIGHT if k in untracked else W for k in range(channels)))
+
+
+def _untracked_text(untracked) -> str:
+    if not untracked:
+        return ""
+    outs = ", ".join(str(k) for k in untracked)
+    return f"; W1 = {UNTRACKED_WEIGHT:g} (static) on output{'s' if len(untracked) > 1 else ''} {outs} (not tracked)"
+
+
+def untracked_outputs(floor) -> tuple:
+    """The outputs ``--tracking-floor`` leaves untracked (floor ``inf``): indices, empty for one floor.
+
+    Examples
+    --------
+    >>> untracked_outputs((0.1, float("inf"), float("inf"))), untracked_outputs(0.1), untracked_outputs(None)
+    ((1, 2), (), ())
+    """
+    if floor is None or np.ndim(floor) == 0:
+        return ()
+    return tuple(k for k, f in enumerate(floor) if math.isinf(f))
 
 
 def _weight_from_spec(spec: str, dt: float, what: str):
@@ -114,8 +151,9 @@ def _weight_from_spec(spec: str, dt: float, what: str):
     return makeweight(dc, (freq, mag), hf, dt)
 
 
-def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
-    """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults."""
+def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1, untracked=()) -> tuple:
+    """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults (``untracked``: outputs
+    W1 weighs by :data:`UNTRACKED_WEIGHT`; weights read from files are the user's, as given)."""
     files, w1, w2 = extra.get("weights"), extra.get("w1"), extra.get("w2")
     if files and (w1 or w2):
         raise DataError("pass either --weights W1FILE W2FILE or --w1/--w2, not both")
@@ -131,10 +169,11 @@ def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1) -> tuple
     if bool(w1) != bool(w2):
         raise DataError("pass both --w1 and --w2 (or neither, for the defaults)")
     if w1:
-        return (_diagonal(_weight_from_spec(w1, dt, "w1"), outputs), _diagonal(_weight_from_spec(w2, dt, "w2"), inputs),
+        return (_diagonal(_weight_from_spec(w1, dt, "w1"), outputs, untracked),
+                _diagonal(_weight_from_spec(w2, dt, "w2"), inputs),
                 f"W1 = makeweight({w1}) and W2 = makeweight({w2}) (DC, FREQ rad/s, MAG, HF; given"
-                + ("" if inputs == outputs == 1 else "; the same on every channel") + ")")
-    return default_weights(dt, inputs, outputs)
+                + ("" if inputs == outputs == 1 else "; the same on every channel") + ")" + _untracked_text(untracked))
+    return default_weights(dt, inputs, outputs, untracked)
 
 
 def parse_window(text: str | None):
@@ -619,13 +658,13 @@ def run(opts) -> dict:
     u, y, t, variable = _select(path, ex)
     rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
     rec, point, point_text = operating_point(rec, ex.get("detrend") or "none")
-    W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l)
-    window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
-    horizon = ex["horizon"]
     floor = parse_tracking_floor(ex.get("tracking_floor"))
     if isinstance(floor, tuple) and len(floor) != rec.l:
         raise DataError(f"--tracking-floor gives {len(floor)} floors for {rec.l} output channels: give one number, or "
                         f"one per output")
+    W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l, untracked_outputs(floor))
+    window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
+    horizon = ex["horizon"]
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
                                 untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")),
                                 tracking_floor=floor)
@@ -672,7 +711,8 @@ OPTIONS = (
     (("--tracking-floor",), dict(dest="tracking_floor", default=None, metavar="F[,F...]",
                                  help="largest mean step error over the step's last quarter, one number or one per "
                                       "output (inf: that output not tracked, e.g. 0.1,inf for a plant with fewer "
-                                      "inputs than outputs) (default: 0.1)")),
+                                      "inputs than outputs; W1 (--w1 or the default, not --weights) then weighs it "
+                                      "by 0.01) (default: 0.1)")),
     (("--feedthrough",), dict(dest="feedthrough", action="store_true",
                               help="the plant has a direct feedthrough (y_k responds to u_k): the feedback test leaves "
                                    "lag 0 out, where a feedthrough looks like feedback (default: strictly proper)")),
