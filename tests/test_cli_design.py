@@ -392,3 +392,20 @@ def test_an_untracked_output_gets_a_small_static_weight():
         assert W1.nstates == tracked.nstates  # the untracked output's weight has no dynamics
         assert "(not tracked)" in text
     assert "not tracked" not in _weights({}, 0.1, 1, 2, untracked_outputs(parse_tracking_floor("0.1")))[2]
+
+
+def test_a_jittered_time_column_is_read_with_dt(tmp_path):
+    """The design command takes a column named time as the time column whatever --dt says, so the refusal's fix for
+    jittered stamps ("pass the sample time as dt= too") must work with the column still read."""
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    jittered = t + np.random.default_rng(0).uniform(-0.2, 0.2, t.size) * dt
+    path = _signals_csv(tmp_path / "jitter.csv", ["time", "u", "y"], [jittered, u, y])
+    with pytest.raises(RecordError, match="not uniformly sampled"):
+        load_record(path, **dict(zip(("u", "y", "t"), _select(path, {})[:3])))
+    u_sel, y_sel, t_sel, _ = _select(path, {"dt": dt})
+    assert t_sel == "time"
+    rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
+    assert rec.dt == dt and np.array_equal(rec.y[:, 0], y)
