@@ -236,3 +236,21 @@ def test_a_jittered_time_column_with_dt_is_accepted_and_a_gap_is_not(tmp_path, s
     ms = _write_csv(tmp_path / "ms.csv", ["time", "u1", "u2", "y"], [1000 * t, u, y])
     with pytest.raises(RecordError, match=r"mean step is 50\); if the column is in other units, pass dt=50 or omit"):
         load_record(ms, u="u1", y="y", t="time", dt=0.05)
+
+
+def test_a_transposed_csv_with_names_in_its_first_column_is_named(tmp_path, signals):
+    """``time,0,0.05,…`` / ``u1,…`` / ``y,…``: the signals in rows, names first.  It had been refused as "'time',
+    data row 0: 'u1' is not a number; fix the file or drop that column", a fix that does not apply."""
+    t, u, y = signals
+    rows = [["time", *t], ["u1", *u[:, 0]], ["y", *y[:, 0]]]
+    path = tmp_path / "rows.csv"
+    path.write_text("\n".join(",".join(str(c) for c in r) for r in rows) + "\n")
+    with pytest.raises(RecordError, match=r"first column holds names \(time, u1, y\).*save the transposed table"):
+        load_record(path, u="u1", y="y", t="time")
+    # a header with a text cell in a data row is still the cell's own error
+    bad = _write_csv(tmp_path / "r.csv", ["time", "u1", "u2", "y"], [t, u, y])
+    lines = bad.read_text().splitlines()
+    lines[2] = "x" + lines[2][lines[2].index(","):]
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordError, match="data row 1: 'x' is not a number"):
+        load_record(bad, u="u1", y="y", t="time")

@@ -143,6 +143,11 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
+    if header is not None and _labels_in_first_column(header, rows, numeric):
+        names = ", ".join([header[0]] + [r[0] for r in rows])
+        raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row numbers: the "
+                          "signals look stored in rows; a record has one row per sample and one column per signal: save "
+                          "the transposed table (names in the first row)")
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
     for r, row in enumerate(rows):
@@ -159,6 +164,13 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                 raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
                                   "fix the file or drop that column") from None
     return header, data
+
+
+def _labels_in_first_column(header, rows, numeric) -> bool:
+    """A table whose first cell of every row is a name and whose other cells are numbers: a record saved transposed
+    with its signals' names in the first column (read as it is, the second row's name fails as 'not a number')."""
+    return (len(header) > 2 and not numeric(header[0]) and all(numeric(c) for c in header[1:])
+            and all(r and not numeric(r[0]) and all(numeric(c) for c in r[1:]) for r in rows))
 
 
 #: A number written with a decimal comma (``-1,25``, ``3,0e-4``), as spreadsheets in many locales export it.
