@@ -409,3 +409,22 @@ def test_a_jittered_time_column_is_read_with_dt(tmp_path):
     assert t_sel == "time"
     rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
     assert rec.dt == dt and np.array_equal(rec.y[:, 0], y)
+
+
+@pytest.mark.slow
+def test_a_record_in_small_units_names_the_weights_that_certify(tmp_path, capsys):
+    """u in mV-like units (×1e3) and y in km-like units (×1e-3): the gain 1e-6 left the default W2 (0.05 at DC)
+    forbidding the effort the loop needs, and the refusal named W1 (integral action), which does not help.  The
+    report names the units and the --w1/--w2 of the default design in them; with those the record certifies."""
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "units.csv", ["t", "u", "y"], [t, 1e3 * u, 1e-3 * y])
+    args = ["design", str(path), "--horizon", "8", "--json"]
+    assert main([*args, "--out", str(tmp_path / "default")]) == 0
+    default = json.loads(capsys.readouterr().out)
+    assert not default["certified"] and "rms(y)/rms(u) is 1." in default["scale_note"]
+    options = default["scale_note"].split("pass W2 times ")[1].split(": ", 1)[1].rstrip(".").split()
+    assert options[0] == "--w1" and options[2] == "--w2"
+    assert main([*args, *options, "--out", str(tmp_path / "scaled")]) == 0
+    scaled = json.loads(capsys.readouterr().out)
+    assert scaled["certified"] and not scaled["scale_note"]  # weights given: nothing more to propose
+    assert scaled["delta"] == default["delta"]  # δ is the record's, whatever the weights

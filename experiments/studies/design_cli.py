@@ -46,7 +46,7 @@ from synthesis.validation import DataError
 from ..lab.records import RecordError, load_record, record_columns
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
-           "untracked_outputs", "operating_point", "INPUT_ERRORS", "UNTRACKED_WEIGHT"]
+           "untracked_outputs", "operating_point", "scale_note", "INPUT_ERRORS", "UNTRACKED_WEIGHT", "SCALE_NOTE"]
 
 #: errors that mean bad input, not a bug: ``cli.main`` turns them into a usage message and exit status 2
 INPUT_ERRORS = (DataError, FileNotFoundError)
@@ -341,6 +341,64 @@ def _vector(x) -> str:
     return f"{float(x[0]):.4g}" if len(x) == 1 else "[" + ", ".join(f"{float(v):.4g}" for v in x) + "]"
 
 
+#: a record whose gain rms(y)/rms(u) lies outside [1/SCALE_NOTE, SCALE_NOTE], or whose inputs' (outputs') rms differ
+#: by more than this factor, is named in the report: the default weights suit signals of comparable size
+SCALE_NOTE = 100.0
+
+
+def scale_note(rec, defaults: bool = True) -> str:
+    """The report's sentence on the record's units, or ``""``: the weights are the same on every channel and the
+    default W2 weighs the control effort in u's units, so they suit a gain ``rms(y)/rms(u)`` of order one.
+
+    Measured (the hunt of 2026-11-28, three first-order-dominated plants, 1500 samples, horizon 8): a record whose
+    gain the units made 1.6e-6 or 1.6e-4 was never certified with the default weights (the step did not track: "use a
+    weight W1 with more gain at low frequency", which does not help), nor one of gain 1.7e6 (unstable on P̂); with W2
+    times the gain, as this sentence proposes, all 15 records of gains 1.6e-6 … 1.7e6 were certified and held on the
+    true plant.
+
+    Parameters
+    ----------
+    rec : Record
+        The record as designed on (after ``--detrend``).
+    defaults : bool
+        The default weights are used (neither ``--weights`` nor ``--w1/--w2``): only then is the scaled ``--w1 --w2``
+        proposed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from experiments.lab.records import Record
+    >>> u = np.sign(np.sin(np.arange(200.0)))[:, None]
+    >>> note = scale_note(Record(u=1e3 * u, y=1e-3 * u, dt=0.1, source="x"))
+    >>> note.startswith("The record's gain rms(y)/rms(u) is 1e-06"), note.endswith("--w2 5e-08,3.14159,3e-07,1e-06.")
+    (True, True)
+    >>> scale_note(Record(u=u, y=2 * u, dt=0.1, source="x"))
+    ''
+    """
+    rms = [np.sqrt(np.mean(np.square(x), axis=0)) for x in (rec.u, rec.y)]
+    if not all(np.all(r > 0) for r in rms):
+        return ""  # a silent channel: the pipeline's own checks name it
+    parts = []
+    for what, r, names in (("input", rms[0], rec.u_columns), ("output", rms[1], rec.y_columns)):
+        if r.size > 1 and r.max() / r.min() > SCALE_NOTE:
+            parts.append(f"the {what}s' rms range from {r.min():.3g} ({names[int(np.argmin(r))]}) to {r.max():.3g} "
+                         f"({names[int(np.argmax(r))]})")
+    text = []
+    if parts:
+        text.append("; ".join(parts) + ": the weights are the same on every channel, so the design weighs the "
+                    "channels by their units; rescale them to comparable units (e.g. divide each by its rms) before "
+                    "the design, or give a weight per channel with --weights")
+    gain = float(np.exp(np.mean(np.log(rms[1])) - np.mean(np.log(rms[0]))))
+    if defaults and not 1.0 / SCALE_NOTE <= gain <= SCALE_NOTE:
+        wn = math.pi / rec.dt
+        (d1, f1, m1, h1), (d2, f2, m2, h2) = W1_DEFAULT, W2_DEFAULT
+        text.append(f"the record's gain rms(y)/rms(u) is {gain:.3g}: the default W2 ({d2:g} at DC) weighs the "
+                    "control effort in u's units and suits a gain of order one; for the default design in these units "
+                    f"pass W2 times {gain:.3g}: --w1 {d1:g},{f1 * wn:.6g},{m1:g},{h1:g} "
+                    f"--w2 {d2 * gain:.6g},{f2 * wn:.6g},{m2 * gain:.6g},{h2 * gain:.6g}")
+    return (". ".join(t[0].upper() + t[1:] for t in text) + ".") if text else ""
+
+
 def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn",
                   feedthrough=False, tracking_floor=None):
     """Run :func:`unfalsify.robust_design_from_data` in record mode, catching the refusal warning; ``untested``,
@@ -515,7 +573,7 @@ def _finals(value) -> str:
 
 
 def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg, weights_text, t_start,
-                  title="Design from data", name="design", intro="", operating=None) -> dict:
+                  title="Design from data", name="design", intro="", operating=None, scale="") -> dict:
     """Write the report, the controller files and the JSON summary of one design; return the summary."""
     from synthesis import save_controller
 
@@ -545,7 +603,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                 f"the certificate's premise.  Horizon i = {horizon}."
                 + (f"  {operating[1]}" if operating and operating[1] else ""))
     rep.figure(figs[0], "Record, the (7.5) window and the held-out part")
-    rep.section("Weights", weights_text + ".")
+    rep.section("Weights", weights_text + "." + (f"  {scale}" if scale else ""))
     rep.section("Model P̂ and its output error",
                 f"rms of y − P̂u (P̂ simulated from rest): {_fmt(numbers['oe_rms_fit'])} on the fitting part, "
                 f"{_fmt(numbers['oe_rms_held_out'])} on the held-out part (rms of y: {_fmt(numbers['y_rms'])}).")
@@ -606,6 +664,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                     "gamma": s.gamma, "certified": s.certified, "reason": s.reason} for s in res.search],
         "weights": weights_text, **numbers,
         **({"operating_point": operating[0], "operating_point_note": operating[1]} if operating else {}),
+        "scale_note": scale,
         "controller_npz": str(npz), "controller_mat": str(mat),
     }
     return finish_report(rep, summary, out, name, warn_log=warned, figures=figs, t_start=t_start,
@@ -668,8 +727,10 @@ def run(opts) -> dict:
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
                                 untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")),
                                 tracking_floor=floor)
+    defaults = not (ex.get("weights") or ex.get("w1") or ex.get("w2"))
     return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
-                         weights_text=weights_text, t_start=t_start, operating=(point, point_text))
+                         weights_text=weights_text, t_start=t_start, operating=(point, point_text),
+                         scale=scale_note(rec, defaults))
 
 
 def summary_lines(summary: dict) -> list[str]:
@@ -678,7 +739,7 @@ def summary_lines(summary: dict) -> list[str]:
     if summary["certified"] and summary.get("uncertainty") == "coprime":
         verdict = f"certified in coprime-factor form for ε = {float(summary['epsilon']):.4g}, not for δ"
     assumed = [f"assumed, not testable on these data: {a}" for a in summary.get("assumed", ())]
-    point = [summary["operating_point_note"]] if summary.get("operating_point_note") else []
+    point = [summary[k] for k in ("operating_point_note", "scale_note") if summary.get(k)]
     return [f"δ = {float(summary['delta']):.4g} ({summary['decided_by']}); {verdict}", *assumed, *point,
             f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
 
