@@ -468,6 +468,10 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
     """
     excited = est.excited & np.isfinite(est.radius)
     if not np.any(excited):
+        if np.any(est.excited):  # excited, but no finite radius: a 2 × 2 record of 47 samples (two Welch segments)
+            return float("nan"), (f"the record ({est.averages:.3g} Welch averages of {est.nperseg} samples) is too "
+                                  "short for a confidence region of the frequency response at any frequency it "
+                                  "excites; record longer")
         return float("nan"), "the record excites no frequency"
     gap = est.gain - est.radius
     excess = np.where(excited, gap, -np.inf)
