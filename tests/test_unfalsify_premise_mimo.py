@@ -311,3 +311,14 @@ def test_a_record_too_short_for_a_confidence_region_is_not_said_to_excite_nothin
     worst, why = _frf_inconsistency(est, 0.1)
     assert np.isnan(worst) and "too short for a confidence region" in why and "record longer" in why
     assert "excites no frequency" not in why
+
+
+def test_a_short_output_error_segment_names_a_fix_for_record_mode():
+    """Record mode (``window=``, the design command) gives the output-error test the record's last third; its refusal
+    had said only "pass a longer validation record", which the design command has no option for."""
+    rng = np.random.default_rng(1)
+    u = np.sign(rng.standard_normal(30))
+    y = np.convolve(u, [0.0, 0.5, 0.25])[:30]
+    model = control.ss([[0.0]], [[1.0]], [[0.5]], [[0.0]], 1.0)
+    with pytest.raises(DataError, match=r"needs at least 48.*a record three times that long\), or lower the horizon"):
+        uf.output_error_unfalsify(model, u, y, 8, held_out=True)

@@ -357,9 +357,12 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     N = u.shape[0]
     n = min(N - i, burn + int(opts.samples))
     if n < burn + 4 * i or n < 2 * burn:
+        # the pipeline's record mode (and the design command) hands this test the record's held-out last third:
+        # there "a longer validation record" is a longer record, the only form of the fix the command can apply
         raise DataError(f"the output-error segment has {N} samples; it needs at least "
                         f"{i + max(burn + 4 * i, 2 * burn)} (horizon {i}, burn-in {burn}, 4i rows): pass a longer "
-                        "validation record")
+                        "validation record (in record mode, where the record's last third is held out, a record three "
+                        "times that long), or lower the horizon")
     rho = spectral_radius(control.ssdata(model)[0])
     with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)
         growth = float(np.float64(rho) ** (N - i)) if rho > 0 else 0.0
