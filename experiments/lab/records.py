@@ -145,9 +145,9 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         raise RecordError(f"{str(path)!r} has a header but no data rows")
     if header is not None and _labels_in_first_column(header, rows, numeric):
         names = ", ".join([header[0]] + [r[0] for r in rows])
-        raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row numbers: the "
-                          "signals look stored in rows; a record has one row per sample and one column per signal: save "
-                          "the transposed table (names in the first row)")
+        raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row "
+                          "numbers: the signals look stored in rows; a record has one row per sample and one column "
+                          "per signal: save the transposed table (names in the first row)")
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
     for r, row in enumerate(rows):
