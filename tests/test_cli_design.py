@@ -428,3 +428,23 @@ def test_a_record_in_small_units_names_the_weights_that_certify(tmp_path, capsys
     scaled = json.loads(capsys.readouterr().out)
     assert scaled["certified"] and not scaled["scale_note"]  # weights given: nothing more to propose
     assert scaled["delta"] == default["delta"]  # δ is the record's, whatever the weights
+
+
+def test_a_time_array_in_an_npz_or_mat_file_is_read_like_a_time_column(tmp_path):
+    """``numpy.savez(f, u=u, y=y, t=t)``: a CSV's time column was found by its name, the same record's ``t`` array
+    was not, and the command refused it for want of a sample time."""
+    import scipy.io
+
+    from experiments.lab.records import load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    np.savez(tmp_path / "r.npz", u=u, y=y, t=t)
+    scipy.io.savemat(tmp_path / "r.mat", {"u": u[None, :], "y": y[None, :], "time": t[None, :]})
+    for path, name in ((tmp_path / "r.npz", "t"), (tmp_path / "r.mat", "time")):
+        u_sel, y_sel, t_sel, variable = _select(path, {})
+        assert (u_sel, y_sel, t_sel) == ("u", "y", name)
+        rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, variable=variable)
+        assert rec.dt == pytest.approx(dt) and np.array_equal(rec.u[:, 0], u)
+    np.savez(tmp_path / "two.npz", u=u, y=y, t=t, time=t)  # two candidates: none is guessed
+    assert _select(tmp_path / "two.npz", {})[2] is None

@@ -3,7 +3,8 @@
 The §7.4 workflow on a data file, with no simulator behind it:
 
 1. :func:`experiments.load_record` reads the input and output channels (CSV, NPZ or MAT; ``--u`` and ``--y``
-   take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``);
+   take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``, by default a
+   CSV column or an NPZ/MAT array named t or time);
    ``--detrend mean`` subtracts the record's means (an operating point: the models have no constant term), and
    without it the report names any channel whose mean is large (:func:`operating_point`);
 2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
@@ -253,6 +254,8 @@ def _select(path: Path, extra: dict):
         # checked against each other), and it is never taken for a signal
         hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
         t = names[hits[0]] if hits else None
+    elif t is None and width is None and variable is None:
+        t = _time_array(path, u, y)
     if u is None or y is None:
         if width is None:
             u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
@@ -277,6 +280,20 @@ def _select(path: Path, extra: dict):
             if y is None:
                 y = pick(free[0])
     return u, y, t, variable
+
+
+def _time_array(path: Path, u, y):
+    """An NPZ/MAT array named like a time column (t, time, …, as a CSV's), one-dimensional and not chosen as a signal;
+    None when there is none or more than one.  A CSV's time column was read and an NPZ's ``t`` was not: the same
+    record saved with ``numpy.savez(f, u=u, y=y, t=t)`` had been refused for want of a sample time."""
+    from synthesis.export import read_variables
+
+    chosen = {c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])}
+    arrays = read_variables(path, error=RecordError)
+    hits = [k for k, a in arrays.items() if k.strip().lower() in _TIME_NAMES and k not in chosen
+            and np.asarray(a).dtype.kind in "biuf" and 1 in np.shape(a) + (1,) and np.size(a) > 1
+            and max(np.shape(a)) == np.size(a)]
+    return hits[0] if len(hits) == 1 else None
 
 
 def _time_index(t, names, width: int, path: Path) -> int:
@@ -756,7 +773,7 @@ OPTIONS = (
     (("--u",), dict(dest="u", default=None, metavar="COL", help="input column (name or 0-based index)")),
     (("--y",), dict(dest="y", default=None, metavar="COL", help="output column (name or 0-based index)")),
     (("--t",), dict(dest="t", default=None, metavar="COL",
-                    help="time column (default: a CSV column named t or time, if --dt is not given)")),
+                    help="time column (default: a CSV column, or an NPZ/MAT array, named t or time)")),
     (("--variable",), dict(dest="variable", default=None, metavar="NAME",
                            help="NPZ/MAT: the matrix holding the channels (then columns are indices)")),
     (("--weights",), dict(dest="weights", nargs=2, default=None, metavar=("W1FILE", "W2FILE"),
