@@ -26,7 +26,10 @@ of two that balances ``A`` (:func:`scipy.linalg.matrix_balance`): ``Ã = T⁻¹A
 ``C̃ = CT`` and ``P̃ = TᵀPT`` are then *exact* in floating point, and ``M(P) = diag(T, I)⁻ᵀ M̃(P̃)
 diag(T, I)⁻¹`` is a congruence, so ``M̃(P̃) ≺ 0`` and ``P̃ ≻ 0`` prove the statement for the system as
 given.  Without it a badly scaled realisation (state units spanning orders of magnitude) gives a ``P``
-whose check is swamped by its own rounding allowance.
+whose check is swamped by its own rounding allowance.  When that fails, a common power of two ``c`` near the
+state gain ``f = max ‖(e^{jω}I − Ã)⁻¹B̃‖`` is tried as well (``T·c``: ``Ã`` unchanged, ``B̃/c``, ``C̃c``, exact): the
+Riccati perturbation is sized against ``1 + f²``, and a system in units that make ``f`` huge (a loop on a plant of
+gain 1e-6: ``f`` = 3e6) otherwise gets an ``ε`` far below the check's rounding.
 
 Checking ``P``.  The certificate holds the system's matrices, ``P`` (exactly symmetric) and the
 numbers of the check: ``λ_max`` of the computed ``M(P)`` must lie below ``−allowance`` and
@@ -180,6 +183,15 @@ class BoundedRealCertificate:
         return _holds(*_check(As, Bs, Cs, D, P * np.outer(t, t), self.gamma))
 
 
+def _common_scalings(f: float) -> tuple:
+    """The common state scalings tried: 1 (the balanced realisation as it is, first), then the power of two nearest
+    the state gain ``f`` when that is at least 4 away from 1 (module docstring, "Scaling")."""
+    if not (np.isfinite(f) and f > 0):
+        return (1.0,)
+    c = float(2.0 ** np.round(np.log2(f)))
+    return (1.0,) if 0.25 <= c <= 4.0 else (1.0, c)
+
+
 def _riccati_candidate(A, B, C, D, gamma: float, eps: float):
     """``P = γ² X`` from the perturbed bounded-real Riccati equation (module docstring), or None."""
     n, m = B.shape
@@ -267,30 +279,34 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     if known >= gamma:
         return BoundedRealCertificate(False, gamma, (
             f"not proven: the given attained gain lower = {known:.12g} is not below gamma"), **none)
-    t, (A, B, C), D = s.scaling, s.given, s.D
-    As, Bs, Cs = s.A, s.B, s.C  # = _scaled(A, B, C, t), exactly
+    (A, B, C), D = s.given, s.D
     f = _state_gain(s, w)
-    gap = (1.0 - (max(lower, known) / gamma) ** 2) / (1.0 + f * f)
     last = None
-    for frac in EPSILON_FRACTIONS:
-        eps = frac * gap
-        Pt = _riccati_candidate(As, Bs, Cs, D, gamma, eps)
-        if Pt is None:
-            continue
-        checks = _check(As, Bs, Cs, D, Pt, gamma)
-        P = Pt / np.outer(t, t)  # T⁻ᵀ P̃ T⁻¹, exact
-        last = (P, checks, eps)
-        if _holds(*checks):
-            lmi_max, lmi_allow, p_min, p_allow = checks
-            return BoundedRealCertificate(True, gamma, (
-                f"proven: P ≻ 0 (λ_min {p_min:.3g}) and M(P) ≺ 0 (λ_max {lmi_max:.3g}, rounding allowance "
-                f"{lmi_allow:.3g}; balanced coordinates) with Riccati perturbation ε = {eps:.3g}"),
-                P, lmi_max, lmi_allow, p_min, p_allow, eps, A, B, C, D, t)
+    for c in _common_scalings(f):
+        # T·c: the balancing scaling times a common power of two c, which leaves Ã as it is and brings the state
+        # gain f to about 1 -- the Riccati perturbation ε is sized against 1 + f², and a loop in units that make f
+        # 3e6 (a plant of gain 1e-6, a controller of gain 1e6) had left ε = 5e-20, below the check's rounding
+        t, As, Bs, Cs = s.scaling * c, s.A, s.B / c, s.C * c  # = _scaled(A, B, C, t), exactly (powers of two)
+        gap = (1.0 - (max(lower, known) / gamma) ** 2) / (1.0 + (f / c) ** 2)
+        for frac in EPSILON_FRACTIONS:
+            eps = frac * gap
+            Pt = _riccati_candidate(As, Bs, Cs, D, gamma, eps)
+            if Pt is None:
+                continue
+            checks = _check(As, Bs, Cs, D, Pt, gamma)
+            P = Pt / np.outer(t, t)  # T⁻ᵀ P̃ T⁻¹, exact
+            last = (P, checks, eps, t)
+            if _holds(*checks):
+                lmi_max, lmi_allow, p_min, p_allow = checks
+                return BoundedRealCertificate(True, gamma, (
+                    f"proven: P ≻ 0 (λ_min {p_min:.3g}) and M(P) ≺ 0 (λ_max {lmi_max:.3g}, rounding allowance "
+                    f"{lmi_allow:.3g}; balanced coordinates) with Riccati perturbation ε = {eps:.3g}"),
+                    P, lmi_max, lmi_allow, p_min, p_allow, eps, A, B, C, D, t)
     if last is None:
         return BoundedRealCertificate(False, gamma, (
             "not proven: the perturbed bounded-real Riccati equation has no stabilising solution for any ε tried "
             f"(largest gain found {lower:.12g}; gamma may be within rounding of the norm)"), **none)
-    P, (lmi_max, lmi_allow, p_min, p_allow), eps = last
+    P, (lmi_max, lmi_allow, p_min, p_allow), eps, t = last
     return BoundedRealCertificate(False, gamma, (
         f"not proven: the best candidate P has λ_max(M(P)) = {lmi_max:.3g} against the allowance {lmi_allow:.3g} "
         f"and λ_min(P) = {p_min:.3g} (ε = {eps:.3g}); gamma may be within rounding of the norm"),

@@ -351,3 +351,19 @@ def test_a_quantised_multisine_is_not_certified_on_its_window_leakage():
     out = adv.run_case(case, protocol="validation")
     assert out["verdict"] != "false_certificate", out["true"]
     assert not out["certified"]
+
+
+def test_the_judge_takes_a_plant_with_several_channels():
+    """The true-plant judge on a two-input plant whose ``K(I+PK)⁻¹`` peaks on the second input had raised IndexError
+    (the scalar worst-phase perturbation indexed the frequency grid by a flattened channel index), and a floor per
+    output raised TypeError: a study re-run on a multi-channel record could not judge its certificates."""
+    judge = adv.judge
+    P = control.ss(np.diag([0.8, 0.5]), [[0.1, 1.0], [0.05, 0.8]], [[0.5, 0.4]], [[0.0, 0.0]], 0.1)
+    K = control.ss([[1.0]], [[0.2, -0.2]], [[0.1], [1.0]], [[0.03, -0.03], [0.3, -0.3]], 0.1)  # PI on r − y
+    t = judge(P, K, 0.05, 0.1)
+    assert t["ok"] and t["stable"] and 0 < t["small_gain"] < 0.1 and t["tracks"]
+    tall = control.ss(np.diag([0.8, 0.5]), [[1.0], [0.4]], [[0.5, 0.4], [0.3, -0.2]], [[0.0], [0.0]], 0.1)
+    K2 = control.ss([[1.0]], [[0.2, 0.0, -0.2, 0.0]], [[1.0]], [[0.3, 0.0, -0.3, 0.0]], 0.1)  # tracks output 0
+    t2 = judge(tall, K2, 0.05, (0.1, float("inf")))
+    assert t2["ok"] and t2["tracks"] and t2["step_error"] == pytest.approx(1.0)  # output 1 not tracked, not judged
+    assert not judge(tall, K2, 0.05, (0.1, 0.1))["tracks"]

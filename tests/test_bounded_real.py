@@ -119,3 +119,18 @@ def test_bad_input_raises():
         bounded_real_certificate(G, -1.0)
     with pytest.raises(DataError):
         bounded_real_certificate(G, 2.0, lower="big")
+
+
+@pytest.mark.parametrize("power", [20, 30, 40])
+def test_a_realisation_with_a_large_input_matrix_is_proven(power):
+    """The same transfer function with ``B·2^k`` and ``C/2^k`` (a loop in units that make the state gain f huge: a
+    plant of gain 1e-6 gave f = 3e6): ε had been sized against ``1 + f²`` and fell below the check's rounding, so
+    levels 25 % and 1 % above the norm were not proven (found by the design command on a record in small units)."""
+    G = ct.ss(ct.tf([1.0, -0.3, 0.2], [1.0, -1.2, 0.8, -0.2], 1.0))
+    norm = hinf_norm(G).upper
+    c = 2.0 ** power
+    scaled = ct.ss(G.A, G.B * c, G.C / c, G.D, 1.0)
+    for level in (1.25, 1.01):
+        cert = bounded_real_certificate(scaled, level * norm)
+        assert cert and cert.verify() and cert.verify(scaled), (level, cert.reason)
+    assert not bounded_real_certificate(scaled, 0.99 * norm)

@@ -14,7 +14,7 @@ import pytest
 
 import unfalsify as uf
 from experiments.cli import main
-from experiments.studies.design_cli import default_weights, design_record
+from experiments.studies.design_cli import default_weights, design_record, parse_tracking_floor
 from experiments.lab.plants import third_order
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop, collect_data
@@ -241,12 +241,13 @@ def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys):
     assert main([*args, "--tracking-floor", "0.2,inf", "--out", str(tmp_path / "floors")]) == 0
     floors = json.loads(capsys.readouterr().out)
     assert floors["tracking_floor"] == [0.2, None] and "fewer inputs" not in (floors["reason"] or "")
-    W1, W2, _ = default_weights(dt, 1, 2)
+    W1, W2, _ = default_weights(dt, 1, 2, untracked=(1,))  # the untracked output weighed by UNTRACKED_WEIGHT
     res, _ = design_record(u, y, dt, 8, W1, W2, tracking_floor=(0.2, np.inf))
     assert res.certificate.tracking_floor == (0.2, np.inf)
     assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
     md = (tmp_path / "floors" / "design" / "design.md").read_text()
-    assert not floors["certified"] or "at most (0.2, inf) per output" in md
+    assert floors["certified"] and "at most (0.2, inf) per output" in md
+    assert "W1 = 0.01 (static) on output 1 (not tracked)" in md
     for bad, words in (("0.1,x", "must be a number"), ("-1", "must be a number"), ("0.1,0.1,0.1", "3 floors for 2")):
         err = _bad(tmp_path, capsys, [*args, "--tracking-floor", bad, "--out", str(tmp_path)])
         assert words in err, err
@@ -373,3 +374,77 @@ def test_summaries_are_strict_json(tmp_path):
     data = json.loads(text, parse_constant=refuse)  # NaN / Infinity would be refused, as jq and JavaScript do
     assert (data["a"], data["b"], data["c"]) == ("nan", ["inf", 1.0], "-inf")
     assert np.isnan(summary["a"])  # the returned summary keeps its numbers
+
+
+def test_an_untracked_output_gets_a_small_static_weight():
+    """``--tracking-floor 0.1,inf``: W1 (default or ``--w1``) weighs output 1 by UNTRACKED_WEIGHT, not like output 0
+    (the same W1 on both had left every one-input two-output record of the hunt uncertified)."""
+    from experiments.studies.design_cli import UNTRACKED_WEIGHT, _weights, untracked_outputs
+
+    floor = parse_tracking_floor("0.1,inf")
+    assert untracked_outputs(floor) == (1,)
+    for extra in ({}, {"w1": "100,1,1,0.2", "w2": "0.05,3,0.3,1"}):
+        W1, W2, text = _weights(extra, 0.1, 1, 2, untracked_outputs(floor))
+        tracked = _weights(extra, 0.1, 1, 1)[0]
+        assert W1.noutputs == 2 and W2.noutputs == 1
+        assert float(np.asarray(W1.D)[1, 1]) == UNTRACKED_WEIGHT and np.asarray(W1.D)[0, 1] == 0.0
+        assert float(np.asarray(W1.D)[0, 0]) == float(np.asarray(tracked.D)[0, 0])  # output 0 as before
+        assert W1.nstates == tracked.nstates  # the untracked output's weight has no dynamics
+        assert "(not tracked)" in text
+    assert "not tracked" not in _weights({}, 0.1, 1, 2, untracked_outputs(parse_tracking_floor("0.1")))[2]
+
+
+def test_a_jittered_time_column_is_read_with_dt(tmp_path):
+    """The design command takes a column named time as the time column whatever --dt says, so the refusal's fix for
+    jittered stamps ("pass the sample time as dt= too") must work with the column still read."""
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    jittered = t + np.random.default_rng(0).uniform(-0.2, 0.2, t.size) * dt
+    path = _signals_csv(tmp_path / "jitter.csv", ["time", "u", "y"], [jittered, u, y])
+    with pytest.raises(RecordError, match="not uniformly sampled"):
+        load_record(path, **dict(zip(("u", "y", "t"), _select(path, {})[:3])))
+    u_sel, y_sel, t_sel, _ = _select(path, {"dt": dt})
+    assert t_sel == "time"
+    rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
+    assert rec.dt == dt and np.array_equal(rec.y[:, 0], y)
+
+
+@pytest.mark.slow
+def test_a_record_in_small_units_names_the_weights_that_certify(tmp_path, capsys):
+    """u in mV-like units (×1e3) and y in km-like units (×1e-3): the gain 1e-6 left the default W2 (0.05 at DC)
+    forbidding the effort the loop needs, and the refusal named W1 (integral action), which does not help.  The
+    report names the units and the --w1/--w2 of the default design in them; with those the record certifies."""
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "units.csv", ["t", "u", "y"], [t, 1e3 * u, 1e-3 * y])
+    args = ["design", str(path), "--horizon", "8", "--json"]
+    assert main([*args, "--out", str(tmp_path / "default")]) == 0
+    default = json.loads(capsys.readouterr().out)
+    assert not default["certified"] and "rms(y)/rms(u) is 1." in default["scale_note"]
+    options = default["scale_note"].split("pass W2 times ")[1].split(": ", 1)[1].rstrip(".").split()
+    assert options[0] == "--w1" and options[2] == "--w2"
+    assert main([*args, *options, "--out", str(tmp_path / "scaled")]) == 0
+    scaled = json.loads(capsys.readouterr().out)
+    assert scaled["certified"] and not scaled["scale_note"]  # weights given: nothing more to propose
+    assert scaled["delta"] == default["delta"]  # δ is the record's, whatever the weights
+
+
+def test_a_time_array_in_an_npz_or_mat_file_is_read_like_a_time_column(tmp_path):
+    """``numpy.savez(f, u=u, y=y, t=t)``: a CSV's time column was found by its name, the same record's ``t`` array
+    was not, and the command refused it for want of a sample time."""
+    import scipy.io
+
+    from experiments.lab.records import load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    np.savez(tmp_path / "r.npz", u=u, y=y, t=t)
+    scipy.io.savemat(tmp_path / "r.mat", {"u": u[None, :], "y": y[None, :], "time": t[None, :]})
+    for path, name in ((tmp_path / "r.npz", "t"), (tmp_path / "r.mat", "time")):
+        u_sel, y_sel, t_sel, variable = _select(path, {})
+        assert (u_sel, y_sel, t_sel) == ("u", "y", name)
+        rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, variable=variable)
+        assert rec.dt == pytest.approx(dt) and np.array_equal(rec.u[:, 0], u)
+    np.savez(tmp_path / "two.npz", u=u, y=y, t=t, time=t)  # two candidates: none is guessed
+    assert _select(tmp_path / "two.npz", {})[2] is None

@@ -200,3 +200,57 @@ def test_a_record_built_by_hand_names_its_channels():
     assert rec.u_columns == ("u0", "u1") and rec.y_columns == ("y0",)  # the design report had raised IndexError
     named = Record(u=np.zeros((5, 1)), y=np.zeros((5, 1)), dt=1.0, source="x", u_columns=("volts",))
     assert named.u_columns == ("volts",) and named.y_columns == ("y0",)
+
+
+def test_unix_time_stamps_are_uniform_to_their_rounding(tmp_path, signals):
+    """Time stamps near 1.7e9 s (a Unix time) are stored to ~2.4e-7 s: their steps of 0.05 s differ by that much
+    (relative 5e-6 > rtol), and the record had been refused as not uniformly sampled."""
+    t, u, y = signals
+    stamps = 1.7e9 + t
+    assert np.ptp(np.diff(stamps)) > 1e-6 * 0.05  # the rounding alone exceeds the relative tolerance
+    path = _write_csv(tmp_path / "unix.csv", ["time", "u1", "u2", "y"], [stamps, u, y])
+    rec = load_record(path, u=["u1", "u2"], y="y", t="time")
+    assert rec.dt == 0.05  # rounded to the digits the stamps carry, not 0.05000000006
+    bad = stamps.copy()
+    bad[20:] += 0.01  # a real step change is still found
+    with pytest.raises(RecordError, match="not uniformly sampled: the step from row 19 to 20"):
+        load_record(_write_csv(tmp_path / "bad.csv", ["time", "u1", "u2", "y"], [bad, u, y]), u="u1", y="y", t="time")
+
+
+def test_a_jittered_time_column_with_dt_is_accepted_and_a_gap_is_not(tmp_path, signals):
+    """The fix the non-uniform refusal names (the sample time as dt= too) must work with the time column still read:
+    the design command picks a column named t/time whatever --dt says.  Stamps within half a sample of the dt grid
+    are accepted; a missing row, or a column in other units, is not, and the message names the dt that fits."""
+    t, u, y = signals
+    jittered = t + np.random.default_rng(3).uniform(-0.01, 0.01, t.size)  # ±0.2 samples
+    path = _write_csv(tmp_path / "jitter.csv", ["time", "u1", "u2", "y"], [jittered, u, y])
+    with pytest.raises(RecordError, match=r"not uniformly sampled.*pass the sample time as dt= too"):
+        load_record(path, u="u1", y="y", t="time")
+    rec = load_record(path, u="u1", y="y", t="time", dt=0.05)
+    assert rec.dt == 0.05 and np.array_equal(rec.t, jittered)
+    gap = np.r_[t[:20], t[21:] + 0.0][: t.size - 1]  # row 20 missing: the stamps skip a sample
+    gapped = _write_csv(tmp_path / "gap.csv", ["time", "u1", "u2", "y"], [gap, u[:-1], y[:-1]])
+    off_grid = r"disagrees with the time column 'time': row 20 .*\+1 samples off.*rows are missing"
+    with pytest.raises(RecordError, match=off_grid):
+        load_record(gapped, u="u1", y="y", t="time", dt=0.05)
+    ms = _write_csv(tmp_path / "ms.csv", ["time", "u1", "u2", "y"], [1000 * t, u, y])
+    with pytest.raises(RecordError, match=r"mean step is 50\); if the column is in other units, pass dt=50 or omit"):
+        load_record(ms, u="u1", y="y", t="time", dt=0.05)
+
+
+def test_a_transposed_csv_with_names_in_its_first_column_is_named(tmp_path, signals):
+    """``time,0,0.05,…`` / ``u1,…`` / ``y,…``: the signals in rows, names first.  It had been refused as "'time',
+    data row 0: 'u1' is not a number; fix the file or drop that column", a fix that does not apply."""
+    t, u, y = signals
+    rows = [["time", *t], ["u1", *u[:, 0]], ["y", *y[:, 0]]]
+    path = tmp_path / "rows.csv"
+    path.write_text("\n".join(",".join(str(c) for c in r) for r in rows) + "\n")
+    with pytest.raises(RecordError, match=r"first column holds names \(time, u1, y\).*save the transposed table"):
+        load_record(path, u="u1", y="y", t="time")
+    # a header with a text cell in a data row is still the cell's own error
+    bad = _write_csv(tmp_path / "r.csv", ["time", "u1", "u2", "y"], [t, u, y])
+    lines = bad.read_text().splitlines()
+    lines[2] = "x" + lines[2][lines[2].index(","):]
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordError, match="data row 1: 'x' is not a number"):
+        load_record(bad, u="u1", y="y", t="time")

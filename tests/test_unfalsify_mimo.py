@@ -407,3 +407,28 @@ def test_several_channels_with_sigma_far_inside_the_residual_are_certified():
         warnings.simplefilter("ignore", uf.SolverWarning)  # Clarabel's own point leaves the noise ball here
         ref = uf.subspace_unfalsify(u, y, i, 2e-8 * sigma)
     assert abs(ref.delta - res.delta) <= 1e-4 * res.delta
+
+
+def test_two_phases_of_one_prbs_are_named_as_one_input_delayed():
+    """``prbs(1500, seed=0)`` and ``prbs(1500, seed=17)`` are one maximum-length sequence 13 samples apart: a 2 × 2
+    record driven by them is not persistently exciting of order 2i = 16, and the refusal had said "excite more frequencies
+    (white PRBS)", which they are.  It names the delay and the horizon that would do (i ≤ 6)."""
+    import synthesis
+    from experiments.lab.signals import prbs
+    from unfalsify.robust import _persistence_reason
+
+    u = np.c_[prbs(1500, seed=0), prbs(1500, seed=17)]
+    y = np.c_[np.convolve(u[:, 0], [0.0, 0.5, 0.25])[:1500], np.convolve(u[:, 1], [0.0, 1.0])[:1500]]
+    y = y + 0.01 * np.random.default_rng(0).standard_normal(y.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pred = synthesis.fit_predictor(u, y, 8)
+    assert pred.persistently_exciting is False
+    reason = _persistence_reason(pred, u, 8, "predictor of P̂")
+    assert "input 1 is input 0 delayed by 13 samples" in reason and "i ≤ 6" in reason
+    assert "excite more frequencies" not in reason
+    independent = np.sign(np.random.default_rng(1).standard_normal((1500, 2)))
+    assert _persistence_reason(synthesis.fit_predictor(independent, y, 8), independent, 8, "predictor") == ""
+    # the reference predictor (horizon 2i = 12 for i = 6) sees the same delay: the horizon proposed is the design's
+    ref = _persistence_reason(synthesis.fit_predictor(u, y, 12), u, 12, "reference predictor", design=6)
+    assert "delayed by 13 samples" in ref and "i ≤ 3" in ref

@@ -297,3 +297,28 @@ def test_check_excitation_mimo_path_on_siso_data_gives_the_siso_numbers():
         mimo = uf.check_excitation(P, K, frf3, low3)
         assert mimo.ok == siso.ok and mimo.worst == pytest.approx(siso.worst, rel=1e-12)
         assert mimo.frequency == siso.frequency
+
+
+def test_a_record_too_short_for_a_confidence_region_is_not_said_to_excite_nothing():
+    """A 2 × 2 record of 40 samples under white ±1 inputs excites every frequency, but two Welch segments leave no
+    finite confidence radius: the premise test had said "the record excites no frequency" (the held-out third of a
+    150-sample record given to the design command)."""
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal((40, 2)))
+    y = u @ np.array([[1.0, 0.5], [0.2, 1.0]]) + 0.05 * rng.standard_normal((40, 2))
+    est = uf.frequency_response_estimate(u, y, 0.1)
+    assert est.excited.any() and not np.isfinite(est.radius).any()
+    worst, why = _frf_inconsistency(est, 0.1)
+    assert np.isnan(worst) and "too short for a confidence region" in why and "record longer" in why
+    assert "excites no frequency" not in why
+
+
+def test_a_short_output_error_segment_names_a_fix_for_record_mode():
+    """Record mode (``window=``, the design command) gives the output-error test the record's last third; its refusal
+    had said only "pass a longer validation record", which the design command has no option for."""
+    rng = np.random.default_rng(1)
+    u = np.sign(rng.standard_normal(30))
+    y = np.convolve(u, [0.0, 0.5, 0.25])[:30]
+    model = control.ss([[0.0]], [[1.0]], [[0.5]], [[0.0]], 1.0)
+    with pytest.raises(DataError, match=r"needs at least 48.*a record three times that long\), or lower the horizon"):
+        uf.output_error_unfalsify(model, u, y, 8, held_out=True)

@@ -357,9 +357,12 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     N = u.shape[0]
     n = min(N - i, burn + int(opts.samples))
     if n < burn + 4 * i or n < 2 * burn:
+        # the pipeline's record mode (and the design command) hands this test the record's held-out last third:
+        # there "a longer validation record" is a longer record, the only form of the fix the command can apply
         raise DataError(f"the output-error segment has {N} samples; it needs at least "
                         f"{i + max(burn + 4 * i, 2 * burn)} (horizon {i}, burn-in {burn}, 4i rows): pass a longer "
-                        "validation record")
+                        "validation record (in record mode, where the record's last third is held out, a record three "
+                        "times that long), or lower the horizon")
     rho = spectral_radius(control.ssdata(model)[0])
     with np.errstate(over="ignore"):  # an unstable model's growth is inf (a float power would raise OverflowError)
         growth = float(np.float64(rho) ** (N - i)) if rho > 0 else 0.0
@@ -468,6 +471,10 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
     """
     excited = est.excited & np.isfinite(est.radius)
     if not np.any(excited):
+        if np.any(est.excited):  # excited, but no finite radius: a 2 × 2 record of 47 samples (two Welch segments)
+            return float("nan"), (f"the record ({est.averages:.3g} Welch averages of {est.nperseg} samples) is too "
+                                  "short for a confidence region of the frequency response at any frequency it "
+                                  "excites; record longer")
         return float("nan"), "the record excites no frequency"
     gap = est.gain - est.radius
     excess = np.where(excited, gap, -np.inf)

@@ -328,17 +328,22 @@ def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_
     return "; ".join(reasons)
 
 
-def _persistence_reason(pred, u, i: int, what: str) -> str:
+def _persistence_reason(pred, u, i: int, what: str, design: int | None = None) -> str:
     """Why the predictor's data are not persistently exciting (``''`` when they are).
 
     A predictor that records its ranks (:func:`synthesis.fit_predictor`) is judged by them; one that
     does not (the (L_w, L_u) found by (7.5)) by the numerical rank of the window's ``[U_p; U_f]``.
+    ``design``: the design's horizon when ``pred`` is at another one (the reference predictor, at 2i): a horizon
+    the reason proposes is the design's.
     """
+    ratio = i / design if design else 1.0
     if getattr(pred, "input_rank", None) is not None:
         if pred.persistently_exciting is False:
             full = 2 * i * int(getattr(pred, "m", 1))
             return (f"the {what} was fitted on an input that is not persistently exciting of order 2i = {2 * i} "
-                    f"(rank {pred.input_rank} of {full}): excite more frequencies (white PRBS) or lower the horizon")
+                    f"(rank {pred.input_rank} of {full}): "
+                    + (_delayed_copy(u, i, ratio) or "excite more frequencies (white PRBS"
+                       + (", independent per input channel" if full > 2 * i else "") + ") or lower the horizon"))
         if not pred.full_rank:
             return (f"the {what}'s regressor is rank deficient (rank {pred.rank} of {pred.n_regressors}; a "
                     "PersistenceWarning): use a longer or richer record")
@@ -351,7 +356,32 @@ def _persistence_reason(pred, u, i: int, what: str) -> str:
     rank = int(np.sum(s > max(U.shape) * np.finfo(float).eps * 1e3 * s[0])) if s.size and s[0] > 0 else 0
     if rank < 2 * i * m:
         return (f"the window's input is not persistently exciting of order 2i = {2 * i} (rank {rank} of {2 * i * m}): "
-                "excite more frequencies (white PRBS, independent per input channel) or lower the horizon")
+                + (_delayed_copy(u2, i, ratio)
+                   or "excite more frequencies (white PRBS, independent per input channel) or lower the horizon"))
+    return ""
+
+
+def _delayed_copy(u, i: int, ratio: float = 1.0) -> str:
+    """The fix when one input channel is another delayed by fewer than 2i samples (``''`` when none is); ``ratio``:
+    this horizon over the design's (2 for the reference predictor), so that the horizon proposed is the design's.
+
+    Two phases of one maximum-length PRBS are the same sequence shifted: measured, ``prbs(1500, seed=0)`` and
+    ``prbs(1500, seed=17)`` are one sequence 13 samples apart, and a 2 × 2 record driven by them was refused as not
+    persistently exciting with the fix "excite more frequencies (white PRBS)", which they already are.
+    """
+    u = np.asarray(u, float).reshape(np.shape(u)[0], -1)
+    n, m = u.shape
+    for a in range(m):
+        for b in range(m):
+            for lag in range(0 if a < b else 1, min(2 * i, n - 1)):
+                x, z = u[lag:, a], u[:n - lag, b]  # input a at k against input b at k − lag
+                scale = float(np.linalg.norm(x) * np.linalg.norm(z))
+                if a != b and scale > 0 and abs(float(x @ z)) >= (1.0 - 1e-9) * scale:
+                    what = (f"input {a} is input {b}" if lag == 0 else
+                            f"input {a} is input {b} delayed by {lag} sample{'s' if lag > 1 else ''} (two phases of "
+                            "one PRBS are one sequence shifted)")
+                    return (f"{what} up to a factor: drive the inputs with independent sequences"
+                            + (f", or lower the horizon to i ≤ {int(lag // (2 * ratio))}" if lag >= 2 * ratio else ""))
     return ""
 
 
@@ -1037,7 +1067,7 @@ def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, d
     try:
         ref_pred = space.predictor_at(ref_h)
         return (predictor_model(ref_pred, dt), "",
-                _persistence_reason(ref_pred, space.u, ref_h, f"reference predictor (horizon {ref_h})"))
+                _persistence_reason(ref_pred, space.u, ref_h, f"reference predictor (horizon {ref_h})", design=i))
     except (ValueError, Warning) as exc:  # no predictor at that horizon (DataError), too little data
         return None, (f"no reference model at horizon {ref_h} ({exc}); the model's own error cannot be checked: "
                       "pass predictor_for=lambda h: fit_predictor(u_long, y_long, h) (a longer record)"), ""

@@ -143,6 +143,11 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
+    if header is not None and _labels_in_first_column(header, rows, numeric):
+        names = ", ".join([header[0]] + [r[0] for r in rows])
+        raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row "
+                          "numbers: the signals look stored in rows; a record has one row per sample and one column "
+                          "per signal: save the transposed table (names in the first row)")
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
     for r, row in enumerate(rows):
@@ -159,6 +164,13 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                 raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
                                   "fix the file or drop that column") from None
     return header, data
+
+
+def _labels_in_first_column(header, rows, numeric) -> bool:
+    """A table whose first cell of every row is a name and whose other cells are numbers: a record saved transposed
+    with its signals' names in the first column (read as it is, the second row's name fails as 'not a number')."""
+    return (len(header) > 2 and not numeric(header[0]) and all(numeric(c) for c in header[1:])
+            and all(r and not numeric(r[0]) and all(numeric(c) for c in r[1:]) for r in rows))
 
 
 #: A number written with a decimal comma (``-1,25``, ``3,0e-4``), as spreadsheets in many locales export it.
@@ -264,10 +276,12 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         names is stacked column by column).  With ``variable``: column indices of that matrix.
     t : str or int, optional
         The time column (selected like ``u``).  The sample time is then its mean step (rounded to
-        12 significant digits), and every step must equal it to the relative tolerance ``rtol``.
+        12 significant digits, fewer for stamps whose float rounding is coarser, e.g. a Unix time), and every
+        step must equal it to the relative tolerance ``rtol`` (plus the stamps' rounding).
     dt : float, optional
         The sample time, when the file has no time column (e.g. ``dt=1`` for a record in samples).
-        Given together with ``t``, the two must agree.
+        Given together with ``t``, the two must agree: every stamp within half a sample of the grid
+        ``t[0] + k·dt`` (a jittered clock is accepted, a missing row or a column in other units is not).
     variable : str, optional
         NPZ/MAT: the name of one matrix (samples along the rows) that holds all channels; ``u``,
         ``y``, ``t`` are then its column indices.
@@ -292,7 +306,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         a missing column, key or variable (the message lists what there is); a column name the
         header holds twice; one column selected for two signals (e.g. as ``u`` and ``y``); NaN,
         empty or infinite values (which column, first row); channels of different lengths; a
-        non-uniform or decreasing time column; ``t`` and ``dt`` that disagree; no sample time at
+        non-uniform (without ``dt``) or decreasing time column; ``t`` and ``dt`` that disagree; no sample time at
         all; a matrix with time along axis 1.
 
     Examples
@@ -479,17 +493,40 @@ def _sample_time(T, dt, rtol: float, path: Path, t_name) -> float:
     if not step > 0:
         raise RecordError(f"{str(path)!r}: time column {t_name!r} does not increase; sort the rows by time or "
                           "pass the right column as t=")
+    # the stamps' own rounding: time stamps far from 0 (a Unix time, 1.7e9 s) are stored to ~2.4e-7 s, and their
+    # steps differ by that much however uniform the clock was
+    resolution = 4.0 * float(np.spacing(np.max(np.abs(T[[0, -1]]))))
+    if dt is not None:
+        return _stamps_on_grid(T, dt, resolution, path, t_name)
     worst = int(np.argmax(np.abs(steps - step)))
-    if abs(steps[worst] - step) > rtol * step:
+    if abs(steps[worst] - step) > rtol * step + resolution:
         raise RecordError(
             f"{str(path)!r}: time column {t_name!r} is not uniformly sampled: the step from row {worst} to "
             f"{worst + 1} is {steps[worst]:.6g} against {step:.6g} (relative tolerance {rtol:g}); resample the "
-            "record onto a uniform grid (e.g. numpy.interp) or, if the time stamps are only jittered, pass "
-            "dt= and drop t=, or loosen rtol=")
-    # the mean step over the record, to 12 significant digits: time stamps written in decimal
-    # (0.0, 0.1, 0.2, 0.3) give 0.1, not 0.09999999999999999
-    step = float(f"{(T[-1] - T[0]) / (T.shape[0] - 1):.12g}")
-    if dt is not None and not np.isclose(dt, step, rtol=max(rtol, 1e-9), atol=0):
-        raise RecordError(f"{str(path)!r}: dt={dt:g} disagrees with the time column's step {step:.6g}; pass one "
-                          "of t= or dt=")
-    return dt if dt is not None else step
+            "record onto a uniform grid (e.g. numpy.interp) or, if the time stamps are only jittered, pass the "
+            "sample time as dt= too (stamps within half a sample of its grid are then accepted), or loosen rtol=")
+    # the mean step over the record, to 12 significant digits (fewer where the stamps' rounding leaves fewer): time
+    # stamps written in decimal (0.0, 0.1, 0.2, 0.3) give 0.1, not 0.09999999999999999
+    mean = (T[-1] - T[0]) / (T.shape[0] - 1)
+    digits = 12 if resolution <= 0 else int(np.clip(np.floor(-np.log10(resolution / (T.shape[0] - 1) / mean)), 1, 12))
+    return float(f"{mean:.{digits}g}")
+
+
+def _stamps_on_grid(T, dt: float, resolution: float, path: Path, t_name) -> float:
+    """``dt`` given with a time column: each stamp must lie within half a sample of ``T[0] + k·dt``.
+
+    A logger's jitter (any size below half a sample) leaves every row the sample it claims to be; a missing or
+    repeated row, a time column in other units (ms against s) or a wrong ``dt`` put some row a whole sample or more
+    off the grid.
+    """
+    off = T - T[0] - dt * np.arange(T.shape[0])
+    far = np.abs(off) >= 0.5 * dt + resolution
+    if not far.any():
+        return dt
+    first = int(np.argmax(far))  # the first row off the grid: where a row is missing, or the units part
+    step = float(f"{(T[-1] - T[0]) / (T.shape[0] - 1):.6g}")
+    raise RecordError(
+        f"{str(path)!r}: dt={dt:g} disagrees with the time column {t_name!r}: row {first} is stamped "
+        f"{T[first] - T[0]:.6g} after row 0, {off[first] / dt:+.3g} samples off the grid of dt (the column's mean "
+        f"step is {step:g}); if the column is in other units, pass dt={step:g} or omit dt= to take the sample time "
+        "from it; if rows are missing or repeated there, resample the record onto a uniform grid (e.g. numpy.interp)")

@@ -3,7 +3,8 @@
 The §7.4 workflow on a data file, with no simulator behind it:
 
 1. :func:`experiments.load_record` reads the input and output channels (CSV, NPZ or MAT; ``--u`` and ``--y``
-   take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``);
+   take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``, by default a
+   CSV column or an NPZ/MAT array named t or time);
    ``--detrend mean`` subtracts the record's means (an operating point: the models have no constant term), and
    without it the report names any channel whose mean is large (:func:`operating_point`);
 2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
@@ -28,7 +29,8 @@ weights W11, W21 relative to the Nyquist frequency ``ω_N = π/dt`` (at the serv
 
 ``--weights W1FILE W2FILE`` reads two weights saved with :func:`synthesis.save_controller` (one
 system per file, ``.npz`` or ``.mat``); ``--w1 DC,FREQ,MAG,HF`` (FREQ in rad/s) builds one with
-:func:`synthesis.makeweight`.
+:func:`synthesis.makeweight`.  An output ``--tracking-floor`` leaves untracked (``inf``) gets the static
+weight :data:`UNTRACKED_WEIGHT` in W1 (defaults and ``--w1``; weights from files are used as given).
 """
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ from synthesis.validation import DataError
 from ..lab.records import RecordError, load_record, record_columns
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
-           "operating_point", "INPUT_ERRORS"]
+           "untracked_outputs", "operating_point", "scale_note", "INPUT_ERRORS", "UNTRACKED_WEIGHT", "SCALE_NOTE"]
 
 #: errors that mean bad input, not a bug: ``cli.main`` turns them into a usage message and exit status 2
 INPUT_ERRORS = (DataError, FileNotFoundError)
@@ -58,7 +60,7 @@ W1_DEFAULT = (100.0, 1.0 / 30.0, 1.0, 0.2)
 W2_DEFAULT = (0.05, 1.0 / 10.0, 0.3, 1.0)
 
 
-def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
+def default_weights(dt: float, inputs: int = 1, outputs: int = 1, untracked=()) -> tuple:
     """The default W1, W2 at sample time ``dt`` (module docstring) and a sentence stating them.
 
     Parameters
@@ -68,6 +70,9 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     inputs, outputs : int
         The record's channels: W1 is ``outputs × outputs`` and W2 ``inputs × inputs``, the same
         weight on every channel (:func:`synthesis.diagonal_weight`).
+    untracked : sequence of int
+        Outputs not tracked (``--tracking-floor`` ``inf``): W1 weighs them by the static
+        :data:`UNTRACKED_WEIGHT` instead, so the design does not chase them.
 
     Returns
     -------
@@ -84,6 +89,9 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     >>> W1, W2, _ = default_weights(1.0, inputs=2, outputs=3)
     >>> W1.ninputs, W2.ninputs
     (3, 2)
+    >>> W1, _, text = default_weights(1.0, inputs=1, outputs=2, untracked=[1])
+    >>> W1.nstates, float(W1.D[1, 1]), text.endswith("output 1 (not tracked)")
+    (1, 0.01, True)
     """
     from synthesis import makeweight
 
@@ -92,15 +100,45 @@ def default_weights(dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
     for name, (dc, frac, mag, hf) in (("W1", W1_DEFAULT), ("W2", W2_DEFAULT)):
         parts.append(makeweight(dc, (frac * wn, mag), hf, dt))
         text.append(f"{name} = makeweight({dc:g}, ({frac * wn:.4g} rad/s = ω_N/{1 / frac:g}, {mag:g}), {hf:g}, dt)")
-    W1, W2 = _diagonal(parts[0], outputs), _diagonal(parts[1], inputs)
+    W1, W2 = _diagonal(parts[0], outputs, untracked), _diagonal(parts[1], inputs)
     note = "" if inputs == outputs == 1 else ", the same on every channel (diagonal)"
-    return W1, W2, "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s){note}"
+    return W1, W2, "; ".join(text) + f" (ω_N = π/dt = {wn:.4g} rad/s){note}" + _untracked_text(untracked)
 
 
-def _diagonal(W, channels: int):
+#: W1's static weight on an output that is not tracked (``--tracking-floor`` ``inf``), as in the MIMO pipeline
+#: study: with fewer inputs than outputs the loop cannot track every output, and the same W1 on all of them made
+#: the design trade the tracked output's error against the others' (a step error 0.14–0.94 on output 0 of three
+#: one-input two-output records, none certified; all three certified with this weight)
+UNTRACKED_WEIGHT = 0.01
+
+
+def _diagonal(W, channels: int, untracked=()):
+    """``W`` on every channel, or :data:`UNTRACKED_WEIGHT` on the channels in ``untracked``."""
     from synthesis import diagonal_weight
 
-    return W if channels == 1 else diagonal_weight(W, channels=channels)
+    if channels == 1 and not untracked:
+        return W
+    return diagonal_weight(*(UNTRACKED_WEIGHT if k in untracked else W for k in range(channels)))
+
+
+def _untracked_text(untracked) -> str:
+    if not untracked:
+        return ""
+    outs = ", ".join(str(k) for k in untracked)
+    return f"; W1 = {UNTRACKED_WEIGHT:g} (static) on output{'s' if len(untracked) > 1 else ''} {outs} (not tracked)"
+
+
+def untracked_outputs(floor) -> tuple:
+    """The outputs ``--tracking-floor`` leaves untracked (floor ``inf``): indices, empty for one floor.
+
+    Examples
+    --------
+    >>> untracked_outputs((0.1, float("inf"), float("inf"))), untracked_outputs(0.1), untracked_outputs(None)
+    ((1, 2), (), ())
+    """
+    if floor is None or np.ndim(floor) == 0:
+        return ()
+    return tuple(k for k, f in enumerate(floor) if math.isinf(f))
 
 
 def _weight_from_spec(spec: str, dt: float, what: str):
@@ -114,8 +152,9 @@ def _weight_from_spec(spec: str, dt: float, what: str):
     return makeweight(dc, (freq, mag), hf, dt)
 
 
-def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1) -> tuple:
-    """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults."""
+def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1, untracked=()) -> tuple:
+    """W1, W2 and how they were chosen, from ``--weights`` / ``--w1 --w2`` or the defaults (``untracked``: outputs
+    W1 weighs by :data:`UNTRACKED_WEIGHT`; weights read from files are the user's, as given)."""
     files, w1, w2 = extra.get("weights"), extra.get("w1"), extra.get("w2")
     if files and (w1 or w2):
         raise DataError("pass either --weights W1FILE W2FILE or --w1/--w2, not both")
@@ -131,10 +170,11 @@ def _weights(extra: dict, dt: float, inputs: int = 1, outputs: int = 1) -> tuple
     if bool(w1) != bool(w2):
         raise DataError("pass both --w1 and --w2 (or neither, for the defaults)")
     if w1:
-        return (_diagonal(_weight_from_spec(w1, dt, "w1"), outputs), _diagonal(_weight_from_spec(w2, dt, "w2"), inputs),
+        return (_diagonal(_weight_from_spec(w1, dt, "w1"), outputs, untracked),
+                _diagonal(_weight_from_spec(w2, dt, "w2"), inputs),
                 f"W1 = makeweight({w1}) and W2 = makeweight({w2}) (DC, FREQ rad/s, MAG, HF; given"
-                + ("" if inputs == outputs == 1 else "; the same on every channel") + ")")
-    return default_weights(dt, inputs, outputs)
+                + ("" if inputs == outputs == 1 else "; the same on every channel") + ")" + _untracked_text(untracked))
+    return default_weights(dt, inputs, outputs, untracked)
 
 
 def parse_window(text: str | None):
@@ -214,6 +254,8 @@ def _select(path: Path, extra: dict):
         # checked against each other), and it is never taken for a signal
         hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
         t = names[hits[0]] if hits else None
+    elif t is None and width is None and variable is None:
+        t = _time_array(path, u, y)
     if u is None or y is None:
         if width is None:
             u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
@@ -238,6 +280,20 @@ def _select(path: Path, extra: dict):
             if y is None:
                 y = pick(free[0])
     return u, y, t, variable
+
+
+def _time_array(path: Path, u, y):
+    """An NPZ/MAT array named like a time column (t, time, …, as a CSV's), one-dimensional and not chosen as a signal;
+    None when there is none or more than one.  A CSV's time column was read and an NPZ's ``t`` was not: the same
+    record saved with ``numpy.savez(f, u=u, y=y, t=t)`` had been refused for want of a sample time."""
+    from synthesis.export import read_variables
+
+    chosen = {c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])}
+    arrays = read_variables(path, error=RecordError)
+    hits = [k for k, a in arrays.items() if k.strip().lower() in _TIME_NAMES and k not in chosen
+            and np.asarray(a).dtype.kind in "biuf" and 1 in np.shape(a) + (1,) and np.size(a) > 1
+            and max(np.shape(a)) == np.size(a)]
+    return hits[0] if len(hits) == 1 else None
 
 
 def _time_index(t, names, width: int, path: Path) -> int:
@@ -300,6 +356,64 @@ def operating_point(rec, detrend: str = "none"):
 
 def _vector(x) -> str:
     return f"{float(x[0]):.4g}" if len(x) == 1 else "[" + ", ".join(f"{float(v):.4g}" for v in x) + "]"
+
+
+#: a record whose gain rms(y)/rms(u) lies outside [1/SCALE_NOTE, SCALE_NOTE], or whose inputs' (outputs') rms differ
+#: by more than this factor, is named in the report: the default weights suit signals of comparable size
+SCALE_NOTE = 100.0
+
+
+def scale_note(rec, defaults: bool = True) -> str:
+    """The report's sentence on the record's units, or ``""``: the weights are the same on every channel and the
+    default W2 weighs the control effort in u's units, so they suit a gain ``rms(y)/rms(u)`` of order one.
+
+    Measured (the hunt of 2026-11-28, three first-order-dominated plants, 1500 samples, horizon 8): a record whose
+    gain the units made 1.6e-6 or 1.6e-4 was never certified with the default weights (the step did not track: "use a
+    weight W1 with more gain at low frequency", which does not help), nor one of gain 1.7e6 (unstable on P̂); with W2
+    times the gain, as this sentence proposes, all 15 records of gains 1.6e-6 … 1.7e6 were certified and held on the
+    true plant.
+
+    Parameters
+    ----------
+    rec : Record
+        The record as designed on (after ``--detrend``).
+    defaults : bool
+        The default weights are used (neither ``--weights`` nor ``--w1/--w2``): only then is the scaled ``--w1 --w2``
+        proposed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from experiments.lab.records import Record
+    >>> u = np.sign(np.sin(np.arange(200.0)))[:, None]
+    >>> note = scale_note(Record(u=1e3 * u, y=1e-3 * u, dt=0.1, source="x"))
+    >>> note.startswith("The record's gain rms(y)/rms(u) is 1e-06"), note.endswith("--w2 5e-08,3.14159,3e-07,1e-06.")
+    (True, True)
+    >>> scale_note(Record(u=u, y=2 * u, dt=0.1, source="x"))
+    ''
+    """
+    rms = [np.sqrt(np.mean(np.square(x), axis=0)) for x in (rec.u, rec.y)]
+    if not all(np.all(r > 0) for r in rms):
+        return ""  # a silent channel: the pipeline's own checks name it
+    parts = []
+    for what, r, names in (("input", rms[0], rec.u_columns), ("output", rms[1], rec.y_columns)):
+        if r.size > 1 and r.max() / r.min() > SCALE_NOTE:
+            parts.append(f"the {what}s' rms range from {r.min():.3g} ({names[int(np.argmin(r))]}) to {r.max():.3g} "
+                         f"({names[int(np.argmax(r))]})")
+    text = []
+    if parts:
+        text.append("; ".join(parts) + ": the weights are the same on every channel, so the design weighs the "
+                    "channels by their units; rescale them to comparable units (e.g. divide each by its rms) before "
+                    "the design, or give a weight per channel with --weights")
+    gain = float(np.exp(np.mean(np.log(rms[1])) - np.mean(np.log(rms[0]))))
+    if defaults and not 1.0 / SCALE_NOTE <= gain <= SCALE_NOTE:
+        wn = math.pi / rec.dt
+        (d1, f1, m1, h1), (d2, f2, m2, h2) = W1_DEFAULT, W2_DEFAULT
+        text.append(f"the record's gain rms(y)/rms(u) is {gain:.3g}: the default W2 ({d2:g} at DC) weighs the "
+                    "control effort in u's units and suits a gain of order one; for the default design in these units "
+                    f"pass W2 times {gain:.3g}: --w1 {d1:g},{f1 * wn:.6g},{m1:g},{h1:g} "
+                    f"--w2 {d2 * gain:.6g},{f2 * wn:.6g},{m2 * gain:.6g},{h2 * gain:.6g}")
+    return (". ".join(t[0].upper() + t[1:] for t in text) + ".") if text else ""
 
 
 def design_record(u, y, dt: float, horizon: int, W1, W2, *, window="auto", sigma="auto", untested="warn",
@@ -476,7 +590,7 @@ def _finals(value) -> str:
 
 
 def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg, weights_text, t_start,
-                  title="Design from data", name="design", intro="", operating=None) -> dict:
+                  title="Design from data", name="design", intro="", operating=None, scale="") -> dict:
     """Write the report, the controller files and the JSON summary of one design; return the summary."""
     from synthesis import save_controller
 
@@ -506,7 +620,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                 f"the certificate's premise.  Horizon i = {horizon}."
                 + (f"  {operating[1]}" if operating and operating[1] else ""))
     rep.figure(figs[0], "Record, the (7.5) window and the held-out part")
-    rep.section("Weights", weights_text + ".")
+    rep.section("Weights", weights_text + "." + (f"  {scale}" if scale else ""))
     rep.section("Model P̂ and its output error",
                 f"rms of y − P̂u (P̂ simulated from rest): {_fmt(numbers['oe_rms_fit'])} on the fitting part, "
                 f"{_fmt(numbers['oe_rms_held_out'])} on the held-out part (rms of y: {_fmt(numbers['y_rms'])}).")
@@ -567,6 +681,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                     "gamma": s.gamma, "certified": s.certified, "reason": s.reason} for s in res.search],
         "weights": weights_text, **numbers,
         **({"operating_point": operating[0], "operating_point_note": operating[1]} if operating else {}),
+        "scale_note": scale,
         "controller_npz": str(npz), "controller_mat": str(mat),
     }
     return finish_report(rep, summary, out, name, warn_log=warned, figures=figs, t_start=t_start,
@@ -619,18 +734,20 @@ def run(opts) -> dict:
     u, y, t, variable = _select(path, ex)
     rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
     rec, point, point_text = operating_point(rec, ex.get("detrend") or "none")
-    W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l)
-    window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
-    horizon = ex["horizon"]
     floor = parse_tracking_floor(ex.get("tracking_floor"))
     if isinstance(floor, tuple) and len(floor) != rec.l:
         raise DataError(f"--tracking-floor gives {len(floor)} floors for {rec.l} output channels: give one number, or "
                         f"one per output")
+    W1, W2, weights_text = _weights(ex, rec.dt, rec.m, rec.l, untracked_outputs(floor))
+    window, sigma = parse_window(ex.get("window")), _parse_sigma(ex.get("sigma"))
+    horizon = ex["horizon"]
     res, warned = design_record(rec.u, rec.y, rec.dt, horizon, W1, W2, window=window, sigma=sigma,
                                 untested=ex.get("untested") or "warn", feedthrough=bool(ex.get("feedthrough")),
                                 tracking_floor=floor)
+    defaults = not (ex.get("weights") or ex.get("w1") or ex.get("w2"))
     return report_design(opts.out, rec, res, warned, horizon=horizon, window_arg=window, sigma_arg=sigma,
-                         weights_text=weights_text, t_start=t_start, operating=(point, point_text))
+                         weights_text=weights_text, t_start=t_start, operating=(point, point_text),
+                         scale=scale_note(rec, defaults))
 
 
 def summary_lines(summary: dict) -> list[str]:
@@ -639,7 +756,7 @@ def summary_lines(summary: dict) -> list[str]:
     if summary["certified"] and summary.get("uncertainty") == "coprime":
         verdict = f"certified in coprime-factor form for ε = {float(summary['epsilon']):.4g}, not for δ"
     assumed = [f"assumed, not testable on these data: {a}" for a in summary.get("assumed", ())]
-    point = [summary["operating_point_note"]] if summary.get("operating_point_note") else []
+    point = [summary[k] for k in ("operating_point_note", "scale_note") if summary.get(k)]
     return [f"δ = {float(summary['delta']):.4g} ({summary['decided_by']}); {verdict}", *assumed, *point,
             f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
 
@@ -656,7 +773,7 @@ OPTIONS = (
     (("--u",), dict(dest="u", default=None, metavar="COL", help="input column (name or 0-based index)")),
     (("--y",), dict(dest="y", default=None, metavar="COL", help="output column (name or 0-based index)")),
     (("--t",), dict(dest="t", default=None, metavar="COL",
-                    help="time column (default: a CSV column named t or time, if --dt is not given)")),
+                    help="time column (default: a CSV column, or an NPZ/MAT array, named t or time)")),
     (("--variable",), dict(dest="variable", default=None, metavar="NAME",
                            help="NPZ/MAT: the matrix holding the channels (then columns are indices)")),
     (("--weights",), dict(dest="weights", nargs=2, default=None, metavar=("W1FILE", "W2FILE"),
@@ -672,7 +789,8 @@ OPTIONS = (
     (("--tracking-floor",), dict(dest="tracking_floor", default=None, metavar="F[,F...]",
                                  help="largest mean step error over the step's last quarter, one number or one per "
                                       "output (inf: that output not tracked, e.g. 0.1,inf for a plant with fewer "
-                                      "inputs than outputs) (default: 0.1)")),
+                                      "inputs than outputs; W1 (--w1 or the default, not --weights) then weighs it "
+                                      "by 0.01) (default: 0.1)")),
     (("--feedthrough",), dict(dest="feedthrough", action="store_true",
                               help="the plant has a direct feedthrough (y_k responds to u_k): the feedback test leaves "
                                    "lag 0 out, where a feedthrough looks like feedback (default: strictly proper)")),

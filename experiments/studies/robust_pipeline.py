@@ -79,6 +79,10 @@ class Config:
 def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "additive", factors=None) -> dict:
     """Checks on the true plant, independent of the pipeline's models.
 
+    Additive form with several inputs or outputs: stability, the small gain and tracking (a floor per output) only;
+    the size-δ perturbations are scalar and are tried on one-channel plants (they had raised IndexError on a
+    two-input plant, and a floor per output TypeError).
+
     ``uncertainty="coprime"`` (``delta`` is then ε, ``factors`` P̂'s): ε-balls of different factorisations of
     one plant are not comparable, so the true plant is factored *like P̂* (:func:`true_factors` with
     ``like=factors``); the small gain is ``ε‖[K; I](M + NK)⁻¹‖∞`` of those factors and the perturbations are
@@ -88,8 +92,11 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
     out = {"stable": rob.stable, "spectral_radius": rob.spectral_radius,
            "small_gain": float(delta * rob.peak) if rob.stable else float("inf")}
     step = uf.step_metrics(uf.closed_loop_ry(P, K))
+    # a floor per output (inf: not tracked), as the certificate takes it: a tuple had raised TypeError here
+    floors = uf.tracking_floors(tracking_floor, P.noutputs)
+    errors = step.output_errors(np.isfinite(floors))
     out.update(step_error=step.final_error, overshoot_pct=100.0 * step.overshoot,
-               tracks=bool(rob.stable and step.final_error <= tracking_floor))
+               tracks=bool(rob.stable and np.all(errors <= floors)))
     radii = []
     if rob.stable and delta > 0 and uncertainty == "coprime":
         F = true_factors(P, like=factors)
@@ -97,7 +104,7 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
         out["small_gain"] = float(delta * peak)
         for pd in _coprime_perturbations(F, delta):
             radii.append(uf.additive_robustness(pd, K).spectral_radius)
-    elif rob.stable and delta > 0:
+    elif rob.stable and delta > 0 and P.ninputs == P.noutputs == 1:  # scalar perturbations: one channel only
         dt = P.dt
         perts = [control.tf([delta], [1.0, 0.0], dt), control.tf([-delta], [1.0], dt),
                  worst_phase_allpass(P, K, delta)[0]]
