@@ -351,8 +351,8 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
             # rational arithmetic accepting it), so the message names the exact batch route
             raise StageSaddleError(
                 gamma, f"stage {t}: no saddle point (Schur complement in r, diagonally scaled, has eigenvalue "
-                f"{es.max():.3g} >= {-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the finite-horizon "
-                "gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused by this "
+                f"{es.max():.3g} >= {-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the "
+                "finite-horizon gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused by this "
                 "recursion's rounding: synthesis.minimax_gamma_min on the batch map z = H w + Γ x decides exactly")
 
     X, value, gains = _recursion(A, B, C.T @ C, C.T @ D, D.T @ D - Rg, i, np.zeros((A.shape[0],) * 2), check)

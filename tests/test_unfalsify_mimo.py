@@ -411,8 +411,8 @@ def test_several_channels_with_sigma_far_inside_the_residual_are_certified():
 
 def test_two_phases_of_one_prbs_are_named_as_one_input_delayed():
     """``prbs(1500, seed=0)`` and ``prbs(1500, seed=17)`` are one maximum-length sequence 13 samples apart: a 2 × 2
-    record driven by them is not persistently exciting of order 2i = 16, and the refusal had said "excite more frequencies
-    (white PRBS)", which they are.  It names the delay and the horizon that would do (i ≤ 6)."""
+    record driven by them is not persistently exciting of order 2i = 16, and the refusal had said "excite more
+    frequencies (white PRBS)", which they are.  It names the delay and the horizon that would do (i ≤ 6)."""
     import synthesis
     from experiments.lab.signals import prbs
     from unfalsify.robust import _persistence_reason
