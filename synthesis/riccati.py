@@ -352,8 +352,9 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
             raise StageSaddleError(
                 gamma, f"stage {t}: no saddle point (Schur complement in r, diagonally scaled, has eigenvalue "
                 f"{es.max():.3g} >= {-tol:.3g}, the rounding tolerance); gamma = {gamma:.6g} is at or below the "
-                "finite-horizon gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused by this "
-                "recursion's rounding: synthesis.minimax_gamma_min on the batch map z = H w + Γ x decides exactly")
+                "finite-horizon gamma_min, increase it; a level within about 1e-5 (relative) above it can be refused "
+                "by this recursion's rounding: synthesis.minimax_gamma_min on the batch map z = H w + Γ x decides "
+                "exactly")
 
     X, value, gains = _recursion(A, B, C.T @ C, C.T @ D, D.T @ D - Rg, i, np.zeros((A.shape[0],) * 2), check)
     return RiccatiLaw(X=X, value=value, gains=gains, A=A, B=B, gamma=float(gamma), n_disturbances=l)
