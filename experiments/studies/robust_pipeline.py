@@ -42,7 +42,7 @@ from synthesis.validation import DataError
 
 from ..lab.plants import PLANT_CATALOGUE, nonminimum_phase, resonant, servo, third_order
 from ..lab.report import LiveTable, Report, finish_report, write_csv
-from ..lab.servo_setup import design_weights
+from ..lab.servo_setup import closed_loop_matrix, design_weights
 from ..lab.signals import prbs
 from ..lab.simulate import collect_data
 from .chapter7 import worst_phase_allpass
@@ -114,11 +114,11 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
 
 
 def _loop_radius(P, K) -> float:
-    """Spectral radius of the loop of ``P`` and ``K`` (inputs ``[r; y]``): the state matrix of the channel an additive
-    perturbation sees.  Only the eigenvalues: ``additive_robustness`` would also prove the channel's H∞ norm, which
-    the perturbed loops do not need (measured on the coprime judge at i = 32, plants of 1036 states: 63–70 s a
-    perturbation against 0.8 s, the same radius to 1e-14)."""
-    A = np.asarray(uf.additive_channel(P, K).A, float)
+    """Spectral radius of the loop of ``P`` and ``K`` (inputs ``[r; y]``, :func:`~experiments.lab.closed_loop_matrix`).
+    Only the eigenvalues: ``additive_robustness`` would also prove the additive channel's H∞ norm, which the perturbed
+    loops do not need (measured on the coprime judge at i = 32, plants of 1036 states: 63–70 s a perturbation against
+    0.8 s, the same radius to 1e-14)."""
+    A = closed_loop_matrix(control.ss(P), K)
     return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
 
 
