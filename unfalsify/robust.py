@@ -371,17 +371,16 @@ def _delayed_copy(u, i: int, ratio: float = 1.0) -> str:
     """
     u = np.asarray(u, float).reshape(np.shape(u)[0], -1)
     n, m = u.shape
-    for a in range(m):
-        for b in range(m):
-            for lag in range(0 if a < b else 1, min(2 * i, n - 1)):
-                x, z = u[lag:, a], u[:n - lag, b]  # input a at k against input b at k − lag
-                scale = float(np.linalg.norm(x) * np.linalg.norm(z))
-                if a != b and scale > 0 and abs(float(x @ z)) >= (1.0 - 1e-9) * scale:
-                    what = (f"input {a} is input {b}" if lag == 0 else
-                            f"input {a} is input {b} delayed by {lag} sample{'s' if lag > 1 else ''} (two phases of "
-                            "one PRBS are one sequence shifted)")
-                    return (f"{what} up to a factor: drive the inputs with independent sequences"
-                            + (f", or lower the horizon to i ≤ {int(lag // (2 * ratio))}" if lag >= 2 * ratio else ""))
+    for a, b in itertools.permutations(range(m), 2):
+        for lag in range(0 if a < b else 1, min(2 * i, n - 1)):
+            x, z = u[lag:, a], u[:n - lag, b]  # input a at k against input b at k − lag
+            scale = float(np.linalg.norm(x) * np.linalg.norm(z))
+            if scale > 0 and abs(float(x @ z)) >= (1.0 - 1e-9) * scale:
+                what = (f"input {a} is input {b}" if lag == 0 else
+                        f"input {a} is input {b} delayed by {lag} sample{'s' if lag > 1 else ''} (two phases of "
+                        "one PRBS are one sequence shifted)")
+                return (f"{what} up to a factor: drive the inputs with independent sequences"
+                        + (f", or lower the horizon to i ≤ {int(lag // (2 * ratio))}" if lag >= 2 * ratio else ""))
     return ""
 
 
