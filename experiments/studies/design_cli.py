@@ -262,7 +262,7 @@ def _select(path: Path, extra: dict):
         else:
             t_index = None if t is None else _time_index(t, names, width, path)
             rest = [k for k in range(width) if k != t_index]
-            taken = [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
+            taken = _chosen(u, y)
             free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
             missing = " and ".join(f"--{w}" for w, sel in (("u", u), ("y", y)) if sel is None)
             if len(rest) > 2 and len(free) > (u is None) + (y is None):
@@ -288,12 +288,16 @@ def _time_array(path: Path, u, y):
     record saved with ``numpy.savez(f, u=u, y=y, t=t)`` had been refused for want of a sample time."""
     from synthesis.export import read_variables
 
-    chosen = {c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])}
+    chosen = _chosen(u, y)
     arrays = read_variables(path, error=RecordError)
     hits = [k for k, a in arrays.items() if k.strip().lower() in _TIME_NAMES and k not in chosen
-            and np.asarray(a).dtype.kind in "biuf" and 1 in np.shape(a) + (1,) and np.size(a) > 1
-            and max(np.shape(a)) == np.size(a)]
+            and np.asarray(a).dtype.kind in "biuf" and np.size(a) > 1 and max(np.shape(a)) == np.size(a)]
     return hits[0] if len(hits) == 1 else None
+
+
+def _chosen(u, y) -> list:
+    """The columns ``--u`` and ``--y`` name (each one column, a list of them, or None)."""
+    return [c for sel in (u, y) if sel is not None for c in (sel if isinstance(sel, list) else [sel])]
 
 
 def _time_index(t, names, width: int, path: Path) -> int:
