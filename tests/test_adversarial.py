@@ -162,6 +162,17 @@ def test_summary_counts_certificates_on_an_untested_premise():
                for line in adv.summary_lines({**summary, "mode": "validation"}))
 
 
+def test_summary_counts_certificates_on_a_ball_the_data_do_not_confirm():
+    """``certified_unconfirmed``: certified runs whose result carries a premise note (runs from revisions without
+    the field count as confirmed)."""
+    note = "the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = 0.1"
+    results = [{"case": str(k), "group": "g", "excitation_kind": "prbs", "verdict": v, "certified": c,
+                "premise_ratio": 1.0, "assumed": [], **({"unconfirmed": n} if n is not None else {})}
+               for k, (v, c, n) in enumerate([("certified", True, note), ("certified", True, ""),
+                                              ("certified", True, None), ("not_certified", False, note)])]
+    assert adv.summarise(results)["certified_unconfirmed"] == 1
+
+
 def test_untested_refuse_reaches_the_pipeline():
     """``--untested refuse``: the white-PRBS control case (certified by default) is refused, naming the fix."""
     from experiments.cli import main

@@ -71,6 +71,8 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     assert summary["certified"] == res.certified and summary["delta"] == res.delta
     assert summary["reason"] == res.reason
     assert summary["assumed"] == list(res.assumed) and len(res.assumed) == 1  # a ±1 PRBS: linearity untestable
+    assert summary["premise_note"] == res.premise_note  # the ball the data do not confirm, if any
+    assert (f"Not confirmed by the data: {res.premise_note}." in md) == bool(res.premise_note)
     assert all(f"Assumed, not testable on these data: {a}." in md for a in res.assumed)
     # time invariance tested on the whole record (record mode), as the pipeline's own result says
     assert summary["invariance_p_value"] == res.invariance.p_value and res.invariance.samples == len(u)

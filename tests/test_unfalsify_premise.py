@@ -1215,3 +1215,51 @@ def test_the_hidden_line_gain_pickles_with_the_result():
     again = pickle.loads(pickle.dumps(r))
     assert np.isfinite(r.hidden_line_gain) and again == r
     assert (again.hidden_line_gain, again.hidden_line_frequency) == (r.hidden_line_gain, r.hidden_line_frequency)
+
+
+# ---- a ball the data do not confirm ------------------------------------------------------------------------------
+
+def _known_third_order(seed):
+    """A third-order 10 Hz plant with poles 0.9, 0.7, 0.5 and positive gains drawn with ``seed``."""
+    rng = np.random.default_rng(1000 + seed)
+    return control.ss(np.diag([0.9, 0.7, 0.5]), rng.uniform(0.3, 1.0, (3, 1)), rng.uniform(0.3, 1.0, (1, 3)), 0, 0.1)
+
+
+def test_a_certified_result_says_when_the_data_do_not_confirm_its_ball():
+    """The premise tests refuse only on evidence against ``‖P − P̂‖∞ ≤ (1 + margin)·δ``; where the data's confidence
+    regions reach beyond the ball they cannot tell, and the result says so (``premise_note``).  Measured here: the
+    loop is certified, yet the plant lies 2.1 δ from P̂ (a slow error at 0 rad/s that δ of (7.5), an i-step bound,
+    does not see) -- the note must name the ball, how far the regions reach and the fix."""
+    from experiments.studies.robust_pipeline import premise_ratio
+
+    P = _known_third_order(2)
+    d = collect_data(P, prbs(1500, seed=2)[:, None], process_noise=0.05, sensor_noise=0.05, seed=102)
+    W = design_weights(0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = uf.robust_design_from_data(d.u[:, 0], d.y[:, 0], 5, W["W11"], W["W21"], "auto", dt=0.1, window="auto")
+    ball = (1 + r.certificate.margin) * r.delta  # the certificate's margin, not the W3 rule's
+    assert r.certified and r.uncertainty == "additive", r.reason
+    assert premise_ratio(P, r.model, r.delta)[0] * r.delta > ball  # the premise is false for this record
+    assert r.premise.upper > ball
+    note = r.premise_note
+    assert note.startswith(f"the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = {ball:.4g}")
+    assert f"reach {r.premise.upper:.3g}" in note and "a longer record or a larger input amplitude" in note
+    assert note == uf.unconfirmed_premise(r.premise, ball)
+
+
+def test_no_note_where_the_data_confirm_the_ball():
+    """A FIR plant fitted on a low-noise record: the confidence regions of ``P − P̂`` lie inside the ball, and
+    ``unconfirmed_premise`` says nothing; nor for a result made before ``upper`` was measured (NaN)."""
+    u, y = _fir_data(300, 0.01, 0)
+    model = uf.predictor_model(synthesis.fit_predictor(u[:200], y[:200], 3), 1.0)
+    test = uf.check_premise(model, u[:45], y[:45], 3, 0.05, dt=1.0, validation=(u[200:], y[200:]))
+    gain = np.concatenate([(test.frf.gain + test.frf.radius)[test.frf.excited & np.isfinite(test.frf.radius)],
+                           (test.low_band.gain + test.low_band.radius)[np.isfinite(test.low_band.radius)]])
+    assert test.upper == pytest.approx(float(np.max(gain)))  # how far the regions reach, Welch and low band
+    assert 0 < test.upper < 1.25 * test.delta and uf.unconfirmed_premise(test, 1.25 * test.delta) == ""
+    assert uf.unconfirmed_premise(test, 0.5 * test.upper) != ""
+    old = types.SimpleNamespace(frf=None)  # a pickled PremiseTest from before the field: no statement
+    assert uf.unconfirmed_premise(old, 0.1) == ""
+    with pytest.raises(DataError, match="bound"):
+        uf.unconfirmed_premise(test, -1.0)

@@ -91,6 +91,7 @@ The certificate's premise, tested on the data
    PremiseTest            -- result of ``check_premise`` (``delta``, ``decided_by``, ``reason``)
    PremiseOptions         -- how the pipeline tests the premise (noise level, confidence, sizes, time limit)
    untested_premises      -- what the certificate assumes that the data cannot test (a two-level input: linearity)
+   unconfirmed_premise    -- why the data's confidence regions of P − P̂ do not confirm a certificate's ball
    LEVEL_SPREAD           -- an input within this fraction of its levels' spacing of two levels takes two (0.1)
    operating_point_note   -- which channels of a record sit at an operating point (the models have no constant term)
    OFFSET_NOTE            -- a mean above this fraction of the standard deviation is named (0.1)
@@ -270,6 +271,7 @@ from .premise import (
     output_error_residual,
     output_error_unfalsify,
     residual_line,
+    unconfirmed_premise,
     untested_premises,
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
@@ -341,6 +343,7 @@ __all__ = [
     "check_excitation",
     "residual_line",
     "check_premise",
+    "unconfirmed_premise",
     "frequency_response_estimate",
     "leaked_bins",
     "low_band_estimate",

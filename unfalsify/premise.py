@@ -77,7 +77,8 @@ from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _ba
 
 __all__ = ["PremiseOptions", "OutputErrorResult", "output_error_residual", "output_error_unfalsify", "PremiseTest",
            "check_premise", "untested_premises", "LEVEL_SPREAD", "operating_point_note", "OFFSET_NOTE", "glitch_note",
-           "GLITCH_LEVEL", "residual_line", "LINE_LOOP_GAIN", "hidden_line_gain", "HIDDEN_LINE_LIMIT"]
+           "GLITCH_LEVEL", "residual_line", "LINE_LOOP_GAIN", "hidden_line_gain", "HIDDEN_LINE_LIMIT",
+           "unconfirmed_premise"]
 
 #: growth of the model's free response over the segment above which its output error cannot be simulated.
 _GROWTH_LIMIT = 10.0
@@ -433,6 +434,13 @@ class PremiseTest:
         Fraction of the ``validation`` record found in the data P̂ was fitted on (``fitted_on``; a lower bound, see
         :meth:`synthesis.RecordFingerprint.shared_fraction`).  Above 0 the output error was tested partly in sample
         and ``output_error.held_out`` is False.  NaN: no ``validation``, or not known what P̂ was fitted on.
+    upper : float
+        The largest ``‖D̂‖₂ + r`` over the excited Welch frequencies and the low band: how far from P̂ the data's
+        confidence regions reach.  The tests above refuse only where the whole region lies beyond δ; where ``upper``
+        exceeds the ball a certificate names, the data neither refute nor confirm it (:func:`unconfirmed_premise`).
+        NaN: nothing estimated (and on results made before it was measured).
+    upper_frequency : float
+        Where ``upper`` is reached (the data's frequency unit; NaN without).
     """
 
     delta_subspace: float
@@ -446,6 +454,8 @@ class PremiseTest:
     low_band: LowBandEstimate | None = None
     plant_low_band: LowBandEstimate | None = None
     validation_shared: float = float("nan")
+    upper: float = float("nan")
+    upper_frequency: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -608,9 +618,84 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         worst = float(np.fmax(worst, low_worst))  # the larger one, NaN only when both are
         if why:
             reasons.append(why)
+    upper, upper_at = _region_reach(frf, low)
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
                        frf=frf, inconsistency=float(worst), reason="; ".join(reasons), plant_frf=plant_frf,
-                       low_band=low, plant_low_band=plant_low, validation_shared=shared)
+                       low_band=low, plant_low_band=plant_low, validation_shared=shared, upper=upper,
+                       upper_frequency=upper_at)
+
+
+def _region_reach(frf: FrequencyResponseEstimate | None, low: LowBandEstimate | None) -> tuple[float, float]:
+    """``(max ‖D̂‖₂ + r, where)`` over the excited Welch frequencies of ``frf`` and the frequencies of ``low`` with a
+    finite radius; ``(nan, nan)`` when neither has one.  The frequencies the premise test reads are the ones it
+    bounds: the unexcited ones have no finite region (the excitation check names them)."""
+    reach, where = [], []
+    if frf is not None:
+        ok = frf.excited & np.isfinite(frf.radius) & np.isfinite(frf.gain)
+        reach.append((frf.gain + frf.radius)[ok])
+        where.append(frf.frequency[ok])
+    if low is not None:
+        ok = np.isfinite(low.radius) & np.isfinite(low.gain)
+        reach.append((low.gain + low.radius)[ok])
+        where.append(low.frequency[ok])
+    reach, where = (np.concatenate(x) if x else np.zeros(0) for x in (reach, where))
+    if not reach.size:
+        return float("nan"), float("nan")
+    k = int(np.argmax(reach))
+    return float(reach[k]), float(where[k])
+
+
+def unconfirmed_premise(test: PremiseTest, bound: float) -> str:
+    """Why the data do not confirm the premise ``‖P − P̂‖∞ ≤ bound`` of a certificate, ``''`` when they do.
+
+    The tests of :func:`check_premise` are one-sided: they refuse where the data's confidence region of ``P − P̂``
+    lies wholly beyond δ, and pass where it does not -- also where it reaches far beyond the ball, i.e. where the
+    data cannot tell.  δ of (7.5) bounds ``P − P̂`` over the horizon's ``i`` steps only (a finite-horizon Toeplitz
+    norm, at most ``‖P − P̂‖∞``), so a model error slower than ``i`` samples -- at low frequency, where the noise
+    that passes through the plant also widens the regions most -- can exceed the ball with no test seeing it.
+    Measured (2026-11-29, 30 records of known plants with 1–3 inputs and 1–3 outputs, 1500 samples, noise 0.05,
+    horizons 5 and 8, seeds 0–2): the i-step Toeplitz norm of ``P − P̂`` was 0.006–0.037, below δ in every run,
+    while ``‖P − P̂‖∞`` (mostly at 0 rad/s) was 1.7–45 times it; 9 of the 23 certified records had the plant
+    outside the ball.  Every certified record gets this statement (``upper`` 3.1–35 times the ball, at the
+    lowest frequency of the low band); the Welch frequencies alone would have confirmed the ball of two one-channel
+    records (0.75 and 0.84 of it), one with the plant at 1.15 δ, just inside a ball of 1.25 δ.  The slow error is a
+    bias of the short predictor: at i = 5 a four times longer record left ``‖P − P̂‖∞/δ`` at 1.5 (one input) and 4.0
+    (three inputs), while i = 12 brought it to 0.8 and 1.1 on the same 1500 samples.
+
+    Parameters
+    ----------
+    test : PremiseTest
+    bound : float
+        The radius of the ball the certificate is a theorem about, ``(1 + margin)·δ``.
+
+    Returns
+    -------
+    str
+        ``''`` when ``test.upper <= bound`` (or nothing was estimated: the premise test then refuses or says why);
+        otherwise the statement, with the numbers and the fix.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = PremiseTest(delta_subspace=0.1, output_error=None, delta=0.1, decided_by="subspace (7.5)", frf=None,
+    ...                 inconsistency=-0.5, reason="", upper=0.3, upper_frequency=0.0)
+    >>> unconfirmed_premise(t, 0.125)[:72]
+    'the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = 0.125: '
+    >>> unconfirmed_premise(t, 0.5)
+    ''
+    """
+    bound = check_nonnegative(bound, "bound ((1 + margin)·δ of the certificate)")
+    upper = float(getattr(test, "upper", float("nan")))  # results made before it was measured have none
+    if not upper > bound:
+        return ""
+    conf = f"{test.frf.confidence:.0%} " if test.frf is not None else ""
+    unit = _unit(test.frf.dt) if test.frf is not None else "rad/sample"
+    return (f"the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = {bound:.4g}: their {conf}confidence "
+            f"regions of P − P̂ reach {upper:.3g} ({upper / bound:.3g} × that) at {test.upper_frequency:.3g} {unit}, "
+            "and δ of (7.5) bounds P − P̂ over the horizon's steps only, so a slower model error can exceed the ball "
+            "unseen; the plant is assumed inside it there (the loop's own test against those regions, the "
+            "excitation check, still holds); a longer record or a larger input amplitude narrows the regions, and a "
+            "higher horizon lowers a slow error of P̂ itself")
 
 
 def _shared_fraction(fitted_on, u, y) -> float:

@@ -79,7 +79,7 @@ from .options import (CertificateOptions, DesignOptions, DesignSearch, Estimatio
                       _positive_real)
 from .premise import (HIDDEN_LINE_LIMIT, LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _hidden_gain,
                       _hidden_line_statement, _line_gain, _line_spectra, check_premise,
-                      glitch_note, operating_point_note, untested_premises)
+                      glitch_note, operating_point_note, unconfirmed_premise, untested_premises)
 from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
@@ -268,6 +268,20 @@ class RobustDesignResult:
         """Why the loop is not certified (``''`` when it is)."""
         return _with_form(_verdict_reason(self.certificate, self.reference_certificate, self.premise_reason,
                                           self.excitation, self.tracking_reason), self.additive_reason)
+
+    @property
+    def premise_note(self) -> str:
+        """Whether the data confirm the ball this result's additive certificate is a theorem about, ``(1 + margin)·δ``
+        around P̂ with the certificate's margin (:func:`unfalsify.unconfirmed_premise`): ``''`` when the data's
+        confidence regions of ``P − P̂`` lie inside it, or for the coprime form; otherwise the statement that the
+        plant is assumed inside it, not shown to be.  The premise tests refuse only on evidence against the ball,
+        so a certified result can carry this note: its loop passed the test against the regions themselves, but its
+        δ names a ball the plant may lie outside (measured, 2026-11-29: ``‖P − P̂‖∞/δ`` up to 4.3 on certified
+        records of known plants)."""
+        if self.premise is None or self.uncertainty != "additive":
+            return ""
+        # the certificate's own margin (``certificate.margin``), not the W3 rule's (``margin``)
+        return unconfirmed_premise(self.premise, (1.0 + self.certificate.margin) * self.delta)
 
     @property
     def epsilon(self) -> float:

@@ -649,6 +649,8 @@ def run_case(case: Case, untested: str = "warn", protocol: str = "validation") -
                designs_tried=len(rd.search), small_gain_model=float(rd.small_gain))
     out["uncertainty"], out["epsilon"] = rd.uncertainty, float(rd.epsilon)
     out["assumed"] = list(getattr(rd, "assumed", ()))
+    # the ball the data's confidence regions of P − P̂ do not confirm ('' where they do; revisions without it: '')
+    out["unconfirmed"] = getattr(rd, "premise_note", "")
     # what the record could hide below the narrow-line test (NaN on revisions without it)
     out["hidden_line_gain"] = float(getattr(rd, "hidden_line_gain", float("nan")))
     out["hidden_line_frequency"] = float(getattr(rd, "hidden_line_frequency", float("nan")))
@@ -723,7 +725,9 @@ def summarise(results: list[dict]) -> dict:
             # certified on a premise the data cannot test (RobustDesignResult.assumed: a two-level input)
             "certified_assuming": sum(bool(r["certified"] and r.get("assumed")) for r in results),
             "false_certificates_assuming": sum(bool(r["verdict"] == "false_certificate" and r.get("assumed"))
-                                               for r in results)}
+                                               for r in results),
+            # certified on a ball the data's confidence regions of P − P̂ do not confirm (premise_note)
+            "certified_unconfirmed": sum(bool(r["certified"] and r.get("unconfirmed")) for r in results)}
 
 
 TITLE = "§7.4 certificate against an adversarial catalogue, judged on the true plant"

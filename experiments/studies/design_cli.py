@@ -659,7 +659,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
                    f"quarter at most {_floors_text(res.certificate.tracking_floor)}), and the held-out data do not "
                    "falsify the premise.")
                 + (f"\n\nThe additive form was left: {res.additive_reason}" if res.additive_reason else "")
-                + "".join(f"\n\nAssumed, not testable on these data: {a}." for a in res.assumed))
+                + "".join(f"\n\nAssumed, not testable on these data: {a}." for a in res.assumed)
+                + (f"\n\nNot confirmed by the data: {res.premise_note}." if res.premise_note else ""))
     rep.section("The loop on P̂",
                 f"Controller (inputs [r; y], output u, {res.controller.nstates} states): `{npz.name}`, "
                 f"`{mat.name}` (synthesis.load_controller reads either).  Final value of the unit step on "
@@ -675,6 +676,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "uncertainty": res.uncertainty, "epsilon": float(res.epsilon) if res.uncertainty == "coprime" else None,
         "margin": float(res.margin), "additive_reason": res.additive_reason,
         "tracking_floor": _floors_json(res.certificate.tracking_floor), "assumed": list(res.assumed),
+        "premise_note": res.premise_note,
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
         "excitation_worst": excitation_worst, "margin_evidence": margin_evidence,
         "delta": float(res.delta), "delta_subspace": float(res.delta_subspace),
@@ -761,6 +763,8 @@ def summary_lines(summary: dict) -> list[str]:
         verdict = f"certified in coprime-factor form for ε = {float(summary['epsilon']):.4g}, not for δ"
     assumed = [f"assumed, not testable on these data: {a}" for a in summary.get("assumed", ())]
     point = [summary[k] for k in ("operating_point_note", "scale_note") if summary.get(k)]
+    if summary["certified"] and summary.get("premise_note"):
+        point.insert(0, f"not confirmed by the data: {summary['premise_note']}")
     return [f"δ = {float(summary['delta']):.4g} ({summary['decided_by']}); {verdict}", *assumed, *point,
             f"controller: {summary['controller_npz']}, {summary['controller_mat']}"]
 
