@@ -126,6 +126,7 @@ Errors and warnings
    OrderWarning           -- ``subspace_id``'s order criterion chose its largest order: the order may be capped
    RefactorWarning        -- a downdate lost definiteness; the factor was recomputed from the window
    NearGammaMinWarning    -- γ < 1.03 γ_min: huge gains
+   HorizonWarning         -- the data show no effect of the control over the horizon (``i`` ≤ the plant's delay)
 
 The errors and warnings live in ``synthesis.exceptions``.
 
@@ -280,7 +281,8 @@ from .minimax import (
     solve_minimax,
 )
 from .controller import RecedingHorizonController, WeightState, lti_controller
-from .hinf import Additive, HinfDesign, Multiplicative, PerformanceMap, gamma_min, hinf_design, performance_map
+from .hinf import (Additive, HinfDesign, HorizonWarning, Multiplicative, PerformanceMap, gamma_min, hinf_design,
+                   performance_map)
 from .lqg import LqgDesign, lqg_design
 from .riccati import GeneralizedPlant, RiccatiLaw, StageSaddleError, generalized_plant, hinf_riccati, lqr_riccati
 from .hinfnorm import NormBracket, NormTest, hinf_norm, norm_below
@@ -318,6 +320,7 @@ __all__ = [
     "InfeasibleGammaError",
     "MinimaxSolution",
     "NearGammaMinWarning",
+    "HorizonWarning",
     "feasibility_threshold",
     "minimax_gamma_min",
     "solve_minimax",

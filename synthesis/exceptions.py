@@ -18,6 +18,7 @@ __all__ = [
     "RefactorWarning",
     "InfeasibleGammaError",
     "NearGammaMinWarning",
+    "HorizonWarning",
     "StageSaddleError",
 ]
 
@@ -83,6 +84,14 @@ class InfeasibleGammaError(ValueError):
 
 class NearGammaMinWarning(UserWarning):
     """γ < 1.03 γ_min: gains are huge and the loop went unstable there in §5.4.4."""
+
+
+class HorizonWarning(UserWarning):
+    """The data show no effect of the control on the predicted output over the horizon (``L_u`` is noise).
+
+    The horizon ``i`` is not longer than the plant's delay (``i = 1`` on a strictly proper plant): the inputs
+    ``u_k … u_{k+i-1}`` do not reach ``y_k … y_{k+i-1}``, so the law's control acts on estimation noise.
+    """
 
 
 class StageSaddleError(InfeasibleGammaError):

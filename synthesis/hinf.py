@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
+import warnings
 from dataclasses import dataclass
 
 import control
@@ -32,6 +33,7 @@ import numpy as np
 
 from ._lazy import _Deferred, _LazyField
 from ._validation import DataError, check_flag, check_level, check_predictor_dt, check_sample_time
+from .exceptions import HorizonWarning
 from .controller import WeightState, lti_controller
 from .minimax import _gains, _level, _saddle, _warn_near, minimax_gamma_min
 from .weights import WeightError, _ss_parts, as_weight, common_dt, markov_toeplitz, observability
@@ -40,6 +42,7 @@ from ._repr import result
 __all__ = [
     "Additive",
     "HinfDesign",
+    "HorizonWarning",
     "Multiplicative",
     "PerformanceMap",
     "gamma_min",
@@ -160,6 +163,29 @@ def _predictor_parts(pred):
     if not (np.all(np.isfinite(Lw)) and np.all(np.isfinite(Lu))):
         raise DataError("predictor contains NaN or infinite values; refit it from clean data")
     return Lw, Lu, i, m, l
+
+
+#: :class:`HorizonWarning` when :attr:`~synthesis.Predictor.control_pvalue` exceeds this: the data give no evidence
+#: that the future inputs move the predicted outputs
+CONTROL_PVALUE_LIMIT = 0.01
+
+
+def _warn_no_control(pred, stacklevel: int) -> None:
+    """:class:`HorizonWarning` when the predictor's data show no effect of ``U_f`` on ``Y_f`` (``L_u`` is noise).
+
+    A horizon not longer than the plant's delay (``i = 1`` on a strictly proper plant) gives a law whose control
+    reaches no predicted output: measured, ``L_u`` of 0.5 z⁻¹ + 0.2 z⁻² at ``i = 1`` was 1.3e-3 (noise) and the
+    H∞ law's gain 0.37 acted on it, with no warning.  Read lazily (a predictor without the field is not tested).
+    """
+    p = getattr(pred, "control_pvalue", None)
+    if p is not None and p > CONTROL_PVALUE_LIMIT:
+        i = int(pred.horizon)
+        warnings.warn(
+            f"the data show no effect of the control on the predicted output over the horizon i={i} (F-test of "
+            f"L_u = 0: p = {p:.2g}): the plant's delay is at least {i} sample(s) (i = 1 on a strictly proper plant), "
+            f"or L_u is lost in what so short a horizon leaves unpredicted, and the law acts on noise in L_u; use a "
+            f"horizon longer than the plant's delay (i >= 2 for a strictly proper plant) and the plant's order",
+            HorizonWarning, stacklevel=stacklevel + 1)
 
 
 def _weights(pred_m, pred_l, W1, W2, uncertainty, data_dt=None):
@@ -409,6 +435,11 @@ def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) 
     WeightError, DataError
         As for :func:`hinf_design`.
 
+    Warns
+    -----
+    HorizonWarning
+        As for :func:`hinf_design`.
+
     Examples
     --------
     The plant ``0.5 z⁻¹ + 0.2 z⁻²`` has a delay, so no control reaches the first tracking error of
@@ -432,6 +463,7 @@ def gamma_min(pred, W1, W2, *, causal: bool = False, uncertainty=None, dt=None) 
     True
     """
     pm = performance_map(pred, W1, W2, causal=causal, uncertainty=uncertainty, dt=dt)
+    _warn_no_control(pred, stacklevel=2)
     return minimax_gamma_min(pm.Md, pm.Mu)
 
 
@@ -482,6 +514,9 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
     -----
     NearGammaMinWarning
         If ``gamma < 1.03 γ_min``.
+    HorizonWarning
+        If the data show no effect of the control on the predicted output over the horizon
+        (:attr:`~synthesis.Predictor.control_pvalue` above 0.01: ``i = 1`` on a strictly proper plant).
 
     Examples
     --------
@@ -516,6 +551,7 @@ def hinf_design(pred, W1, W2, *, gamma: float | None = None, gamma_ratio: float 
         gamma = lambda g0: ratio * g0 if g0 > 0 else np.inf  # noqa: E731 - a γ policy
     elif not callable(gamma):
         gamma = _real(gamma, "gamma")
+    _warn_no_control(pred, stacklevel=2)
     return _design_from_plan(pred, Lw, Lu, plan, gamma)
 
 

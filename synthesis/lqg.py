@@ -105,6 +105,12 @@ def lqg_design(pred, Q, R, *, dt=None) -> LqgDesign:
         of the wrong size, ``dt`` not a positive sample time (0 would make the controller
         continuous-time) or not the predictor's.
 
+    Warns
+    -----
+    HorizonWarning
+        If the data show no effect of the control on the predicted output over the horizon (as
+        :func:`~synthesis.hinf_design`).
+
     Examples
     --------
     >>> import numpy as np
@@ -126,13 +132,14 @@ def lqg_design(pred, Q, R, *, dt=None) -> LqgDesign:
     >>> np.allclose(lqg.gain, hinf_design(pred, 1.0, 0.1, gamma=np.inf).gain)
     True
     """
-    from .hinf import _predictor_parts  # shared validation
+    from .hinf import _predictor_parts, _warn_no_control  # shared validation
 
     Lw, Lu, i, m, l = _predictor_parts(pred)
     dt = check_predictor_dt(pred, dt)
     dt = check_sample_time(True if dt is None else dt)
     Q = _spd(Q, l, "Q")
     R = _spd(R, m, "R")
+    _warn_no_control(pred, stacklevel=2)
     Qc = np.kron(np.eye(i), np.linalg.cholesky(Q).T)  # Q_cᵀ Q_c = Q_diag
     Rc = np.kron(np.eye(i), np.linalg.cholesky(R).T)
     A = np.vstack([Qc @ Lu, Rc])

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import lapack
+from scipy.special import fdtrc
 
 from .exceptions import PersistenceWarning
 
@@ -74,6 +75,14 @@ class Predictor:
         The record it was fitted on, as hashes (:func:`synthesis.record_fingerprint`; :func:`fit_predictor` sets
         it): a test on "held-out" data can check that they are (:func:`unfalsify.check_premise`).  Not compared
         by ``==``.  ``None``: unknown.
+    control_pvalue : float or None
+        Whether the data show the future inputs acting on the predicted outputs at all: the p-value of the
+        F-test of ``L_u = 0`` (the nested regressions of ``Y_f`` on ``W_p`` and on ``[W_p; U_f]``, each output row
+        of the horizon, Bonferroni over the ``i·l`` rows; 1 when ``U_f`` explains less than ``rcond²`` of a row's
+        energy, 0 when the larger regression is exact).  Near 1 when the horizon is not longer than the plant's
+        delay (``i = 1`` on a strictly proper plant): ``L_u`` is then noise, and the designs warn
+        (:class:`~synthesis.HorizonWarning`).  Computed on first access; ``None`` where it is not computed (a
+        rank-deficient regressor, ``"lstsq"``, fewer than twice as many columns as regressors).
     """
 
     Lw: np.ndarray
@@ -90,6 +99,7 @@ class Predictor:
     solver: str | None = None
     dt: float | None = None
     fingerprint: RecordFingerprint | None = field(default=None, compare=False)
+    control_pvalue: float | None = _LazyField(default=None)
 
     @property
     def n_regressors(self) -> int:
@@ -462,12 +472,56 @@ def _unscaled(L: np.ndarray, d) -> np.ndarray:
     return d[n_reg:, None] * L / d[None, :n_reg]
 
 
-def _triangular_predictor(L, R1, i, m, l, j, rcond, method) -> Predictor:
-    """``L = [Lw Lu]`` (the fields are copied by the constructor); ``R1`` or its transpose, for the singular values."""
+def _triangular_predictor(L, R1, i, m, l, j, rcond, method, control=None) -> Predictor:
+    """``L = [Lw Lu]`` (the fields are copied by the constructor); ``R1`` or its transpose, for the singular values;
+    ``control``: the recipe of :attr:`Predictor.control_pvalue` (:func:`_control_test`)."""
     n_reg = i * (2 * m + l)
     Lw, Lu = L[:, : i * (m + l)], L[:, i * (m + l):]
     sv = _Deferred(_factor_singular_values, R1)
-    return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular")
+    return Predictor(Lw, Lu, i, m, l, j, sv, n_reg, method, 2 * m * i, float(rcond), "triangular",
+                     control_pvalue=control)
+
+
+def _control_test(Z: np.ndarray, energy, R33, i, m, l, j, rcond):
+    """Recipe of :attr:`Predictor.control_pvalue`, or ``None`` with fewer residual degrees of freedom than regressors.
+
+    ``Z = R1⁻ᵀ G13`` (``= R3ᵀ``: one column per output row of the horizon); either ``energy``, the rows' energies
+    (the diagonal of ``G33``; the residuals are then ``energy − ‖Z‖²``), or ``R33``, the factor's last block (the
+    residuals are its rows' energies).  Nothing is computed until the field is read (a design reads it; the adaptive
+    loop of §5.3 does not).
+    """
+    dof = j - i * (2 * m + l)
+    if dof < i * (2 * m + l):
+        # fewer than twice as many columns as regressors: the test could not tell "no effect" from "too few data"
+        # (a fit on 61 columns for 60 regressors gave p = 0.45 at i = 20, where L_u is well away from 0)
+        return None
+    energy = None if energy is None else np.array(energy, float)
+    return _Deferred(_control_pvalue, Z, energy, R33, i * (m + l), i * m, dof, rcond)
+
+
+def _control_pvalue(Z: np.ndarray, energy, R33, n_past: int, n_inputs: int, dof: int, rcond: float) -> float:
+    """The Bonferroni p-value of the F-tests of ``L_u = 0``, one per output row (:attr:`Predictor.control_pvalue`).
+
+    ``R1`` is triangular with the ``W_p`` rows first, so the rows of ``Z`` past ``n_past`` hold what ``U_f`` explains
+    beyond ``W_p`` (the nested regressions' difference).  Energies below ``rcond²`` of the row's are rounding (the
+    Gram methods' floor, :func:`default_rcond`).
+    """
+    gain = np.einsum("ij,ij->j", Z[n_past:], Z[n_past:])
+    explained = np.einsum("ij,ij->j", Z, Z)
+    if R33 is None:
+        rss = energy - explained
+    else:
+        rss = np.einsum("ij,ij->i", R33, R33)
+        energy = rss + explained
+    tiny = rcond ** 2 * energy
+    p = np.ones(gain.size)
+    moves = gain > tiny
+    exact = moves & (rss <= tiny)  # noise-free data: U_f explains what W_p leaves, to rounding
+    p[exact] = 0.0
+    test = moves & ~exact
+    if np.any(test):
+        p[test] = fdtrc(n_inputs, dof, (gain[test] / n_inputs) / (rss[test] / dof))  # the F distribution's tail
+    return float(min(1.0, p.min() * p.size))
 
 
 def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None,
@@ -492,14 +546,18 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
         R1 = np.asfortranarray(R[:n_reg, :n_reg])
         if _well_conditioned(R1, rcond, warm):
             L = _trsolve(R1, R[n_reg:, :n_reg].T, trans=1).T  # R3 R1⁻¹
-            return _triangular_predictor(_unscaled(L, scale), unscaled, i, m, l, j, rcond, method)
+            control = _control_test(R[n_reg:, :n_reg].T, None, R[n_reg:, n_reg:], i, m, l, j, rcond)
+            return _triangular_predictor(_unscaled(L, scale), unscaled, i, m, l, j, rcond, method, control)
     L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared, scale=scale)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
     Lw, Lu = _split(L, i, m, l)
     if scale is not None:  # the singular values of the regressor itself, not of the scaled one q was decided on
         s = _Deferred(_factor_singular_values, unscaled)
-    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral")
+    # the F-test needs the whole regressor (a rank-deficient one leaves pivots of rounding size in R1)
+    control = _control_test(R[n_reg:, :n_reg].T, None, R[n_reg:, n_reg:], i, m, l, j, rcond) if q == n_reg else None
+    return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral",
+                     control_pvalue=control)
 
 
 def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="auto", warm=None) -> Predictor:
@@ -522,10 +580,15 @@ def _predictor_from_gram(G, i, m, l, j, rcond, method, *, stacklevel=3, route="a
     if method in _GRAM_METHODS and route == "auto":
         R1t, info = lapack.dpotrf(G[:n_reg, :n_reg].T, lower=0, clean=1)  # upper factor: R1ᵀ
         if info == 0 and _well_conditioned(R1t, rcond, warm, lower=False):
-            X, info = lapack.dpotrs(R1t, G[n_reg:, :n_reg].T, lower=0)
+            # G11⁻¹ G13 as LAPACK dpotrs does it, in its two triangular solves: the first, Z = R1⁻ᵀ G13, also gives
+            # what U_f explains beyond W_p (Predictor.control_pvalue)
+            Z, info = lapack.dtrtrs(R1t, G[n_reg:, :n_reg].T, lower=0, trans=1)
+            if info == 0:
+                X, info = lapack.dtrtrs(R1t, Z, lower=0, trans=0)
             if info == 0:
                 unscaled = R1t if scale is None else R1t * scale[None, :n_reg]
-                return _triangular_predictor(_unscaled(X.T, scale), unscaled, i, m, l, j, rcond, method)
+                control = _control_test(Z, np.diagonal(G)[n_reg:], None, i, m, l, j, rcond)
+                return _triangular_predictor(_unscaled(X.T, scale), unscaled, i, m, l, j, rcond, method, control)
         route = "spectral"  # R1 is not (well) conditioned: the full factor's triangular route would refuse too
     R = _psd_cholesky(G)
     return _predictor_from_factor(R, i, m, l, j, rcond, method, stacklevel=stacklevel + 1, route=route, warm=warm,

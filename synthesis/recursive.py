@@ -26,7 +26,9 @@ Two summaries are available (``track=``):
     rotations).  A downdate that would lose positive definiteness (always the case while
     the window has fewer columns than ``2i(m+l)``) is detected before anything changes;
     the factor is then recomputed from the window's samples and a :class:`RefactorWarning`
-    is issued.
+    is issued.  Like :func:`~synthesis.fit_predictor`, a (re)factorisation scales every channel to unit
+    rms first (by a power of two, exact), so that which pivots of a singular Gram are rounding noise does
+    not depend on the units.
 
 In sliding mode both summaries are recomputed from the window's samples once every
 ``window`` pushed columns (``O(i·window)`` work, ``O(i)`` per sample amortised), so
@@ -47,7 +49,8 @@ from .exceptions import RefactorWarning
 from ._validation import DataError, as_signal, check_count, check_horizon
 from .cholesky import DowndateError, choldowndate, cholupdate
 from .hankel import hankel_gram, hankel_order
-from .predictor import Predictor, _predictor_from_factor, _predictor_from_gram, _psd_cholesky, _resolve_rcond
+from .predictor import (Predictor, _channel_scales, _predictor_from_factor, _predictor_from_gram, _psd_cholesky,
+                        _resolve_rcond)
 
 __all__ = ["RecursivePredictor", "RefactorWarning"]
 
@@ -313,9 +316,24 @@ class RecursivePredictor:
         G = hankel_gram(data[:, :m], data[:, m:], self.horizon)
         # factor track: store the upper factor R = Lᵀ (G = Rᵀ R) so that the rotations of
         # cholupdate/choldowndate sweep contiguous rows
-        self._S = G if self.track == "gram" else np.ascontiguousarray(_psd_cholesky(G).T)
+        self._S = G if self.track == "gram" else self._factor(G)
         self._since_refresh = 0
         self._peak = np.diagonal(G).copy() if self.window is not None else None
+
+    def _factor(self, G: np.ndarray) -> np.ndarray:
+        """Upper ``R`` with ``Rᵀ R = G``, factored with every channel scaled to unit rms (:func:`_channel_scales`).
+
+        The factorisation of a semidefinite ``G`` (noise-free data) decides which pivots are rounding noise
+        relative to the largest entry, which depends on the units: factored unscaled, a window with channels in
+        units ``1e±3`` gave an ``Lu`` off by up to 35 % against :func:`~synthesis.fit_predictor` on the same window
+        (which scales).  ``G = D G_s D`` with ``G_s = L_s L_sᵀ`` gives the factor ``D L_s`` (powers of two: exact);
+        measured cost 35–320 µs more per recomputation (``i`` = 8–64), against 160–1500 µs for ``hankel_gram``.
+        """
+        d = _channel_scales(np.diagonal(G), self.horizon, self.m, self.l, max(self._j, 1))
+        if d is None:
+            return np.ascontiguousarray(_psd_cholesky(G).T)
+        L = _psd_cholesky(G / np.outer(d, d))
+        return np.ascontiguousarray((d[:, None] * L).T)
 
     def __repr__(self) -> str:
         win = "growing" if self.window is None else f"window={self.window}"

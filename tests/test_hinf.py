@@ -406,3 +406,55 @@ def test_plan_route_equals_the_engine_on_the_full_map(case, kw):
     # B is read off the reference columns of the map except for the multiplicative law (H3 L_u in z3)
     plan = _map_plan(pred.horizon, pred.m, pred.l, W1, W2, **kw)
     assert plan.b_is_reference == (not isinstance(kw.get("uncertainty"), Multiplicative))
+
+
+# ------------------------------------------------------------------------------------------ horizon vs delay
+def _fir_record(taps, noise, n=400, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    return u, np.convolve(u, taps)[:n] + noise * rng.standard_normal(n)
+
+
+def _lqg(pred):
+    from synthesis import lqg_design
+    return lqg_design(pred, 1.0, 0.01)
+
+
+def _designs(pred):
+    return gamma_min(pred, 1.0, 0.1), hinf_design(pred, 1.0, 0.1), _lqg(pred)
+
+
+@pytest.mark.parametrize("taps, noise", [([0.0, 0.5, 0.2], 0.01), ([0.0, 0.5, 0.2], 0.0), ([0.0, 0.8], 0.0)])
+def test_a_horizon_the_control_cannot_act_in_warns_naming_the_horizon(taps, noise):
+    """i = 1 on a strictly proper plant: u_k reaches no output of the horizon, and L_u is noise (1.3e-3 for
+    0.5 z⁻¹ + 0.2 z⁻², exactly 0 to rounding for 0.8 z⁻¹) on which the laws had acted without a warning (H∞ gain
+    0.37 there); gamma_min, hinf_design and lqg_design each warn, naming i >= 2."""
+    from synthesis import HorizonWarning, PersistenceWarning
+    u, y = _fir_record(taps, noise)
+    pred = fit_predictor(u, y, 1)
+    assert pred.control_pvalue > 0.01
+    for design in (lambda p: gamma_min(p, 1.0, 0.1), lambda p: hinf_design(p, 1.0, 0.1), _lqg):
+        with pytest.warns(HorizonWarning, match=r"horizon i=1 .*i >= 2 for a strictly proper plant"):
+            design(pred)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", HorizonWarning)
+        warnings.simplefilter("ignore", PersistenceWarning)  # 0.8 z⁻¹ at i = 2: noise-free, rank deficient
+        longer = fit_predictor(u, y, 2)
+        # a rank-deficient regressor is not tested (None): its rounding-size pivots would decide
+        assert (longer.control_pvalue is None) == (longer.rank < longer.n_regressors)
+        assert longer.control_pvalue is None or longer.control_pvalue < 1e-6
+        _designs(longer)
+
+
+@pytest.mark.parametrize("i", [1, 3])
+def test_a_plant_with_feedthrough_designs_at_horizon_1_without_a_warning(i):
+    from synthesis import HorizonWarning, RecursivePredictor
+    u, y = _fir_record([0.3, 0.5, 0.2], 0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", HorizonWarning)
+        pred = fit_predictor(u, y, i)
+        assert pred.control_pvalue < 1e-6
+        _designs(pred)
+        _designs(RecursivePredictor.from_data(u, y, i).predictor())  # the recursive predictor carries the test too
+    assert fit_predictor(u, y, i, method="qr").control_pvalue < 1e-6
+    assert fit_predictor(u, y, i, method="lstsq").control_pvalue is None  # not computed there: no warning
