@@ -59,7 +59,12 @@ class _LazyField:
             if self._default is _MISSING:
                 raise AttributeError(self._name)  # dataclasses: no default, the field is required
             return self._default
-        value = obj.__dict__[self._slot]
+        try:
+            value = obj.__dict__[self._slot]
+        except KeyError:  # an object pickled before the field existed: its default, as the class attribute reads
+            if self._default is _MISSING:
+                raise AttributeError(self._name) from None
+            return self._default
         if isinstance(value, _Deferred):
             value = _readonly(value(obj))  # as the eager fields of a @result class
             obj.__dict__[self._slot] = value

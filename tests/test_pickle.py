@@ -145,6 +145,24 @@ def test_results_pickled_before_the_modules_were_split_still_load():
         assert type(old) is type(obj) and old == obj
 
 
+def test_a_predictor_pickled_before_control_pvalue_existed_designs_and_compares():
+    """A lazily computed field added later (``Predictor.control_pvalue``) reads its default on an object pickled
+    before it existed (its slot is missing from the pickle's ``__dict__``): it had raised KeyError in ``==`` and in
+    every design that reads it."""
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:600] + 0.02 * rng.standard_normal(600)
+    pred = synthesis.fit_predictor(u, y, 5)
+    state = pickle.loads(pickle.dumps(pred)).__dict__
+    assert state.pop("_lazy_control_pvalue", None) is not None  # what a pickle made before the field lacks
+    old = object.__new__(type(pred))
+    old.__dict__.update(state)
+    assert old.control_pvalue is None and old.Lu.shape == pred.Lu.shape
+    assert old != pred  # the new predictor has the p-value, the old one does not: no exception either way
+    design = synthesis.hinf_design(old, 1.0, 0.1, dt=1.0)
+    assert np.allclose(design.gain, synthesis.hinf_design(pred, 1.0, 0.1, dt=1.0).gain)
+
+
 def _raise_infeasible(gamma):
     raise synthesis.InfeasibleGammaError(gamma, 2.0, 2.1)
 
