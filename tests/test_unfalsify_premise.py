@@ -1248,6 +1248,34 @@ def test_a_certified_result_says_when_the_data_do_not_confirm_its_ball():
     assert note == uf.unconfirmed_premise(r.premise, ball)
 
 
+def test_a_coprime_certificate_says_when_the_data_do_not_confirm_its_family():
+    """A slow mode flips the plant's DC gain (``P(1) = −0.1``; over the i = 5 horizon the plant looks like its fast
+    part, P̂(1) ≈ 0.93): the additive premise is refuted at low frequency, the coprime one is not (its tests refuse on
+    evidence only), and the loop certified in coprime form is unstable on the plant, which lies 4.3 ε from the
+    family (slowH hunt, 2026-11-29).  The data's regions of ``M̂P − N̂`` reach beyond ``(1 + margin)·ε``: the result
+    must say so, as an additive one does (it had said nothing in coprime form)."""
+    from experiments.studies.design_cli import default_weights
+    from experiments.studies.robust_pipeline import result_premise_ratio
+
+    p = 0.99
+    P = control.ss(np.diag([p, 0.7, 0.4]), [[-1.1 * (1 - p)], [0.15], [0.3]], np.ones((1, 3)), 0, 0.1)
+    d = collect_data(P, prbs(1500, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    W1, W2, _ = default_weights(0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=0.1, window="auto")
+    assert r.certified and r.uncertainty == "coprime", r.reason
+    assert result_premise_ratio(P, r)[0] > 1 + r.certificate.margin  # the plant lies outside the family
+    ball = (1 + r.certificate.margin) * r.epsilon
+    note = r.premise_note
+    assert note.startswith("the data do not confirm the premise of the coprime-factor certificate, the plant "
+                           f"within (1 + margin)·ε = {ball:.4g}"), note
+    assert note == uf.unconfirmed_coprime_premise(r.coprime, ball) and "higher horizon" in note
+    assert uf.unconfirmed_coprime_premise(r.coprime, 1e3) == ""  # a family wider than the regions: confirmed
+    with pytest.raises(DataError, match="bound"):
+        uf.unconfirmed_coprime_premise(r.coprime, -1.0)
+
+
 def test_no_note_where_the_data_confirm_the_ball():
     """A FIR plant fitted on a low-noise record: the confidence regions of ``P − P̂`` lie inside the ball, and
     ``unconfirmed_premise`` says nothing; nor for a result made before ``upper`` was measured (NaN)."""

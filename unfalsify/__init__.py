@@ -134,6 +134,7 @@ Coprime-factor uncertainty (finite for integrating plants)
    CoprimeUnfalsification -- result of ``coprime_unfalsify``
    check_coprime_premise  -- ε in sample and held out, and the gap to the data's estimate of ``M̂P − N̂``
    CoprimePremise         -- result of ``check_coprime_premise``
+   unconfirmed_coprime_premise -- why the data's regions of ``M̂P − N̂`` do not confirm a coprime certificate's family
    coprime_gap            -- pointwise least coprime perturbation a plant (or a confidence region) needs
    error_gap              -- its lower bound from an estimate of ``M̂P − N̂`` alone
    coprime_distance       -- a plant's largest pointwise coprime distance from the factors (a lower bound)
@@ -275,7 +276,7 @@ from .premise import (
     untested_premises,
 )
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
-                      coprime_factors, coprime_gap, coprime_unfalsify, error_gap)
+                      coprime_factors, coprime_gap, coprime_unfalsify, error_gap, unconfirmed_coprime_premise)
 from .options import CertificateOptions, DesignOptions, DesignSearch, EstimationOptions
 from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta,
                      robust_design_from_data)
@@ -358,6 +359,7 @@ __all__ = [
     "coprime_factors",
     "coprime_gap",
     "coprime_unfalsify",
+    "unconfirmed_coprime_premise",
     "error_gap",
     "AdditiveRobustness",
     "DesignSearch",

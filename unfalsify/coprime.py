@@ -49,17 +49,19 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_discrete_system, check_count, check_flag, check_instance, check_level
+from synthesis.validation import (DataError, as_discrete_system, check_count, check_flag, check_instance, check_level,
+                                  check_nonnegative)
 
 from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
                                  frequency_response_estimate, low_band_estimate)
-from .premise import PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options
+from .premise import PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options, _region_reach
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
-           "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise"]
+           "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise",
+           "unconfirmed_coprime_premise"]
 
 
 #: largest number of Markov parameters n·l·(m + l) of Δ in one coprime solve (measured on 2 cores: a 2 × 2
@@ -560,3 +562,56 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
                 reasons.append(why)
     return CoprimePremise(factors=factors, in_sample=inside, held_out=outside, epsilon=eps, decided_by=decided,
                           inconsistency=worst, reason="; ".join(reasons), error_frf=frf, error_low_band=low)
+
+
+def unconfirmed_coprime_premise(premise: CoprimePremise, bound: float) -> str:
+    """Why the data do not confirm the premise of a coprime-factor certificate -- the plant within ``bound`` of
+    P̂'s factors -- ``''`` when they do (the coprime form of :func:`unfalsify.unconfirmed_premise`).
+
+    The data estimate ``R = M̂P − N̂``, and ``(M̂, N̂ + R)`` factors the plant, so ``[Δ_N Δ_M] = [R 0]`` is one
+    perturbation that reaches it: where the confidence regions of ``R`` (``error_frf`` at the excited Welch
+    frequencies, ``error_low_band`` below them) reach beyond ``bound``, the data allow a plant that only a larger
+    perturbation of these factors reaches.  :func:`check_coprime_premise` refuses only where a region lies wholly
+    beyond ε (evidence), so a certified loop can rest on a ball the data do not confirm.  Measured (2026-11-29,
+    slowH hunt): a slow mode that flips the plant's DC gain (``P(1) = −0.1``, P̂'s 0.93 at i = 5) left the additive
+    premise refuted and the coprime one passed (largest gap 0.41 ε at 0.127 rad/s); the loop certified in coprime
+    form was unstable on the plant, whose distance from the family was 3.8–9.1 ε, while the regions of ``R`` reached
+    2.7 times ``(1 + margin)·ε`` -- this statement, where before a coprime result said nothing.
+
+    Parameters
+    ----------
+    premise : CoprimePremise
+    bound : float
+        The radius of the family the certificate is a theorem about, ``(1 + margin)·ε``.
+
+    Returns
+    -------
+    str
+        ``''`` when the regions reach no further than ``bound`` (or nothing was estimated); otherwise the
+        statement, with the numbers and the fix.
+
+    Examples
+    --------
+    >>> F = CoprimeFactors(N=np.array([[[0.0]], [[0.1]]]), M=np.array([[[1.0]], [[-0.5]]]), dt=1.0)
+    >>> est = LowBandEstimate(frequency=np.array([0.01, 0.02]), response=np.array([0.1, 0.05]),
+    ...                       radius=np.array([0.05, 0.02]), confidence=0.99, window=16, degree=2, samples=600, dt=1.0)
+    >>> p = CoprimePremise(factors=F, in_sample=None, held_out=None, epsilon=0.05, decided_by="held out",
+    ...                    inconsistency=0.5, reason="", error_frf=None, error_low_band=est)
+    >>> unconfirmed_coprime_premise(p, 0.0625)[:60]
+    'the data do not confirm the premise of the coprime-factor ce'
+    >>> unconfirmed_coprime_premise(p, 0.2)
+    ''
+    """
+    check_instance(premise, CoprimePremise, "premise", "a CoprimePremise (RobustDesignResult.coprime)")
+    bound = check_nonnegative(bound, "bound ((1 + margin)·ε of the certificate)")
+    upper, where = _region_reach(getattr(premise, "error_frf", None), getattr(premise, "error_low_band", None))
+    if not upper > bound:
+        return ""
+    est = premise.error_frf if premise.error_frf is not None else premise.error_low_band
+    return (f"the data do not confirm the premise of the coprime-factor certificate, the plant within "
+            f"(1 + margin)·ε = {bound:.4g} of P̂'s factors: their {est.confidence:.0%} confidence regions of the "
+            f"equation error's response M̂P − N̂ (a perturbation of N̂ that reaches the plant) reach {upper:.3g} "
+            f"({upper / bound:.3g} × that) at {where:.3g} {_unit(est.dt)}; the plant is assumed inside the family "
+            "there (the loop's own test against those regions, the excitation check, refuses on evidence only, and a model "
+            "error slower than the record shows is not seen); a longer record or a larger input amplitude narrows "
+            "the regions, and a higher horizon lowers a slow error of P̂ itself")

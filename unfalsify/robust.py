@@ -67,7 +67,8 @@ from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
 from .certify import LoopCertificate, certify_loop
-from .coprime import CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify
+from .coprime import (CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify,
+                      unconfirmed_coprime_premise)
 from .clipping import clipped_outputs
 from .feedback import FEEDTHROUGH_STATEMENT, FeedbackTest, check_feedback
 from .arx import arx_regressor
@@ -271,16 +272,24 @@ class RobustDesignResult:
 
     @property
     def premise_note(self) -> str:
-        """Whether the data confirm the ball this result's additive certificate is a theorem about, ``(1 + margin)·δ``
-        around P̂ with the certificate's margin (:func:`unfalsify.unconfirmed_premise`): ``''`` when the data's
-        confidence regions of ``P − P̂`` lie inside it, or for the coprime form; otherwise the statement that the
-        plant is assumed inside it, not shown to be.  The premise tests refuse only on evidence against the ball,
-        so a certified result can carry this note: its loop passed the test against the regions themselves, but its
-        δ names a ball the plant may lie outside (measured, 2026-11-29: ``‖P − P̂‖∞/δ`` up to 4.3 on certified
-        records of known plants)."""
-        if self.premise is None or self.uncertainty != "additive":
-            return ""
+        """Whether the data confirm the ball this result's certificate is a theorem about: ``''`` when they do,
+        otherwise the statement that the plant is assumed inside it, not shown to be.  Additive form: ``(1 + margin)·δ``
+        around P̂ with the certificate's margin and the data's confidence regions of ``P − P̂``
+        (:func:`unfalsify.unconfirmed_premise`); coprime-factor form: ``(1 + margin)·ε`` around P̂'s factors and the
+        regions of ``M̂P − N̂`` (:func:`unfalsify.unconfirmed_coprime_premise`).  The premise tests refuse only on
+        evidence against the ball, so a certified result can carry this note: its loop passed the test against the
+        regions themselves, but its δ (ε) names a ball the plant may lie outside (measured, 2026-11-29:
+        ``‖P − P̂‖∞/δ`` up to 4.3 on certified records of known plants; in coprime form, a loop unstable on a plant
+        3.8–9.1 ε from the family)."""
         # the certificate's own margin (``certificate.margin``), not the W3 rule's (``margin``)
+        if self.uncertainty == "coprime":
+            # the coprime form's ball is as unconfirmed as the additive one (a coprime result had said nothing:
+            # measured, a loop certified in that form was unstable on a plant 3.8–9.1 ε from the family)
+            if self.coprime is None:
+                return ""
+            return unconfirmed_coprime_premise(self.coprime, (1.0 + self.certificate.margin) * self.coprime.epsilon)
+        if self.premise is None:
+            return ""
         return unconfirmed_premise(self.premise, (1.0 + self.certificate.margin) * self.delta)
 
     @property
