@@ -1245,6 +1245,9 @@ def test_a_certified_result_says_when_the_data_do_not_confirm_its_ball():
     note = r.premise_note
     assert note.startswith(f"the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = {ball:.4g}")
     assert f"reach {r.premise.upper:.3g}" in note and "a longer record or a larger input amplitude" in note
+    # the loop's test against the regions is evidence-only below the Welch resolution: the note must not claim more
+    # (a loop certified with the note was unstable on a plant whose slow mode flipped P(1), slowH hunt 2026-11-29)
+    assert "below them it refuses on evidence only" in note and "still holds" not in note
     assert note == uf.unconfirmed_premise(r.premise, ball)
 
 

@@ -694,7 +694,9 @@ def unconfirmed_premise(test: PremiseTest, bound: float) -> str:
             f"regions of P − P̂ reach {upper:.3g} ({upper / bound:.3g} × that) at {test.upper_frequency:.3g} {unit}, "
             "and δ of (7.5) bounds P − P̂ over the horizon's steps only, so a slower model error can exceed the ball "
             "unseen; the plant is assumed inside it there (the loop's own test against those regions, the "
-            "excitation check, still holds); a longer record or a larger input amplitude narrows the regions, and a "
+            "excitation check, holds at the Welch frequencies; below them it refuses on evidence only, and a model "
+            "error slower than the record shows is not seen: a loop with integral action fails on a plant whose DC "
+            "gain the record leaves open); a longer record or a larger input amplitude narrows the regions, and a "
             "higher horizon lowers a slow error of P̂ itself")
 
 
