@@ -129,7 +129,7 @@ def test_a_channel_silent_in_a_band_is_named_with_the_band():
     assert "input u[:, 1] has the least power there" in ex.reason and "rad/sample" in ex.reason
     import re
 
-    below = re.search(r"least power there, ([0-9-]+) dB below the inputs' peak", ex.reason)
+    below = re.search(r"least power there, ([0-9-]+) dB below its own peak", ex.reason)
     assert below and int(below.group(1)) > 20  # a positive number of dB below (it had read "down to -95 dB below")
     ex1 = uf.check_excitation(control.ss([], [], [], 1.0, 1.0), control.ss([], [], [], [[0.5, -0.5]], 1.0),
                               uf.frequency_response_estimate(u[:, 1], e[:, 0]))
@@ -322,3 +322,78 @@ def test_a_short_output_error_segment_names_a_fix_for_record_mode():
     model = control.ss([[0.0]], [[1.0]], [[0.5]], [[0.0]], 1.0)
     with pytest.raises(DataError, match=r"needs at least 48.*a record three times that long\), or lower the horizon"):
         uf.output_error_unfalsify(model, u, y, 8, held_out=True)
+
+
+# ---- excitation does not depend on the inputs' units ------------------------------------------------------------
+
+def _two_input_record(seed=0, n=1500):
+    """A 2 × 2 record under independent white ±1 inputs (the FIR taps of ``_taps``, output noise 0.05)."""
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal((n, 2)))
+    return u, _filter(_taps(2, 2), u) + 0.05 * rng.standard_normal((n, 2))
+
+
+@pytest.mark.parametrize("units", [(1e-3, 1e3), (1e3, 1e-3), (1.0, 1e-2)])
+def test_excitation_is_the_same_in_other_input_units(units):
+    """Both inputs excite every frequency whatever their units: in units 10⁻³ and 10³, ``λ_min/λ_max(S_uu) ≈ 10⁻¹²``
+    had excited no frequency, and the §7.4 pipeline had refused with "the record excites no frequency"."""
+    u, y = _two_input_record()
+    base = uf.frequency_response_estimate(u, y, 0.1)
+    est = uf.frequency_response_estimate(u * np.array(units), y, 0.1)
+    assert np.all(base.excited)
+    np.testing.assert_array_equal(est.excited, base.excited)
+    np.testing.assert_array_equal(np.isfinite(est.radius), np.isfinite(base.radius))
+    # the estimate is the same operator in the record's units: Ĝ diag(1/units)
+    np.testing.assert_allclose(est.response, base.response / np.array(units), rtol=1e-8)
+    assert "excites no frequency" not in _frf_inconsistency(est, 0.1)[1]
+
+
+def test_the_low_band_fit_is_the_same_in_other_input_units():
+    """The local polynomial fit decides its rank on unit-norm columns: in units 10⁻⁶ and 10⁶ it had dropped four of
+    six bins as rank deficient."""
+    u, y = _two_input_record()
+    base = uf.low_band_estimate(u, y, 0.1, bins=6)
+    est = uf.low_band_estimate(u * [1e-6, 1e6], y, 0.1, bins=6)
+    assert np.all(np.isfinite(base.radius)) and np.all(np.isfinite(est.radius))
+    np.testing.assert_allclose(est.response, base.response / np.array([1e-6, 1e6]), rtol=1e-8)
+
+
+def test_persistence_is_the_same_in_other_input_units():
+    """The window's rank test (a predictor that records no ranks) on unit-rms channels: in units 10⁻⁶ and 10⁶ the
+    rank had been half of 2i·m and the record called not persistently exciting."""
+    from unfalsify.robust import _persistence_reason
+
+    u, _ = _two_input_record()
+    assert _persistence_reason(object(), u, 5, "predictor") == ""
+    assert _persistence_reason(object(), u * [1e-6, 1e6], 5, "predictor") == ""
+    # a genuinely collinear pair is still refused, in any units
+    assert "not persistently exciting" in _persistence_reason(object(), np.column_stack([u[:, 0], 2e6 * u[:, 0]]),
+                                                              5, "predictor")
+
+
+def test_an_unexcited_direction_stays_unexcited_in_any_units():
+    """Normalising the channels does not excite what is not: two inputs moving together, a silent channel, a channel
+    silent in a band (named, not the channel in small units), and a record whose inputs are all silent."""
+    import scipy.signal
+
+    rng = np.random.default_rng(3)
+    w = rng.standard_normal(4096)
+    e = 0.05 * rng.standard_normal((4096, 2))
+    for units in [(1.0, 1.0), (1e-3, 1e3), (1e3, 1e-3)]:
+        s = np.array(units)
+        together = uf.frequency_response_estimate(np.column_stack([w, 2.0 * w]) * s, e)
+        silent = uf.frequency_response_estimate(np.column_stack([w, np.zeros(4096)]) * s, e)
+        assert not np.any(together.excited) and np.all(np.isinf(together.radius))
+        assert not np.any(silent.excited) and np.all(np.isinf(silent.radius))
+    b, a = scipy.signal.butter(6, 0.2)
+    u = np.column_stack([1e-3 * rng.standard_normal(4096), 1e3 * scipy.signal.lfilter(b, a, rng.standard_normal(4096))])
+    est = uf.frequency_response_estimate(u, e)
+    high = est.frequency > 0.6 * np.pi
+    assert not np.any(est.excited[high]) and np.all(est.excited[(est.frequency > 0) & (est.frequency < 0.1 * np.pi)])
+    P = control.ss([], [], [], np.eye(2), 1.0)
+    K = control.ss([], [], [], np.hstack([0.5 * np.eye(2), -0.5 * np.eye(2)]), 1.0)
+    ex = uf.check_excitation(P, K, est)
+    assert not ex.ok and "input u[:, 1] has the least power there" in ex.reason and "on input u[:, 1]" in ex.reason
+    quiet = uf.frequency_response_estimate(np.zeros((4096, 2)), e)
+    assert not np.any(quiet.excited)
+    assert _frf_inconsistency(quiet, 0.1)[1] == "the record excites no frequency"

@@ -32,7 +32,7 @@ from synthesis.validation import DataError, check_instance
 
 from .certify import additive_channel, coprime_channel
 from .frequency_response import (EXCITATION_FLOOR, FrequencyResponseEstimate, LowBandEstimate, _bands,
-                                 _check_estimate_dt, _unit)
+                                 _check_estimate_dt, _normalised_input_psd, _unit)
 
 __all__ = ["ExcitationCheck", "check_excitation"]
 
@@ -366,16 +366,22 @@ def _input_power(frf: FrequencyResponseEstimate) -> np.ndarray:
 
 def _weakest_input(frf: FrequencyResponseEstimate, bad: np.ndarray) -> tuple[int, float]:
     """The input channel with the least power over the flagged Welch frequencies, and that power in dB below
-    the peak of all inputs over all frequencies."""
+    that channel's own peak over all frequencies (a channel without any power: −3000 dB).
+
+    Each channel against its own peak, not the peak of all inputs: in other units (10⁻³ and 10³) an input exciting
+    every frequency had read 120 dB below the inputs' peak, and been named as the one to excite."""
     power = _input_power(frf)
-    low = np.min(power[bad], axis=0)
-    j = int(np.argmin(low))
-    return j, 10.0 * np.log10(max(float(low[j]), 1e-300) / max(float(np.max(power)), 1e-300))
+    low, peak = np.min(power[bad], axis=0), np.max(power, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(peak > 0.0, low / np.where(peak > 0.0, peak, 1.0), 0.0)
+    j = int(np.argmin(ratio))
+    return j, 10.0 * np.log10(max(float(ratio[j]), 1e-300))
 
 
 def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
     """``': the input's power there falls to … dB below its peak'`` over the flagged Welch frequencies (MIMO:
-    the channel with the least power, and the weakest input direction when the channels move together)."""
+    the channel with the least power against its own peak, and the weakest direction of the channel-normalised
+    spectrum when the channels move together)."""
     if not np.any(bad):
         return ""
     if frf.input_psd.ndim == 1:
@@ -384,12 +390,12 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
         level = 10.0 * np.log10(max(float(np.min(frf.input_psd[bad])), 1e-300) / float(np.max(frf.input_psd)))
         return f": the input's power there falls to {_db_below(level)} its peak"
     j, level = _weakest_input(frf, bad)
-    lam = np.linalg.eigvalsh(frf.input_psd)
+    lam = np.linalg.eigvalsh(_normalised_input_psd(frf.input_psd))
     direction = 10.0 * np.log10(max(float(np.min(lam[bad, 0])), 1e-300) / max(float(np.max(lam[:, -1])), 1e-300))
     if level < -200.0:  # exactly or numerically zero: a dB figure would be the rounding's
         text = f": input u[:, {j}] has no power there"
     else:
-        text = f": input u[:, {j}] has the least power there, {_db_below(level)} the inputs' peak"
+        text = f": input u[:, {j}] has the least power there, {_db_below(level)} its own peak"
     if direction < level - 20.0:  # every channel has power, but not independently
         text += (f", and the inputs' weakest direction is {_db_below(direction)} it (the channels move together "
                  "there)")

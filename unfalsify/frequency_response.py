@@ -12,8 +12,9 @@ them the output error ``e = y − P̂u``, so they estimate ``P − P̂``):
   peak.  Several inputs and outputs (u: (n, m), y: (n, l)): ``Ĝ`` is l × m per frequency and its region a
   radius on the spectral norm, ``‖G − Ĝ‖₂ ≤ r`` -- per output row an F-based ellipsoid (Goodman; Bendat &
   Piersol), Bonferroni over the rows and frequencies, turned into ``r = sqrt(Σ_r ρ_r²/λ_min(S_uu))``; a
-  frequency is excited when ``λ_min(S_uu)`` reaches the floor.  With one input and one output every
-  number is the SISO one.
+  frequency is excited when ``λ_min`` of the channel-normalised ``D⁻¹S_uuD⁻¹`` (``D²`` each input's mean
+  auto-spectrum) reaches the floor, so the inputs' units do not decide it (the radius stays in the record's
+  units).  With one input and one output every number is the SISO one.
 * **The local polynomial method** (:func:`low_band_estimate`) below the first Welch frequency, where each
   detrended segment is blind and where a slow pole or an integrator lives: the whole record's DFT is
   fitted bin by bin with a response and a transient quadratic in the bin, and F-distribution disks.
@@ -123,21 +124,57 @@ class FrequencyResponseEstimate:
     def excited(self) -> np.ndarray:
         """Frequencies whose input power is at least :data:`EXCITATION_FLOOR` times the peak.
 
-        MIMO: the *smallest* eigenvalue of ``S_uu`` against the peak of its largest one over all
-        frequencies.  The radius grows like ``λ_min(S_uu)^(−1/2)``: an input direction without power (a silent
-        channel, or two channels that move together) leaves ``Ĝ`` undetermined there however large the
-        trace is, so the trace would call such a frequency excited.
+        MIMO: the *smallest* eigenvalue of the channel-normalised ``D⁻¹S_uuD⁻¹`` against the peak of its largest
+        one over all frequencies, ``D²`` each input's mean auto-spectrum (:func:`_normalised_input_psd`).  The
+        smallest eigenvalue, because the radius grows like ``λ_min(S_uu)^(−1/2)``: an input direction without
+        power (a silent channel, or two channels that move together) leaves ``Ĝ`` undetermined there however large
+        the trace is, so the trace would call such a frequency excited.  Normalised, because persistency of
+        excitation does not depend on the inputs' units: on ``S_uu`` itself a 2 × 2 record of independent ±1
+        inputs recorded in units 10⁻³ and 10³ had ``λ_min/λ_max ≈ 10⁻¹²`` and excited no frequency.  A channel
+        without power at any frequency stays without it (nothing is excited).  One input: ``S_uu`` against its
+        peak, where the units cancel.
         """
         own = np.ones(self.frequency.size, bool) if self.leaked is None else ~np.asarray(self.leaked, bool)
         if self.input_psd.ndim == 1:
             return own & (self.input_psd >= EXCITATION_FLOOR * float(np.max(self.input_psd)))
-        lam = np.linalg.eigvalsh(self.input_psd)
-        return own & (lam[:, 0] >= EXCITATION_FLOOR * float(np.max(lam[:, -1])))
+        if self.input_psd.shape[1] == 1:  # one input: the units cancel (the numbers of one input as they were)
+            lam = np.linalg.eigvalsh(self.input_psd)
+            return own & (lam[:, 0] >= EXCITATION_FLOOR * float(np.max(lam[:, -1])))
+        lam = np.linalg.eigvalsh(_normalised_input_psd(self.input_psd))
+        return own & (lam[:, 0] > 0.0) & (lam[:, 0] >= EXCITATION_FLOOR * float(np.max(lam[:, -1])))
 
     @property
     def resolution(self) -> float:
         """Spacing of the frequencies, rad/s."""
         return float(2.0 * np.pi / (self.nperseg * self.dt))
+
+
+def _channel_scale(input_psd: np.ndarray) -> np.ndarray:
+    """``1/D``, ``D²`` each input's mean auto-spectrum over the frequencies, shape (m,); 0 for a channel without power
+    (its row and column of the normalised spectrum are then 0: that channel excites nothing)."""
+    power = np.mean(np.real(np.diagonal(input_psd, axis1=1, axis2=2)), axis=0)
+    with np.errstate(divide="ignore"):
+        return np.where(power > 0.0, 1.0 / np.sqrt(np.where(power > 0.0, power, 1.0)), 0.0)
+
+
+def _normalised_input_psd(input_psd: np.ndarray) -> np.ndarray:
+    """``D⁻¹ S_uu(ω) D⁻¹`` of (F, m, m) input cross-spectra, ``D²`` each input's mean auto-spectrum over the
+    frequencies: the spectrum every excitation decision on several inputs is taken on.
+
+    An invertible diagonal rescaling of the inputs (other units) leaves it unchanged, and with it whether an input
+    direction has power, while the eigenvalues of ``S_uu`` itself spread with the units (``λ_min/λ_max ≈ 10⁻¹²`` for
+    two independent white inputs in units 10⁻³ and 10³).  The confidence radii stay in the record's units, from
+    ``S_uu``.  A channel without power keeps a zero row and column.
+
+    >>> import numpy as np
+    >>> u = np.sign(np.random.default_rng(0).standard_normal((1500, 2)))
+    >>> a = frequency_response_estimate(u, np.zeros((1500, 2))).input_psd
+    >>> b = frequency_response_estimate(u * [1e-3, 1e3], np.zeros((1500, 2))).input_psd
+    >>> bool(np.allclose(_normalised_input_psd(a), _normalised_input_psd(b)))
+    True
+    """
+    d = _channel_scale(input_psd)
+    return input_psd * d[None, :, None] * d[None, None, :]
 
 
 def _spectral_norm(response: np.ndarray) -> np.ndarray:
@@ -426,6 +463,20 @@ def _cross_spectra(a: np.ndarray, b: np.ndarray, L: int) -> tuple[np.ndarray, np
     return f, np.moveaxis(s, -1, 0)
 
 
+def _normalised_solve(Suu: np.ndarray, Suy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(regular, S_uu⁻¹S_uy)`` per frequency for several inputs, decided and solved on ``N = D⁻¹S_uuD⁻¹``
+    (:func:`_normalised_input_psd`): ``S_uu⁻¹ = D⁻¹N⁻¹D⁻¹``.  Singular where ``λ_min(N) ≤`` :data:`_SINGULAR_INPUT`
+    ``· λ_max(N)`` (the solution there is the identity's, set NaN by the caller): on ``S_uu`` itself, inputs in
+    units 10⁻³ and 10³ made half the frequencies of a white record singular."""
+    m = Suu.shape[1]
+    d = _channel_scale(Suu)
+    N = Suu * d[None, :, None] * d[None, None, :]
+    lam = np.linalg.eigvalsh(N)
+    regular = (lam[:, -1] > 0) & (lam[:, 0] > _SINGULAR_INPUT * lam[:, -1])
+    X = np.linalg.solve(np.where(regular[:, None, None], N, np.eye(m)), d[None, :, None] * Suy)
+    return regular, d[None, :, None] * X
+
+
 def _mimo_welch(usable, L: int, dt: float, confidence: float) -> FrequencyResponseEstimate:
     """The H1 estimate ``S_yu S_uu⁻¹`` and the spectral-norm radius of :func:`frequency_response_estimate`."""
     m, l = usable[0][0].shape[1], usable[0][1].shape[1]
@@ -440,11 +491,14 @@ def _mimo_welch(usable, L: int, dt: float, confidence: float) -> FrequencyRespon
     Suu, Syy, Syu = Suu / count, Syy / count, Syu / count
     Suu = 0.5 * (Suu + np.conj(np.swapaxes(Suu, 1, 2)))  # Hermitian to rounding; eigvalsh reads one triangle
     nu = count / (1.0 + 2.0 * _HANN_OVERLAP_CORRELATION ** 2)
-    lam = np.linalg.eigvalsh(Suu)
-    regular = (lam[:, -1] > 0) & (lam[:, 0] > _SINGULAR_INPUT * lam[:, -1])
+    lam = np.linalg.eigvalsh(Suu)  # the radius's λ_min, in the record's units
     Suy = np.conj(np.swapaxes(Syu, 1, 2))
-    # Ĝᴴ = S_uu⁻¹ S_uy (S_uu Hermitian); singular frequencies get the identity so the batch solve runs
-    X = np.linalg.solve(np.where(regular[:, None, None], Suu, np.eye(m)), Suy)
+    if m == 1:  # one input: the units cancel (its numbers as they were)
+        regular = (lam[:, -1] > 0) & (lam[:, 0] > _SINGULAR_INPUT * lam[:, -1])
+        # Ĝᴴ = S_uu⁻¹ S_uy (S_uu Hermitian); singular frequencies get the identity so the batch solve runs
+        X = np.linalg.solve(np.where(regular[:, None, None], Suu, np.eye(m)), Suy)
+    else:  # singular or not on the channel-normalised spectrum, whatever the inputs' units
+        regular, X = _normalised_solve(Suu, Suy)
     G = np.where(regular[:, None, None], np.conj(np.swapaxes(X, 1, 2)), np.nan + 0j)
     explained = Syu @ X  # S_yu S_uu⁻¹ S_uy, the coherent part of S_yy
     Svv = Syy - explained
@@ -655,13 +709,18 @@ def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tupl
     powers = r[:, None] ** np.arange(d)[None, :]
     # columns: input j times 1, r, r², … (block j), then the transient's 1, r, r², …
     X = np.hstack([powers * U[:, j:j + 1] for j in range(m)] + [powers]).astype(complex)
-    theta, _, rank, _ = np.linalg.lstsq(X, Y, rcond=None)
+    # several inputs: fit (and decide the rank) on unit-norm columns, so the inputs' units do not decide it (one
+    # input: as it was); a silent input keeps its zero columns and the fit stays rank deficient
+    norms = np.linalg.norm(X, axis=0) if m > 1 else np.ones(X.shape[1])
+    scale = np.where(norms > 0.0, 1.0 / np.where(norms > 0.0, norms, 1.0), 1.0)
+    theta, _, rank, _ = np.linalg.lstsq(X * scale, Y, rcond=None)
     if rank < X.shape[1]:  # an input silent in the window (or collinear with another): nothing known
         return np.full((l, m), np.nan + 0j), float("inf")
+    theta = scale[:, None] * theta
     dof = W - X.shape[1]
     s2 = np.sum(np.abs(Y - X @ theta) ** 2, axis=0) / dof  # per output
     at0 = np.arange(m) * d  # the response at the bin: each input's constant term
-    C = _inverse_gram(X, at0)
+    C = scale[at0, None] * _inverse_gram(X * scale, at0) * scale[None, at0]  # (XᴴX)⁻¹ = S (SXᴴXS)⁻¹ S
     lam = float(np.linalg.eigvalsh(0.5 * (C + C.conj().T))[-1])
     fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2 * dof)
     return theta[at0, :].T.copy(), math.sqrt(lam * m * fq * float(np.sum(s2)))

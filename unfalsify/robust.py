@@ -373,8 +373,9 @@ def _persistence_reason(pred, u, i: int, what: str, design: int | None = None) -
         return ""
     u2 = np.asarray(u, float).reshape(np.shape(u)[0], -1)
     m = u2.shape[1]
-    # block Hankel [U_p; U_f] of depth 2i, one row per column of the window: rank 2i·m needed
-    U = np.lib.stride_tricks.sliding_window_view(u2, 2 * i, axis=0).reshape(-1, 2 * i * m)
+    # block Hankel [U_p; U_f] of depth 2i, one row per column of the window: rank 2i·m needed.  Several inputs: each
+    # channel at unit rms first, so the units do not decide the rank (10⁻⁶ and 10⁶ had dropped half of it)
+    U = np.lib.stride_tricks.sliding_window_view(_unit_rms(u2) if m > 1 else u2, 2 * i, axis=0).reshape(-1, 2 * i * m)
     s = np.linalg.svd(U, compute_uv=False)
     rank = int(np.sum(s > max(U.shape) * np.finfo(float).eps * 1e3 * s[0])) if s.size and s[0] > 0 else 0
     if rank < 2 * i * m:
@@ -382,6 +383,12 @@ def _persistence_reason(pred, u, i: int, what: str, design: int | None = None) -
                 + (_delayed_copy(u2, i, ratio)
                    or "excite more frequencies (white PRBS, independent per input channel) or lower the horizon"))
     return ""
+
+
+def _unit_rms(u: np.ndarray) -> np.ndarray:
+    """Each column of ``u`` divided by its rms (a silent column stays 0)."""
+    rms = np.sqrt(np.mean(u ** 2, axis=0))
+    return u / np.where(rms > 0.0, rms, 1.0)
 
 
 def _delayed_copy(u, i: int, ratio: float = 1.0) -> str:
