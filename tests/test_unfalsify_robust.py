@@ -316,3 +316,27 @@ def test_a_record_too_short_for_the_horizon_says_so(n):
     y = np.convolve(u, [0.0, 0.5, 0.3])[:n] + 0.05 * rng.standard_normal(n)
     with pytest.raises(DataError, match=r"too short for horizon i = 10.*record at least 164 samples"):
         uf.robust_design_from_data(u, y, 10, 1.0, 0.1, "auto", dt=1.0, window="auto")
+
+
+def test_a_slow_mode_that_flips_the_dc_gain_is_refused_on_the_whole_records_low_band():
+    """A slow mode (pole 0.995) with DC gain −1.1 under fast modes of gain +1: P(1) = −0.1, but over i = 5 steps
+    the plant looks like its fast part and P̂(1) ≈ +1.  The held-out third's low band starts at 0.128 rad/s, where
+    the error is within the data's regions; the additive loop certified on it was unstable on the plant.  The
+    output error over the whole 1500-sample record (lowest frequency 0.042 rad/s) places P̂ outside the ball."""
+    from experiments.lab.signals import prbs
+    from experiments.lab.simulate import collect_data
+    from experiments.studies.design_cli import default_weights
+
+    dt, p = 0.1, 0.995
+    plant = control.ss(np.diag([p, 0.7, 0.4]), [[-1.1 * (1 - p)], [0.15], [0.3]], np.ones((1, 3)), 0.0, dt)
+    d = collect_data(plant, prbs(1500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
+    W1, W2, _ = default_weights(dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=dt, window="auto",
+                                         certificate=uf.CertificateOptions(uncertainty="additive"))
+    assert not res.certified
+    assert "over the whole 1500-sample record" in res.premise.reason
+    assert "raise the horizon, or fit on a longer record" in res.premise.reason
+    low = res.premise.record_low_band
+    assert low is not None and low.frequency[0] < res.premise.low_band.frequency[0] / 2

@@ -374,6 +374,9 @@ class CoprimePremise:
         Nonparametric estimates of ``R = M̂P − N̂`` (from ``u`` to the equation error ``e``) on the held-out
         record (the window without one), which the gap was measured with (:func:`error_gap`) and which
         :func:`unfalsify.check_excitation` takes with ``factors=``.
+    record_low_band : LowBandEstimate or None
+        The low band of ``R`` over the longest contiguous record given (``record`` of :func:`check_coprime_premise`;
+        None without one).  In sample, so it only refutes: a gap beyond ε there refuses the premise.
     """
 
     factors: CoprimeFactors
@@ -385,6 +388,7 @@ class CoprimePremise:
     reason: str
     error_frf: FrequencyResponseEstimate | None = None
     error_low_band: LowBandEstimate | None = None
+    record_low_band: LowBandEstimate | None = None
 
     @property
     def ok(self) -> bool:
@@ -474,7 +478,7 @@ def _gap_reason(factors, est, eps: float, where: str) -> tuple[float, str]:
 
 
 def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *, validation=None,
-                          options: PremiseOptions | None = None) -> CoprimePremise:
+                          options: PremiseOptions | None = None, record=None) -> CoprimePremise:
     """Test the premise of a coprime-factor certificate on the data (module docstring).
 
     ε is the larger of Theorem 7.1 on the window's equation error at the admissible noise of (7.5)
@@ -494,6 +498,10 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
     validation : tuple of array_like, optional
         ``(u_v, y_v)``, a record not used to fit P̂.
     options : PremiseOptions, optional
+    record : tuple of array_like, optional
+        ``(u_r, y_r)``: the longest contiguous record that holds the window (the pipeline's whole record in record
+        mode).  The low band of its equation error reaches below the held-out record's lowest frequency; in sample,
+        so it only refutes (``record_low_band``).  None: not used.
 
     Returns
     -------
@@ -560,8 +568,36 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
             worst = float(np.fmax(worst, low_worst))
             if why:
                 reasons.append(why)
+    whole = None
+    if record is not None and frf is not None:
+        whole, whole_worst, why = _record_gap(factors, record, eps, dt, frf.nperseg, opts)
+        if why:  # refutation only: an in-sample estimate inside the family confirms nothing
+            worst = float(np.fmax(worst, whole_worst))
+            reasons.append(why)
     return CoprimePremise(factors=factors, in_sample=inside, held_out=outside, epsilon=eps, decided_by=decided,
-                          inconsistency=worst, reason="; ".join(reasons), error_frf=frf, error_low_band=low)
+                          inconsistency=worst, reason="; ".join(reasons), error_frf=frf, error_low_band=low,
+                          record_low_band=whole)
+
+
+def _record_gap(factors: CoprimeFactors, record, eps: float, dt: float, nperseg: int,
+                opts: PremiseOptions) -> tuple[LowBandEstimate | None, float, str]:
+    """``(estimate, max gap/ε, reason)`` of the low band of the equation error over ``record`` (the coprime form
+    of :func:`unfalsify.premise._record_low_band`: in sample, a refutation only)."""
+    try:
+        ur, yr = channel_pair(*record, "record ")
+        e = factors.residual(ur, yr)
+    except (DataError, TypeError, ValueError):
+        return None, float("nan"), ""  # no usable record: no evidence
+    ue = ur[factors.horizon:]
+    bins = _low_bins(e.shape[0], nperseg, 1 if ue.ndim == 1 else ue.shape[1])
+    if not bins or not np.all(np.isfinite(e)):
+        return None, float("nan"), ""
+    est = low_band_estimate(ue, e, dt, bins=bins, confidence=opts.confidence)
+    unit = _unit(dt)
+    worst, why = _gap_reason(factors, est, eps, f"over the whole {ur.shape[0]}-sample record (in sample, lowest "
+                             f"frequency {est.frequency[0]:.3g} {unit}: slower than the held-out part shows), at low "
+                             "frequency")
+    return est, worst, why
 
 
 def unconfirmed_coprime_premise(premise: CoprimePremise, bound: float) -> str:

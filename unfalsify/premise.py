@@ -441,6 +441,10 @@ class PremiseTest:
         NaN: nothing estimated (and on results made before it was measured).
     upper_frequency : float
         Where ``upper`` is reached (the data's frequency unit; NaN without).
+    record_low_band : LowBandEstimate or None
+        ``P − P̂`` below the Welch resolution from the output error over the longest contiguous record given
+        (``record`` of :func:`check_premise`; None without one, or when it is too short).  In sample, so it can only
+        refute: ``|D̂| − r > δ`` there refuses the premise; it never enters ``upper`` or the loop's tests.
     """
 
     delta_subspace: float
@@ -456,6 +460,7 @@ class PremiseTest:
     validation_shared: float = float("nan")
     upper: float = float("nan")
     upper_frequency: float = float("nan")
+    record_low_band: LowBandEstimate | None = None
 
     @property
     def ok(self) -> bool:
@@ -500,7 +505,7 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
 
 
 def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float, validation=None, fitted_on=None,
-                  options: PremiseOptions | None = None) -> PremiseTest:
+                  options: PremiseOptions | None = None, record=None) -> PremiseTest:
     """Test the certificate's premise on the data (module docstring, items 1–2).
 
     Parameters
@@ -523,6 +528,12 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         samples with them is not held out: ``output_error.held_out`` is then False and ``validation_shared`` says
         how much.  None: not checked.
     options : PremiseOptions, optional
+    record : tuple of array_like, optional
+        ``(u_r, y_r)``: the longest contiguous record that holds the window (in the pipeline's record mode the whole
+        record, window and held-out part).  Its output error's low band (:func:`low_band_estimate`, rows after the
+        burn-in) reaches frequencies the held-out record is too short for; in sample it is biased towards P̂, so it
+        only refutes: where the whole region lies beyond δ the premise is refused (``record_low_band``).
+        None: not used.
 
     Returns
     -------
@@ -618,11 +629,42 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
         worst = float(np.fmax(worst, low_worst))  # the larger one, NaN only when both are
         if why:
             reasons.append(why)
+    whole = None
+    if record is not None and frf is not None and oe.burn_in is not None:
+        whole, whole_worst, why = _record_low_band(model, record, horizon, delta, dt, frf.nperseg, oe.burn_in, opts)
+        if why:  # refutation only: an in-sample estimate that finds P̂ inside the ball confirms nothing
+            worst = float(np.fmax(worst, whole_worst))
+            reasons.append(why)
     upper, upper_at = _region_reach(frf, low)
     return PremiseTest(delta_subspace=float(delta_subspace), output_error=oe, delta=float(delta), decided_by=decided,
                        frf=frf, inconsistency=float(worst), reason="; ".join(reasons), plant_frf=plant_frf,
                        low_band=low, plant_low_band=plant_low, validation_shared=shared, upper=upper,
-                       upper_frequency=upper_at)
+                       upper_frequency=upper_at, record_low_band=whole)
+
+
+def _record_low_band(model, record, horizon: int, delta: float, dt: float, nperseg: int, burn: int,
+                     opts: PremiseOptions) -> tuple[LowBandEstimate | None, float, str]:
+    """``(estimate, max (‖D̂‖₂ − r)/δ, reason)`` of the low band of P̂'s output error over ``record``.
+
+    The held-out record's low band starts at ``2π/(n_v·dt)``; a slow mode whose error the loop's integral action
+    amplifies below that (a DC gain of the other sign than P̂'s) is seen only on a longer record.  The window is
+    part of this one, so the estimate is in sample: the reason is a refutation, never a confirmation.
+    """
+    try:
+        ur, yr = channel_pair(*record, "record ")
+        e = output_error_residual(model, ur, yr, horizon)[burn:]
+    except (DataError, TypeError, ValueError):
+        return None, float("nan"), ""  # a record the held-out tests already cover, or none usable: no evidence
+    u_e = ur[horizon:][burn:]
+    bins = _low_bins(e.shape[0], nperseg, 1 if u_e.ndim == 1 else u_e.shape[1])
+    if not bins or not np.all(np.isfinite(e)):
+        return None, float("nan"), ""
+    est = low_band_estimate(u_e, e, dt, bins=bins, confidence=opts.confidence)
+    worst, why = _low_band_inconsistency(est, delta)
+    if not why:
+        return est, worst, ""
+    return est, worst, (f"over the whole {ur.shape[0]}-sample record (in sample, lowest frequency "
+                        f"{est.frequency[0]:.3g} {_unit(est.dt)}: slower than the held-out part shows) {why}")
 
 
 def _region_reach(frf: FrequencyResponseEstimate | None, low: LowBandEstimate | None) -> tuple[float, float]:

@@ -804,8 +804,11 @@ def robust_design_from_data(
     pred = _model_predictor(unf, predictor)
     # a predictor fitted with dt= knows the data's sample time: prefer it to the weights' (hinf_design does too)
     model = predictor_model(pred, _data_dt(check_predictor_dt(pred, dt), W1, W2))
+    # the longest contiguous record holding the window: its low band reaches below the held-out record's (refutes only)
+    contiguous = whole or ((u, y) if validation is not None else None)
     prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
-                         fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions())
+                         fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions(),
+                         record=contiguous)
     delta = prem.delta
     if design.w3_rule == "thesis" and delta == 0:
         raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
@@ -813,7 +816,7 @@ def robust_design_from_data(
     ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
     persistence = _persistence_reason(pred, u, i, "predictor of P̂")
     cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
-                                           ref_model, persistence)
+                                           ref_model, persistence, contiguous)
     additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
     record = whole or _longest(u, y, validation)
     split = _held_out_start(np.shape(record[0])[0]) if held_out_here else None
@@ -1237,7 +1240,7 @@ class _CoprimeBall:
 
 
 def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u, y, unf, validation, premise,
-                  space: "_DesignSpace", ref_model, persistence: str = ""):
+                  space: "_DesignSpace", ref_model, persistence: str = "", record=None):
     """``(coprime premise or None, ball or None, premise reason)``: which form the loop is certified in.
 
     ``"auto"`` moves to the coprime form only when the data refute the additive premise and do not refute the
@@ -1249,7 +1252,7 @@ def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u
         return None, None, prem.reason
     opts = premise or PremiseOptions()
     factors = coprime_factors(pred, float(model.dt))
-    cop = check_coprime_premise(factors, u, y, float(unf.sigma), validation=validation, options=opts)
+    cop = check_coprime_premise(factors, u, y, float(unf.sigma), validation=validation, options=opts, record=record)
     if options.uncertainty == "auto" and not cop.ok:
         return cop, None, f"{prem.reason}; in coprime-factor form too: {cop.reason}"
     if not math.isfinite(cop.epsilon):
