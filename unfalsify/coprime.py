@@ -649,5 +649,5 @@ def unconfirmed_coprime_premise(premise: CoprimePremise, bound: float) -> str:
             f"equation error's response M̂P − N̂ (a perturbation of N̂ that reaches the plant) reach {upper:.3g} "
             f"({upper / bound:.3g} × that) at {where:.3g} {_unit(est.dt)}; the plant is assumed inside the family "
             "there (the loop's own test against those regions, the excitation check, refuses on evidence only, and a "
-            "model error slower than the record shows is not seen); a longer record or a larger input amplitude narrows "
-            "the regions, and a higher horizon lowers a slow error of P̂ itself")
+            "model error slower than the record shows is not seen); a longer record or a larger input amplitude "
+            "narrows the regions, and a higher horizon lowers a slow error of P̂ itself")
