@@ -232,6 +232,28 @@ def test_true_factors_for_the_coprime_judge(plant):
         assert uf.coprime_distance(aligned, Pd)[0] <= 0.01 * (1 + 1e-6)
 
 
+def test_the_judge_names_the_coprime_small_gain_for_a_coprime_result():
+    """A coprime result is judged by ε‖[K; I](M + NK)⁻¹‖ and size-ε perturbations; the failure text said "δ‖M‖"
+    and "size-δ" for both families."""
+    import synthesis as sy
+    from experiments.lab.plants import servo
+    from experiments.studies.adversarial import judge
+
+    P = servo()
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal((600, 1))
+    y = np.asarray(control.forced_response(P, T=np.arange(600) * P.dt, U=u.T).outputs).reshape(-1, 1)
+    y += 0.01 * rng.standard_normal(y.shape)
+    F = uf.coprime_factors(sy.fit_predictor(u, y, 4), P.dt)
+    K = control.ss([], [], [], [[0.5, -0.5]], P.dt)  # u = 0.5 (r − y)
+    t = judge(P, K, 50.0, 1.0, "coprime", F)  # an ε no loop tolerates
+    assert t["stable"] and not t["ok"]
+    assert any(f.startswith("true ε‖[K; I](M + NK)⁻¹‖ = ") for f in t["fails"]), t["fails"]
+    assert not any("δ" in f for f in t["fails"]), t["fails"]
+    additive = judge(P, K, 50.0, 1.0)
+    assert any(f.startswith("true δ‖M‖ = ") for f in additive["fails"]), additive["fails"]
+
+
 def test_the_judge_factors_a_plant_once_and_reads_perturbed_loops_by_their_eigenvalues(monkeypatch):
     """The judge and the premise ratio factor the same plant like the same P̂: the search for Q runs once (60 s at
     i = 32); a perturbed loop's spectral radius from its state matrix equals additive_robustness's, which also

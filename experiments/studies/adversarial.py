@@ -519,6 +519,10 @@ def make_record(case: Case) -> Record:
 
 
 # ----------------------------------------------------------------------------------------------- judge
+#: How :func:`judge` names the small gain it checks, by uncertainty family (the coprime one is not δ‖M‖).
+_GAIN_LABEL = {"additive": "δ‖M‖", "coprime": "ε‖[K; I](M + NK)⁻¹‖"}
+
+
 def judge(P, controller, delta: float, tracking_floor: float, uncertainty: str = "additive", factors=None) -> dict:
     """The true-plant check of :func:`experiments.studies.robust_pipeline._true_loop` plus its failure flags.
 
@@ -531,11 +535,12 @@ def judge(P, controller, delta: float, tracking_floor: float, uncertainty: str =
     if not t["stable"]:
         fails.append("true loop unstable")
     elif not t["small_gain"] < 1.0:
-        fails.append(f"true δ‖M‖ = {t['small_gain']:.3g} ≥ 1")
+        fails.append(f"true {_GAIN_LABEL[uncertainty]} = {t['small_gain']:.3g} ≥ 1")
     if t["stable"] and not t["tracks"]:
         fails.append(f"no tracking (step error {t['step_error']:.3g})")
     if t["stable"] and not t["survives"]:
-        fails.append(f"a size-δ perturbation destabilises (radius {t['perturbed_max_radius']:.4g})")
+        size = "ε" if uncertainty == "coprime" else "δ"
+        fails.append(f"a size-{size} perturbation destabilises (radius {t['perturbed_max_radius']:.4g})")
     t["fails"], t["ok"] = fails, not fails
     return t
 
