@@ -57,7 +57,8 @@ from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
                                  frequency_response_estimate, low_band_estimate)
-from .premise import PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options, _region_reach
+from .premise import (PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options, _region_reach,
+                      _residual_low_band)
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise",
@@ -588,11 +589,9 @@ def _record_gap(factors: CoprimeFactors, record, eps: float, dt: float, nperseg:
         e = factors.residual(ur, yr)
     except (DataError, TypeError, ValueError):
         return None, float("nan"), ""  # no usable record: no evidence
-    ue = ur[factors.horizon:]
-    bins = _low_bins(e.shape[0], nperseg, 1 if ue.ndim == 1 else ue.shape[1])
-    if not bins or not np.all(np.isfinite(e)):
+    est = _residual_low_band(ur[factors.horizon:], e, dt, nperseg, opts.confidence)
+    if est is None:
         return None, float("nan"), ""
-    est = low_band_estimate(ue, e, dt, bins=bins, confidence=opts.confidence)
     unit = _unit(dt)
     worst, why = _gap_reason(factors, est, eps, f"over the whole {ur.shape[0]}-sample record (in sample, lowest "
                              f"frequency {est.frequency[0]:.3g} {unit}: slower than the held-out part shows), at low "

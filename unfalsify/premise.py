@@ -655,16 +655,24 @@ def _record_low_band(model, record, horizon: int, delta: float, dt: float, npers
         e = output_error_residual(model, ur, yr, horizon)[burn:]
     except (DataError, TypeError, ValueError):
         return None, float("nan"), ""  # a record the held-out tests already cover, or none usable: no evidence
-    u_e = ur[horizon:][burn:]
-    bins = _low_bins(e.shape[0], nperseg, 1 if u_e.ndim == 1 else u_e.shape[1])
-    if not bins or not np.all(np.isfinite(e)):
+    est = _residual_low_band(ur[horizon:][burn:], e, dt, nperseg, opts.confidence)
+    if est is None:
         return None, float("nan"), ""
-    est = low_band_estimate(u_e, e, dt, bins=bins, confidence=opts.confidence)
     worst, why = _low_band_inconsistency(est, delta)
     if not why:
         return est, worst, ""
     return est, worst, (f"over the whole {ur.shape[0]}-sample record (in sample, lowest frequency "
                         f"{est.frequency[0]:.3g} {_unit(est.dt)}: slower than the held-out part shows) {why}")
+
+
+def _residual_low_band(u_e, e, dt: float, nperseg: int, confidence: float) -> LowBandEstimate | None:
+    """The low band (:func:`low_band_estimate`) of a residual ``e`` over its inputs ``u_e`` below the Welch
+    resolution of ``nperseg``, or None where the record has no such bin or the residual is not finite (the
+    refutation-only tests over a whole record, here and in :mod:`unfalsify.coprime`)."""
+    bins = _low_bins(e.shape[0], nperseg, 1 if u_e.ndim == 1 else u_e.shape[1])
+    if not bins or not np.all(np.isfinite(e)):
+        return None
+    return low_band_estimate(u_e, e, dt, bins=bins, confidence=confidence)
 
 
 def _region_reach(frf: FrequencyResponseEstimate | None, low: LowBandEstimate | None) -> tuple[float, float]:
