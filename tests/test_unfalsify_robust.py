@@ -340,3 +340,32 @@ def test_a_slow_mode_that_flips_the_dc_gain_is_refused_on_the_whole_records_low_
     assert "raise the horizon, or fit on a longer record" in res.premise.reason
     low = res.premise.record_low_band
     assert low is not None and low.frequency[0] < res.premise.low_band.frequency[0] / 2
+
+
+def test_a_dc_flip_is_refused_in_coprime_form_by_the_least_distance_over_the_disk():
+    """The same flip with its slow pole at 0.99: the additive premise is refuted, and the coprime form had been
+    certified (ε = 0.091) with a loop unstable on the plant, because the bound from the whole record's equation error
+    took σ̄(P) ≤ (σ̄(N̂) + σ̄(R))/σ_min(M̂), which is loose where the slow mode cancels P's gain (0.088 at 0.042 rad/s,
+    the true distance there 0.29).  The least distance over R's confidence disk refutes the family there, and
+    stays below the plant's true distance from it (the second route, from the plant itself)."""
+    from experiments.lab.signals import prbs
+    from experiments.lab.simulate import collect_data
+    from experiments.studies.design_cli import default_weights
+
+    dt, p = 0.1, 0.99
+    plant = control.ss(np.diag([p, 0.7, 0.4]), [[-1.1 * (1 - p)], [0.15], [0.3]], np.ones((1, 3)), 0.0, dt)
+    d = collect_data(plant, prbs(1500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
+    W1, W2, _ = default_weights(dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=dt, window="auto",
+                                         certificate=uf.CertificateOptions(uncertainty="coprime"))
+    assert not res.certified
+    cop = res.coprime
+    assert "over the whole 1500-sample record" in cop.reason and "coprime-factor family" in cop.reason
+    low = cop.record_low_band
+    bound = uf.error_gap(cop.factors, low)
+    assert bound.max() > cop.epsilon
+    z = np.exp(1j * low.frequency * dt)
+    G = np.array([complex(plant(zk)) for zk in z])
+    assert np.all(bound <= uf.coprime_gap(cop.factors, low.frequency, G) + 1e-12)

@@ -32,7 +32,8 @@ FIR, the equation holds sample by sample).
 least ``‖(M̂G − N̂)(I + GᴴG)^{−1/2}‖₂`` (the least-norm ``X`` with ``X [I; G] = M̂G − N̂``): the
 *pointwise coprime distance* (:func:`coprime_gap`).  Over a confidence region ``‖G − Ĝ‖₂ ≤ r`` of a
 nonparametric estimate it is at least ``(σ̄(M̂Ĝ − N̂) − r σ̄(M̂))₊ / √(1 + (σ̄(Ĝ) + r)²)``;
-:func:`check_coprime_premise` refuses where that exceeds ε.  The distance is finite where
+:func:`check_coprime_premise` bounds it from an estimate of ``R = M̂P − N̂`` instead (:func:`error_gap`; for one
+channel the least distance over R's confidence disk) and refuses where that exceeds ε.  The distance is finite where
 ``|P| → ∞`` (it tends to ``σ̄`` of ``M̂``'s part there), so an integrator is judged by how well P̂
 places its pole, not by an infinite gain difference.
 
@@ -414,9 +415,13 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     """Lower bound of the pointwise coprime distance from an estimate of the equation error's response.
 
     ``est`` estimates ``R = M̂P − N̂`` (the response from ``u`` to ``e = M̂y − N̂u``) with radius ``r``.  Since
-    ``P = M̂⁻¹(N̂ + R)`` has ``σ̄(P) ≤ (σ̄(N̂) + σ̄(R))/σ_min(M̂)``, the least perturbation
-    ``‖R(I + PᴴP)^{−1/2}‖₂ ≥ σ̄(R)/√(1 + σ̄(P)²)`` is at least ``x μ/√(μ² + (ν + x)²)`` with ``x = (σ̄(R̂) − r)₊``,
-    ``μ = σ_min(M̂)``, ``ν = σ̄(N̂)`` (increasing in x).  No estimate of P itself is used: a Welch estimate
+    ``P = M̂⁻¹(N̂ + R)`` has ``σ̄(P) ≤ σ̄(N̂ + R)/μ`` and every ``R`` in the region has
+    ``σ̄(N̂ + R) ≤ b = min(ν + σ̄(R), σ̄(N̂ + R̂) + r)``, the least perturbation
+    ``‖R(I + PᴴP)^{−1/2}‖₂ ≥ σ̄(R)/√(1 + σ̄(P)²)`` is at least ``x μ/√(μ² + b²)`` at ``σ̄(R) = x = (σ̄(R̂) − r)₊``
+    (increasing in σ̄(R)), ``μ = σ_min(M̂)``, ``ν = σ̄(N̂)``.  The second term of b matters where P̂ misses a slow
+    mode that cancels its gain: there ``N̂ + R = M̂P`` is small while ``ν + x`` is not (measured on a plant whose DC
+    gain the slow mode flips to −0.1: 0.088 with ``ν + x`` alone, 0.12 with b, the true distance 0.29 at the
+    record's lowest frequency).  No estimate of P itself is used: a Welch estimate
     of an integrating plant is biased near DC (the window's main lobe averages a response that changes
     within a bin), while R is smooth there.  Where ``M̂`` vanishes (P̂'s integrator) the bound is 0: the data
     cannot show a coprime error at a pole.
@@ -437,7 +442,7 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     >>> est = LowBandEstimate(frequency=w, response=np.array([0.1, 0.1]), radius=np.array([0.02, 0.02]),
     ...                       confidence=0.99, window=16, degree=2, samples=100, dt=1.0)
     >>> np.round(error_gap(F, est), 4).tolist()
-    [0.0, 0.0786]
+    [0.0, 0.0789]
     """
     _factors(factors)
     check_instance(est, (FrequencyResponseEstimate, LowBandEstimate), "est",
@@ -448,15 +453,44 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     R = np.asarray(est.response, complex).reshape(w.size, factors.outputs, factors.inputs)
     if factors.outputs == factors.inputs == 1:
         x, mu, nu = np.abs(R[:, 0, 0]), np.abs(Mw[:, 0, 0]), np.abs(Nw[:, 0, 0])
+        reach = np.abs(Nw[:, 0, 0] + R[:, 0, 0])
     else:
-        x = np.full(w.size, np.nan)
+        x, reach = np.full(w.size, np.nan), np.full(w.size, np.nan)
         ok = np.all(np.isfinite(R), axis=(1, 2))
         x[ok] = np.linalg.norm(R[ok], ord=2, axis=(1, 2))
+        reach[ok] = np.linalg.norm(Nw[ok] + R[ok], ord=2, axis=(1, 2))
         mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
         nu = np.linalg.norm(Nw, ord=2, axis=(1, 2))
+    r = np.asarray(est.radius, float)
+    if factors.outputs == factors.inputs == 1:
+        return np.where(np.isfinite(r), _disc_gap(R[:, 0, 0], r, Nw[:, 0, 0], Mw[:, 0, 0]), 0.0)
     with np.errstate(invalid="ignore"):
-        x = np.maximum(x - np.asarray(est.radius, float), 0.0)
-        return np.where(np.isfinite(est.radius), x * mu / np.sqrt(mu ** 2 + (nu + x) ** 2), 0.0)
+        x = np.maximum(x - r, 0.0)
+        b = np.minimum(nu + x, reach + r)  # two bounds on σ̄(N̂ + R) over the region
+        return np.where(np.isfinite(r), x * mu / np.sqrt(mu ** 2 + b ** 2), 0.0)
+
+
+def _disc_gap(R: np.ndarray, r: np.ndarray, N: np.ndarray, M: np.ndarray, steps: int = 60) -> np.ndarray:
+    """One channel: the least ``g(X) = |X||M|/√(|M|² + |N + X|²)`` over each disk ``|X − R| ≤ r``, from below.
+
+    ``g(X)² < c`` reads ``(|M|² − c)|X|² − 2c Re(N̄X) < c(|M|² + |N|²)``: for ``c < |M|²`` the inside of a circle
+    about ``cN/(|M|² − c)``, for ``c > |M|²`` the outside of one (or the whole plane), and these sets grow with c.
+    The disk misses the set exactly when the least value is at least √c, so bisection on c keeps a value the disk
+    is proven to miss: a lower bound within 2⁻⁶⁰ of the range ``(|R| + r)²`` of the exact one.  0 where the disk
+    holds ``X = 0``; NaN rows give 0."""
+    m2, n2 = np.abs(M) ** 2, np.abs(N) ** 2
+    known = np.isfinite(R) & np.isfinite(r)
+    R, r = np.where(known, R, 0.0), np.where(known, r, 0.0)
+    lo, hi = np.zeros(r.shape), (np.abs(R) + r) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(steps):
+            c = 0.5 * (lo + hi)
+            a = m2 - c
+            rho = np.sqrt(np.maximum((c / a) ** 2 * n2 + c * (m2 + n2) / a, 0.0))
+            d = np.abs(R - (c / a) * N)
+            missed = np.where(a > 0, d >= r + rho, (rho > 0) & (d + r <= rho))
+            lo, hi = np.where(missed, c, lo), np.where(missed, hi, c)
+    return np.where(known & (np.abs(R) > r), np.sqrt(lo), 0.0)
 
 
 def _gap_reason(factors, est, eps: float, where: str) -> tuple[float, str]:
