@@ -457,6 +457,7 @@ def test_check_excitation_is_the_same_in_other_input_units():
         # the same words and numbers, but for σ̄(M̂) itself, which is in the record's units
         assert re.sub(r"up to [^)]*", "", other.reason) == re.sub(r"up to [^)]*", "", base.reason)
     assert [_check_in_units(P_hat, u, y, Ky, (1.0, 1.0), None).ok for Ky in loops] == [True, True, True, False]
+    assert "σ̄(QM̂), reaches" in other.reason  # the refusal names the region's part of the loop gain, not r
     Ky = loops[2]  # C_y drives u[:, 1] only: the δ ball of units 1, 1 is the ball of δ/10³ in units 10⁻³, 10³
     for delta in (0.5, 2.0, 4.0):
         base = _check_in_units(P_hat, u, y, Ky, (1.0, 1.0), delta)

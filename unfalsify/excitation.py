@@ -317,8 +317,9 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     directed = mimo and frf.region is not None
     unsure = ~np.isfinite(radius) | ((share >= centre) if directed else (radius >= dist))
     if np.all(unsure[bad]):
+        # the region's part where every flagged frequency has one (a silent direction leaves only r = inf to name)
         spread = (f"the confidence region's part of the loop gain, σ̄(QM̂), reaches "
-                  f"{float(np.nanmax(np.where(bad, share, 0))):.3g}" if directed else
+                  f"{float(np.max(np.where(bad, share, 0))):.3g}" if directed and np.all(np.isfinite(share[bad])) else
                   f"the confidence radius reaches {float(np.max(np.where(bad, radius, 0))):.3g}")
         why = (f"the data do not determine the plant at {band}, where the loop is sensitive ({norm} up to "
                f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and {spread}; excite "

@@ -14,10 +14,14 @@ them the output error ``e = y − P̂u``, so they estimate ``P − P̂``):
   Piersol), Bonferroni over the rows and frequencies, turned into ``r = sqrt(Σ_r ρ_r²/λ_min(S_uu))``; a
   frequency is excited when ``λ_min`` of the channel-normalised ``D⁻¹S_uuD⁻¹`` (``D²`` each input's mean
   auto-spectrum) reaches the floor, so the inputs' units do not decide it (the radius stays in the record's
-  units).  With one input and one output every number is the SISO one.
+  units).  The same ellipsoids, whitened by the input spectrum, also keep their directions: ``region``,
+  ``Q = ρ·S_uu^(-1/2)`` with ``‖(G − Ĝ)X‖₂ ≤ σ̄(QX)`` for every ``X`` of m rows, which does not depend on the
+  inputs' units (the excitation check bounds the loop gain by it).  With one input and one output every number
+  is the SISO one.
 * **The local polynomial method** (:func:`low_band_estimate`) below the first Welch frequency, where each
   detrended segment is blind and where a slow pole or an integrator lives: the whole record's DFT is
-  fitted bin by bin with a response and a transient quadratic in the bin, and F-distribution disks.
+  fitted bin by bin with a response and a transient quadratic in the bin, and F-distribution disks (several
+  inputs: per-row ellipsoids, with their ``region`` as for Welch).
 
 Each confidence statement holds with its stated probability only, and says nothing between the
 estimate's frequencies (the Welch resolution is ``2π/(nperseg·dt)``).
