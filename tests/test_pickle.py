@@ -163,6 +163,31 @@ def test_a_predictor_pickled_before_control_pvalue_existed_designs_and_compares(
     assert np.allclose(design.gain, synthesis.hinf_design(pred, 1.0, 0.1, dt=1.0).gain)
 
 
+def test_estimates_pickled_before_the_region_factor_existed_load_and_check():
+    """``FrequencyResponseEstimate.region`` and ``LowBandEstimate.region`` (the confidence region's factor of several
+    inputs) were added later: an estimate pickled before lacks them, reads None, compares without an exception, and
+    ``check_excitation`` falls back to the radius, ``r·σ̄(M̂)``, which bounds ``σ̄(QM̂)`` from above."""
+    import control
+
+    import unfalsify as uf
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal((2048, 2))
+    e = 0.05 * rng.standard_normal((2048, 2))
+    fresh, olds = (uf.frequency_response_estimate(u, e), uf.low_band_estimate(u, e, bins=6)), []
+    for est in fresh:
+        state = pickle.loads(pickle.dumps(est)).__dict__
+        assert state.pop("region") is not None  # what a pickle made before the field lacks
+        old = object.__new__(type(est))
+        old.__dict__.update(state)
+        assert old.region is None and old != est and np.array_equal(old.radius, est.radius)
+        olds.append(old)
+    P = control.ss([], [], [], np.eye(2), 1.0)
+    K = control.ss([], [], [], np.hstack([0.5 * np.eye(2), -0.5 * np.eye(2)]), 1.0)
+    new, old = uf.check_excitation(P, K, *fresh), uf.check_excitation(P, K, *olds)
+    assert new.ok and old.ok and new.worst <= old.worst
+
+
 def _raise_infeasible(gamma):
     raise synthesis.InfeasibleGammaError(gamma, 2.0, 2.1)
 

@@ -1,8 +1,11 @@
 """The frequency-domain premise tests for several inputs and outputs (issue 28, item 3).
 
 H1 Welch estimate ``D̂ = S_eu S_uu⁻¹`` with a spectral-norm confidence radius, the local polynomial method with m
-input columns, and ``check_excitation`` by ``σ̄(D̂M̂) ± r·σ̄(M̂)``; m = l = 1 must give the SISO numbers.
+input columns, and ``check_excitation`` by ``σ̄(D̂M̂) ± σ̄(QM̂)`` (``Q`` the region's factor; ``r·σ̄(M̂)`` for one
+input); m = l = 1 must give the SISO numbers.
 """
+import re
+
 import control
 import numpy as np
 import pytest
@@ -195,7 +198,7 @@ def test_low_band_siso_fit_through_the_mimo_fit_is_the_same():
     Y = (0.7 + 0.2j) * U + 0.1 * (rng.standard_normal(16) + 1j * rng.standard_normal(16))
     for at in (0, 3, 8):
         g, r = _local_fit(U, Y, at, 1e-3)
-        G, R = _local_fit_mimo(U[:, None], Y[:, None], at, 1e-3)
+        G, R, _ = _local_fit_mimo(U[:, None], Y[:, None], at, 1e-3)
         assert G.shape == (1, 1) and abs(G[0, 0] - g) <= 1e-12 * abs(g) and R == pytest.approx(r, rel=1e-12)
 
 
@@ -236,7 +239,7 @@ def test_low_band_evidence_looks_in_the_direction_the_loop_sees():
     seen = np.tile(np.diag([0.0, 5.0]), (3, 1, 1))  # σ̄(D̂M̂) = 2.5, minus r·0.5
     bad = uf.check_excitation(P, K, welch, _fake(seen, np.full(3, 0.1), low=True))
     assert not bad.ok and bad.worst == pytest.approx(2.45) and "differs from P̂" in bad.reason
-    assert "σ̄(D̂M̂) + r·σ̄(M̂)" in bad.reason
+    assert "σ̄(D̂M̂) − r·σ̄(M̂)" in bad.reason  # the low band's lower bound (it had read +); no region: the radius
     # the Welch test is directional too: a large D̂ the loop does not see passes, the one it sees does not
     assert uf.check_excitation(P, K, _fake(np.tile(np.diag([5.0, 0.0]), (9, 1, 1)), np.full(9, 0.01))).ok
     assert not uf.check_excitation(P, K, _fake(np.tile(np.diag([0.0, 5.0]), (9, 1, 1)), np.full(9, 0.01))).ok
@@ -397,3 +400,133 @@ def test_an_unexcited_direction_stays_unexcited_in_any_units():
     quiet = uf.frequency_response_estimate(np.zeros((4096, 2)), e)
     assert not np.any(quiet.excited)
     assert _frf_inconsistency(quiet, 0.1)[1] == "the record excites no frequency"
+
+
+# ---- the confidence region's directions: σ̄(QM̂) in place of r·σ̄(M̂) ------------------------------------------------
+
+def _in_units(sys_, rows=None, cols=None):
+    """``diag(rows)·sys·diag(cols)`` (a system in other input units: P̂ → P̂D⁻¹, K's outputs → DK)."""
+    out = sys_
+    if cols is not None:
+        out = out * control.ss([], [], [], np.diag(cols), sys_.dt)
+    if rows is not None:
+        out = control.ss([], [], [], np.diag(rows), sys_.dt) * out
+    return out
+
+
+def _loop_record(seed=0, n=3000):
+    """A 2 × 2 plant, a model of it with a slower first pole, correlated ±1 inputs and the model's output error."""
+    rng = np.random.default_rng(seed)
+    u = np.sign(rng.standard_normal((n, 2))) @ np.array([[1.0, 0.6], [0.0, 0.8]])
+    C = np.array([[1.0, 0.4], [0.3, 1.0]])
+    P = control.ss(np.diag([0.8, 0.5]), np.eye(2), C, np.zeros((2, 2)), 1.0)
+    P_hat = control.ss(np.diag([0.75, 0.5]), np.eye(2), C, np.zeros((2, 2)), 1.0)
+    y = control.forced_response(P, U=u.T).outputs.T + 0.05 * rng.standard_normal((n, 2))
+    return P_hat, u, y
+
+
+def _check_in_units(P_hat, u, y, Ky, units, delta):
+    """check_excitation of ``u = Ky(r − y)`` around P̂ with the inputs recorded in ``units`` (the same plant, loop and
+    output error: P̂ and K rescaled with the record)."""
+    s = np.asarray(units, float)
+    model = _in_units(P_hat, cols=1.0 / s)
+    e = y - control.forced_response(model, U=(u * s).T).outputs.T
+    K = control.ss([], [], [], np.diag(s) @ np.hstack([Ky, -Ky]), 1.0)
+    frf, low = uf.frequency_response_estimate(u * s, e), uf.low_band_estimate(u * s, e, bins=6)
+    return uf.check_excitation(model, K, frf, low, delta=delta)
+
+
+def test_check_excitation_is_the_same_in_other_input_units():
+    """Inputs recorded in units 10⁻³ and 10³: the same plant, loop and data give the same verdict, worst loop gain,
+    frequency and reason (but for the size of ``M̂`` it names, in the record's units).  ``r·σ̄(M̂)`` took r from
+    ``λ_min(S_uu)``, the 10⁻³ channel's direction, and σ̄(M̂) from the 10³ one: measured before, the three loops that
+    pass in units 1, 1 (worst 0.17–0.31) were refused with worst 1.0e5–1.5e5.
+
+    The δ margin is a ball ``‖P − P̂‖₂ ≤ δ`` in the record's units, so it is the same statement only where the loop
+    sees one input: with ``C_y`` acting on ``u[:, 1]`` alone, δ in units 1 is δ/10³ in units 10³.  Measured before,
+    the evidence 0.23, 0.91 and 1.81 (δ = 0.5, 2, 4: the last refuses) fell to 6e-6–5e-5 in the other units, the
+    radius having grown 10³-fold: the refusal was lost."""
+    P_hat, u, y = _loop_record()
+    loops = [0.3 * np.eye(2), np.array([[0.3, 0.1], [0.0, 0.2]]), np.array([[0.0, 0.0], [0.2, 0.3]]),
+             np.array([[2.0, 0.5], [0.0, 1.5]])]  # the last is refused: the data show P̂ wrong where it is sensitive
+    for Ky in loops:
+        base = _check_in_units(P_hat, u, y, Ky, (1.0, 1.0), None)
+        other = _check_in_units(P_hat, u, y, Ky, (1e-3, 1e3), None)
+        assert other.ok == base.ok and other.frequency == base.frequency
+        assert other.worst == pytest.approx(base.worst, rel=1e-6)
+        # the same words and numbers, but for σ̄(M̂) itself, which is in the record's units
+        assert re.sub(r"up to [^)]*", "", other.reason) == re.sub(r"up to [^)]*", "", base.reason)
+    assert [_check_in_units(P_hat, u, y, Ky, (1.0, 1.0), None).ok for Ky in loops] == [True, True, True, False]
+    assert "σ̄(QM̂), reaches" in other.reason  # the refusal names the region's part of the loop gain, not r
+    Ky = loops[2]  # C_y drives u[:, 1] only: the δ ball of units 1, 1 is the ball of δ/10³ in units 10⁻³, 10³
+    for delta in (0.5, 2.0, 4.0):
+        base = _check_in_units(P_hat, u, y, Ky, (1.0, 1.0), delta)
+        other = _check_in_units(P_hat, u, y, Ky, (1e-3, 1e3), delta / 1e3)
+        assert other.ok == base.ok and other.margin == pytest.approx(base.margin, rel=1e-6)
+    assert not _check_in_units(P_hat, u, y, Ky, (1.0, 1.0), 4.0).ok  # the margin refuses (evidence ≥ 1)
+
+
+def test_the_region_bounds_the_true_loop_gain_over_seeds():
+    """``‖(D − D̂)M̂‖₂ ≤ σ̄(QM̂)`` at every Welch and low-band frequency with the stated confidence, on simulated data
+    with D known (a 3-tap 2 × 2 operator, correlated inputs in units 10⁻³ and 10³, M̂ a dynamic loop in those units):
+    so the true perturbation loop gain σ̄(DM̂) lies within ``σ̄(D̂M̂) ± σ̄(QM̂)``.  At 90 % simultaneous confidence, 100
+    records may miss in at most 19 (the binomial 99.8 % point; measured 0).  The test has power: a region 0.4 times
+    as wide misses in 45 (Welch) and 48 (low band) of the 100, so the bound is within a factor 2.5 of tight, while
+    ``r·σ̄(M̂)`` is about 10⁶ times ``σ̄(QM̂)`` here."""
+    s = np.array([1e-3, 1e3])
+    h = _taps(2, 2)
+    P_hat = control.ss(np.diag([0.5, 0.3]), np.eye(2), [[1.0, 0.2], [0.0, 0.8]], np.zeros((2, 2)), 1.0)
+    K = control.ss([[0.6]], [[1.0, 0.0, -1.0, 0.0]], [[0.3], [0.1]],
+                   np.hstack([0.2 * np.eye(2), -np.array([[0.2, 0.05], [0.0, 0.3]])]), 1.0)
+    M = uf.additive_channel(_in_units(P_hat, cols=1.0 / s), _in_units(K, rows=s))
+    miss, narrow, outside, wider = np.zeros(2, int), np.zeros(2, int), np.zeros(2, int), []
+    for seed in range(100):
+        rng = np.random.default_rng(seed)
+        w = rng.standard_normal((4096, 2)) @ np.array([[1.0, 0.7], [0.0, 0.5]])
+        y = _filter(h, w) + 0.3 * rng.standard_normal((4096, 2))
+        estimates = (uf.frequency_response_estimate(w * s, y, confidence=0.9),
+                     uf.low_band_estimate(w * s, y, bins=8, confidence=0.9))
+        for k, est in enumerate(estimates):
+            ok = np.isfinite(est.radius)
+            assert est.region.shape == (est.frequency.size, 2, 2) and ok.all()
+            X = np.moveaxis(np.asarray(M(np.exp(1j * est.frequency), squeeze=False)), -1, 0)  # M̂, (F, 2, 2)
+            D = _response(h, est.frequency) / s  # the true operator from the record's inputs
+            QX = np.linalg.norm(est.region @ X, ord=2, axis=(1, 2))
+            err = np.linalg.norm((D - est.response) @ X, ord=2, axis=(1, 2))
+            true, centre = (np.linalg.norm(A @ X, ord=2, axis=(1, 2)) for A in (D, est.response))
+            miss[k] += bool(np.any(err > QX))
+            outside[k] += bool(np.any((true < centre - QX) | (true > centre + QX)))
+            narrow[k] += bool(np.any(err > 0.4 * QX))
+            wider.append(np.median(est.radius * np.linalg.norm(X, ord=2, axis=(1, 2)) / QX))
+    assert np.all(miss <= 19) and np.all(outside <= miss)
+    assert np.all(narrow >= 20)
+    assert np.median(wider) > 1e4
+
+
+@pytest.mark.parametrize("l", [1, 2])
+def test_one_input_keeps_the_radius_numbers(l):
+    """One input: the estimates carry no region factor (σ̄(QX) = r·σ̄(X) there), so every number of
+    ``check_excitation`` is that of ``r·σ̄(M̂)``, written here as the module wrote it, bit for bit."""
+    from unfalsify.excitation import _bin_response
+
+    rng = np.random.default_rng(7)
+    u = rng.standard_normal(2048)
+    e = np.column_stack([np.convolve(u, [0.0, 0.05, 0.02])[:2048], 0.03 * u][:l]) + 0.05 * rng.standard_normal(
+        (2048, l))
+    frf, low = uf.frequency_response_estimate(u, e), uf.low_band_estimate(u, e, bins=8)
+    assert getattr(frf, "region", None) is None and getattr(low, "region", None) is None  # (None before it existed)
+    P = control.ss(control.tf([0.5], [1, -0.5], 1.0)) if l == 1 else control.ss([[0.5]], [[1.0]], [[1.0], [0.3]],
+                                                                                 [[0.0], [0.0]], 1.0)
+    K = control.ss([], [], [], np.hstack([0.4 * np.ones((1, l)), -0.4 * np.ones((1, l))]), 1.0)
+    ex = uf.check_excitation(P, K, frf, low, delta=1.5)
+    if l == 1:
+        return  # the SISO path (|D̂|, r) has no region to read
+    M = uf.additive_channel(P, K)
+    parts = []
+    for est, sign, spacing in ((frf, 1.0, frf.resolution), (low, -1.0, 2.0 * np.pi / (low.samples * low.dt))):
+        Mz = _bin_response(M, est.frequency, spacing, est.dt, 9)
+        gain_M = np.linalg.norm(Mz, ord=2, axis=(2, 3))
+        gain_DM = np.linalg.norm(est.response[:, None] @ Mz, ord=2, axis=(2, 3))
+        parts.append(np.max(gain_DM + sign * est.radius[:, None] * gain_M, axis=1))
+    worst = max(float(np.max(parts[0])), float(np.max(np.maximum(parts[1], 0.0))))
+    assert ex.worst == worst  # bit for bit

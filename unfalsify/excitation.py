@@ -13,7 +13,10 @@ bin, and the disk does not hold there (measured on the adversarial catalogue: 0.
 DC was 0.73, and 0.025 ± 0.115 against 1.24).  Below half the resolution the low band is the estimate to trust,
 and it refuses on evidence only; a "must fit" rule there cost 33 of 203 loops that held on the true plant, so
 it is not used.  Several inputs and outputs: the perturbation's loop gain in the loop's own directions,
-``σ̄(D̂M̂) ± r·σ̄(M̂)``.
+``σ̄(D̂M̂) ± σ̄(QM̂)``, ``Q`` the confidence region's factor (``QᴴQ = ρ²S_uu⁻¹``,
+:attr:`FrequencyResponseEstimate.region`): each input direction with its own confidence, so the verdict does not
+depend on the inputs' units (``r·σ̄(M̂)``, which it never exceeds, had taken every direction at the least-excited
+one's).
 
 **The δ margin** (``delta=``): where every plant in the confidence disks has ``δ·σ̄(M_P) ≥ 1`` for the map a
 perturbation sees on the plant, ``M_P = (I − M̂D)⁻¹M̂``, the data show the margin missing; the lower bound from
@@ -58,22 +61,45 @@ def _bin_response(sys, frequency: np.ndarray, spacing: float, dt: float, points:
     return np.moveaxis(z, -1, 0).reshape(omega.shape + z.shape[:2])
 
 
-def _bin_loop_gain(sys, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
-                   sign: float, points: int = 9) -> tuple[np.ndarray, np.ndarray]:
-    """MIMO ``max_bin (σ̄(D̂ M̂) + sign·r·σ̄(M̂))`` and ``max_bin σ̄(M̂)`` over each frequency ± half the ``spacing``.
+def _region_gain(radius: np.ndarray, region: np.ndarray | None, X: np.ndarray, gain_X: np.ndarray) -> np.ndarray:
+    """The largest ``‖(D − D̂)X‖₂`` over the confidence region, bounded per frequency and point: ``σ̄(QX)`` with the
+    estimate's region factor ``Q`` (:attr:`FrequencyResponseEstimate.region`: ``QᴴQ = ρ²S_uu⁻¹``), ``r·σ̄(X)``
+    without one (one input, where the two are equal, or an estimate made by hand) and where the radius is infinite.
 
-    ``sys`` is ``M̂`` (m × l), ``response`` ``D̂`` (F, l, m), ``radius`` (F,).  By the triangle inequality every
-    ``D`` with ``‖D − D̂‖₂ ≤ r`` has ``σ̄(D̂M̂) − r·σ̄(M̂) ≤ σ̄(D M̂) ≤ σ̄(D̂M̂) + r·σ̄(M̂)``: sign +1 bounds the
-    loop gain of the perturbation from above, −1 from below.  NaN where ``D̂`` is NaN.
+    ``X`` is (F, points, m, q), ``gain_X`` its σ̄ (F, points).  ``σ̄(QX)`` takes each input direction with its own
+    confidence, so it does not depend on the inputs' units; ``r·σ̄(X)`` takes every direction at the least-excited
+    one's, which the units choose (inputs in units 10⁻³ and 10³: ``λ_min(S_uu)`` from the first, ``σ̄(X)`` from the
+    second, a bound 10⁶ times too wide)."""
+    with np.errstate(invalid="ignore"):
+        isotropic = radius[:, None] * gain_X  # inf·0 = NaN where no direction is known: the callers decide
+    if region is None:
+        return isotropic
+    finite = np.isfinite(radius) & np.all(np.isfinite(region), axis=(1, 2))
+    Q = np.where(finite[:, None, None], region, 0.0)
+    return np.where(finite[:, None], np.linalg.norm(Q[:, None] @ X, ord=2, axis=(2, 3)), isotropic)
+
+
+def _bin_loop_gain(sys, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float, dt: float,
+                   sign: float, points: int = 9, region: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """MIMO ``max_bin (σ̄(D̂ M̂) + sign·σ̄(QM̂))``, ``max_bin σ̄(M̂)``, ``max_bin σ̄(D̂M̂)`` and ``max_bin σ̄(QM̂)``
+    over each frequency ± half the ``spacing``.
+
+    ``sys`` is ``M̂`` (m × l), ``response`` ``D̂`` (F, l, m), ``radius`` (F,), ``region`` the estimate's factor ``Q``
+    (F, m, m) or None (then ``σ̄(QM̂)`` reads ``r·σ̄(M̂)``, :func:`_region_gain`).  Every ``D`` in the region has
+    ``‖(D − D̂)M̂‖₂ ≤ σ̄(QM̂)``, so by the triangle inequality ``σ̄(D̂M̂) − σ̄(QM̂) ≤ σ̄(D M̂) ≤ σ̄(D̂M̂) + σ̄(QM̂)``:
+    sign +1 bounds the loop gain of the perturbation from above, −1 from below.  NaN where ``D̂`` is NaN.
     """
     Mz = _bin_response(sys, frequency, spacing, dt, points)
     gain_M = np.linalg.norm(Mz, ord=2, axis=(2, 3))
     known = np.all(np.isfinite(response), axis=(1, 2))
     D = np.where(known[:, None, None], response, 0.0)  # NaN would stop the SVD; those rows are set NaN below
     gain_DM = np.linalg.norm(D[:, None] @ Mz, ord=2, axis=(2, 3))
+    spread = _region_gain(radius, region, Mz, gain_M)
     with np.errstate(invalid="ignore"):
-        bound = np.max(gain_DM + sign * radius[:, None] * gain_M, axis=1)
-    return np.where(known, bound, np.nan), gain_M.max(axis=1)
+        bound = np.max(gain_DM + sign * spread, axis=1)
+        centre, share = np.max(gain_DM, axis=1), np.max(spread, axis=1)
+    return np.where(known, bound, np.nan), gain_M.max(axis=1), centre, share
 
 
 @result
@@ -86,7 +112,7 @@ class ExcitationCheck:
     ok : bool
     worst : float
         ``max (|D̂| + r) · max_bin |M̂|`` over the Welch frequencies (< 1 needed); MIMO
-        ``max max_bin (σ̄(D̂M̂) + r·σ̄(M̂))``.
+        ``max max_bin (σ̄(D̂M̂) + σ̄(QM̂))``, ``Q`` the estimate's region factor (``σ̄(QM̂) ≤ r·σ̄(M̂)``).
     frequency : float
         Where the worst value is (rad/s; rad/sample when ``dt = 1``).
     reason : str
@@ -94,7 +120,7 @@ class ExcitationCheck:
         least power) and the fix.
     margin : float
         With ``delta`` given: the data's evidence against the δ margin on the plant,
-        ``max δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over the Welch and low-band frequencies (≥ 1 refuses:
+        ``max δ·σ̄(Ẑ)/(1 + σ̄(QẐ))``, ``Ẑ = (I − M̂D̂)⁻¹M̂``, over the Welch and low-band frequencies (≥ 1 refuses:
         every plant in the confidence disks has ``δ·σ̄(K(I+PK)⁻¹) ≥ 1`` there); in coprime-factor form the same for
         ε and the coprime channel (:func:`check_excitation`); NaN when not computed.
     """
@@ -118,12 +144,17 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     than the Welch segments is judged where it lives (measured: a model with a quarter of the plant's DC
     gain passed every Welch frequency, and its loop settled too slowly to track on the plant).
 
-    MIMO (``D̂`` l × m, ``M̂`` m × l): for every ``D`` in the region ``‖D − D̂‖₂ ≤ r``,
-    ``σ̄(D̂M̂) − r·σ̄(M̂) ≤ σ̄(DM̂) ≤ σ̄(D̂M̂) + r·σ̄(M̂)`` (triangle inequality, ``σ̄`` the largest singular
-    value).  The Welch test is ``max_bin (σ̄(D̂M̂) + r·σ̄(M̂)) < 1``: then ``σ̄(D M̂) < 1`` for every such
-    ``D``, the frequency-wise small-gain condition (``det(I − DM̂) ≠ 0`` along the homotopy ``τD``) -- no
-    weaker than the ``(‖D̂‖₂ + r)·‖M̂‖₂ < 1`` it implies, and the same numbers for SISO.  The low-band
-    evidence is ``max_bin (σ̄(D̂M̂) − r·σ̄(M̂)) ≥ 1``: every plant consistent with the data there has
+    MIMO (``D̂`` l × m, ``M̂`` m × l): the region is a bound ``‖(D − D̂)X‖₂ ≤ σ̄(QX)`` for every ``X`` of ``m`` rows,
+    ``Q = ρ·S_uu^(-1/2)`` the estimate's ``region`` (the per-row ellipsoids of the estimate whitened by the input
+    spectrum, :func:`frequency_response_estimate`; ``σ̄(Q) = r``), so for every ``D`` in it
+    ``σ̄(D̂M̂) − σ̄(QM̂) ≤ σ̄(DM̂) ≤ σ̄(D̂M̂) + σ̄(QM̂)`` (triangle inequality, ``σ̄`` the largest singular value), with
+    ``σ̄(QM̂) ≤ r·σ̄(M̂)``.  In other input units ``u → Du``, ``Q → QD⁻¹``, ``M̂ → DM̂`` and ``D̂ → D̂D⁻¹``: every term
+    is the same, while ``r·σ̄(M̂)`` takes ``r`` from the least-excited direction and ``σ̄(M̂)`` from the largest
+    channel (units 10⁻³ and 10³: a bound 10⁶ times wider).  An estimate without ``region`` (one input, where the
+    two are equal; made by hand) reads ``r·σ̄(M̂)``.  The Welch test is ``max_bin (σ̄(D̂M̂) + σ̄(QM̂)) < 1``: then
+    ``σ̄(D M̂) < 1`` for every such ``D``, the frequency-wise small-gain condition (``det(I − DM̂) ≠ 0`` along the
+    homotopy ``τD``) -- no weaker than the ``(‖D̂‖₂ + r)·‖M̂‖₂ < 1`` it implies, and the same numbers for SISO.  The
+    low-band evidence is ``max_bin (σ̄(D̂M̂) − σ̄(QM̂)) ≥ 1``: every plant consistent with the data there has
     ``σ̄((P − P̂)M̂) ≥ 1``, so no small-gain argument covers the loop on it -- the SISO statement
     ``|D||M̂| ≥ 1`` exactly (neither proves instability; both refute the certificate's condition).
     ``(‖D̂‖₂ − r)·‖M̂‖₂ ≥ 1`` would not do: ``‖D‖₂ ≥ ‖D̂‖₂ − r`` says only that ``D`` is large in *some*
@@ -135,7 +166,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     P̂; on the plant itself the map an additive perturbation sees is ``M_P = (I − M̂D)⁻¹M̂``, ``D = P − P̂``.  Where
     the data *show* that every plant in the disks has ``δ·σ̄(M_P) ≥ 1``, the loop is refused.  With
     ``Ẑ = (I − M̂D̂)⁻¹M̂``, the map on the plant at the disk's centre, and ``D = D̂ + E``, ``‖E‖₂ ≤ r``: ``M_P = Ẑ(I + EM_P)``,
-    so ``σ̄(M_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, and the evidence is ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)) ≥ 1`` (SISO:
+    so ``σ̄(M_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ))``, and the evidence is ``δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)) ≥ 1``; several inputs read
+    ``σ̄(QẐ)`` (≤ ``r·σ̄(Ẑ)``, a bound on ``‖EẐ‖₂`` in any input units) for ``r·σ̄(Ẑ)`` (SISO:
     ``δ|M̂|/(|1 − M̂D̂| + r|M̂|)``, the best case over the disk exactly), at the Welch and the low-band frequencies
     alike (evidence refuses, uncertainty does not).  Measured on the
     adversarial catalogue, ten seeds, both protocols (940 runs, 370 certified without this test, 10 of them false): it
@@ -149,7 +181,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     ``R = M̂P − N̂``, so ``(M̂, N̂ + R)`` is a factorisation of the plant, and a perturbation of those factors sees
     ``H_P = H(I − R H_u)⁻¹`` with ``H = [C_y; I](M̂ − N̂C_y)⁻¹`` the coprime channel and ``H_u`` its ``u`` rows.  With
     ``Ẑ = H(I − R̂H_u)⁻¹`` and ``R = R̂ + E``, ``H_P = Ẑ(I − EẐ_u)⁻¹``, so ``σ̄(H_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` and the
-    evidence is ``ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` (the additive one is the case ``H = H_u = M̂``).  A coprime margin belongs
+    evidence is ``ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))``, or ``σ̄(QẐ_u)`` for ``r·σ̄(Ẑ_u)`` (several inputs; the additive one is the
+    case ``H = H_u = M̂``).  A coprime margin belongs
     to a factorisation; this one is the factorisation the data measure, with ``M̂`` kept.
 
     Parameters
@@ -240,7 +273,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
                                 f"inputs) but the model P̂ has {M.ninputs} outputs and {M.noutputs} inputs: "
                                 "estimate it from the same (u, y − P̂u) channels the model was fitted on")
         freq, dist, radius = frf.frequency, frf.gain, frf.radius
-        bound, peak = _bin_loop_gain(M, frf.response, radius, frf.frequency, frf.resolution, frf.dt, +1.0)
+        bound, peak, centre, share = _bin_loop_gain(M, frf.response, radius, frf.frequency, frf.resolution, frf.dt,
+                                                    +1.0, region=frf.region)
         bound = np.where(np.isfinite(radius), bound, np.where(peak > 0, np.inf, 0.0))
     bound = np.nan_to_num(bound, nan=np.inf, posinf=np.inf)  # an unexcited bin stays ∞, not the largest float
     welch = np.ones(freq.size, bool)
@@ -253,9 +287,11 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
             low_peak = _bin_peak(M, low_band.frequency, spacing, low_band.dt)
             low_bound = np.nan_to_num(np.maximum(np.abs(low_band.response) - low_band.radius, 0.0) * low_peak, nan=0.0)
         else:
-            low_bound, low_peak = _bin_loop_gain(M, low_band.response, low_band.radius, low_band.frequency, spacing,
-                                                 low_band.dt, -1.0)
+            low_bound, low_peak, low_centre, low_share = _bin_loop_gain(M, low_band.response, low_band.radius,
+                                                                        low_band.frequency, spacing, low_band.dt, -1.0,
+                                                                        region=low_band.region)
             low_bound = np.nan_to_num(np.maximum(low_bound, 0.0), nan=0.0, posinf=0.0)
+            centre, share = np.concatenate([low_centre, centre]), np.concatenate([low_share, share])
         freq = np.concatenate([low_band.frequency, freq])
         dist = np.concatenate([low_band.gain, dist])
         radius = np.concatenate([low_band.radius, radius])
@@ -276,18 +312,32 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
     norm = f"‖{norm}‖₂" if mimo else f"|{norm}|"
     signal = ("independent white PRBS or multisines covering that band on the inputs" if mimo
               else "white PRBS or a multisine covering that band")
-    if np.all(~np.isfinite(radius[bad]) | (radius[bad] >= dist[bad])):
+    # undetermined: with the region's factor (several inputs), where its part of the bound reaches the centre's, in
+    # the loop's directions, so the inputs' units do not decide which reason is given; else r against ‖D̂‖, as it was
+    directed = mimo and frf.region is not None
+    unsure = ~np.isfinite(radius) | ((share >= centre) if directed else (radius >= dist))
+    if np.all(unsure[bad]):
+        # the region's part where every flagged frequency has one (a silent direction leaves only r = inf to name)
+        spread = (f"the confidence region's part of the loop gain, σ̄(QM̂), reaches "
+                  f"{float(np.max(np.where(bad, share, 0))):.3g}" if directed and np.all(np.isfinite(share[bad])) else
+                  f"the confidence radius reaches {float(np.max(np.where(bad, radius, 0))):.3g}")
         why = (f"the data do not determine the plant at {band}, where the loop is sensitive ({norm} up to "
-               f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and the confidence radius reaches "
-               f"{float(np.max(np.where(bad, radius, 0))):.3g}; excite {lo:.3g}–{hi:.3g} {unit}"
-               f"{_input_fix(frf, bad[welch])} ({signal}) or record longer")
+               f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and {spread}; excite "
+               f"{lo:.3g}–{hi:.3g} {unit}{_input_fix(frf, bad[welch])} ({signal}) or record longer")
     else:
         error = "M̂P − N̂" if factors is not None else "P − P̂"
-        test = "σ̄(D̂M̂) + r·σ̄(M̂)" if mimo else f"(|{error}| estimate + r)·{norm}"
+        test = _mimo_test(frf if welch[k] else low_band, welch[k]) if mimo else f"(|{error}| estimate + r)·{norm}"
         why = (f"at {band} the data's frequency response differs from P̂ by more than the loop tolerates "
                f"({test} = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
                "richer or longer record, or raise the horizon")
     return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why, margin=margin)
+
+
+def _mimo_test(est, upper: bool) -> str:
+    """The MIMO test's formula as the reason names it: the Welch frequencies bound the loop gain from above, the low
+    band from below (the reason had read ``+`` for both), with ``Q`` where the estimate has its region's factor."""
+    spread = "σ̄(QM̂)" if est.region is not None else "r·σ̄(M̂)"
+    return f"σ̄(D̂M̂) {'+' if upper else '−'} {spread}"
 
 
 def _margin_evidence(H, m: int, frf: FrequencyResponseEstimate, low_band: LowBandEstimate | None,
@@ -296,11 +346,11 @@ def _margin_evidence(H, m: int, frf: FrequencyResponseEstimate, low_band: LowBan
     the Welch and low-band frequencies, and why it refuses (``''`` below 1).  ``H`` is the perturbation's channel
     (``M̂``, or the coprime ``[C_y; I](M̂ − N̂C_y)⁻¹``) and its first ``m`` rows the ``u`` rows."""
     parts = [(frf.frequency, _margin_ratio(H, m, frf.response, frf.radius, frf.frequency, frf.resolution, frf.dt,
-                                           delta))]
+                                           delta, region=frf.region))]
     if low_band is not None:
         spacing = 2.0 * np.pi / (low_band.samples * low_band.dt)
         parts.append((low_band.frequency, _margin_ratio(H, m, low_band.response, low_band.radius, low_band.frequency,
-                                                        spacing, low_band.dt, delta)))
+                                                        spacing, low_band.dt, delta, region=low_band.region)))
     freq = np.concatenate([f for f, _ in parts])
     ratio = np.concatenate([r for _, r in parts])
     if not ratio.size:
@@ -310,12 +360,17 @@ def _margin_evidence(H, m: int, frf: FrequencyResponseEstimate, low_band: LowBan
     if worst < 1.0:
         return worst, ""
     unit = _unit(frf.dt)
+    # several inputs: the region's factor Q in place of the radius (σ̄(QX) ≤ r·σ̄(X), in any input units)
+    directed = frf.region is not None or (low_band is not None and low_band.region is not None)
+    region = ", Q the confidence region's factor" if directed else ""
     if coprime:
+        spread = "σ̄(QẐ_u)" if directed else "r·σ̄(Ẑ_u)"
         what = (f"ε·σ̄([K; I](M̂ + (N̂ + R)K)⁻¹) ≥ {worst:.3g} in the factors (M̂, N̂ + R) of the plant, R = M̂P − N̂ "
-                f"(ε = {delta:.4g}; bound ε·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u)), Ẑ = H(I − R̂H_u)⁻¹, H the coprime channel)")
+                f"(ε = {delta:.4g}; bound ε·σ̄(Ẑ)/(1 + {spread}), Ẑ = H(I − R̂H_u)⁻¹, H the coprime channel{region})")
     else:
-        what = (f"δ·σ̄(K(I+PK)⁻¹) ≥ {worst:.3g} (δ = {delta:.4g}; bound δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ)), "
-                "Ẑ = (I − M̂D̂)⁻¹M̂)")
+        spread = "σ̄(QẐ)" if directed else "r·σ̄(Ẑ)"
+        what = (f"δ·σ̄(K(I+PK)⁻¹) ≥ {worst:.3g} (δ = {delta:.4g}; bound δ·σ̄(Ẑ)/(1 + {spread}), "
+                f"Ẑ = (I − M̂D̂)⁻¹M̂{region})")
     size = "ε" if coprime else "δ"
     return worst, (f"the data show that the plant lacks the {size} margin the loop is certified for: at {freq[k]:.3g} "
                    f"{unit} every plant within the confidence disks has {what}, so P̂ is wrong where the loop's margin "
@@ -324,15 +379,16 @@ def _margin_evidence(H, m: int, frf: FrequencyResponseEstimate, low_band: LowBan
 
 
 def _margin_ratio(H, m: int, response: np.ndarray, radius: np.ndarray, frequency: np.ndarray, spacing: float,
-                  dt: float, delta: float, points: int = 9) -> np.ndarray:
-    """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))``, ``Ẑ = H(I − D̂H_u)⁻¹`` (``H_u``, ``Ẑ_u`` the first ``m`` rows),
-    over its ± half ``spacing``; 0 where ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − D̂H_u`` is
+                  dt: float, delta: float, points: int = 9, region: np.ndarray | None = None) -> np.ndarray:
+    """Per frequency, ``max_bin δ·σ̄(Ẑ)/(1 + σ̄(QẐ_u))``, ``Ẑ = H(I − D̂H_u)⁻¹`` (``H_u``, ``Ẑ_u`` the first ``m``
+    rows), over its ± half ``spacing``; 0 where ``D̂`` or r is not finite (no evidence), ``δ/r`` where ``I − D̂H_u`` is
     singular (σ̄(Ẑ) infinite).  ``H`` is ``M̂`` (m × l: then ``Ẑ = Ẑ_u = (I − M̂D̂)⁻¹M̂``) or the coprime channel
-    ((m + l) × l), ``response`` ``D̂`` (F,) or (F, l, m).
+    ((m + l) × l), ``response`` ``D̂`` (F,) or (F, l, m), ``region`` the estimate's factor ``Q`` (F, m, m), or None:
+    then ``σ̄(QẐ_u)`` reads ``r·σ̄(Ẑ_u)`` (:func:`_region_gain`).
 
     Why: the plant closes ``v = D H_u v`` around the channel, so a perturbation of the plant sees
     ``H_P = H(I − D H_u)⁻¹``; with ``D = D̂ + E`` that is ``Ẑ(I − E Ẑ_u)⁻¹``, hence ``Ẑ = H_P(I − E Ẑ_u)`` and
-    ``σ̄(H_P) ≥ σ̄(Ẑ)/(1 + r·σ̄(Ẑ_u))`` for every ``‖E‖₂ ≤ r``."""
+    ``σ̄(H_P) ≥ σ̄(Ẑ)/(1 + ‖EẐ_u‖₂) ≥ σ̄(Ẑ)/(1 + σ̄(QẐ_u))`` for every ``E`` in the region."""
     Hz = _bin_response(H, frequency, spacing, dt, points)  # (F, points, rows, l)
     l = Hz.shape[3]
     D = np.asarray(response, complex).reshape(frequency.size, l, m)
@@ -348,7 +404,12 @@ def _margin_ratio(H, m: int, response: np.ndarray, radius: np.ndarray, frequency
     gain_u = gain if Z.shape[2] == m else np.where(singular, np.inf, np.linalg.norm(Z[:, :, :m, :], ord=2, axis=(2, 3)))
     r = np.where(known, radius, 0.0)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain_u))
+        if region is None:  # r·σ̄(Ẑ_u), written as it was (one input: the same numbers)
+            ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + r * gain_u))
+        else:
+            Zu = np.where(singular[..., None, None], 0.0, Z[:, :, :m, :])  # the singular points read δ/r below
+            spread = _region_gain(radius, region, Zu, np.where(singular, 0.0, gain_u))
+            ratio = np.where(np.isinf(gain), delta / r, delta * gain / (1.0 + spread))
     return np.where(known, ratio.max(axis=1), 0.0)
 
 

@@ -14,10 +14,14 @@ them the output error ``e = y − P̂u``, so they estimate ``P − P̂``):
   Piersol), Bonferroni over the rows and frequencies, turned into ``r = sqrt(Σ_r ρ_r²/λ_min(S_uu))``; a
   frequency is excited when ``λ_min`` of the channel-normalised ``D⁻¹S_uuD⁻¹`` (``D²`` each input's mean
   auto-spectrum) reaches the floor, so the inputs' units do not decide it (the radius stays in the record's
-  units).  With one input and one output every number is the SISO one.
+  units).  The same ellipsoids, whitened by the input spectrum, also keep their directions: ``region``,
+  ``Q = ρ·S_uu^(-1/2)`` with ``‖(G − Ĝ)X‖₂ ≤ σ̄(QX)`` for every ``X`` of m rows, which does not depend on the
+  inputs' units (the excitation check bounds the loop gain by it).  With one input and one output every number
+  is the SISO one.
 * **The local polynomial method** (:func:`low_band_estimate`) below the first Welch frequency, where each
   detrended segment is blind and where a slow pole or an integrator lives: the whole record's DFT is
-  fitted bin by bin with a response and a transient quadratic in the bin, and F-distribution disks.
+  fitted bin by bin with a response and a transient quadratic in the bin, and F-distribution disks (several
+  inputs: per-row ellipsoids, with their ``region`` as for Welch).
 
 Each confidence statement holds with its stated probability only, and says nothing between the
 estimate's frequencies (the Welch resolution is ``2π/(nperseg·dt)``).
@@ -91,6 +95,13 @@ class FrequencyResponseEstimate:
         Hann window gathers there lies on one side, and no frequency within two bins beyond that side stands for
         itself.  Their radius is ``inf`` and they are not :attr:`excited`.  None: not computed (an estimate made
         by hand).
+    region : ndarray, complex, shape (F, m, m), or None
+        Several inputs: the confidence region with its directions, a factor ``Q = ρ·S_uu^(-1/2)`` (any factor with
+        ``QᴴQ = ρ² S_uu⁻¹``) such that ``‖(G − Ĝ)X‖₂ ≤ σ̄(QX)`` for every ``X`` of ``m`` rows, in the same event as
+        the radius (:func:`frequency_response_estimate`, derivation); ``σ̄(Q)`` is the radius.  Unlike ``r·σ̄(X)``
+        it does not depend on the inputs' units: in units ``u → Du``, ``Q → QD⁻¹`` and ``X → DX``.  NaN where the
+        radius is ``inf``.  None: one input (there ``σ̄(QX) = r·σ̄(X)``), or an estimate made by hand or pickled
+        before the field existed (then ``r·σ̄(X)`` is the bound).
     """
 
     frequency: np.ndarray
@@ -104,6 +115,7 @@ class FrequencyResponseEstimate:
     nperseg: int
     dt: float
     leaked: np.ndarray | None = None
+    region: np.ndarray | None = None  # a default: pickles made before the field load with None
 
     @property
     def inputs(self) -> int:
@@ -244,6 +256,16 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     ``r = sqrt(Σ_r ρ_r² / λ_min(Ŝ_uu))`` -- the SISO disk for m = l = 1.  ``r = inf`` where ν ≤ 2m + ½
     or ``S_uu`` is singular (``λ_min ≤ 10⁻¹²·λ_max``; there ``Ĝ`` is NaN).
 
+    The directions of the region (``region``, several inputs).  Row ``r`` of ``E = G − Ĝ`` obeys
+    ``e_r Ŝ_uu e_rᴴ = ‖e_r Ŝ_uu^(1/2)‖² ≤ ρ_r²``, so in the same event (all rows, all frequencies)
+    ``‖E Ŝ_uu^(1/2)‖₂ ≤ ‖E Ŝ_uu^(1/2)‖_F ≤ ρ``, ``ρ² = Σ_r ρ_r²`` (= ``r²·λ_min(Ŝ_uu)``), and for any ``X`` of ``m``
+    rows ``‖EX‖₂ = ‖E Ŝ_uu^(1/2) · Ŝ_uu^(-1/2) X‖₂ ≤ ρ·σ̄(Ŝ_uu^(-1/2) X) = σ̄(QX)``, ``Q = ρ·Ŝ_uu^(-1/2)``.  Since
+    ``σ̄(Ŝ_uu^(-1/2) X) ≤ λ_min^(-1/2)·σ̄(X)`` it is never looser than ``r·σ̄(X)``, and it is the same in any input
+    units: ``u → Du`` gives ``Ŝ_uu → DŜ_uuD``, ``ρ`` unchanged (``Ŝ_vv`` is), and ``(DŜ_uuD)^(-1/2)D`` is
+    ``Ŝ_uu^(-1/2)`` times a unitary factor.  ``r·σ̄(X)`` instead takes the radius from the direction of least
+    power, which the units choose.  ``Q`` is computed as ``ρ·N^(-1/2)D⁻¹`` on the channel-normalised
+    ``N = D⁻¹Ŝ_uuD⁻¹`` (the same ``QᴴQ``, without the units' spread in the eigenvalues).
+
     Parameters
     ----------
     u : array_like, shape (n,) or (n, m)
@@ -315,7 +337,8 @@ def frequency_response_estimate(u, y, dt: float = 1.0, *, nperseg: int | None = 
     else:
         est = _mimo_welch(usable, L, dt, confidence)
     leaked = _leaked([us for us, _ in usable], L)
-    return dataclasses.replace(est, radius=np.where(leaked, np.inf, est.radius), leaked=leaked)
+    region = None if est.region is None else np.where(leaked[:, None, None], np.nan, est.region)
+    return dataclasses.replace(est, radius=np.where(leaked, np.inf, est.radius), leaked=leaked, region=region)
 
 
 #: a Welch bin stands for its own frequency when the centroid of the input power its Hann window gathers lies within
@@ -512,12 +535,33 @@ def _mimo_welch(usable, L: int, dt: float, confidence: float) -> FrequencyRespon
         if nu - 2.0 * m > 0.5:
             fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2.0 * (nu - 2.0 * m))
             radius = np.sqrt(2.0 * m / (nu - 2.0 * m) * fq * np.sum(svv, axis=1) / lam[:, 0])
+            rho = np.sqrt(2.0 * m / (nu - 2.0 * m) * fq * np.sum(svv, axis=1))  # ρ of the whitened region
         else:
-            radius = np.full(f.size, np.inf)
+            radius = rho = np.full(f.size, np.inf)
     radius = np.where(np.isfinite(radius) & regular, radius, np.inf)
+    # one input: σ̄(QX) is r·σ̄(X) exactly, and its numbers stay those of r
+    region = _welch_region(Suu, rho, np.isfinite(radius)) if m > 1 else None
     return FrequencyResponseEstimate(frequency=2.0 * np.pi * f / dt, response=G, radius=radius, coherence=coh,
                                      input_psd=Suu, noise_psd=Svv, averages=float(nu), confidence=float(confidence),
-                                     nperseg=L, dt=float(dt))
+                                     nperseg=L, dt=float(dt), region=region)
+
+
+def _inverse_root(N: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """``N^(-1/2)`` of (F, m, m) Hermitian matrices, positive definite where ``usable`` (NaN elsewhere)."""
+    m = N.shape[1]
+    w, V = np.linalg.eigh(np.where(usable[:, None, None], N, np.eye(m)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = (V / np.sqrt(w)[:, None, :]) @ np.conj(np.swapaxes(V, 1, 2))
+    return np.where(usable[:, None, None] & (w[:, :1, None] > 0.0), root, np.nan)
+
+
+def _welch_region(Suu: np.ndarray, rho: np.ndarray, finite: np.ndarray) -> np.ndarray:
+    """``Q = ρ·N^(-1/2)D⁻¹`` per frequency, ``N = D⁻¹S_uuD⁻¹`` (:func:`_normalised_input_psd`), so that
+    ``QᴴQ = ρ²S_uu⁻¹`` (:func:`frequency_response_estimate`: ``‖(G − Ĝ)X‖₂ ≤ σ̄(QX)``); NaN where not ``finite``.
+    Taken on ``N``: in units 10⁻³ and 10³ the eigenvalues of ``S_uu`` itself spread over 12 decades."""
+    d = _channel_scale(Suu)
+    root = _inverse_root(Suu * d[None, :, None] * d[None, None, :], finite)
+    return rho[:, None, None] * root * d[None, None, :]
 
 
 @result
@@ -543,6 +587,12 @@ class LowBandEstimate:
     samples : int
         ``N``, the record's length.
     dt : float
+    region : ndarray, complex, shape (K, m, m), or None
+        Several inputs: the confidence region with its directions, a factor ``Q = ρ·C^(1/2)`` (``QᴴQ = ρ²C``, ``C``
+        the fit's m × m covariance block, :func:`low_band_estimate`) such that ``‖(G − Ĝ)X‖₂ ≤ σ̄(QX)`` for every
+        ``X`` of ``m`` rows, in the same event as the radius; ``σ̄(Q)`` is the radius, and in units ``u → Du``,
+        ``Q → QD⁻¹``, so ``σ̄(QX)`` does not depend on them.  NaN where the radius is ``inf``.  None: one input, or
+        an estimate made by hand or pickled before the field existed (``r·σ̄(X)`` is then the bound).
     """
 
     frequency: np.ndarray
@@ -553,6 +603,7 @@ class LowBandEstimate:
     degree: int
     samples: int
     dt: float
+    region: np.ndarray | None = None  # a default: pickles made before the field load with None
 
     @property
     def gain(self) -> np.ndarray:
@@ -596,7 +647,11 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     least squares; m = 1 is the SISO disk), so ``‖ĝ_r − g_r‖² ≤ λ_max(C)·m·F·s_r²`` and
     ``r = sqrt(λ_max(C)·m·F_{2m, 2d}(1 − α)·Σ_r s_r²)`` bounds ``‖G − Ĝ‖_F ≥ ‖G − Ĝ‖₂``, with
     α = (1 − confidence)/(K·l).  The window must leave as many residual dof as parameters,
-    ``2p ≤ window``: 16 bins for one input, ``2(m + 1)·3`` for more (18 for two inputs).
+    ``2p ≤ window``: 16 bins for one input, ``2(m + 1)·3`` for more (18 for two inputs).  The same rows give
+    the region's directions (``region``): ``‖(ĝ_r − g_r) C^(-1/2)‖² ≤ m·F·s_r²``, so with
+    ``ρ² = m·F_{2m, 2d}(1 − α)·Σ_r s_r²`` and ``E = G − Ĝ``, ``‖E C^(-1/2)‖₂ ≤ ‖E C^(-1/2)‖_F ≤ ρ`` and
+    ``‖EX‖₂ ≤ ρ·σ̄(C^(1/2)X) = σ̄(QX)`` for any ``X`` of ``m`` rows, in the same event; ``r = ρ·λ_max(C)^(1/2)`` is
+    the case ``X = I``.  Input units ``u → Du`` give ``C → D⁻¹CD⁻¹``: ``σ̄(C^(1/2)DX)`` is ``σ̄(C^(1/2)X)``.
 
     Parameters
     ----------
@@ -662,18 +717,21 @@ def low_band_estimate(u, y, dt: float = 1.0, *, bins: int, confidence: float = 0
     if m == l == 1:  # the SISO fit as it always was
         U, Y = U[:, 0], Y[:, 0]
         alpha = (1.0 - confidence) / K
-        response, radius = np.empty(K, complex), np.empty(K)
+        response, radius, region = np.empty(K, complex), np.empty(K), None
         for k in range(1, K + 1):
             start = max(1, k - W // 2)
             response[k - 1], radius[k - 1] = _local_fit(U[start:start + W], Y[start:start + W], k - start, alpha)
     else:
         alpha = (1.0 - confidence) / (K * l)
-        response, radius = np.empty((K, l, m), complex), np.empty(K)
+        response, radius, region = np.empty((K, l, m), complex), np.empty(K), np.empty((K, m, m), complex)
         for k in range(1, K + 1):
             start = max(1, k - W // 2)
-            response[k - 1], radius[k - 1] = _local_fit_mimo(U[start:start + W], Y[start:start + W], k - start, alpha)
+            response[k - 1], radius[k - 1], region[k - 1] = _local_fit_mimo(U[start:start + W], Y[start:start + W],
+                                                                             k - start, alpha)
+        region = region if m > 1 else None  # one input: σ̄(QX) = r·σ̄(X), and the numbers stay those of r
     return LowBandEstimate(frequency=2.0 * np.pi * np.arange(1, K + 1) / (n * dt), response=response, radius=radius,
-                           confidence=float(confidence), window=W, degree=_LPM_DEGREE, samples=int(n), dt=float(dt))
+                           confidence=float(confidence), window=W, degree=_LPM_DEGREE, samples=int(n), dt=float(dt),
+                           region=region)
 
 
 def _local_fit(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[complex, float]:
@@ -700,8 +758,9 @@ def _inverse_gram(X: np.ndarray, rows) -> np.ndarray:
     return Vr @ Vr.conj().T
 
 
-def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[np.ndarray, float]:
-    """``(Ĝ (l × m), radius)`` at offset ``at`` of one local fit ``Y_r = G(r) U_r + T(r)``, U (W, m), Y (W, l)."""
+def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(Ĝ (l × m), radius, Q (m × m))`` at offset ``at`` of one local fit ``Y_r = G(r) U_r + T(r)``, U (W, m),
+    Y (W, l); ``Q = ρ·C^(1/2)``, the region's factor (:func:`low_band_estimate`), NaN with an infinite radius."""
     W, m = U.shape
     l = Y.shape[1]
     d = _LPM_DEGREE + 1
@@ -715,15 +774,20 @@ def _local_fit_mimo(U: np.ndarray, Y: np.ndarray, at: int, alpha: float) -> tupl
     scale = np.where(norms > 0.0, 1.0 / np.where(norms > 0.0, norms, 1.0), 1.0)
     theta, _, rank, _ = np.linalg.lstsq(X * scale, Y, rcond=None)
     if rank < X.shape[1]:  # an input silent in the window (or collinear with another): nothing known
-        return np.full((l, m), np.nan + 0j), float("inf")
+        return np.full((l, m), np.nan + 0j), float("inf"), np.full((m, m), np.nan + 0j)
     theta = scale[:, None] * theta
     dof = W - X.shape[1]
     s2 = np.sum(np.abs(Y - X @ theta) ** 2, axis=0) / dof  # per output
     at0 = np.arange(m) * d  # the response at the bin: each input's constant term
-    C = scale[at0, None] * _inverse_gram(X * scale, at0) * scale[None, at0]  # (XᴴX)⁻¹ = S (SXᴴXS)⁻¹ S
+    gram = _inverse_gram(X * scale, at0)  # (SXᴴXS)⁻¹ on the unit-norm columns
+    C = scale[at0, None] * gram * scale[None, at0]  # (XᴴX)⁻¹ = S (SXᴴXS)⁻¹ S
     lam = float(np.linalg.eigvalsh(0.5 * (C + C.conj().T))[-1])
     fq = scipy.stats.f.ppf(1.0 - alpha, 2 * m, 2 * dof)
-    return theta[at0, :].T.copy(), math.sqrt(lam * m * fq * float(np.sum(s2)))
+    rho = math.sqrt(m * fq * float(np.sum(s2)))
+    # Q = ρ·gram^(1/2)·S: QᴴQ = ρ²·S·gram·S = ρ²C, taken on the unit-norm columns (the units' spread stays out)
+    w, V = np.linalg.eigh(0.5 * (gram + gram.conj().T))
+    root = (V * np.sqrt(np.maximum(w, 0.0))[None, :]) @ V.conj().T
+    return theta[at0, :].T.copy(), math.sqrt(lam * m * fq * float(np.sum(s2))), rho * root * scale[None, at0]
 
 
 def _channels(response: np.ndarray, k: int) -> str:
