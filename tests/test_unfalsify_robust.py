@@ -318,23 +318,30 @@ def test_a_record_too_short_for_the_horizon_says_so(n):
         uf.robust_design_from_data(u, y, 10, 1.0, 0.1, "auto", dt=1.0, window="auto")
 
 
-def test_a_slow_mode_that_flips_the_dc_gain_is_refused_on_the_whole_records_low_band():
-    """A slow mode (pole 0.995) with DC gain −1.1 under fast modes of gain +1: P(1) = −0.1, but over i = 5 steps
-    the plant looks like its fast part and P̂(1) ≈ +1.  The held-out third's low band starts at 0.128 rad/s, where
-    the error is within the data's regions; the additive loop certified on it was unstable on the plant.  The
-    output error over the whole 1500-sample record (lowest frequency 0.042 rad/s) places P̂ outside the ball."""
+def _flip_design(pole: float, uncertainty: str):
+    """The record-mode design, in one uncertainty form, of a plant whose slow mode (``pole``, DC gain −1.1) flips the
+    DC gain of its fast part (+1) to −0.1: 1500 samples of PRBS at 10 Hz, process and sensor noise 0.05, i = 5."""
     from experiments.lab.signals import prbs
     from experiments.lab.simulate import collect_data
     from experiments.studies.design_cli import default_weights
 
-    dt, p = 0.1, 0.995
-    plant = control.ss(np.diag([p, 0.7, 0.4]), [[-1.1 * (1 - p)], [0.15], [0.3]], np.ones((1, 3)), 0.0, dt)
+    dt = 0.1
+    plant = control.ss(np.diag([pole, 0.7, 0.4]), [[-1.1 * (1 - pole)], [0.15], [0.3]], np.ones((1, 3)), 0.0, dt)
     d = collect_data(plant, prbs(1500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
     W1, W2, _ = default_weights(dt)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=dt, window="auto",
-                                         certificate=uf.CertificateOptions(uncertainty="additive"))
+                                         certificate=uf.CertificateOptions(uncertainty=uncertainty))
+    return res, plant
+
+
+def test_a_slow_mode_that_flips_the_dc_gain_is_refused_on_the_whole_records_low_band():
+    """A slow mode (pole 0.995) with DC gain −1.1 under fast modes of gain +1: P(1) = −0.1, but over i = 5 steps
+    the plant looks like its fast part and P̂(1) ≈ +1.  The held-out third's low band starts at 0.128 rad/s, where
+    the error is within the data's regions; the additive loop certified on it was unstable on the plant.  The
+    output error over the whole 1500-sample record (lowest frequency 0.042 rad/s) places P̂ outside the ball."""
+    res, _ = _flip_design(0.995, "additive")
     assert not res.certified
     assert "over the whole 1500-sample record" in res.premise.reason
     assert "raise the horizon, or fit on a longer record" in res.premise.reason
@@ -348,24 +355,13 @@ def test_a_dc_flip_is_refused_in_coprime_form_by_the_least_distance_over_the_dis
     took σ̄(P) ≤ (σ̄(N̂) + σ̄(R))/σ_min(M̂), which is loose where the slow mode cancels P's gain (0.088 at 0.042 rad/s,
     the true distance there 0.29).  The least distance over R's confidence disk refutes the family there, and
     stays below the plant's true distance from it (the second route, from the plant itself)."""
-    from experiments.lab.signals import prbs
-    from experiments.lab.simulate import collect_data
-    from experiments.studies.design_cli import default_weights
-
-    dt, p = 0.1, 0.99
-    plant = control.ss(np.diag([p, 0.7, 0.4]), [[-1.1 * (1 - p)], [0.15], [0.3]], np.ones((1, 3)), 0.0, dt)
-    d = collect_data(plant, prbs(1500, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
-    W1, W2, _ = default_weights(dt)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=dt, window="auto",
-                                         certificate=uf.CertificateOptions(uncertainty="coprime"))
+    res, plant = _flip_design(0.99, "coprime")
     assert not res.certified
     cop = res.coprime
     assert "over the whole 1500-sample record" in cop.reason and "coprime-factor family" in cop.reason
     low = cop.record_low_band
     bound = uf.error_gap(cop.factors, low)
     assert bound.max() > cop.epsilon
-    z = np.exp(1j * low.frequency * dt)
+    z = np.exp(1j * low.frequency * plant.dt)
     G = np.array([complex(plant(zk)) for zk in z])
     assert np.all(bound <= uf.coprime_gap(cop.factors, low.frequency, G) + 1e-12)
