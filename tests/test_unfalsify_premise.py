@@ -327,6 +327,22 @@ def test_excitation_check_passes_tight_disks_and_names_a_silent_band():
 
 
 
+def test_a_silent_band_of_one_bin_names_the_bin_to_excite():
+    """Only the grid's first frequency (0: the band below half the Welch resolution) unknown: the fix names that
+    band, 0 to half the resolution, where it had read "excite 0–0 rad/sample"; one other bin reads its ± half bin."""
+    P = control.ss(control.tf([0.5], [1, -0.5], 1.0))
+    K = control.ss([], [], [], [[0.4, -0.4]], 1.0)
+    for k in (0, 20):
+        r = np.full(65, 0.01)
+        r[k] = 1e3
+        frf = _fake_frf(r)
+        bad = uf.check_excitation(P, K, frf)
+        assert not bad.ok and "do not determine the plant" in bad.reason
+        f, half = frf.frequency[k], 0.5 * frf.resolution
+        assert f"excite {max(f - half, 0.0):.3g}–{f + half:.3g} rad/sample" in bad.reason
+        assert "excite 0–0 " not in bad.reason and "-0 dB" not in bad.reason
+
+
 def test_excitation_check_refuses_estimates_of_another_sample_time():
     """An estimate made with the default dt = 1 of a record sampled at 0.1 s is refused, naming the fix."""
     P = control.ss(control.tf([0.5], [1, -0.5], 0.1))

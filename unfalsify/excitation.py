@@ -323,7 +323,8 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
                   f"the confidence radius reaches {float(np.max(np.where(bad, radius, 0))):.3g}")
         why = (f"the data do not determine the plant at {band}, where the loop is sensitive ({norm} up to "
                f"{float(np.max(peak[bad])):.3g}){_input_level(frf, bad[welch])} and {spread}; excite "
-               f"{lo:.3g}–{hi:.3g} {unit}{_input_fix(frf, bad[welch])} ({signal}) or record longer")
+               f"{_excite_band(lo, hi, frf.resolution)} {unit}{_input_fix(frf, bad[welch])} ({signal}) or record "
+               "longer")
     else:
         error = "M̂P − N̂" if factors is not None else "P − P̂"
         test = _mimo_test(frf if welch[k] else low_band, welch[k]) if mimo else f"(|{error}| estimate + r)·{norm}"
@@ -331,6 +332,14 @@ def check_excitation(model, controller, frf: FrequencyResponseEstimate,
                f"({test} = {worst:.3g} ≥ 1 at {freq[k]:.3g} {unit}): refit P̂ on a "
                "richer or longer record, or raise the horizon")
     return ExcitationCheck(ok=False, worst=worst, frequency=float(freq[k]), reason=why, margin=margin)
+
+
+def _excite_band(lo: float, hi: float, resolution: float) -> str:
+    """The band to excite, ``'lo–hi'``; one flagged frequency stands for its Welch bin, ± half the resolution (the
+    grid's first frequency, 0, for the band below half the resolution: it had read "excite 0–0 rad/s")."""
+    if hi > lo:
+        return f"{lo:.3g}–{hi:.3g}"
+    return f"{max(lo - 0.5 * resolution, 0.0):.3g}–{lo + 0.5 * resolution:.3g}"
 
 
 def _mimo_test(est, upper: bool) -> str:
@@ -465,7 +474,7 @@ def _input_level(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
 
 def _db_below(level: float) -> str:
     """A power ratio ``level`` in dB (≤ 0) as ``'12 dB below'`` (it had read ``'down to -12 dB below'``)."""
-    return f"{max(-level, 0.0):.0f} dB below"
+    return f"{max(0.0, -level):.0f} dB below"  # 0.0 first: max(-0.0, 0.0) is -0.0, printed "-0 dB"
 
 
 def _input_fix(frf: FrequencyResponseEstimate, bad: np.ndarray) -> str:
