@@ -36,8 +36,9 @@ power).  So the premise is tested three ways, each from the record itself:
    the whole confidence disk must lie where the loop is stable frequency by frequency, and where every
    plant in the disks lacks the δ margin the loop is certified for, the data refute it.
 
-Several inputs and outputs (u: (n, m), y: (n, l)): every test is stated in the spectral norm
-(``‖D̂‖₂ − r > δ`` for inconsistency); with one input and one output every number is the SISO one above.
+Several inputs and outputs (u: (n, m), y: (n, l)): every test is stated in the spectral norm; inconsistency is
+``‖D̂x‖ − ‖Qx‖ > δ`` for some unit input direction ``x`` (``Q`` the region's factor, so each direction is taken
+with its own confidence; at least ``‖D̂‖₂ − r``); with one input and one output every number is the SISO one above.
 
 A ``PersistenceWarning`` of the predictors the pipeline uses (input not persistently exciting,
 regressor rank deficient) also means *not certified* (checked in :mod:`unfalsify.robust`).
@@ -483,12 +484,13 @@ def _model_gap(est) -> np.ndarray:
 
     One input (no ``region``): ``|D̂| − r``.  Several inputs: the region bounds ``‖(D − D̂)x‖ ≤ ‖Qx‖`` for every ``x``
     (``Q`` its factor, :attr:`FrequencyResponseEstimate.region`), so every ``D`` in it has
-    ``‖D‖₂ ≥ ‖D̂x‖ − ‖Qx‖`` for each unit ``x``; the bound is the largest over a few directions (:func:`_gap_directions`),
-    never below ``‖D̂‖₂ − σ̄(Q)`` (``x`` the top right singular vector of ``D̂``).  ``‖D̂‖₂ − r`` with ``r = σ̄(Q)`` takes
-    the confidence of the least-excited input direction for every direction, so an error the record shows well in
-    one direction was not refuted when another was barely excited: measured, a 2 × 2 plant whose low-gain direction
-    has a slow mode, ``‖D̂‖₂ − r`` = −0.10 against 0.050 in a direction, δ = 0.011 (true ``‖P − P̂‖`` 0.063 there);
-    its certified loop lacked its δ margin on the plant.
+    ``‖D‖₂ ≥ ‖D̂x‖ − ‖Qx‖`` for each unit ``x``; the bound is the largest over a few directions
+    (:func:`_gap_directions`), never below ``‖D̂‖₂ − σ̄(Q)`` (``x`` the top right singular vector of ``D̂``).
+    ``‖D̂‖₂ − r`` with ``r = σ̄(Q)`` (the rule before) takes the least-excited input direction's confidence for every
+    direction, so an error the record shows in one direction was not refuted when the region was wide in another:
+    measured on the whole-record low band of a 2 × 2 plant (condition number 20) whose low-gain direction has a slow
+    mode, ``‖D̂‖₂ − r`` = −0.10 against 0.050 in a direction at 0.0043 rad/sample, δ = 0.011 (true ``‖P − P̂‖₂``
+    0.063 there); its loop had been certified and lacked its δ margin on the plant.
     """
     gap = est.gain - est.radius
     region = getattr(est, "region", None)
@@ -684,7 +686,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
 
 def _record_low_band(model, record, horizon: int, delta: float, dt: float, nperseg: int, burn: int,
                      opts: PremiseOptions) -> tuple[LowBandEstimate | None, float, str]:
-    """``(estimate, max (‖D̂‖₂ − r)/δ, reason)`` of the low band of P̂'s output error over ``record``.
+    """``(estimate, max gap/δ, reason)`` (:func:`_model_gap`) of the low band of P̂'s output error over ``record``.
 
     The held-out record's low band starts at ``2π/(n_v·dt)``; a slow mode whose error the loop's integral action
     amplifies below that (a DC gain of the other sign than P̂'s) is seen only on a longer record.  The window is
