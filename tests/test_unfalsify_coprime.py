@@ -142,7 +142,8 @@ def _least_over_disk(R0, r, N, M, rings=60, angles=2000):
     """The least ``|X||M|/√(|M|² + |N + X|²)`` over ``|X − R0| ≤ r`` by a dense grid (from above)."""
     X = (R0[:, None, None] + np.linspace(0.0, r, rings)[None, :, None]
          * np.exp(2j * np.pi * np.arange(angles) / angles)[None, None, :])
-    g = np.abs(X) * np.abs(M)[:, None, None] / np.sqrt(np.abs(M)[:, None, None] ** 2 + np.abs(N[:, None, None] + X) ** 2)
+    m, n = np.abs(M)[:, None, None], N[:, None, None]
+    g = np.abs(X) * m / np.sqrt(m ** 2 + np.abs(n + X) ** 2)
     return g.min(axis=(1, 2))
 
 
@@ -189,6 +190,31 @@ def test_error_gap_several_channels_bounds_sigma_of_n_plus_r_from_the_estimate()
         E = rng.standard_normal((6, 2, 2)) + 1j * rng.standard_normal((6, 2, 2))
         E *= (0.02 * rng.uniform(size=6) / np.linalg.norm(E, 2, axis=(1, 2)))[:, None, None]
         P = np.linalg.solve(Mw, Nw + R0 + E)
+        assert np.all(low <= uf.coprime_gap(F, w, P) + 1e-12)
+
+
+def test_error_gap_several_inputs_reads_the_region_directions():
+    """Several inputs: σ̄(R) ≥ ‖R̂v‖ − ‖Qv‖ for each unit v (Q the region's factor), so an equation error the record
+    shows in its well-excited input direction bounds the distance from below although the other direction's
+    confidence is wide (σ̄(R̂) − σ̄(Q) < 0: the isotropic bound was 0); still below the distance of every sampled
+    plant of the region (R = R̂ + WQ, σ̄(W) ≤ 1)."""
+    import dataclasses
+
+    F = uf.coprime_factors(sy.fit_predictor(*_arx_data(2, 2, seed=4)[1:], 2), 1.0)
+    rng = np.random.default_rng(5)
+    w = np.linspace(0.05, 2.0, 6)
+    Nw, Mw = F.response(w)
+    R0 = np.tile(np.diag([0.0, 0.3]).astype(complex), (6, 1, 1))  # on input 1
+    Q = np.diag([0.5, 0.02])  # input 0 barely excited
+    est = uf.LowBandEstimate(frequency=w, response=R0, radius=np.full(6, 0.5), confidence=0.99, window=16, degree=2,
+                             samples=100, dt=1.0, region=np.tile(Q, (6, 1, 1)))
+    low = uf.error_gap(F, est)
+    assert np.all(uf.error_gap(F, dataclasses.replace(est, region=None)) == 0.0)  # 0.3 − 0.5 < 0
+    assert np.all(low > 0.02)
+    for _ in range(200):
+        W = rng.standard_normal((6, 2, 2)) + 1j * rng.standard_normal((6, 2, 2))
+        W /= np.linalg.norm(W, 2, axis=(1, 2))[:, None, None] / rng.uniform(size=6)[:, None, None]
+        P = np.linalg.solve(Mw, Nw + R0 + W @ Q)
         assert np.all(low <= uf.coprime_gap(F, w, P) + 1e-12)
 
 

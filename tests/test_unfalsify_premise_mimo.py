@@ -530,3 +530,64 @@ def test_one_input_keeps_the_radius_numbers(l):
         parts.append(np.max(gain_DM + sign * est.radius[:, None] * gain_M, axis=1))
     worst = max(float(np.max(parts[0])), float(np.max(np.maximum(parts[1], 0.0))))
     assert ex.worst == worst  # bit for bit
+
+
+# ---- the premise's refutation reads the region's directions -------------------------------------------------
+
+def _with_region(est, Q):
+    """``est`` with the region factor ``Q`` (m × m) at every frequency and its radius ``σ̄(Q)``."""
+    import dataclasses
+
+    F = est.frequency.size
+    return dataclasses.replace(est, radius=np.full(F, np.linalg.norm(Q, 2)), region=np.tile(Q, (F, 1, 1)))
+
+
+def test_premise_refutation_reads_the_region_directions():
+    """An error the record shows in its well-excited input direction is refuted although another direction is
+    barely excited: ``‖D̂x‖ − ‖Qx‖`` at ``x = e₂`` is 0.45 > δ = 0.2, while ``‖D̂‖₂ − σ̄(Q)`` = −0.5 (the rule it
+    replaced, which took the least-excited direction's confidence for every direction, and passed)."""
+    D = np.tile(np.diag([0.0, 0.5]).astype(complex), (5, 1, 1))  # P − P̂ lives on input 1
+    Q = np.diag([1.0, 0.05])  # input 0 barely excited, input 1 well
+    for low in (False, True):
+        est = _with_region(_fake(D, np.ones(5), low=low), Q)
+        worst, why = (_low_band_inconsistency if low else _frf_inconsistency)(est, 0.2)
+        assert worst == pytest.approx(0.45 / 0.2) and "by 0.45" in why
+    # the same error where the record is blind is no evidence: 0.5 − 1 along e₁, 0 − 0.05 along e₂
+    blind = _with_region(_fake(np.tile(np.diag([0.5, 0.0]).astype(complex), (5, 1, 1)), np.ones(5)), Q)
+    worst, why = _frf_inconsistency(blind, 0.2)
+    assert why == "" and worst == pytest.approx(-0.05 / 0.2)
+
+
+def test_premise_gap_never_exceeds_the_true_error_where_the_region_holds():
+    """Soundness on simulated data with D known (correlated inputs in units 10⁻³ and 10³, 30 records): wherever the
+    region covers the truth, the directional gap is at most ``‖D‖₂`` (it is a lower bound over the region), and it
+    is never below ``‖D̂‖₂ − r``; it is larger somewhere (the test has power)."""
+    from unfalsify.premise import _model_gap
+
+    s = np.array([1e-3, 1e3])
+    h = _taps(2, 2)
+    larger = 0
+    for seed in range(30):
+        rng = np.random.default_rng(seed)
+        w = rng.standard_normal((2048, 2)) @ np.array([[1.0, 0.9], [0.0, 0.1]])
+        y = _filter(h, w) + 0.3 * rng.standard_normal((2048, 2))
+        for est in (uf.frequency_response_estimate(w * s, y, confidence=0.9),
+                    uf.low_band_estimate(w * s, y, bins=8, confidence=0.9)):
+            D = _response(h, est.frequency) / s
+            gap = _model_gap(est)
+            assert np.all(gap >= est.gain - est.radius - 1e-12)
+            covered = np.linalg.norm((D - est.response) @ np.linalg.inv(est.region), ord=2, axis=(1, 2)) <= 1.0
+            assert np.all(gap[covered] <= np.linalg.norm(D, ord=2, axis=(1, 2))[covered] * (1 + 1e-9))
+            larger += int(np.any(gap > est.gain - est.radius + 1e-9))
+    assert larger >= 30
+
+
+def test_premise_gap_of_one_input_is_the_radius_rule():
+    """One input (no region): ``|D̂| − r``, bit for bit."""
+    from unfalsify.premise import _model_gap
+
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(2048)
+    e = np.convolve(u, [0.0, 0.05, 0.02])[:2048] + 0.05 * rng.standard_normal(2048)
+    for est in (uf.frequency_response_estimate(u, e), uf.low_band_estimate(u, e, bins=8)):
+        assert est.region is None and np.array_equal(_model_gap(est), est.gain - est.radius, equal_nan=True)

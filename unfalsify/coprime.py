@@ -58,8 +58,8 @@ from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
                                  frequency_response_estimate, low_band_estimate)
-from .premise import (PremiseOptions, _fir_sigma, _floor_note, _low_bins, _premise_options, _region_reach,
-                      _residual_low_band)
+from .premise import (PremiseOptions, _fir_sigma, _floor_note, _low_bins, _model_gap, _premise_options,
+                      _region_reach, _residual_low_band)
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise",
@@ -418,10 +418,12 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     ``P = M̂⁻¹(N̂ + R)`` has ``σ̄(P) ≤ σ̄(N̂ + R)/μ`` and every ``R`` in the region has
     ``σ̄(N̂ + R) ≤ b = min(ν + σ̄(R), σ̄(N̂ + R̂) + r)``, the least perturbation
     ``‖R(I + PᴴP)^{−1/2}‖₂ ≥ σ̄(R)/√(1 + σ̄(P)²)`` is at least ``x μ/√(μ² + b²)`` at ``σ̄(R) = x = (σ̄(R̂) − r)₊``
-    (increasing in σ̄(R)), ``μ = σ_min(M̂)``, ``ν = σ̄(N̂)``.  The second term of b matters where P̂ misses a slow
-    mode that cancels its gain: there ``N̂ + R = M̂P`` is small while ``ν + x`` is not (measured on a plant whose DC
-    gain the slow mode flips to −0.1: 0.088 with ``ν + x`` alone, 0.12 with b, the true distance 0.29 at the
-    record's lowest frequency).  No estimate of P itself is used: a Welch estimate
+    (increasing in σ̄(R)), ``μ = σ_min(M̂)``, ``ν = σ̄(N̂)``; several inputs read ``x`` in the region's directions,
+    the largest ``‖R̂v‖ − ‖Qv‖`` over a few unit ``v`` (``Q`` the region's factor), at least ``σ̄(R̂) − r``.  The
+    second term of b matters where P̂ misses a slow mode that cancels its gain: there ``N̂ + R = M̂P`` is small
+    while ``ν + x`` is not.  One channel: the least distance over the disk itself (:func:`_disc_gap`; measured on a
+    plant whose DC gain the slow mode flips to −0.1: 0.088 with ``ν + x``, 0.12 over the disk, the true distance
+    0.29 at the record's lowest frequency).  No estimate of P itself is used: a Welch estimate
     of an integrating plant is biased near DC (the window's main lobe averages a response that changes
     within a bin), while R is smooth there.  Where ``M̂`` vanishes (P̂'s integrator) the bound is 0: the data
     cannot show a coprime error at a pole.
@@ -465,7 +467,9 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     if factors.outputs == factors.inputs == 1:
         return np.where(np.isfinite(r), _disc_gap(R[:, 0, 0], r, Nw[:, 0, 0], Mw[:, 0, 0]), 0.0)
     with np.errstate(invalid="ignore"):
-        x = np.maximum(x - r, 0.0)
+        # σ̄(R) ≥ ‖R̂v‖ − ‖Qv‖ for unit v (the region's directions, premise._model_gap; at least σ̄(R̂) − r): the
+        # isotropic r took the least-excited input direction's confidence for every direction
+        x = np.maximum(np.where(ok, _model_gap(est), np.nan), 0.0)
         b = np.minimum(nu + x, reach + r)  # two bounds on σ̄(N̂ + R) over the region
         return np.where(np.isfinite(r), x * mu / np.sqrt(mu ** 2 + b ** 2), 0.0)
 

@@ -36,8 +36,9 @@ power).  So the premise is tested three ways, each from the record itself:
    the whole confidence disk must lie where the loop is stable frequency by frequency, and where every
    plant in the disks lacks the δ margin the loop is certified for, the data refute it.
 
-Several inputs and outputs (u: (n, m), y: (n, l)): every test is stated in the spectral norm
-(``‖D̂‖₂ − r > δ`` for inconsistency); with one input and one output every number is the SISO one above.
+Several inputs and outputs (u: (n, m), y: (n, l)): every test is stated in the spectral norm; inconsistency is
+``‖D̂x‖ − ‖Qx‖ > δ`` for some unit input direction ``x`` (``Q`` the region's factor, so each direction is taken
+with its own confidence; at least ``‖D̂‖₂ − r``); with one input and one output every number is the SISO one above.
 
 A ``PersistenceWarning`` of the predictors the pipeline uses (input not persistently exciting,
 regressor rank deficient) also means *not certified* (checked in :mod:`unfalsify.robust`).
@@ -478,11 +479,52 @@ def _relative_gap(gap: float, delta: float) -> float:
     return gap / delta if delta > 0 else (float("inf") if gap > 0 else 0.0)
 
 
-def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[float, str]:
-    """``max (‖D̂‖₂ − r)/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``) and where it exceeds 1.
+def _model_gap(est) -> np.ndarray:
+    """Per frequency, a lower bound on ``‖P − P̂‖₂`` over the estimate's confidence region (NaN where it has none).
 
-    ``‖D̂‖₂ − r > δ`` means every ``D`` in the region has ``‖D‖₂ ≥ ‖D̂‖₂ − r > δ`` (SISO ``|D̂| − r``): the
-    plant is outside the δ-ball around P̂ at that frequency (with the region's confidence).
+    One input (no ``region``): ``|D̂| − r``.  Several inputs: the region bounds ``‖(D − D̂)x‖ ≤ ‖Qx‖`` for every ``x``
+    (``Q`` its factor, :attr:`FrequencyResponseEstimate.region`), so every ``D`` in it has
+    ``‖D‖₂ ≥ ‖D̂x‖ − ‖Qx‖`` for each unit ``x``; the bound is the largest over a few directions
+    (:func:`_gap_directions`), never below ``‖D̂‖₂ − σ̄(Q)`` (``x`` the top right singular vector of ``D̂``).
+    ``‖D̂‖₂ − r`` with ``r = σ̄(Q)`` (the rule before) takes the least-excited input direction's confidence for every
+    direction, so an error the record shows in one direction was not refuted when the region was wide in another:
+    measured on the whole-record low band of a 2 × 2 plant (condition number 20) whose low-gain direction has a slow
+    mode, ``‖D̂‖₂ − r`` = −0.10 against 0.050 in a direction at 0.0043 rad/sample, δ = 0.011 (true ``‖P − P̂‖₂``
+    0.063 there); its loop had been certified and lacked its δ margin on the plant.
+    """
+    gap = est.gain - est.radius
+    region = getattr(est, "region", None)
+    if region is None:
+        return gap
+    out = gap.copy()
+    for k in np.flatnonzero(np.isfinite(est.radius) & np.all(np.isfinite(region), axis=(1, 2))):
+        D, Q = est.response[k], region[k]
+        X = _gap_directions(D, Q)
+        out[k] = max(float(gap[k]), float(np.max(np.linalg.norm(D @ X, axis=0) - np.linalg.norm(Q @ X, axis=0))))
+    return out
+
+
+def _gap_directions(D: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """Unit input directions (columns) where ``‖D̂x‖ − ‖Qx‖`` is tried: the right singular vectors of ``D̂`` and of
+    ``Q`` and the direction of the largest ``‖D̂x‖/‖Qx‖`` (``Q⁻¹w``, ``w`` the top right singular vector of
+    ``D̂Q⁻¹``, where ``Q`` is invertible).  Any unit ``x`` gives a valid bound; these are where it is likely largest."""
+    cols = [np.linalg.svd(D)[2].conj().T, np.linalg.svd(Q)[2].conj().T]
+    try:
+        w = np.linalg.svd(D @ np.linalg.inv(Q))[2][0].conj()
+        x = np.linalg.solve(Q, w)
+        if np.all(np.isfinite(x)) and np.linalg.norm(x) > 0:
+            cols.append((x / np.linalg.norm(x))[:, None])
+    except np.linalg.LinAlgError:
+        pass  # a singular factor: the singular vectors above
+    return np.hstack(cols)
+
+
+def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[float, str]:
+    """``max gap/δ`` over the excited band (``D̂`` the estimate of ``P − P̂``, gap :func:`_model_gap`) and where it
+    exceeds 1.
+
+    ``gap > δ`` means every ``D`` in the region has ``‖D‖₂ ≥ gap > δ`` (SISO ``|D̂| − r``): the plant is outside
+    the δ-ball around P̂ at that frequency (with the region's confidence).
     """
     excited = est.excited & np.isfinite(est.radius)
     if not np.any(excited):
@@ -491,7 +533,7 @@ def _frf_inconsistency(est: FrequencyResponseEstimate, delta: float) -> tuple[fl
                                   "short for a confidence region of the frequency response at any frequency it "
                                   "excites; record longer")
         return float("nan"), "the record excites no frequency"
-    gap = est.gain - est.radius
+    gap = _model_gap(est)
     excess = np.where(excited, gap, -np.inf)
     worst = _relative_gap(float(np.max(excess)), delta)
     bad = excess > delta
@@ -644,7 +686,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
 
 def _record_low_band(model, record, horizon: int, delta: float, dt: float, nperseg: int, burn: int,
                      opts: PremiseOptions) -> tuple[LowBandEstimate | None, float, str]:
-    """``(estimate, max (‖D̂‖₂ − r)/δ, reason)`` of the low band of P̂'s output error over ``record``.
+    """``(estimate, max gap/δ, reason)`` (:func:`_model_gap`) of the low band of P̂'s output error over ``record``.
 
     The held-out record's low band starts at ``2π/(n_v·dt)``; a slow mode whose error the loop's integral action
     amplifies below that (a DC gain of the other sign than P̂'s) is seen only on a longer record.  The window is
@@ -1040,8 +1082,8 @@ def _low_bins(n: int, nperseg: int, inputs: int = 1) -> int:
 
 
 def _low_band_inconsistency(est: LowBandEstimate, delta: float) -> tuple[float, str]:
-    """``max (‖D̂‖₂ − r)/δ`` over the low frequencies and, where it exceeds 1, why the premise fails."""
-    gap = np.where(np.isfinite(est.radius), est.gain - est.radius, -np.inf)
+    """``max gap/δ`` (:func:`_model_gap`) over the low frequencies and, where it exceeds 1, why the premise fails."""
+    gap = np.where(np.isfinite(est.radius), _model_gap(est), -np.inf)
     if not np.any(np.isfinite(gap)):
         return float("nan"), ""
     k = int(np.argmax(gap))
