@@ -389,3 +389,21 @@ def test_an_explicit_reference_horizon_wins_over_the_one_chosen_from_the_record(
     assert res.reference_horizon == 10
     assert res.certified
     assert not uf.certify_loop(plant, res.controller, res.delta).stable  # the true loop is unstable
+
+
+def test_a_reference_horizon_the_input_does_not_excite_falls_back_to_2i():
+    """Four sines excite a predictor of order 2h·m ≤ 8: the old reference's (2i = 4) but not the 300-sample record's
+    longest well-determined horizon (h = 9, which needs order 18).  The reference falls back to 2i, so the longer
+    horizon adds evidence without demanding more excitation than before (no persistence reason)."""
+    t = np.arange(300)
+    u = sum(np.sin(w * t) for w in (0.3, 0.9, 1.7, 2.5))
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * np.random.default_rng(0).standard_normal(300)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pred = synthesis.fit_predictor(u, y, 2)
+        assert synthesis.fit_predictor(u, y, 9).persistently_exciting is False
+        res = uf.robust_design_from_data(u[:45], y[:45], 2, 10.0, 0.1, "auto", predictor=pred, dt=1.0,
+                                         predictor_for=lambda h: synthesis.fit_predictor(u, y, h))
+    assert (300 + 1) // (2 + uf.REFERENCE_COLUMNS * 3) == 9
+    assert res.reference_horizon == 4 and res.reference_model is not None
+    assert "reference predictor" not in res.premise_reason
