@@ -1105,11 +1105,11 @@ class _DesignSpace:
                        dt=self.dt), c
 
 
-#: columns per regressor the reference predictor is fitted on when its horizon is chosen from the record: a least-squares
-#: fit with ``j`` columns for ``r`` regressors absorbs the fraction ``r/j`` of the noise, here at most a tenth
+#: columns per regressor of the reference predictor's fit when its horizon is chosen from the record: a
+#: least-squares fit with ``j`` columns for ``r`` regressors absorbs the fraction ``r/j`` of the noise, here a tenth
 REFERENCE_COLUMNS = 10
 
-#: the longest reference horizon chosen from the record (its model's order, and so the cost of its checks, grows with it)
+#: the longest reference horizon chosen from the record (its model's order, and the cost of its checks, grow with it)
 REFERENCE_HORIZON_CAP = 60
 
 
@@ -1155,6 +1155,7 @@ def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, d
 
 
 def _reference_at(space: _DesignSpace, ref_h: int, i: int, dt: float):
+    """``(P̂_ref, note, persistence reason)`` at horizon ``ref_h``, or ``(None, why not, '')``."""
     try:
         ref_pred = space.predictor_at(ref_h)
         return (predictor_model(ref_pred, dt), "",
