@@ -318,7 +318,7 @@ def test_a_record_too_short_for_the_horizon_says_so(n):
         uf.robust_design_from_data(u, y, 10, 1.0, 0.1, "auto", dt=1.0, window="auto")
 
 
-def _flip_design(pole: float, uncertainty: str):
+def _flip_design(pole: float, uncertainty: str, reference_horizon: int | None = None):
     """The record-mode design, in one uncertainty form, of a plant whose slow mode (``pole``, DC gain −1.1) flips the
     DC gain of its fast part (+1) to −0.1: 1500 samples of PRBS at 10 Hz, process and sensor noise 0.05, i = 5."""
     from experiments.lab.signals import prbs
@@ -332,7 +332,8 @@ def _flip_design(pole: float, uncertainty: str):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=dt, window="auto",
-                                         certificate=uf.CertificateOptions(uncertainty=uncertainty))
+                                         certificate=uf.CertificateOptions(uncertainty=uncertainty,
+                                                                           reference_horizon=reference_horizon))
     return res, plant
 
 
@@ -365,3 +366,44 @@ def test_a_dc_flip_is_refused_in_coprime_form_by_the_least_distance_over_the_dis
     z = np.exp(1j * low.frequency * plant.dt)
     G = np.array([complex(plant(zk)) for zk in z])
     assert np.all(bound <= uf.coprime_gap(cop.factors, low.frequency, G) + 1e-12)
+
+
+def test_the_reference_model_at_the_records_longest_horizon_refuses_a_dc_flip_that_2i_cannot_see():
+    """The flip with its slow pole at 0.995 (time constant 200 samples): in record mode the loop was certified in
+    coprime-factor form and was unstable on the plant.  Over the reference's old horizon 2i = 10 the plant still looks
+    like its fast part (P̂_ref(1) ≈ 0.95, P(1) = −0.1); the 1000-sample fitting part supports h = 31 with ten columns
+    per regressor (1001 − 2h ≥ 30h), whose model sees the slow mode, and no design of the search certifies on it."""
+    res, plant = _flip_design(0.995, "auto")
+    assert res.reference_horizon == 31 == (1000 + 1) // (2 + uf.REFERENCE_COLUMNS * 3)
+    assert res.reference_model is not None
+    assert not res.certified
+    assert "P̂_ref" in res.reason
+    dc = lambda g: float(np.real(np.asarray(g(1.0))).ravel()[0])  # noqa: E731
+    assert dc(res.reference_model) < dc(res.model) - 0.2  # the long model is pulled toward P(1) = −0.1
+
+
+def test_an_explicit_reference_horizon_wins_over_the_one_chosen_from_the_record():
+    """``CertificateOptions(reference_horizon=10)`` keeps the old reference (2i): the same record certifies again,
+    the loop unstable on the plant, which is what the horizon chosen from the record prevents."""
+    res, plant = _flip_design(0.995, "auto", reference_horizon=10)
+    assert res.reference_horizon == 10
+    assert res.certified
+    assert not uf.certify_loop(plant, res.controller, res.delta).stable  # the true loop is unstable
+
+
+def test_a_reference_horizon_the_input_does_not_excite_falls_back_to_2i():
+    """Four sines excite a predictor of order 2h·m ≤ 8: the old reference's (2i = 4) but not the 300-sample record's
+    longest well-determined horizon (h = 9, which needs order 18).  The reference falls back to 2i, so the longer
+    horizon adds evidence without demanding more excitation than before (no persistence reason)."""
+    t = np.arange(300)
+    u = sum(np.sin(w * t) for w in (0.3, 0.9, 1.7, 2.5))
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * np.random.default_rng(0).standard_normal(300)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pred = synthesis.fit_predictor(u, y, 2)
+        assert synthesis.fit_predictor(u, y, 9).persistently_exciting is False
+        res = uf.robust_design_from_data(u[:45], y[:45], 2, 10.0, 0.1, "auto", predictor=pred, dt=1.0,
+                                         predictor_for=lambda h: synthesis.fit_predictor(u, y, h))
+    assert (300 + 1) // (2 + uf.REFERENCE_COLUMNS * 3) == 9
+    assert res.reference_horizon == 4 and res.reference_model is not None
+    assert "reference predictor" not in res.premise_reason

@@ -73,6 +73,8 @@ Robust design from data (§7.4)
 
    robust_design_from_data -- δ by (7.5), a Theorem 3.7 design, searched until its shipped loop is certified
    RobustDesignResult     -- result: δ, the design, its controller, certificates, the search
+   REFERENCE_COLUMNS      -- columns per regressor of the reference model's fit when its horizon comes from the record
+   REFERENCE_HORIZON_CAP  -- the longest reference horizon chosen from the record (60)
    DesignSearch           -- the family of designs the search tries (γ ratios, W3 gains, causality, horizons)
    DesignOptions          -- the first design (γ ratio, W3 rule and margin, causal law)
    CertificateOptions     -- the loop certificate (margin, performance floor, reference model)
@@ -278,8 +280,8 @@ from .premise import (
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
                       coprime_factors, coprime_gap, coprime_unfalsify, error_gap, unconfirmed_coprime_premise)
 from .options import CertificateOptions, DesignOptions, DesignSearch, EstimationOptions
-from .robust import (RobustDesignResult, SearchRecord, additive_weight_fixed_point, estimate_delta,
-                     robust_design_from_data)
+from .robust import (REFERENCE_COLUMNS, REFERENCE_HORIZON_CAP, RobustDesignResult, SearchRecord,
+                     additive_weight_fixed_point, estimate_delta, robust_design_from_data)
 from .cost import arx_solve_estimate, solve_estimate
 from .clipping import CLIP_FRACTION, clipped_outputs
 from .feedback import (FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FEEDTHROUGH_STATEMENT, FeedbackTest,
@@ -388,6 +390,8 @@ __all__ = [
     "additive_robustness",
     "additive_weight_fixed_point",
     "robust_design_from_data",
+    "REFERENCE_COLUMNS",
+    "REFERENCE_HORIZON_CAP",
     "DesignOptions",
     "CertificateOptions",
     "EstimationOptions",

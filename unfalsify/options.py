@@ -130,9 +130,16 @@ class CertificateOptions:
     tracking_floor, step_samples
         Performance floor of :func:`unfalsify.certify_loop` (one number, or one per output channel).
     reference_horizon : int or None
-        Horizon of the reference model ``P̂_ref`` on which every design must certify too (default
-        ``2i``; its predictor comes from ``predictor_for``, or a least-squares fit on the window when
-        no predictor is given and the window is long enough).
+        Horizon of the reference model ``P̂_ref`` on which every design must certify too; its predictor
+        comes from ``predictor_for``, or a least-squares fit on the window when no predictor is given.
+        An explicit value wins.  Default (None): the longest horizon the fitting record supports with
+        :data:`unfalsify.REFERENCE_COLUMNS` = 10 columns per regressor, ``n − 2h + 1 ≥ 10·h(2m + l)``
+        (``n`` the record the given predictor was fitted on, or the window), at most
+        :data:`unfalsify.REFERENCE_HORIZON_CAP` = 60 and at least ``2i``; ``2i`` when ``n`` is unknown
+        (``predictor_for`` without ``predictor``) or the longer predictor is not persistently exciting.
+        Over a short horizon a slow mode that flips or shrinks the plant's DC gain is invisible (the
+        plant looks like its fast part); the longest well-determined horizon sees it.  The horizon used
+        is ``RobustDesignResult.reference_horizon``.
     require_reference : bool
         Without a reference model the loop is not certified (default): measured on an integrating
         plant with a resonance (i = 10), certificates on P̂ alone failed on the true plant, while P̂ and

@@ -170,11 +170,17 @@ class RobustDesignResult:
         Why the returned loop does not keep its steady-state tracking floor for every static perturbation
         of P̂ in the certified ball (``''`` when it does).
     reference_model : control.StateSpace or None
-        A second data-based model ``P̂_ref`` (the predictor model at ``reference_horizon``,
-        default 2i): the same certificate must hold on it too.  A short horizon gives a coarse
-        ARX model whose own error can exceed δ near the peak of ``|K(I+P̂K)⁻¹|``; a longer one
-        exposes that error.  None when no reference predictor could be had (see
-        ``reference_note``).
+        A second data-based model ``P̂_ref`` (the predictor model at ``reference_horizon``): the same
+        certificate must hold on it too.  A short horizon gives a coarse ARX model whose own error can
+        exceed δ near the peak of ``|K(I+P̂K)⁻¹|``, and over a short horizon a slow mode that flips or
+        shrinks the plant's DC gain is invisible; a longer one exposes both.  None when no reference
+        predictor could be had (see ``reference_note``).
+    reference_horizon : int or None
+        The horizon of ``P̂_ref``: ``CertificateOptions.reference_horizon`` when given, else the longest
+        horizon the fitting record supports with :data:`unfalsify.REFERENCE_COLUMNS` columns per
+        regressor (at most :data:`unfalsify.REFERENCE_HORIZON_CAP`, at least 2i; 2i when the record's
+        length is unknown or the longer predictor is not persistently exciting).  None on results made
+        before it was recorded.
     reference_certificate : LoopCertificate or None
         The verdict on ``(P̂_ref, K)``.
     reference_note : str
@@ -251,6 +257,7 @@ class RobustDesignResult:
     feedback: FeedbackTest | None = None
     hidden_line_gain: float = float("nan")
     hidden_line_frequency: float = float("nan")
+    reference_horizon: int | None = None
 
     @property
     def controller(self) -> control.StateSpace:
@@ -864,7 +871,8 @@ def robust_design_from_data(
         premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
         uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
         assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback,
-        hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq))
+        hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq),
+        reference_horizon=space.reference_horizon)
 
 
 def _fitted_on(predictor, u, y, validation):
@@ -1067,7 +1075,16 @@ class _DesignSpace:
         self.u, self.y, self.W1, self.W2, self.delta, self.options, self.dt = u, y, W1, W2, delta, options, dt
         self.given, self.predictor_for = predictor, predictor_for
         self.predictors = {int(pred.horizon): pred}
+        self.reference_horizon = None  # set by _reference_model
         self.fixed_point = functools.lru_cache(maxsize=None)(self._fixed_point)
+
+    def record_length(self) -> int | None:
+        """Samples of the record the predictors are fitted on: the given predictor's ``j + 2i − 1``, the window's
+        without one (then fitted on it), None when only ``predictor_for`` is known."""
+        if self.given is not None:
+            j = getattr(self.given, "n_columns", None)
+            return None if j is None else int(j) + 2 * int(self.given.horizon) - 1
+        return None if self.predictor_for is not None else int(np.shape(self.u)[0])
 
     def predictor_at(self, h: int):
         if h not in self.predictors:
@@ -1088,14 +1105,57 @@ class _DesignSpace:
                        dt=self.dt), c
 
 
-def _reference_horizon(options: CertificateOptions, i: int) -> int:
-    """The horizon of the reference model P̂_ref: ``options.reference_horizon``, default 2i."""
-    return 2 * i if options.reference_horizon is None else int(options.reference_horizon)
+#: columns per regressor of the reference predictor's fit when its horizon is chosen from the record: a
+#: least-squares fit with ``j`` columns for ``r`` regressors absorbs the fraction ``r/j`` of the noise, here a tenth
+REFERENCE_COLUMNS = 10
+
+#: the longest reference horizon chosen from the record (its model's order, and the cost of its checks, grow with it)
+REFERENCE_HORIZON_CAP = 60
+
+
+def _reference_horizon(options: CertificateOptions, i: int, space: "_DesignSpace | None" = None) -> int:
+    """The horizon of the reference model P̂_ref: ``options.reference_horizon`` when given; otherwise the longest
+    horizon the fitting record supports (:func:`_record_horizon`), at least 2i; 2i when the record's length is
+    unknown (a ``predictor_for`` without a fitted predictor)."""
+    if options.reference_horizon is not None:
+        return int(options.reference_horizon)
+    longest = _record_horizon(space) if space is not None else None
+    return 2 * i if longest is None else max(2 * i, longest)
+
+
+def _record_horizon(space: "_DesignSpace") -> int | None:
+    """The largest horizon ``h ≤`` :data:`REFERENCE_HORIZON_CAP` whose predictor, fitted on the record the design's
+    predictor was fitted on, has at least :data:`REFERENCE_COLUMNS` columns per regressor: ``n − 2h + 1 ≥
+    REFERENCE_COLUMNS·h(2m + l)``.  A slow mode (time constant of tens to hundreds of samples) that flips or shrinks
+    the plant's DC gain is invisible over a short horizon, where the plant looks like its fast part; the longest
+    well-determined horizon is the one that sees it.  None when the record's length is unknown."""
+    n = space.record_length()
+    if n is None:
+        return None
+    m, l = _channels(*channel_pair(space.u, space.y))
+    h = (n + 1) // (2 + REFERENCE_COLUMNS * (2 * m + l))
+    return min(h, REFERENCE_HORIZON_CAP) if h >= 1 else None
 
 
 def _reference_model(space: _DesignSpace, options: CertificateOptions, i: int, dt: float):
-    """``(P̂_ref, note, persistence reason)``: the model at the reference horizon, or why there is none."""
-    ref_h = _reference_horizon(options, i)
+    """``(P̂_ref, note, persistence reason)``: the model at the reference horizon, or why there is none.
+
+    A horizon chosen from the record (no ``reference_horizon`` given) whose predictor is not persistently exciting
+    (an input of few sines) or fails falls back to 2i: the longer reference adds evidence, it does not demand more
+    excitation than the design itself."""
+    ref_h = _reference_horizon(options, i, space)
+    if options.reference_horizon is None and ref_h > 2 * i:
+        found = _reference_at(space, ref_h, i, dt)
+        if found[0] is not None and not found[2]:
+            space.reference_horizon = ref_h
+            return found
+        ref_h = 2 * i
+    space.reference_horizon = ref_h
+    return _reference_at(space, ref_h, i, dt)
+
+
+def _reference_at(space: _DesignSpace, ref_h: int, i: int, dt: float):
+    """``(P̂_ref, note, persistence reason)`` at horizon ``ref_h``, or ``(None, why not, '')``."""
     try:
         ref_pred = space.predictor_at(ref_h)
         return (predictor_model(ref_pred, dt), "",
@@ -1259,8 +1319,7 @@ def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u
         return cop, None, cop.reason or "no coprime-factor ε could be certified"
     ref_factors = None
     if ref_model is not None:
-        ref_factors = coprime_factors(space.predictor_at(_reference_horizon(options, int(pred.horizon))),
-                                      float(model.dt))
+        ref_factors = coprime_factors(space.predictor_at(space.reference_horizon), float(model.dt))
     ball = _CoprimeBall(factors, cop.epsilon, ref_factors, validation if validation is not None else (u, y),
                         validation is not None, opts, cop.error_frf, cop.error_low_band,
                         _coprime_data_gain(factors, cop.error_low_band))
