@@ -363,7 +363,7 @@ def _persistence_reason(pred, u, i: int, what: str, design: int | None = None) -
 
     A predictor that records its ranks (:func:`synthesis.fit_predictor`) is judged by them; one that
     does not (the (L_w, L_u) found by (7.5)) by the numerical rank of the window's ``[U_p; U_f]``.
-    ``design``: the design's horizon when ``pred`` is at another one (the reference predictor, at 2i): a horizon
+    ``design``: the design's horizon when ``pred`` is at another one (the reference predictor): a horizon
     the reason proposes is the design's.
     """
     ratio = i / design if design else 1.0

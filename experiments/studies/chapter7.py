@@ -197,8 +197,9 @@ def run(opts, cfg: Config | None = None) -> dict:
                                "certificate_ok": sub.certificate.ok()}
 
         # ---- 3./4. designs ---------------------------------------------------------------------
-        # reference model P̂_ref (horizon 2i) for the loop certificate: least squares on a second, longer
-        # experiment on the same plant (the (7.5) window alone is too short to fit it)
+        # reference model P̂_ref for the loop certificate (horizon 2i: the pipeline does not know the length of the
+        # record behind predictor_for): least squares on a second, longer experiment on the same plant (the (7.5)
+        # window alone is too short to fit it)
         ref_data = servo_data(REFERENCE_RECORD, seed=opts.seed + 1000)
         # a third experiment, used for nothing else: held out for the premise test (P̂'s output error)
         held = servo_data(HELD_OUT_RECORD, seed=opts.seed + 2000)
@@ -224,7 +225,7 @@ def run(opts, cfg: Config | None = None) -> dict:
             "delta_subspace": robust.delta_subspace, "delta_output_error": robust.delta_output_error,
             "delta_decided_by": robust.premise.decided_by,
             "small_gain_on_model": robust.small_gain, "designs_tried": len(robust.search),
-            "reference_model": robust.reference_note or "horizon 2i",
+            "reference_model": robust.reference_note or f"horizon {robust.reference_horizon}",
             "thesis_rule_certified": thesis_rule.certified, "thesis_rule_reason": thesis_rule.reason,
         }
 
@@ -323,7 +324,7 @@ def run(opts, cfg: Config | None = None) -> dict:
         f"(δ‖K(I+P̂K)⁻¹‖∞ = {d['small_gain_on_model']:.3g}, {d['designs_tried']} design(s) tried"
         + (f"; {d['certificate_reason']}" if d["certificate_reason"] else "") + "); thesis rule "
         + ("certified." if d["thesis_rule_certified"] else f"not certified: {d['thesis_rule_reason']}.")
-        + (f" Reference model: {d['reference_model']}." if d["reference_model"] != "horizon 2i" else ""))
+        + (f" Reference model: {d['reference_model']}." if not d["reference_model"].startswith("horizon ") else ""))
 
     rep.section("5. Small-gain certificate on the true plant")
     rep.text("For the LTI controllers (5.3)–(5.4) on the servo: every stable additive perturbation with "

@@ -11,7 +11,7 @@ servo), noise seed and (i, j):
    response of P − P̂, excitation where the loop is sensitive): δ is the larger of the two δ's;
 3. :func:`unfalsify.robust_design_from_data` with the design search (other γ ratios, W3 gains,
    causal laws, horizon 2i through ``predictor_for``) and its certificate on the data-based
-   models P̂ (horizon i) and P̂_ref (horizon 2i);
+   models P̂ (horizon i) and P̂_ref (the longest horizon the record supports, ``rd.reference_horizon``);
 4. independently of the pipeline, on the **true** plant: the loop's stability and
    ``δ‖K(I+PK)⁻¹‖∞`` (proven upper bound), a unit step, and the spectral radius of the loop with
    each of the size-δ additive perturbations ``δz⁻¹``, ``−δ`` and an all-pass of size δ
