@@ -1090,21 +1090,25 @@ def _two_by_two_record(mode: bool):
     return P, experiment(1500), experiment(600)
 
 
-def _two_by_two_design(rec, val, search=False):
+def _two_by_two_design(rec, val, search=False, reference_horizon=None):
     from experiments.studies.mimo_pipeline import _weights, tracking_floor
     P = control.ss([], [], [], np.eye(2), 1.0)  # the weights and floor depend on the channels and dt only
     W1, W2 = _weights(P)
+    opts = uf.CertificateOptions(tracking_floor=tracking_floor(P), reference_horizon=reference_horizon)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return uf.robust_design_from_data(*rec, 6, W1, W2, "auto", window="auto", validation=val, dt=1.0, search=search,
-                                          certificate=uf.CertificateOptions(tracking_floor=tracking_floor(P)))
+                                          certificate=opts)
 
 
 def test_a_line_is_searched_in_every_output_channel_of_a_mimo_record():
     # before: the line test applied to one input and one output only; the second design (W3 gain × 10; the first is
     # refused for excitation) certified, and its loop is unstable on the plant.  The line is in y₁ alone
+    # the reference at 2i = 12, where it certified that loop: the reference chosen from the record (h = 24 here) refuses
+    # it too (small gain 3.4 on P̂_ref), so the line test is checked against the reference it was found with
     _, rec, val = _two_by_two_record(mode=True)
-    r = _two_by_two_design(rec, val, uf.DesignSearch(gamma_ratios=(1.1,), w3_factors=(10.0,), causal=(False,)))
+    r = _two_by_two_design(rec, val, uf.DesignSearch(gamma_ratios=(1.1,), w3_factors=(10.0,), causal=(False,)),
+                           reference_horizon=12)
     second = r.search[-1]
     assert len(r.search) == 2 and second.certificate.certified and second.reference_certificate.certified
     assert not r.certified
@@ -1275,7 +1279,9 @@ def test_a_coprime_certificate_says_when_the_data_do_not_confirm_its_family():
     must say so, as an additive one does (it had said nothing in coprime form).
 
     In record mode (``window=``) the whole record's low band now refutes both premises; given only a short window
-    and a held-out record (the fitting record not passed), the pipeline cannot see it, and certifies."""
+    and a held-out record (the fitting record not passed), the premise tests cannot see it, and with the reference
+    model at 2i the pipeline certifies; the reference at the fitting record's longest well-determined horizon refuses
+    it."""
     from experiments.studies.design_cli import default_weights
     from experiments.studies.robust_pipeline import result_premise_ratio
 
@@ -1286,10 +1292,15 @@ def test_a_coprime_certificate_says_when_the_data_do_not_confirm_its_family():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         whole = uf.robust_design_from_data(d.u, d.y, 5, W1, W2, "auto", dt=0.1, window="auto")
+        short = dict(predictor=synthesis.fit_predictor(d.u[:1000], d.y[:1000], 5),
+                     predictor_for=lambda h: synthesis.fit_predictor(d.u[:1000], d.y[:1000], h),
+                     validation=(d.u[1000:], d.y[1000:]))
+        default = uf.robust_design_from_data(d.u[:60], d.y[:60], 5, W1, W2, "auto", dt=0.1, **short)
+        # the reference at 2i = 10, as this false certificate was made; the default reference comes from the
+        # 1000-sample fitting record (h = 31) and refuses it on P̂_ref
         r = uf.robust_design_from_data(d.u[:60], d.y[:60], 5, W1, W2, "auto", dt=0.1,
-                                       predictor=synthesis.fit_predictor(d.u[:1000], d.y[:1000], 5),
-                                       predictor_for=lambda h: synthesis.fit_predictor(d.u[:1000], d.y[:1000], h),
-                                       validation=(d.u[1000:], d.y[1000:]))
+                                       certificate=uf.CertificateOptions(reference_horizon=10), **short)
+    assert not default.certified and default.reference_horizon > 10 and "P̂_ref" in default.reason
     assert not whole.certified and "in coprime-factor form too: over the whole 1500-sample record" in whole.reason
     assert whole.coprime.record_low_band is not None
     assert r.certified and r.uncertainty == "coprime", r.reason
