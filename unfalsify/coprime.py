@@ -453,19 +453,14 @@ def error_gap(factors: CoprimeFactors, est) -> np.ndarray:
     w = np.asarray(est.frequency, float)
     Nw, Mw = factors.response(w)
     R = np.asarray(est.response, complex).reshape(w.size, factors.outputs, factors.inputs)
-    if factors.outputs == factors.inputs == 1:
-        x, mu, nu = np.abs(R[:, 0, 0]), np.abs(Mw[:, 0, 0]), np.abs(Nw[:, 0, 0])
-        reach = np.abs(Nw[:, 0, 0] + R[:, 0, 0])
-    else:
-        x, reach = np.full(w.size, np.nan), np.full(w.size, np.nan)
-        ok = np.all(np.isfinite(R), axis=(1, 2))
-        x[ok] = np.linalg.norm(R[ok], ord=2, axis=(1, 2))
-        reach[ok] = np.linalg.norm(Nw[ok] + R[ok], ord=2, axis=(1, 2))
-        mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
-        nu = np.linalg.norm(Nw, ord=2, axis=(1, 2))
     r = np.asarray(est.radius, float)
     if factors.outputs == factors.inputs == 1:
         return np.where(np.isfinite(r), _disc_gap(R[:, 0, 0], r, Nw[:, 0, 0], Mw[:, 0, 0]), 0.0)
+    reach = np.full(w.size, np.nan)
+    ok = np.all(np.isfinite(R), axis=(1, 2))
+    reach[ok] = np.linalg.norm(Nw[ok] + R[ok], ord=2, axis=(1, 2))
+    mu = np.linalg.svd(Mw, compute_uv=False)[:, -1]
+    nu = np.linalg.norm(Nw, ord=2, axis=(1, 2))
     with np.errstate(invalid="ignore"):
         # σ̄(R) ≥ ‖R̂v‖ − ‖Qv‖ for unit v (the region's directions, premise._model_gap; at least σ̄(R̂) − r): the
         # isotropic r took the least-excited input direction's confidence for every direction
