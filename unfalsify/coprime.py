@@ -56,8 +56,8 @@ from synthesis.validation import (DataError, as_discrete_system, check_count, ch
 from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
-from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _step, _unit,
-                                 frequency_response_estimate, low_band_estimate)
+from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _inverse_root,
+                                 _step, _unit, frequency_response_estimate, low_band_estimate)
 from .premise import (PremiseOptions, _fir_sigma, _floor_note, _low_bins, _model_gap, _premise_options,
                       _region_reach, _residual_low_band)
 
@@ -148,8 +148,7 @@ def coprime_gap(factors: CoprimeFactors, frequency, response, radius=None) -> np
             out[ok] = np.abs(R[:, 0, 0]) / np.sqrt(1.0 + np.abs(G[ok, 0, 0]) ** 2)
         else:
             gram = np.eye(factors.inputs) + np.conj(np.swapaxes(G[ok], 1, 2)) @ G[ok]
-            lam, V = np.linalg.eigh(gram)
-            inv_sqrt = V @ (np.conj(np.swapaxes(V, 1, 2)) / np.sqrt(lam)[:, :, None])
+            inv_sqrt = _inverse_root(gram, np.ones(gram.shape[0], bool))  # I + GᴴG ≻ 0
             out[ok] = np.linalg.norm(R @ inv_sqrt, ord=2, axis=(1, 2))
         return out
     norm = (lambda X: np.abs(X[:, 0, 0])) if siso else (lambda X: np.linalg.norm(X, ord=2, axis=(1, 2)))
