@@ -9,8 +9,6 @@ import json
 import math
 from pathlib import Path
 
-import pytest
-
 from experiments.studies import cd_player
 from experiments.cli import main
 

@@ -1,6 +1,4 @@
 """A clipped sensor, seen in the record: unfalsify.clipped_outputs and the §7.4 pipeline's refusal."""
-import warnings
-
 import numpy as np
 import pytest
 

@@ -2,7 +2,6 @@
 import warnings
 
 import control
-import numpy as np
 import pytest
 
 import unfalsify as uf

@@ -64,7 +64,7 @@ def test_advanced_window_equals_cold(case, k):
 
 @pytest.mark.parametrize("factor", [1.05, 1 / 1.05])
 def test_nearby_sigma_equals_cold(case, factor):
-    u, y, n = case["u"][: case["n"]], case["y"][: case["n"]], case["n"]
+    u, y = case["u"][: case["n"]], case["y"][: case["n"]]
     sigma = case["sigma"] * factor
     cold = _solve(u, y, sigma)
     warm = _solve(u, y, sigma, warm_start=case["first"])
