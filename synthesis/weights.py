@@ -86,6 +86,14 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
     return control.ss(control.sample_system(ss, float(dt), method="bilinear"))
 
 
+#: the least distance of the discrete weight's pole and zero from the unit circle: its rounding, eps/margin, is the
+#: relative error of the gains (:func:`makeweight`), here 1e-6 at most
+_GAIN_ACCURACY_MARGIN = float(np.finfo(float).eps) * 1e6
+#: the refusal of gains a first-order weight cannot carry in double precision (:func:`makeweight`)
+_EXTREME = ("makeweight: dc = {dc:g}, crossover gain {mag:g} and hf = {hf:g} {why}; lower the ratios dc/mag and "
+            "mag/hf or raise the crossover frequency towards the sample rate (a weight's absolute level only rescales γ)")
+
+
 def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace:
     """First-order weight from its gains at DC, at one frequency and at high frequency.
 
@@ -123,7 +131,9 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     ------
     WeightError
         A gain or the frequency not a positive finite number; ``mag`` not strictly between ``dc``
-        and ``hf`` (a first-order weight is monotonic in ``|W|``); ``freq ≥ π/dt``.
+        and ``hf`` (a first-order weight is monotonic in ``|W|``); ``freq ≥ π/dt``; gains whose ratio (against
+        ``freq·dt``) would put the discrete pole or zero within rounding of the unit circle, where the weight's
+        gains are no longer its own to 1e-6 (``dc/mag`` about 1e9 at ``freq·dt = 0.05``).
 
     Examples
     --------
@@ -161,7 +171,10 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not (np.isfinite(dt) and dt >= 0):
         raise WeightError(f"makeweight: dt must be the data's sample time (> 0), or 0 for the continuous design; "
                           f"got {dt!r}")
-    a = freq * np.sqrt((mag ** 2 - hf ** 2) / (dc ** 2 - mag ** 2))
+    # the squares' differences as products of ratios: mag ** 2 had raised OverflowError for gains near 1e300
+    a = freq * np.sqrt(((mag - hf) / (dc - mag)) * ((mag + hf) / (dc + mag)))
+    if not np.isfinite(a * max(dc, hf)):
+        raise WeightError(_EXTREME.format(dc=dc, hf=hf, mag=mag, why="give coefficients beyond floating point"))
     if dt == 0:
         return control.ss(control.tf([hf, dc * a], [1.0, a]))
     nyquist = np.pi / dt
@@ -172,6 +185,12 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     K = freq / np.tan(freq * dt / 2)
     num = [hf * K + dc * a, dc * a - hf * K]
     den = [K + a, a - K]
+    # a large gain ratio puts the pole (K − a)/(K + a) or the zero within rounding of the unit circle, and the
+    # rounding of 1 − |pole| is the relative error of W(1) (dc = 1e11: 2.4e-4; 1e300 had returned W(1) = inf)
+    if not 1.0 - max(abs(den[1] / den[0]), abs(num[1] / num[0])) > _GAIN_ACCURACY_MARGIN:
+        raise WeightError(_EXTREME.format(dc=dc, hf=hf, mag=mag,
+                                          why=f"put the discrete weight's pole or zero within rounding of the unit "
+                                              f"circle at dt = {dt:g} (its gains would be off by more than 1e-6)"))
     return control.ss(control.tf(num, den, float(dt)))
 
 

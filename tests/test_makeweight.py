@@ -75,8 +75,22 @@ def test_continuous_design_and_agreement_with_python_control_prewarp():
     ((100.0, (0.5, -1.0), 0.5, 0.1), "mag must be a positive"),
     ((100.0, 0.5, 0.5, 0.1), "pair"),
     ((100.0, (0.5, 1.0), 0.5, -0.1), "dt must be"),
+    ((1e300, (0.5, 1.0), 0.5, 0.1), "unit circle"),  # had raised OverflowError (mag ** 2)
+    ((0.5, (0.5, 1.0), 1e300, 0.1), "beyond floating point"),  # the same
+    ((1e16, (0.5, 1.0), 0.5, 0.1), "unit circle"),  # had returned a weight with W(1) = inf
+    ((1e11, (0.5, 1.0), 0.5, 0.1), "off by more than 1e-6"),  # had returned W(1) off by 2.4e-4
 ])
 def test_errors_name_the_fix(args, match):
     with pytest.raises(WeightError, match=match):
         synthesis.makeweight(*args)
     assert issubclass(WeightError, ValueError)
+
+
+def test_large_but_representable_gain_ratios_keep_their_values():
+    """Gain ratios the refusal lets through keep their gains to 1e-6 (the second route is the continuous design of
+    ``_continuous``)."""
+    for dc, cross, hf in ((1e7, (0.5, 1.0), 0.5), (1e-3, (0.5, 1e-1), 1e5)):
+        W = synthesis.makeweight(dc, cross, hf, 0.1)
+        assert _gain(W, 0.0, 0.1) == pytest.approx(dc, rel=1e-6)
+        assert _gain(W, cross[0], 0.1) == pytest.approx(cross[1], rel=1e-9)
+        assert abs(_continuous(dc, *cross, hf)(1j * cross[0])) == pytest.approx(cross[1], rel=1e-9)
