@@ -47,7 +47,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ._repr import result
-from ._validation import check_count, check_level
+from ._validation import DataError, check_count, check_level
 from .hinfnorm import _grid, _Sys
 
 __all__ = ["BoundedRealCertificate", "bounded_real_certificate"]
@@ -56,6 +56,11 @@ _EPS = np.finfo(float).eps
 #: Riccati perturbations tried, as fractions of ``(1 − (ℓ/γ)²)/(1 + f²)`` (``ℓ``: the largest gain found,
 #: ``f``: the largest ``σ̄((e^{jω}I − A)⁻¹B)`` on the grid; module docstring), largest margin first.
 EPSILON_FRACTIONS = (0.5, 1e-2, 1e-4, 1e-6)
+
+
+#: the largest γ whose square (in the LMI) and its rounding allowance stay finite (the allowance
+#: takes Frobenius norms of γ²-sized blocks, whose squares overflowed from about 2**250)
+_GAMMA_MAX = 2.0 ** 200
 
 
 def _state_gain(s: _Sys, w) -> float:
@@ -243,7 +248,7 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     ------
     DataError
         Continuous-time system, NaN/inf entries, an improper transfer function, ``gamma`` not a
-        finite number > 0.
+        finite number > 0, or above ``2**200`` (the LMI's rounding allowance would overflow).
 
     Examples
     --------
@@ -253,6 +258,10 @@ def bounded_real_certificate(sys, gamma: float, *, lower: float | None = None,
     (True, False)
     """
     gamma = check_level(gamma, "gamma")
+    if not gamma <= _GAMMA_MAX:  # the LMI holds γ²: beyond this it overflows (it had raised LinAlgError)
+        raise DataError(f"gamma = {gamma:g} is too large to certify in double precision (the bounded-real LMI holds "
+                        f"γ², finite only below {_GAMMA_MAX:g}); certify the scaled system G/s against gamma/s, with s "
+                        "a power of two near gamma")
     n_grid = check_count(n_grid, "n_grid", 2)
     s = _Sys(sys, "sys")
     none = dict(P=None, lmi_max=float("nan"), lmi_allowance=float("nan"), p_min=float("nan"),

@@ -246,7 +246,9 @@ def load_controller(path):
     """
     import control
 
-    path = Path(path)
+    # Path(None) had raised a bare TypeError
+    path = Path(check_instance(path, (str, os.PathLike), "path", "a file name (str or pathlib.Path) ending in "
+                               "'.npz' or '.mat'"))
     _format(path)  # an ending other than .npz/.mat: ControllerFileError naming both
     data = read_variables(path)  # FileNotFoundError for a missing file
     if "dt" not in data and "Ts" in data:

@@ -99,6 +99,9 @@ def _check_maps(Md, Mu, Mx=None):
     for name, a in arrays:
         if not np.all(np.isfinite(a)):
             raise DataError(f"{name} contains NaN or infinite values (check the predictor and the weights)")
+        if a.size and not np.isfinite(np.max(np.abs(a)) ** 2 * a.shape[0]):  # its Gram would overflow (LinAlgError)
+            raise DataError(f"{name} holds entries near {np.max(np.abs(a)):.3g}, whose squares overflow: scale the "
+                            "performance outputs (the weights) so the maps are of moderate size")
     return Md, Mu, Mx
 
 
@@ -413,6 +416,9 @@ def solve_minimax(Md, Mu, Mx, gamma) -> MinimaxSolution:
     ...
     synthesis.exceptions.InfeasibleGammaError: gamma = 2 is not above gamma_min = 2: the level-gamma problem has no saddle point (3.29). Choose gamma > gamma_min, e.g. gamma = 1.1 * gamma_min = 2.2 (§5.1 comment 4)
     """
+    if Mx is None:  # optional in _check_maps (γ_min needs no state map); here it had raised AttributeError
+        raise DataError("solve_minimax needs M_x, the map of the state x (initial conditions, past data) in "
+                        "z = M_d d + M_u u + M_x x; pass an array with no columns if the performance has no state term")
     Md, Mu, Mx = _check_maps(Md, Mu, Mx)
     sd = _saddle(Md, Mu, Mx)
     gamma = _level(gamma, sd)

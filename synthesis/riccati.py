@@ -237,6 +237,10 @@ def _recursion(A, B, CtC, CtD, DtD_plus, horizon, terminal, check=None):
         X[t] = Xt
         M = B.T @ Xt @ B + DtD_plus
         N = A.T @ Xt @ B + CtD
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(N))):
+            # a plant that grows beyond floating point over the horizon (it had raised LinAlgError from the checks)
+            raise DataError(f"stage {t}: the Riccati recursion overflowed (X grows beyond floating point over the "
+                            f"{horizon}-step horizon): scale the state, or shorten the horizon")
         if check is not None:
             check(M, t)
         F = -np.linalg.solve(M, N.T)
@@ -322,6 +326,9 @@ def hinf_riccati(A, B=None, C=None, D=None, *, gamma: float, horizon: int,
     if not 0 < l < B.shape[1]:
         raise DataError(f"n_disturbances must be in [1, {B.shape[1] - 1}], got {n_disturbances!r}")
     gamma = check_level(gamma, "gamma")
+    if not gamma <= 2.0 ** 500:  # R_γ holds γ² (it had raised OverflowError)
+        raise DataError(f"gamma = {gamma:g} is too large: R_γ = diag(γ²I, 0) overflows; for the limit γ → ∞ use "
+                        "lqr_riccati, or scale the performance outputs")
     p = B.shape[1]
     Rg = np.zeros((p, p))
     Rg[:l, :l] = gamma**2 * np.eye(l)

@@ -292,3 +292,58 @@ def test_a_signal_of_text_is_refused_not_parsed():
     with pytest.raises(DataError, match="numeric array, got text"):
         as_signal(["1.5", "2.0", "3.0"], "u")  # numpy had parsed it
     assert as_signal([1.5, 2.0, 3.0], "u").shape == (3, 1)
+
+
+def _line_case():
+    import control
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(600)
+    y = np.convolve(u, [0.0, 1.0, 0.5])[:600] + 0.1 * rng.standard_normal(600)
+    model = uf.predictor_model(synthesis.fit_predictor(u, y, 3), 1.0)
+    return dict(uf=uf, sy=synthesis, np=np, u=u, y=y, model=model, K=control.ss([], [], [], [[0.2, -0.2]], 1.0),
+                P=control.ss(control.tf([0.1, 0.05], [1.0, -1.2, 0.5], 1.0)))
+
+
+@pytest.mark.parametrize("call, fragment", [
+    # the narrow-line tests had checked nothing: IndexError (a scalar record), TypeError (horizon 3.5),
+    # ZeroDivisionError (dt = 0), LinAlgError (dt = nan)
+    ("uf.hidden_line_gain(model, K, 1.0, y, 3, 1.0)", "u"),
+    ("uf.hidden_line_gain(model, K, u, y, 3.5, 1.0)", "horizon must be an integer"),
+    ("uf.hidden_line_gain(model, K, u, y, 3, 0.0)", "dt"),
+    ("uf.residual_line(model, K, u, y, 3, float('nan'))", "dt"),
+    ("uf.hidden_line_gain('P', K, u, y, 3, 1.0)", "model must be"),  # python-control's bare TypeError
+    ("uf.glitch_note('P', u, y, 3)", "model must be"),
+    ("uf.check_premise('P', u[:45], y[:45], 3, 0.05, dt=1.0)", "model must be"),
+    ("uf.robust_design_from_data(u, y, 3, 1.0, 0.1, 0.02, dt='0.1')", "dt"),  # float('0.1') had passed
+    ("uf.robust_design_from_data(u, y, 3, 1.0, 0.1, 0.02, dt='abc')", "dt"),  # numpy's bare ValueError
+    ("uf.minimal_extension('abc', 8)", "real numbers"),
+    ("uf.leaked_bins(u, 32)", "list of input records"),  # a bare record had been iterated sample by sample
+    ("sy.load_controller(None)", "path must be a file name"),  # pathlib's TypeError
+    ("sy.solve_minimax(np.eye(3), np.ones((3, 1)), None, 10.0)", "needs M_x"),  # AttributeError
+    ("sy.solve_minimax(1e200 * np.eye(3), np.ones((3, 1)), np.ones((3, 1)), 10.0)", "squares overflow"),
+    ("sy.minimax_gamma_min(1e200 * np.eye(3), np.ones((3, 1)))", "squares overflow"),  # LAPACK dsyevr failed
+    ("sy.bounded_real_certificate(P, 1e300)", "too large to certify"),  # LinAlgError (γ² overflowed)
+    ("sy.hinf_riccati(sy.generalized_plant(P, 100.0, 0.1), gamma=1e300, horizon=5)", "too large"),  # OverflowError
+    ("sy.lqr_riccati(1e200 * P.A, P.B, P.C, P.D, 1.0, 0.1, horizon=5)", "overflowed"),  # LinAlgError (SVD)
+])
+def test_extreme_or_malformed_input_raises_the_toolkits_error(call, fragment):
+    """Found by a fuzz of the public functions with one bad argument at a time (2026-11-29): each of these had
+    raised an exception of numpy, pathlib or python-control (or the builtins'), not the toolkit's DataError."""
+    with pytest.raises(DataError, match=fragment):
+        eval(call, _line_case())
+
+
+def test_the_checked_entries_still_answer_on_good_input():
+    env = _line_case()
+    gain, freq = uf.hidden_line_gain(env["model"], env["K"], env["u"], env["y"], 3, 1.0)
+    assert np.isfinite(gain) and 0 < freq < np.pi
+    assert uf.hidden_line_gain(env["model"], env["K"], env["u"][:, None], env["y"][:, None], 3, 1.0) == (gain, freq)
+    # a δ so small that 1/((1 + margin)δ) is beyond a bounded-real matrix: proven at the largest level one holds
+    # (it had raised LinAlgError through bounded_real_certificate); the second route is the pencil test's bracket
+    for delta in (1e-300, 1e-3):
+        cert = uf.certify_loop(env["model"], env["K"], delta, tracking_floor=1e9)
+        assert cert.certified and bool(cert.bounded_real) and cert.norm.upper < 1e3
+        assert cert.bounded_real.gamma == min(1.0 / (1.1 * delta), 2.0 ** 200)
+    assert np.isfinite(synthesis.lqr_riccati(env["P"].A, env["P"].B, env["P"].C, env["P"].D, 1.0, 0.1,
+                                             horizon=5).gains).all()

@@ -58,6 +58,9 @@ STEP_SAMPLES = 300
 _SINGULAR_REL = 1e-12
 
 
+#: the largest level :func:`synthesis.bounded_real_certificate` takes (2**200)
+_KYP_LEVEL_MAX = 2.0 ** 200
+
 @result
 @dataclass(frozen=True)
 class StepMetrics:
@@ -559,7 +562,9 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
                   f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)"
                   + (_TALL_HINT.format(m=P.ninputs, l=l) if P.ninputs < l and np.all(np.isfinite(floors)) else ""))
     elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)
-        kyp = bounded_real_certificate(M, 1.0 / ((1.0 + margin) * float(delta)), lower=bracket.lower)
+        # a level beyond what a bounded-real matrix can hold (δ below ~1e-150) is implied by the largest one it can
+        kyp = bounded_real_certificate(M, min(1.0 / ((1.0 + margin) * float(delta)), _KYP_LEVEL_MAX),
+                                       lower=bracket.lower)
         if not kyp:
             reason = (f"small gain: proven by the pencil test ({small_gain:.4g} ≤ {1.0 / (1.0 + margin):.4g}) but "
                       f"not by a bounded-real matrix P ({kyp.reason})")

@@ -395,6 +395,9 @@ def leaked_bins(inputs, nperseg: int) -> np.ndarray:
     False
     """
     L = check_count(nperseg, "nperseg", 4)
+    if isinstance(inputs, np.ndarray) or not isinstance(inputs, (list, tuple)):  # a bare record had been iterated
+        raise DataError("inputs must be a list of input records (e.g. [u] for one record), got "
+                        f"{type(inputs).__name__}")
     records = [as_signal(x, f"inputs[{k}]") for k, x in enumerate(inputs)]
     if not records or len({x.shape[1] for x in records}) > 1:
         raise DataError("inputs must be one or more input records with the same channels (time along axis 0)")

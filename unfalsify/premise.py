@@ -194,6 +194,13 @@ class OutputErrorResult:
     growth: float
 
 
+def _check_model(model) -> None:
+    """P̂ must be a StateSpace (:func:`unfalsify.predictor_model`): its state is the stacked past ``w_p`` the tests
+    start from, which another realisation's would not be; a string or a number had raised python-control's bare
+    TypeError or turned into a static gain."""
+    check_instance(model, control.StateSpace, "model", "the StateSpace of unfalsify.predictor_model(pred, dt)")
+
+
 def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     """``e = y − P̂u`` for ``k ≥ horizon``, P̂ simulated from the measured past.
 
@@ -238,6 +245,7 @@ def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     >>> e2.shape, bool(np.sqrt(np.mean(e2 ** 2)) < 0.02)
     ((98, 2), True)
     """
+    _check_model(model)
     A, B, C, D = (np.asarray(M, float) for M in control.ssdata(model))
     u, y = channel_pair(u, y)
     i = check_horizon(horizon)  # int() had passed 3.5 and '3'
@@ -604,6 +612,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     (False, 0.96)
     """
     opts = _premise_options(options)
+    _check_model(model)
     check_horizon(horizon)  # here: the tests below turn their own DataErrors into reasons
     delta_subspace = check_nonnegative(delta_subspace,
                                        "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
@@ -1050,6 +1059,7 @@ def glitch_note(model, u, y, horizon: int) -> str:
     >>> print(glitch_note(model, u, y, 3)[:60])
     1 sample of y (y[400]) lies more than 8 robust standard devi
     """
+    _check_model(model)
     if not spectral_radius(control.ssdata(model)[0]) < 1.0:
         return ""
     e = np.asarray(output_error_residual(model, u, y, horizon), float)
@@ -1322,7 +1332,12 @@ def _line_spectra(model, u, y, horizon: int, dt: float) -> tuple[tuple, tuple | 
     test (it then excludes no line).  Neither depends on the controller: computed once, weighed with each loop by
     :func:`_line_gain`."""
     none = np.zeros(0), np.zeros(0), np.zeros(0)
-    x = np.asarray(u, float)
+    # the public entries (residual_line, hidden_line_gain) had raised IndexError, TypeError or ZeroDivisionError on a
+    # scalar record, a fractional horizon or dt = 0
+    horizon = check_horizon(horizon)
+    dt = check_sample_time(dt, "dt", allow_true=False)
+    u, y = channel_pair(u, y)
+    x = u
     if x.shape[0] - horizon < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side
         return none, None
     E, U, Y, M = _output_error_dft(model, u, y, horizon)

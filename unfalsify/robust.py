@@ -60,7 +60,7 @@ import synthesis
 from synthesis import Additive, HinfDesign, record_fingerprint
 from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
-                                  check_level, check_nonnegative, check_predictor_dt)
+                                  check_level, check_nonnegative, check_predictor_dt, check_sample_time)
 
 from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
@@ -1436,7 +1436,9 @@ def _fitted(u, y, h):
 def _data_dt(dt, W1, W2) -> float:
     """The data's sample time: ``dt``, else the weights' common one (1.0 when every weight is static)."""
     if dt is not None:
-        return float(dt)
+        # checked here: a string or an array had raised ValueError or TypeError from float()
+        dt = check_sample_time(dt, "dt")
+        return 1.0 if dt is True else dt  # True (unspecified) reads as 1, as float(True) did
     common = synthesis.common_dt(W1, W2)
     return 1.0 if common is True else float(common)
 

@@ -70,7 +70,10 @@ def minimal_extension(h, n: int) -> np.ndarray:
     [1.0, 1.0]
     """
     siso = np.ndim(h) == 1
-    h = np.asarray(h, float)
+    h = np.asarray(h)
+    if h.dtype.kind not in "biuf":  # a string or complex h had raised numpy's bare ValueError or TypeError
+        raise DataError(f"Markov parameters h must be real numbers, got an array of dtype {h.dtype}")
+    h = h.astype(float)
     h3 = h[:, None, None] if siso else h
     if h3.ndim != 3:
         raise DataError(f"Markov parameters must have shape (k,) or (k, l, m), got {h.shape}")
