@@ -527,7 +527,7 @@ def _bonferroni_f(gain, rss, energy, n_num: int, dof: int, rcond: float) -> floa
     Energies below ``rcond²`` of the row's are rounding (the Gram methods' floor, :func:`default_rcond`): no gain
     gives 1, no residual 0 (noise-free data: ``U_f`` explains what ``W_p`` leaves, to rounding).  Every row has the
     same degrees of freedom, so the least p-value is the F distribution's tail at the largest statistic: one
-    evaluation, not one a row (8 µs of the adaptive loop's update at ``i = 64``).
+    evaluation, not one a row (8 µs less a read at ``i = 64``, which every adaptive update makes).
     """
     tiny = rcond ** 2 * energy
     moves = gain > tiny
@@ -545,7 +545,7 @@ def _control_test_ranked(R: np.ndarray, i: int, m: int, l: int, j: int, rcond: f
     of ``A = [W_p; U_f; Y_f]`` (``A = R Qᵀ``; for the Gram methods the channel-scaled one the rank was decided on).
 
     ``s1``: the regressor's largest singular value; directions below ``rcond·s1`` are not spanned (the tolerance of
-    the pseudo-inverse, §2.2).  Copies the blocks it needs (``R`` may be a recursive predictor's live summary).
+    the pseudo-inverse, §2.2).  Keeps a copy of the regressor's columns only, not ``R``.
     """
     n_past, n_reg = i * (m + l), i * (2 * m + l)
     if not s1 > 0:  # an all-zero regressor: nothing to test
@@ -619,7 +619,7 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
             control = _control_test(R[n_reg:, :n_reg].T, None, R[n_reg:, n_reg:], i, m, l, j, rcond)
             return _triangular_predictor(_unscaled(L, scale), unscaled, i, m, l, j, rcond, method, control)
     L, s, q = _solve_from_r(R, n_reg, rcond, squared=squared, scale=scale)
-    s_scaled = s  # of the regressor q was decided on
+    s1 = float(s[0])  # σ₁ of the regressor q was decided on (channel-scaled for the Gram methods)
     r_in = _input_rank_from_factor(R, i, m, l, rcond, squared=squared)
     _warn_rank(q, r_in, i, m, l, j, rcond, stacklevel=stacklevel + 1)
     Lw, Lu = _split(L, i, m, l)
@@ -628,7 +628,7 @@ def _predictor_from_factor(R, i, m, l, j, rcond, method, *, stacklevel=3, route=
     if q == n_reg:
         control = _control_test(R[n_reg:, :n_reg].T, None, R[n_reg:, n_reg:], i, m, l, j, rcond)
     else:  # R1's pivots of rounding size would decide the triangular test: test in the space the regressor spans
-        control = _control_test_ranked(R, i, m, l, j, rcond, float(s_scaled[0]))
+        control = _control_test_ranked(R, i, m, l, j, rcond, s1)
     return Predictor(Lw, Lu, i, m, l, j, s, int(q), method, int(r_in), float(rcond), "spectral",
                      control_pvalue=control)
 
