@@ -121,3 +121,22 @@ def test_detection_and_false_alarm_rates_over_50_seeds(method, twin):
             detected += fit_predictor(u, y, 2, method=method).control_pvalue > LIMIT
             false_alarms += fit_predictor(u, y, 3, method=method).control_pvalue > LIMIT
     assert detected >= 49 and false_alarms <= 1
+
+
+@pytest.mark.parametrize("method", ["cholesky", "qr", "lstsq"])
+@pytest.mark.parametrize("i", [1, 2])
+def test_a_mimo_rank_deficient_regressor_agrees_with_the_nested_regressions(method, i):
+    """Three inputs, the third a copy of the first, two outputs (delays 1 and 2), heavy noise: an intermediate
+    p-value (0.18 at i = 1, 2e-4 at i = 2, measured), equal to the direct route's; Bonferroni over the i·l rows."""
+    rng = np.random.default_rng(5)
+    n = 500
+    u1, u2 = rng.standard_normal(n), rng.standard_normal(n)
+    y = np.column_stack([np.convolve(u1, [0.0, 0.5, 0.2])[:n], np.convolve(u2, [0.0, 0.0, 0.4])[:n]])
+    y += 3.0 * rng.standard_normal((n, 2))
+    u = np.column_stack([u1, u2, u1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PersistenceWarning)
+        pred = fit_predictor(u, y, i, method=method)
+    assert pred.rank < pred.n_regressors
+    assert pred.control_pvalue == pytest.approx(_direct_pvalue(u, y, i, pred.rcond), rel=1e-6, abs=1e-12)
+    assert 1e-5 < pred.control_pvalue < 0.5
