@@ -24,7 +24,8 @@ import numpy as np
 
 from ._validation import DataError, as_signal, check_count, check_level, check_nonnegative
 from .controller import RecedingHorizonController
-from .hinf import _design_from_plan, _map_plan, _predictor_parts
+from .exceptions import HorizonWarning
+from .hinf import _design_from_plan, _map_plan, _predictor_parts, _warn_no_control
 from .recursive import RecursivePredictor
 from ._repr import result
 
@@ -82,7 +83,12 @@ class AdaptiveUpdate:
     phases : tuple of (str, float)
         Where :attr:`seconds` went: ``("push", s)`` (new samples into the recursive
         predictor), ``("predictor", s)`` (``L_w``, ``L_u`` from the Gram, §2.3.1) and
-        ``("design", s)`` (performance map, ``γ_min``, policy and gains (5.1)–(5.2)).
+        ``("design", s)`` (performance map, ``γ_min``, policy and gains (5.1)–(5.2), and the
+        horizon check).
+    control_pvalue : float or None
+        :attr:`Predictor.control_pvalue <synthesis.Predictor.control_pvalue>` of the window behind the design: above
+        0.01 the data show no effect of the control over the horizon (a :class:`~synthesis.HorizonWarning`, raised
+        once per run, see :class:`AdaptiveHinf`); ``None`` where it is not computed.
     """
 
     step: int
@@ -93,6 +99,7 @@ class AdaptiveUpdate:
     warnings: tuple = ()
     phases: tuple = ()
     cpu_seconds: float = float("nan")
+    control_pvalue: float | None = None
 
 
 class AdaptiveHinf:
@@ -118,6 +125,23 @@ class AdaptiveHinf:
         saddle point, so every design equals ``hinf_design(predictor, W1, W2, gamma=policy,
         **design_kwargs)`` on the same data window.  Its ``controller`` (``StateSpace``) is
         built only if read.
+
+    Warns
+    -----
+    HorizonWarning
+        Once per run, at the first design (the initial one or an update) whose data window shows no effect of the
+        control over the horizon (:attr:`Predictor.control_pvalue <synthesis.Predictor.control_pvalue>` above 0.01,
+        the check :func:`~synthesis.hinf_design` makes): the horizon is not longer than the plant's delay.  Every
+        design's p-value is in :attr:`history` (:attr:`AdaptiveUpdate.control_pvalue`), and the warning text of
+        each design that failed the check in its :attr:`AdaptiveUpdate.warnings`.  Once, not at each redesign nor at
+        each change of verdict: on a window near the threshold the verdict can flip from one update to the next.
+        On windows of closed-loop data alone the controller (its weight states, the reference) carries older data
+        into ``u_k``, which the test can read as an effect: measured on ``0.5 z^-d / (1 − 0.7 z^-1)`` (sliding
+        windows of 150 columns, 10 seeds), 88–96 % of the designs at ``i = d`` failed the check, 14 % at ``i = 1``
+        below ``d = 2``.  The initial design, on the open-loop record, is the most telling.  A record spliced from
+        two experiments (an integrating plant restarted from rest) fails the check as well.
+    PersistenceWarning, and any other
+        The first warning of the run is raised once, the later ones are recorded in :attr:`history`.
 
     Attributes
     ----------
@@ -151,7 +175,8 @@ class AdaptiveHinf:
         # samples observed since the last update, [u y] per row (grown by doubling)
         self._z_buf = np.empty((min(self.period, 256), predictor.m + predictor.l))
         self._n_buf = 0
-        self._warned = False
+        self._warned = False  # the first warning of the run was raised
+        self._horizon_warned = False  # the HorizonWarning was raised (once per run)
         # the weights do not change between updates: validate them and build their Toeplitz /
         # observability blocks once (§5.3: only (Lw, Lu) change)
         rp = predictor
@@ -183,20 +208,36 @@ class AdaptiveHinf:
             t2 = time.perf_counter()
             Lw, Lu, *_ = _predictor_parts(pred)
             design = _design_from_plan(pred, Lw, Lu, self._plan, self.policy)
+            # the horizon check of hinf_design, which this loop does not call (_design_from_plan is its engine)
+            _warn_no_control(pred, stacklevel=1)
+            p = pred.control_pvalue
         t3 = time.perf_counter()
         cpu = time.thread_time() - c0 if c0 is not None else float("nan")
         seconds = t3 - t0
         phases = (("push", t_push), ("predictor", t2 - t1), ("design", t3 - t2))
         msgs = tuple(f"{w.category.__name__}: {w.message}" for w in caught)
-        if caught and not self._warned:
-            self._warned = True
-            warnings.warn(
-                f"adaptive update at step {step}: {msgs[0]} (further update warnings are only recorded in "
-                "AdaptiveHinf.history)", caught[0].category, stacklevel=3)
+        self._raise_once(caught, msgs, step)
         record = AdaptiveUpdate(step=step, gamma_min=float(design.gamma_min), gamma=float(design.gamma),
                                 seconds=seconds, n_columns=int(self.recursive.n_columns), warnings=msgs,
-                                phases=phases, cpu_seconds=cpu)
+                                phases=phases, cpu_seconds=cpu, control_pvalue=None if p is None else float(p))
         return design, record
+
+    def _raise_once(self, caught, msgs, step: int) -> None:
+        """Raise the run's first warning, and its first :class:`HorizonWarning` (once per run: a verdict near the
+        threshold may flip between updates); the rest are only recorded in :attr:`history`."""
+        horizon = next((k for k, w in enumerate(caught) if issubclass(w.category, HorizonWarning)), None)
+        shown = []
+        if caught and not self._warned:
+            self._warned = True
+            shown.append(0)
+        if horizon is not None and not self._horizon_warned:
+            self._horizon_warned = True
+            if horizon not in shown:
+                shown.append(horizon)
+        for k in shown:
+            warnings.warn(
+                f"adaptive update at step {step}: {msgs[k]} (further update warnings are only recorded in "
+                "AdaptiveHinf.history)", caught[k].category, stacklevel=4)
 
     def update(self) -> AdaptiveUpdate:
         """Push the buffered samples into the predictor, recompute and swap in the gains now."""

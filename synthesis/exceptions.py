@@ -90,7 +90,9 @@ class HorizonWarning(UserWarning):
     """The data show no effect of the control on the predicted output over the horizon (``L_u`` is noise).
 
     The horizon ``i`` is not longer than the plant's delay (``i = 1`` on a strictly proper plant): the inputs
-    ``u_k … u_{k+i-1}`` do not reach ``y_k … y_{k+i-1}``, so the law's control acts on estimation noise.
+    ``u_k … u_{k+i-1}`` do not reach ``y_k … y_{k+i-1}``, so the law's control acts on estimation noise.  Raised by
+    :func:`~synthesis.hinf_design`, :func:`~synthesis.gamma_min` and :func:`~synthesis.lqg_design`, and once per
+    run by :class:`~synthesis.AdaptiveHinf`, when :attr:`~synthesis.Predictor.control_pvalue` exceeds 0.01.
     """
 
 

@@ -264,7 +264,10 @@ class RecursivePredictor:
         tol = _resolve_rcond(self._rcond, "recursive", i * (2 * m + l), j)
         if self.track == "gram":
             return _predictor_from_gram(self._S, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
-        return _predictor_from_factor(self._S.T, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
+        # a snapshot: the predictor's lazy fields (singular values, control_pvalue) keep blocks of the factor, which
+        # later pushes update in place (cholupdate); measured 12 µs at i = 64 (256²), against ~1 ms for the predictor
+        R = np.array(self._S.T)
+        return _predictor_from_factor(R, i, m, l, j, tol, "recursive", stacklevel=3, warm=self._warm)
 
     # ------------------------------------------------------------------ internals
     def _as_chunk(self, x, name: str, width: int) -> np.ndarray:

@@ -272,3 +272,26 @@ def test_factor_track_is_unit_free_on_noise_free_data(window):
             p = rp.predictor()
             assert p.rank == ref.rank == 18
             assert np.linalg.norm(p.Lu - ref.Lu) <= 1e-8 * np.linalg.norm(ref.Lu)
+
+
+@pytest.mark.parametrize("track", ["gram", "factor"])
+@pytest.mark.parametrize("twin", [False, True])
+def test_a_predictor_s_lazy_fields_describe_its_own_window_after_later_pushes(track, twin):
+    """``singular_values`` and ``control_pvalue`` are computed when read.  The factor track had handed its live
+    summary to those recipes (channels already near unit rms, so no scaled copy): read after a later push they
+    described the later window (singular values 319 instead of 20, p 0.86 instead of 0.66, measured).  Twin input
+    channels: the rank-deficient route holds the factor too."""
+    rng = np.random.default_rng(0)
+    n = 400
+    u = rng.standard_normal(n)
+    y = np.convolve(u, [0.0, 0.9, 0.4])[:n] + 0.01 * rng.standard_normal(n)  # about unit rms: no channel scaling
+    if twin:
+        u = np.column_stack([u, u])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PersistenceWarning)
+        rp = RecursivePredictor.from_data(u, y, 1, track=track)
+        pred = rp.predictor()
+        ref = fit_predictor(u, y, 1)
+        rp.push(rng.standard_normal((4000, u.ndim)).squeeze(), 5 * rng.standard_normal(4000))  # y no longer follows u
+    np.testing.assert_allclose(pred.singular_values, ref.singular_values, rtol=1e-8)
+    assert pred.control_pvalue == pytest.approx(ref.control_pvalue, rel=1e-6)
