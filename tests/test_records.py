@@ -254,3 +254,14 @@ def test_a_transposed_csv_with_names_in_its_first_column_is_named(tmp_path, sign
     bad.write_text("\n".join(lines) + "\n")
     with pytest.raises(RecordError, match="data row 1: 'x' is not a number"):
         load_record(bad, u="u1", y="y", t="time")
+
+
+def test_a_binary_or_non_utf8_file_is_a_record_error(tmp_path):
+    """A binary file named .csv, or text in Latin-1, had raised UnicodeDecodeError from the CSV reader."""
+    binary = tmp_path / "scope.csv"
+    binary.write_bytes(bytes(range(128, 256)) * 8)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes("t,u,y\n0,1,2\n0.1,1,2\n# température\n".encode("latin-1"))
+    for path in (binary, latin):
+        with pytest.raises(RecordError, match="is not UTF-8 text.*re-save it as UTF-8 CSV"):
+            load_record(path, u="u", y="y")

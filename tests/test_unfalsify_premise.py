@@ -1330,3 +1330,15 @@ def test_no_note_where_the_data_confirm_the_ball():
     assert uf.unconfirmed_premise(old, 0.1) == ""
     with pytest.raises(DataError, match="bound"):
         uf.unconfirmed_premise(test, -1.0)
+
+
+def test_operating_point_note_of_signals_near_the_underflow():
+    """Values near 1e-200 have a standard deviation that underflows when squared: the note had divided by 0
+    (ZeroDivisionError, through the design command); the ratio is now taken in units of the channel's peak, and it
+    is the same note as for the signal at unit scale (the second route)."""
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(400))
+    y = 0.5 * u + 2.0
+    assert uf.operating_point_note(1e-200 * u, 1e-200 * y).replace("1.972e-200", "1.972") \
+        == uf.operating_point_note(u, y)
+    assert uf.operating_point_note(1e-200 * u, 1e-200 * u) == ""

@@ -1003,7 +1003,9 @@ def operating_point_note(u, y) -> str:
                 if x[0, k] != 0.0:
                     notes.append(f"{name} is constant at {float(x[0, k]):.4g} over the record")
                 continue
-            ratio = abs(float(mean[k])) / float(spread[k])
+            # in units of the channel's peak: std of values near 1e-200 underflowed to 0 (ZeroDivisionError)
+            peak = float(np.max(np.abs(x[:, k])))
+            ratio = abs(float(mean[k]) / peak) / float(np.std(x[:, k] / peak))
             if ratio > OFFSET_NOTE:
                 notes.append(f"the mean of {name} ({float(mean[k]):.4g}) is {ratio:.2g} times its standard deviation")
     if not notes:

@@ -109,7 +109,12 @@ def _check_orientation(table: np.ndarray, path: Path) -> None:
 
 
 def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
-    text = path.read_text(encoding="utf-8-sig")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:  # a binary file, or text in another encoding, had raised it bare
+        raise RecordError(f"{str(path)!r} is not UTF-8 text (byte {exc.start}: {exc.reason}): a CSV record must be "
+                          "UTF-8 (or ASCII) text; re-save it as UTF-8 CSV, or export .npz/.mat for binary "
+                          "data") from None
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise RecordError(f"{str(path)!r} has no data rows")
