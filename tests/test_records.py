@@ -265,3 +265,11 @@ def test_a_binary_or_non_utf8_file_is_a_record_error(tmp_path):
     for path in (binary, latin):
         with pytest.raises(RecordError, match="is not UTF-8 text.*re-save it as UTF-8 CSV"):
             load_record(path, u="u", y="y")
+
+
+def test_an_empty_array_is_a_record_error(tmp_path):
+    """An NPZ with an empty channel had raised numpy's bare ValueError (reshape of size 0)."""
+    path = tmp_path / "empty.npz"
+    np.savez(path, u=np.zeros(0), y=np.zeros(0))
+    with pytest.raises(RecordError, match="'u' is empty"):
+        load_record(path, u="u", y="y", dt=0.1)

@@ -396,6 +396,9 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                                       f"time runs along axis 0: store {key}.T (shape {arr.shape[::-1]})")
                 if arr.ndim not in (1, 2):
                     raise RecordError(f"{str(path)!r}: {key!r} must be 1-D or 2-D, got shape {arr.shape}")
+                if arr.size == 0:  # reshape(0, -1) had raised numpy's bare ValueError
+                    raise RecordError(f"{str(path)!r}: {key!r} is empty (shape {arr.shape}): the file holds no samples "
+                                      "of it; save the record's arrays with their data")
                 arr = arr.reshape(arr.shape[0], -1)
                 parts.append(arr)
                 names += [key] if arr.shape[1] == 1 else [f"{key}[:, {k}]" for k in range(arr.shape[1])]
