@@ -20,7 +20,7 @@ from scipy.special import fdtrc
 from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, as_signal, check_count, check_horizon, check_nonnegative, check_sample_time
+from ._validation import DataError, as_real_array, as_signal, check_count, check_horizon, check_nonnegative, check_sample_time
 from .fingerprint import RecordFingerprint, record_fingerprint
 from .hankel import hankel_gram
 from ._repr import result
@@ -131,8 +131,9 @@ class Predictor:
         u_f : array_like, shape (i, m) or (i*m,)
             Future inputs.
         """
-        w_p = np.asarray(w_p, dtype=float).reshape(-1)
-        u_f = np.asarray(u_f, dtype=float).reshape(-1)
+        # as_real_array: a string had raised numpy's ValueError, a complex vector TypeError
+        w_p = as_real_array(w_p, "w_p").reshape(-1)
+        u_f = as_real_array(u_f, "u_f").reshape(-1)
         if w_p.size != self.Lw.shape[1]:
             raise DataError(f"w_p must have {self.Lw.shape[1]} entries, got {w_p.size}")
         if u_f.size != self.Lu.shape[1]:

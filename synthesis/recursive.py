@@ -93,7 +93,7 @@ class RecursivePredictor:
     """
 
     def __init__(self, horizon: int, m: int, l: int, *, window=None, track: str = "gram", rcond=None):
-        if track not in ("gram", "factor"):
+        if not (isinstance(track, str) and track in ("gram", "factor")):  # an array had raised numpy's ValueError
             raise DataError(f"unknown track {track!r}; use 'gram' or 'factor'")
         self.horizon = check_horizon(horizon)
         self.m, self.l = check_count(m, "m", 1), check_count(l, "l", 1)

@@ -347,3 +347,18 @@ def test_the_checked_entries_still_answer_on_good_input():
         assert cert.bounded_real.gamma == min(1.0 / (1.1 * delta), 2.0 ** 200)
     assert np.isfinite(synthesis.lqr_riccati(env["P"].A, env["P"].B, env["P"].C, env["P"].D, 1.0, 0.1,
                                              horizon=5).gains).all()
+
+
+def test_predict_and_the_recursive_options_refuse_text_and_arrays():
+    """``Predictor.predict`` of text or complex vectors and ``RecursivePredictor(track=array)`` had raised numpy's
+    bare ValueError or TypeError (a fuzz of the classes' methods, 2026-11-29)."""
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal(300))
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:300] + 0.02 * rng.standard_normal(300)
+    pred = synthesis.fit_predictor(u, y, 4)
+    for bad in ("x", 1j * np.ones(4)):
+        with pytest.raises(DataError):
+            pred.predict(bad, np.ones(4))
+    with pytest.raises(DataError, match="unknown track"):
+        synthesis.RecursivePredictor.from_data(u, y, 4, track=np.ones(3))
+    assert pred.predict(pred.past_vector(u[-4:], y[-4:]), np.ones(4)).shape == (4, 1)
