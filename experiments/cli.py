@@ -33,6 +33,18 @@ class Options:
     extra: dict = field(default_factory=dict)
 
 
+def _positive(text: str) -> int:
+    """``--workers``, ``--repeats``: an integer ≥ 1, refused at parsing (a negative count had reached the run and ended
+    in a DataError traceback)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid count {text!r}: give an integer ≥ 1") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"invalid count {value}: give an integer ≥ 1")
+    return value
+
+
 #: name -> ("module", "function", "one-line help"[, extra options]).  The optional fourth element is a
 #: tuple of argparse specs ``(("--flag", ...), {add_argument kwargs, with "dest"})`` for options of that
 #: subcommand only; their values reach ``run`` as ``opts.extra[dest]``.
@@ -78,7 +90,7 @@ COMMANDS: dict[str, tuple] = {
                                              help="structured backend, arx-pd table: the ARX sizes "
                                                   "(default 200,400,1000); subspace-pd table: i×j pairs "
                                                   "(default 10x200,20x400,50x500)")),
-                         (("--repeats",), dict(dest="repeats", type=int, default=None, metavar="R",
+                         (("--repeats",), dict(dest="repeats", type=_positive, default=None, metavar="R",
                                                help="structured backend: timed repeats of each row's solves "
                                                     "(default 3; --quick: 1)")),
                          (("--baseline-rev",), dict(dest="baseline_rev", default=None, metavar="REV",
@@ -88,12 +100,12 @@ COMMANDS: dict[str, tuple] = {
     "bench-norms": ("experiments.bench.bench_norms", "run", "benchmark: certified H∞ norms and SLICOT simulation vs the former routes"),
     "bench-split": ("experiments.bench.bench_split", "run",
                     "benchmark: column split of (7.5) on 1 and N local workers vs the serial solve",
-                    ((("--workers",), dict(dest="workers", type=int, default=2,
+                    ((("--workers",), dict(dest="workers", type=_positive, default=2,
                                            help="worker processes of the parallel run (default: 2)")),)),
     "sweep": ("experiments.studies.sweep", "run",
               "Monte Carlo sweep of the §7.4 pipeline (plants × seeds × (i, j) × σ), one case per task on "
               "local processes or a Dask cluster",
-              ((("--workers",), dict(dest="workers", type=int, default=None,
+              ((("--workers",), dict(dest="workers", type=_positive, default=None,
                                      help="local worker processes (default: the number of cores)")),
                (("--scheduler",), dict(dest="scheduler", default=None, metavar="ADDRESS",
                                        help="address of a running Dask scheduler, e.g. tcp://127.0.0.1:8786")),
@@ -181,7 +193,12 @@ def main(argv: list[str] | None = None) -> int:
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
     opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed,
                    extra={kw["dest"]: getattr(args, kw["dest"]) for _, kw in extra})
-    opts.out.mkdir(parents=True, exist_ok=True)
+    try:
+        opts.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a folder that cannot be made had ended every command in a traceback
+        parser._subparsers._group_actions[0].choices[args.command].error(
+            f"cannot create the output folder {str(opts.out)!r} ({exc.strerror or exc}); pass --out a folder you can "
+            "write to")
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     input_errors = tuple(getattr(mod, "INPUT_ERRORS", ()))
     try:

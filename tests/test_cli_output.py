@@ -108,3 +108,24 @@ def test_check_figure_finds_missing_labels_legend_and_hidden_curves():
     ax.legend()
     assert check_figure(fig) == []
     plt.close(fig)
+
+
+def test_an_output_folder_that_cannot_be_made_is_a_usage_error(fake_command, tmp_path, capsys):
+    """``--out`` below a file (or anywhere not writable) had ended every command in a FileNotFoundError traceback."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["fake", "--out", str(blocker / "results")])
+    assert caught.value.code == 2
+    assert "cannot create the output folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command, option", [("sweep", "--workers"), ("bench-split", "--workers"),
+                                             ("bench-unfalsify", "--repeats")])
+@pytest.mark.parametrize("value", ["-5", "0", "two"])
+def test_counts_are_refused_at_parsing(command, option, value, tmp_path, capsys):
+    """``--workers -5`` had reached the run and ended in a DataError traceback (sweep, bench-split)."""
+    with pytest.raises(SystemExit) as caught:
+        cli.main([command, option, value, "--quick", "--out", str(tmp_path)])
+    assert caught.value.code == 2
+    assert "give an integer ≥ 1" in capsys.readouterr().err
