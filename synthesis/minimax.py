@@ -85,6 +85,11 @@ class MinimaxSolution:
     route: str = "svd"
 
 
+#: entries at or above this make the maps' Gram matrices overflow (about sqrt of the largest float, over the
+#: rows' count allowance): refused with a DataError instead of LAPACK's failure
+_ENTRY_LIMIT = 1e150
+
+
 def _check_maps(Md, Mu, Mx=None):
     # as_real_array: a complex map had lost its imaginary part with only a ComplexWarning
     Mu = as_real_array(Mu, "M_u")
@@ -99,7 +104,7 @@ def _check_maps(Md, Mu, Mx=None):
     for name, a in arrays:
         if not np.all(np.isfinite(a)):
             raise DataError(f"{name} contains NaN or infinite values (check the predictor and the weights)")
-        if a.size and not np.isfinite(np.max(np.abs(a)) ** 2 * a.shape[0]):  # its Gram would overflow (LinAlgError)
+        if a.size and not float(np.max(np.abs(a))) < _ENTRY_LIMIT:  # its Gram would overflow (LinAlgError)
             raise DataError(f"{name} holds entries near {np.max(np.abs(a)):.3g}, whose squares overflow: scale the "
                             "performance outputs (the weights) so the maps are of moderate size")
     return Md, Mu, Mx

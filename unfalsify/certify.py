@@ -562,7 +562,7 @@ def certify_loop(model, controller, delta: float, *, margin: float = 0.1, tracki
                   f"{floors[worst]:.3g}{channel} over its last quarter (the controller does not track)"
                   + (_TALL_HINT.format(m=P.ninputs, l=l) if P.ninputs < l and np.all(np.isfinite(floors)) else ""))
     elif delta > 0:  # the second, independent proof of the small gain (only for a loop that passed the rest)
-        # a level beyond what a bounded-real matrix can hold (δ below ~1e-150) is implied by the largest one it can
+        # a level beyond what a bounded-real matrix can hold (δ below about 1e-60) is implied by the largest one it can
         kyp = bounded_real_certificate(M, min(1.0 / ((1.0 + margin) * float(delta)), _KYP_LEVEL_MAX),
                                        lower=bracket.lower)
         if not kyp:
