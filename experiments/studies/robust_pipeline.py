@@ -437,11 +437,13 @@ def _allpass_row(gains: np.ndarray, phases: np.ndarray, omega: float, dt) -> con
         if abs(target.imag) < 1e-9 or abs(np.sin(omega)) < 1e-9:
             D[0, j] = g if target.real >= 0 else -g
             continue
-        for s in (1.0, -1.0):  # s(1 − az)/(z − a) = e^{jθ}  ⇔  a = (s e^{jθ} z − 1)/(s e^{jθ} − z)
-            a = (s * target * z - 1.0) / (s * target - z)
-            if abs(a.imag) < 1e-6 and abs(a.real) < 1.0:
-                break
-        a = float(a.real)
+        # s(1 − az)/(z − a) = e^{jθ}  ⇔  a = (s e^{jθ} z − 1)/(s e^{jθ} − z), real for one of s = ±1
+        found = [(s, a) for s in (1.0, -1.0) for a in [(s * target * z - 1.0) / (s * target - z)]
+                 if abs(a.imag) < 1e-6 and abs(a.real) < 1.0]
+        if not found:  # rounding at a phase next to 0 or π: the static gain of the nearer sign (still size g)
+            D[0, j] = g if target.real >= 0 else -g
+            continue
+        s, a = found[0][0], float(found[0][1].real)
         poles.append(a)
         cols.append(j)
         C.append(g * s * (1.0 - a * a))
