@@ -167,15 +167,11 @@ def judge(P, controller, delta: float, floor=None) -> dict:
 def _coprime_judge(P, rd, true: dict) -> tuple[dict, float]:
     """A coprime-factor certificate on the true plant: ``(judge, premise ratio)``.
 
-    One output: the small gain ``ε‖[K; I](M + NK)⁻¹‖∞`` with the plant factored like P̂
+    Any number of outputs: the small gain ``ε‖[K; I](M + NK)⁻¹‖∞`` with the plant factored like P̂
     (:func:`experiments.studies.robust_pipeline.true_factors`) joins the judge, and the premise ratio is the
-    upper end of its bracket (:func:`~experiments.studies.robust_pipeline.result_premise_ratio`).  Several outputs
-    (no polynomial-matrix factorisation here): stability and tracking only, and the pointwise coprime distance
-    over ε, a lower bound of the ratio.
+    upper end of its bracket (:func:`~experiments.studies.robust_pipeline.result_premise_ratio`).  (Several outputs
+    had been judged on stability and tracking only, with the pointwise distance over ε, the bracket's lower end.)
     """
-    if P.noutputs != 1:
-        true = dict(true, small_gain=float("nan"))
-        return true, uf.coprime_distance(rd.coprime.factors, P)[0] / rd.epsilon
     if true["stable"]:
         F = true_factors(P, like=rd.coprime.factors)
         gain = rd.epsilon * synthesis.hinf_norm(uf.coprime_channel(F, rd.controller)).upper

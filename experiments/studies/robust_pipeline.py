@@ -83,10 +83,12 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
     the size-δ perturbations are scalar and are tried on one-channel plants (they had raised IndexError on a
     two-input plant, and a floor per output TypeError).
 
-    ``uncertainty="coprime"`` (``delta`` is then ε, ``factors`` P̂'s): ε-balls of different factorisations of
-    one plant are not comparable, so the true plant is factored *like P̂* (:func:`true_factors` with
-    ``like=factors``); the small gain is ``ε‖[K; I](M + NK)⁻¹‖∞`` of those factors and the perturbations are
-    the size-ε coprime ones ``N + εz⁻¹``, ``N − ε``, ``M ± ε``.
+    ``uncertainty="coprime"`` (``delta`` is then ε, ``factors`` P̂'s), any number of outputs and inputs: ε-balls
+    of different factorisations of one plant are not comparable, so the true plant is factored *like P̂*
+    (:func:`true_factors` with ``like=factors``); the small gain is ``ε‖[K; I](M + NK)⁻¹‖∞`` of those factors and
+    the perturbations are the size-ε coprime ones of :func:`_coprime_perturbations` (``N + εz⁻¹``, ``N − ε``,
+    ``M ± ε`` on the first channel; with several outputs also the all-pass one along the channel's worst direction
+    at its peak).
     """
     rob = uf.additive_robustness(P, K)
     out = {"stable": rob.stable, "spectral_radius": rob.spectral_radius,
@@ -100,9 +102,12 @@ def _true_loop(P, K, delta: float, tracking_floor: float, uncertainty: str = "ad
     radii = []
     if rob.stable and delta > 0 and uncertainty == "coprime":
         F = true_factors(P, like=factors)
-        peak = synthesis.hinf_norm(uf.coprime_channel(F, K)).upper
-        out["small_gain"] = float(delta * peak)
-        radii = [_loop_radius(pd, K) for pd in _coprime_perturbations(F, delta)]
+        H = uf.coprime_channel(F, K)
+        peak = synthesis.hinf_norm(H)
+        out["small_gain"] = float(delta * peak.upper)
+        # one output: the four perturbations, as before; no peak frequency (H not proven stable): none to aim at
+        worst = (H, peak.frequency) if F.outputs > 1 and np.isfinite(peak.frequency) else None
+        radii = [_loop_radius(pd, K) for pd in _coprime_perturbations(F, delta, worst)]
     elif rob.stable and delta > 0 and P.ninputs == P.noutputs == 1:  # scalar perturbations: one channel only
         dt = P.dt
         perts = [control.tf([delta], [1.0, 0.0], dt), control.tf([-delta], [1.0], dt),
@@ -129,33 +134,57 @@ _FACTORS_CACHE_SIZE = 8
 
 
 def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -> uf.CoprimeFactors:
-    """FIR left factors ``P = M(q⁻¹)⁻¹N(q⁻¹)``, ``M(∞) = 1``, of a plant with one output (any number of inputs).
+    """FIR left factors ``P = M(q⁻¹)⁻¹N(q⁻¹)``, ``M(∞) = I``, of a plant with any number of outputs and inputs.
 
-    From a realisation ``(A, B, C, D)`` of order n: ``M = det(zI − A) z^{−n}`` and, input by input,
-    ``N_j = (det(zI − A + b_j C) − det(zI − A) + d_j det(zI − A)) z^{−n}`` (``C adj(zI − A) b = det(zI − A + bC) −
-    det(zI − A)``).  With ``like`` (P̂'s factors, degree i) both are multiplied by the FIR ``Q``, ``Q(∞) = 1``, that
-    brings ``[NQ  MQ]`` closest to ``[N̂  M̂]``: P̂'s factors carry a near-common factor (an ARX model of order i above
-    the plant's), and a coprime ball is only meaningful in the factorisation it was measured in.  ``[NQ − N̂  MQ − M̂]``
-    is then one admissible perturbation: its H∞ norm bounds the plant's distance from the family from above
-    (:func:`result_premise_ratio`), and the pointwise distance (:func:`unfalsify.coprime_distance`) from below.  Q
-    minimises the largest distance over ``points`` frequencies (a second-order cone program, Clarabel) at degrees i,
-    2i, 4i, … 16i until the bound meets the pointwise one to 1 %, or the least-squares Q where that is closer.
-    Measured on four coprime certificates of the adversarial catalogue: the least-squares Q of degree i (the former
-    rule) bounded the premise ratio by 5.9, 7.0, 6.4 and 21; these Q by 0.39, 0.91, 0.78 and 0.38, each equal to the
-    pointwise lower bound (degree 2i for the first three, 16i for a mode of damping 0.02 that P̂ misses).  Factors
-    made ``like`` a model are kept for the last few plants: the judge and :func:`result_premise_ratio` ask for the
-    same ones.
+    From a realisation ``(A, B, C, D)`` of order n: ``M = det(zI − A) z^{−n} I`` and, entry by entry,
+    ``N_kj = (det(zI − A + b_j c_k) − det(zI − A) + d_kj det(zI − A)) z^{−n}`` (``c_k adj(zI − A) b_j =
+    det(zI − A + b_j c_k) − det(zI − A)``, row ``c_k`` of C).  With several outputs these factors share the plant's
+    poles (``M`` is scalar), so they are not coprime; the ε-ball is only meaningful in the factorisation P̂'s
+    certificate was measured in, which ``like`` supplies.  With ``like`` (P̂'s factors, degree i) both are multiplied
+    on the left by the FIR ``Q``, ``Q(∞) = I`` (l × l; a scalar for one output), that brings ``[QN  QM]`` closest to
+    ``[N̂  M̂]``: P̂'s factors carry a near-common factor (an ARX model of order i above the plant's).
+    ``[QN − N̂  QM − M̂]`` is then one admissible perturbation: its H∞ norm (largest singular value over a dense
+    grid) bounds the plant's distance from the family from above (:func:`result_premise_ratio`), and the pointwise
+    distance (:func:`unfalsify.coprime_distance`) from below.
+
+    One output: Q minimises the largest ``‖[NQ − N̂  MQ − M̂]‖₂`` over ``points`` frequencies (a second-order cone
+    program, Clarabel) at degrees i, 2i, 4i, … 16i until the bound meets the pointwise one to 1 %, or the
+    least-squares Q where that is closer.  Measured on four coprime certificates of the adversarial catalogue: the
+    least-squares Q of degree i (the former rule) bounded the premise ratio by 5.9, 7.0, 6.4 and 21; these Q by
+    0.39, 0.91, 0.78 and 0.38, each equal to the pointwise lower bound (degree 2i for the first three, 16i for a
+    mode of damping 0.02 that P̂ misses).
+
+    Several outputs: the same ladder, each rung minimising the largest *Frobenius* norm of
+    ``[QN − N̂  QM − M̂]`` over the grid (one second-order cone per frequency) rather than its largest singular
+    value (a semidefinite cone of size 2(2l + m) per frequency).  Measured on a 2 × 2 plant at 1024 frequencies
+    (2026-11-29, judgeM scripts): 0.56 s against 17 s at degree 4, 4.0 s against 42 s at degree 16, with σ̄ gaps
+    equal to 4 digits (0.9092, 0.06244).  The norm the bracket reports is the singular value one, measured on the
+    result, and since ``σ̄ ≤ ‖·‖_F ≤ √l σ̄`` it is at most √l times the least the σ̄ program would reach at that
+    degree: the upper end of the bracket is a proven bound of the distance either way, at worst less tight.  Factors made ``like`` a model are kept for the last few plants:
+    the judge and :func:`result_premise_ratio` ask for the same ones.
+
+    Examples
+    --------
+    >>> import control, numpy as np
+    >>> P = control.ss([[0.5, 0.1], [0.0, 0.8]], [[1.0, 0.0], [0.5, 1.0]], [[1.0, 0.0], [0.0, 1.0]],
+    ...                np.zeros((2, 2)), 1.0)
+    >>> F = true_factors(P)
+    >>> z = np.exp(0.3j)
+    >>> N, M = F.response([0.3])
+    >>> bool(np.allclose(np.linalg.solve(M[0], N[0]), P.horner(z)[:, :, 0]))
+    True
     """
     sys = control.ss(P)
-    if sys.noutputs != 1:
-        raise DataError("true_factors takes a plant with one output (several inputs are fine)")
     A, B, C, D = (np.atleast_2d(np.asarray(X, float)) for X in control.ssdata(sys))
     key = None if like is None else (*(X.tobytes() + bytes(str(X.shape), "ascii") for X in (A, B, C, D)),
                                      float(sys.dt), like.N.tobytes(), like.M.tobytes(), like.N.shape, float(like.dt),
                                      int(points))
     if key in _FACTORS_CACHE:
         return _FACTORS_CACHE[key]
-    F = _factors(sys, A, B, C, D, like, points)
+    if like is not None and (like.outputs, like.inputs) != (sys.noutputs, sys.ninputs):
+        raise DataError(f"the plant is {sys.noutputs} × {sys.ninputs} but P̂'s factors (like=) {like.outputs} × "
+                        f"{like.inputs} (outputs × inputs): pass the factors of a model of this plant")
+    F = _factors(sys, A, B, C, D, like, points) if sys.noutputs == 1 else _factors_mimo(sys, A, B, C, D, like, points)
     if key is not None:
         if len(_FACTORS_CACHE) >= _FACTORS_CACHE_SIZE:
             _FACTORS_CACHE.pop(next(iter(_FACTORS_CACHE)))
@@ -164,7 +193,7 @@ def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -
 
 
 def _factors(sys, A, B, C, D, like, points: int) -> uf.CoprimeFactors:
-    """:func:`true_factors` computed (not cached)."""
+    """:func:`true_factors` of a one-output plant, computed (not cached)."""
     den = np.poly(A) if A.size else np.ones(1)
     num = np.array([np.poly(A - np.outer(B[:, j], C[0])) - den + D[0, j] * den if A.size else D[0, j] * den
                     for j in range(sys.ninputs)])                                  # (m, n + 1)
@@ -174,6 +203,32 @@ def _factors(sys, A, B, C, D, like, points: int) -> uf.CoprimeFactors:
         den = np.convolve(den, q)
     scale = den[0]
     return uf.CoprimeFactors(N=(num.T / scale)[:, None, :], M=(den / scale).reshape(-1, 1, 1), dt=float(sys.dt))
+
+
+def _factors_mimo(sys, A, B, C, D, like, points: int) -> uf.CoprimeFactors:
+    """:func:`true_factors` of a plant with several outputs, computed (not cached): taps ``(n + 1, l, m)`` and
+    ``(n + 1, l, l)`` (at least two: :class:`unfalsify.CoprimeFactors` needs degree ≥ 1), then aligned by ``Q``."""
+    l, m = sys.noutputs, sys.ninputs
+    den = np.poly(A) if A.size else np.ones(1)
+    N = np.zeros((den.size, l, m))
+    for k in range(l):
+        for j in range(m):
+            N[:, k, j] = (np.poly(A - np.outer(B[:, j], C[k])) - den + D[k, j] * den) if A.size else D[k, j] * den
+    M = den[:, None, None] * np.eye(l)[None]
+    if den.size < 2:  # a static plant: pad with a zero tap
+        N, M = np.concatenate([N, np.zeros_like(N)]), np.concatenate([M, np.zeros_like(M)])
+    if like is not None:
+        Q = _closest_multiplier_mimo(N, M, like, sys, points)
+        N, M = _left_multiply(Q, N), _left_multiply(Q, M)
+    return uf.CoprimeFactors(N=N, M=M, dt=float(sys.dt))
+
+
+def _left_multiply(Q: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Taps of the product ``Q(q⁻¹) X(q⁻¹)`` of two FIR polynomial matrices (taps first)."""
+    out = np.zeros((Q.shape[0] + X.shape[0] - 1, Q.shape[1], X.shape[2]))
+    for d in range(Q.shape[0]):
+        out[d:d + X.shape[0]] += np.einsum("ab,tbc->tac", Q[d], X)
+    return out
 
 
 #: :func:`true_factors`: the largest degree of Q, in multiples of P̂'s degree i
@@ -238,27 +293,179 @@ def _gap(num: np.ndarray, den: np.ndarray, q: np.ndarray, like: uf.CoprimeFactor
     return _fir_gap(F, like)
 
 
+def _closest_multiplier_mimo(N: np.ndarray, M: np.ndarray, like: uf.CoprimeFactors, sys, points: int) -> np.ndarray:
+    """Q's taps ``(d + 1, l, l)``, ``Q[0] = I``, for :func:`true_factors` of a plant with several outputs: the
+    candidate (least squares at degree i, then the Frobenius minimax at i, 2i, … 16i until the σ̄ gap meets the
+    pointwise lower bound to 1 %) whose ``[QN − N̂  QM − M̂]`` has the least H∞ norm."""
+    w = np.linspace(0.0, np.pi, points)
+    zp = np.exp(-1j * np.outer(w, np.arange(N.shape[0])))
+    plant = np.concatenate([np.einsum("fd,dab->fab", zp, N), np.einsum("fd,dab->fab", zp, M)], axis=2)  # (F, l, m+l)
+    Nh, Mh = like.response(w / like.dt)
+    target = np.concatenate([Nh, Mh], axis=2)                                                          # (F, l, m+l)
+    lower = uf.coprime_distance(like, sys)[0]
+    gap = lambda Q: _fir_gap(uf.CoprimeFactors(N=_left_multiply(Q, N), M=_left_multiply(Q, M), dt=like.dt),  # noqa
+                             like)
+    Q = _least_squares_multiplier_mimo(plant, target, w, like.horizon)
+    candidates = [(gap(Q), 0, Q)]
+    degree = like.horizon
+    while degree <= _Q_DEGREE_FACTOR * like.horizon:
+        Q = _minimax_multiplier_mimo(plant, target, w, degree)
+        if Q is not None:
+            candidates.append((gap(Q), len(candidates), Q))
+            if candidates[-1][0] <= 1.01 * lower:
+                break
+        degree *= 2
+    return min(candidates, key=lambda c: c[:2])[2]
+
+
+def _multiplier_basis(plant: np.ndarray, w: np.ndarray, degree: int) -> np.ndarray:
+    """``basis[f, (d, r), c] = e^{−jω_f d} [N M]_{r c}(ω_f)``: row k of ``Q[N M]`` is ``basis @ x_k`` with
+    ``x_k[(d, r)] = Q_d[k, r]``; shape (F, (degree + 1)·l, m + l)."""
+    zq = np.exp(-1j * np.outer(w, np.arange(degree + 1)))                                   # (F, d + 1)
+    return (zq[:, :, None, None] * plant[:, None, :, :]).reshape(w.size, -1, plant.shape[2])
+
+
+def _least_squares_multiplier_mimo(plant: np.ndarray, target: np.ndarray, w: np.ndarray, degree: int) -> np.ndarray:
+    """Q of ``degree``, ``Q[0] = I``, fitting ``Q[N M]`` to ``[N̂ M̂]`` in least squares over ``w`` (row by row: the
+    constraint moves Q[0]'s known part to the right-hand side)."""
+    l = plant.shape[1]
+    basis = _multiplier_basis(plant, w, degree)                                             # (F, (d+1) l, m+l)
+    A = np.swapaxes(basis, 1, 2).reshape(-1, basis.shape[1])                                # rows (f, c)
+    rhs = (target - plant).reshape(-1, l)   # Q[0] = I contributes [N M] itself: row k of target minus row k of plant
+    A, rhs = A[:, l:], rhs.astype(complex)
+    X = np.linalg.lstsq(np.vstack([A.real, A.imag]), np.vstack([rhs.real, rhs.imag]), rcond=None)[0]
+    return np.concatenate([np.eye(l)[None], X.reshape(degree, l, l).transpose(0, 2, 1)])
+
+
+def _minimax_multiplier_mimo(plant: np.ndarray, target: np.ndarray, w: np.ndarray, degree: int) -> np.ndarray | None:
+    """Q of ``degree``, ``Q[0] = I``, minimising ``max_ω ‖Q[N M] − [N̂ M̂]‖_F`` over ``w`` (None if the solve fails;
+    the Frobenius norm: :func:`true_factors`)."""
+    import cvxpy as cp
+
+    l, c = plant.shape[1], plant.shape[2]
+    basis = _multiplier_basis(plant, w, degree)
+    X, t = cp.Variable(((degree + 1) * l, l)), cp.Variable()   # X[(d, r), k] = Q_d[k, r]
+    parts = []
+    for e in range(c):   # entry e of every row k: basis[:, :, e] @ X[:, k] − target[:, k, e]
+        B, T = basis[:, :, e], target[:, :, e]
+        parts += [B.real @ X - T.real, B.imag @ X - T.imag]
+    problem = cp.Problem(cp.Minimize(t), [cp.norm(cp.hstack(parts), 2, axis=1) <= t, X[:l, :] == np.eye(l)])
+    try:
+        problem.solve(solver="CLARABEL")
+    except cp.error.SolverError:
+        return None
+    if problem.status != cp.OPTIMAL or X.value is None or not np.all(np.isfinite(X.value)):
+        return None
+    Q = np.asarray(X.value, float).reshape(degree + 1, l, l).transpose(0, 2, 1)
+    Q[0] = np.eye(l)  # exact: the solver meets the equality to its tolerance only
+    return Q
+
+
 def _fir_gap(F: uf.CoprimeFactors, G: uf.CoprimeFactors, points: int = 8192) -> float:
-    """``max_ω ‖[N_F − N_G  M_F − M_G]‖₂`` on a dense grid, one output (FIR differences: the grid sees every peak)."""
+    """``max_ω σ̄([N_F − N_G  M_F − M_G])`` on a dense grid (FIR differences: the grid sees every peak)."""
     k = max(F.horizon, G.horizon) + 1
-    pad = lambda X: np.vstack([X[:, 0, :], np.zeros((k - X.shape[0], X.shape[2]))])  # noqa: E731
-    diff = np.hstack([pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)])                     # (k, m + 1)
-    return float(np.max(np.linalg.norm(np.fft.rfft(diff, points, axis=0), axis=1)))
+    if F.outputs == 1:  # one output: the vector norm, as before (its results are pinned by the tests)
+        pad = lambda X: np.vstack([X[:, 0, :], np.zeros((k - X.shape[0], X.shape[2]))])  # noqa: E731
+        diff = np.hstack([pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)])                     # (k, m + 1)
+        return float(np.max(np.linalg.norm(np.fft.rfft(diff, points, axis=0), axis=1)))
+    pad = lambda X: np.concatenate([X, np.zeros((k - X.shape[0], *X.shape[1:]))])  # noqa: E731
+    diff = np.concatenate([pad(F.N) - pad(G.N), pad(F.M) - pad(G.M)], axis=2)     # (k, l, m + l)
+    return float(np.max(np.linalg.norm(np.fft.rfft(diff, points, axis=0), ord=2, axis=(1, 2))))
 
 
-def _coprime_perturbations(F: uf.CoprimeFactors, eps: float) -> list:
-    """The plants ``(M + Δ_M)⁻¹(N + Δ_N)`` for ``(Δ_N, Δ_M) = (εz⁻¹e₁ᵀ, 0), (−εe₁ᵀ, 0), (0, ε), (0, −ε)`` (one output)."""
+def _coprime_perturbations(F: uf.CoprimeFactors, eps: float, worst=None) -> list:
+    """Plants ``(M + Δ_M)⁻¹(N + Δ_N)`` with ``‖[Δ_N Δ_M]‖∞ = ε``.
+
+    One output: ``(Δ_N, Δ_M) = (εz⁻¹e₁ᵀ, 0), (−εe₁ᵀ, 0), (0, ε), (0, −ε)``.  Several outputs: the same with
+    ``e₁e₁ᵀ`` for ``e₁ᵀ`` and ``±εI`` for ``±ε``, and, with ``worst = (H, ω)`` (the coprime channel of the loop and
+    its peak frequency, rad/sample), the rank-one all-pass perturbation aligned with H's worst direction at ω
+    (:func:`_worst_direction_plant`): the one that makes ``I − [Δ_N −Δ_M]H`` singular there at ``ε = 1/σ̄(H(ω))``.
+    """
+    if F.outputs == 1:
+        plants = []
+        for k, dN, dM in ((1, eps, 0.0), (0, -eps, 0.0), (0, 0.0, eps), (0, 0.0, -eps)):
+            N, M = F.N[:, 0, :].copy(), F.M[:, 0, 0].copy()
+            if M.size < 2:
+                N, M = np.vstack([N, np.zeros((1, N.shape[1]))]), np.append(M, 0.0)
+            N[k, 0] += dN
+            M[0] += dM
+            M = M / M[0]  # the realisation keeps M(∞) = 1: divide both factors by it
+            N = N / (1.0 + dM)
+            plants.append(uf.CoprimeFactors(N=N[:, None, :], M=M.reshape(-1, 1, 1), dt=F.dt).model())
+        return plants
     plants = []
     for k, dN, dM in ((1, eps, 0.0), (0, -eps, 0.0), (0, 0.0, eps), (0, 0.0, -eps)):
-        N, M = F.N[:, 0, :].copy(), F.M[:, 0, 0].copy()
-        if M.size < 2:
-            N, M = np.vstack([N, np.zeros((1, N.shape[1]))]), np.append(M, 0.0)
-        N[k, 0] += dN
-        M[0] += dM
-        M = M / M[0]  # the realisation keeps M(∞) = 1: divide both factors by it
-        N = N / (1.0 + dM)
-        plants.append(uf.CoprimeFactors(N=N[:, None, :], M=M.reshape(-1, 1, 1), dt=F.dt).model())
+        N, M = F.N.copy(), F.M.copy()
+        N[k, 0, 0] += dN
+        M[0] += dM * np.eye(F.outputs)
+        # M(∞) = (1 + dM) I: dividing both factors by the scalar keeps the plant and M(∞) = I
+        plants.append(uf.CoprimeFactors(N=N / (1.0 + dM), M=M / (1.0 + dM), dt=F.dt).model())
+    if worst is not None:
+        plants.append(_worst_direction_plant(F, eps, *worst))
     return plants
+
+
+def _worst_direction_plant(F: uf.CoprimeFactors, eps: float, H, omega: float) -> control.StateSpace:
+    """``(M + Δ_M)⁻¹(N + Δ_N)`` for the rank-one ``[Δ_N  −Δ_M] = ε β(z) α(z)ᵀ`` aimed at H's worst direction.
+
+    With ``H(e^{jω}) = σ a bᴴ + …`` (``a`` of ``[u; y]``, ``b`` of ``v``): ``β_k = |b_k|·(all-pass of phase ∠b_k at
+    ω)`` and ``α_j = |a_j|·(all-pass of phase −∠a_j)``, so ``‖Δ‖∞ = ε`` (``‖β(e^{jθ})‖ = ‖α(e^{jθ})‖ = 1`` at every
+    θ) and ``Δ(e^{jω}) = ε b aᴴ``: the loop gain ``ΔH`` has the eigenvalue ``εσ`` there.  The plant is realised in
+    the factors' delay-line state (:meth:`unfalsify.CoprimeFactors.equation`) closed with ``v = Δ[u; y]``, as the
+    FIR perturbations are by :meth:`~unfalsify.CoprimeFactors.model`."""
+    z = np.exp(1j * omega)
+    U, _, Vh = np.linalg.svd(np.asarray(H.horner(z))[:, :, 0])
+    a, b = U[:, 0], np.conj(Vh[0])
+    phase = np.exp(-1j * np.angle(a[np.argmax(np.abs(a))]))  # b aᴴ is unchanged; a real H(ω) gives real a, b
+    a, b = a * phase, b * phase
+    alpha = _allpass_row(np.abs(a), -np.angle(a), omega, H.dt)                  # 1 × (m + l)
+    row = _allpass_row(np.abs(b), np.angle(b), omega, H.dt)
+    beta = control.ss(row.A.T, row.C.T, row.B.T, row.D.T, H.dt)                  # l × 1: the row transposed
+    delta = eps * control.series(alpha, beta)
+    return _close_equation(F.equation(), delta, F.inputs)
+
+
+def _allpass_row(gains: np.ndarray, phases: np.ndarray, omega: float, dt) -> control.StateSpace:
+    """A 1 × n system whose entry j is ``gains[j]·s(1 − a z)/(z − a)`` (|·| = gains[j] on the unit circle) with phase
+    ``phases[j]`` at ``e^{jω}``; a static ``±gains[j]`` where that phase is 0 or π (or ω is, where only those are
+    reachable).  One state per dynamic entry."""
+    z = np.exp(1j * omega)
+    n = gains.size
+    poles, cols, C, D = [], [], [], np.zeros((1, n))
+    for j, (g, th) in enumerate(zip(gains, phases)):
+        target = np.exp(1j * th)
+        if abs(target.imag) < 1e-9 or abs(np.sin(omega)) < 1e-9:
+            D[0, j] = g if target.real >= 0 else -g
+            continue
+        # s(1 − az)/(z − a) = e^{jθ}  ⇔  a = (s e^{jθ} z − 1)/(s e^{jθ} − z), real for one of s = ±1
+        found = [(s, a) for s in (1.0, -1.0) for a in [(s * target * z - 1.0) / (s * target - z)]
+                 if abs(a.imag) < 1e-6 and abs(a.real) < 1.0]
+        if not found:  # rounding at a phase next to 0 or π: the static gain of the nearer sign (still size g)
+            D[0, j] = g if target.real >= 0 else -g
+            continue
+        s, a = found[0][0], float(found[0][1].real)
+        poles.append(a)
+        cols.append(j)
+        C.append(g * s * (1.0 - a * a))
+        D[0, j] = -g * s * a
+    k = len(poles)
+    B = np.zeros((k, n))
+    B[np.arange(k), cols] = 1.0
+    return control.ss(np.diag(poles).reshape(k, k), B, np.array(C).reshape(1, k), D, dt)
+
+
+def _close_equation(G, delta, m: int) -> control.StateSpace:
+    """``u ↦ y`` of ``y = G[u; v]`` closed with ``v = Δ[u; y]`` (G: :meth:`unfalsify.CoprimeFactors.equation`)."""
+    Ag, Bg, Cg, Dg = (np.asarray(X, float) for X in control.ssdata(G))
+    Ad, Bd, Cd, Dd = (np.asarray(X, float) for X in control.ssdata(control.ss(delta)))
+    Bgu, Bgv, Dgu, Dgv = Bg[:, :m], Bg[:, m:], Dg[:, :m], Dg[:, m:]
+    Bdu, Bdy, Ddu, Ddy = Bd[:, :m], Bd[:, m:], Dd[:, :m], Dd[:, m:]
+    E = np.linalg.inv(np.eye(Cg.shape[0]) - Dgv @ Ddy)      # y = Cg x + Dgu u + Dgv (Cd xd + Ddu u + Ddy y)
+    Yx, Yd, Yu = E @ Cg, E @ Dgv @ Cd, E @ (Dgu + Dgv @ Ddu)
+    Vx, Vd, Vu = Ddy @ Yx, Cd + Ddy @ Yd, Ddu + Ddy @ Yu
+    A = np.block([[Ag + Bgv @ Vx, Bgv @ Vd], [Bdy @ Yx, Ad + Bdy @ Yd]])
+    B = np.vstack([Bgu + Bgv @ Vu, Bdu + Bdy @ Yu])
+    return control.ss(A, B, np.hstack([Yx, Yd]), Yu, G.dt)
 
 
 def result_premise_ratio(P, rd) -> tuple[float, str]:
