@@ -79,7 +79,9 @@ def test_the_premise_bracket_holds_a_known_perturbation_with_several_outputs():
     eps = 2.0 * size
     rd = SimpleNamespace(uncertainty="coprime", epsilon=eps, coprime=SimpleNamespace(factors=Fh))
     ratio, note = rp.result_premise_ratio(P, rd)
-    assert ratio == pytest.approx(high / eps, rel=1e-12) and f"{low / eps:.3g}" in note
+    # the smaller of two admissible perturbations' norms: Q's alignment, and [M̂P − N̂, 0] (P is stable)
+    assert ratio == pytest.approx(min(high, rp._equation_error_norm(P, Fh)) / eps, rel=1e-12)
+    assert f"{low / eps:.3g}" in note and low <= ratio * eps * (1 + 1e-9)
 
 
 def test_the_judge_measures_the_coprime_margin_of_a_several_output_loop():
@@ -129,3 +131,27 @@ def test_one_output_coprime_judgements_are_the_former_ones():
     t = judge(P, K, 0.01, 1.0, "coprime", F)
     assert t["small_gain"] == 0.01 * b.upper
     assert t["perturbed_max_radius"] == max(rp._loop_radius(pd, K) for pd in rp._coprime_perturbations(Ft, 0.01))
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (2, 2)])
+def test_the_equation_error_bounds_the_premise_where_p_hat_misses_a_slow_pole(shape):
+    """A slow pole P̂ misses (0.995): the FIR multiplier of true_factors cannot carry it, and the second upper end,
+    ``‖M̂P − N̂‖∞`` by a proven H∞ norm, is the tighter one.  Second route: the same norm on a dense grid, from the
+    factors' and the plant's frequency responses, within the bound and close to it; and never below the pointwise
+    lower end."""
+    l, m = shape
+    fast = _plant(l, m, seed=3, order=3)
+    slow = control.ss([[0.995]], 0.005 * np.ones((1, m)), -np.ones((l, 1)), np.zeros((l, m)), 1.0)
+    P = control.ss(fast + slow)
+    F = _model_factors(P, 3)
+    bound = rp._equation_error_norm(P, F)
+    w = np.concatenate([[0.0], np.geomspace(1e-5, np.pi, 6000)])
+    Nw, Mw = F.response(w)
+    grid = np.linalg.norm(Mw @ _response(P, w) - Nw, ord=2, axis=(1, 2)).max()
+    assert grid <= bound * (1 + 1e-9) and grid >= 0.99 * bound
+    low = uf.coprime_distance(F, P)[0]
+    rd = SimpleNamespace(uncertainty="coprime", epsilon=1.0, coprime=SimpleNamespace(factors=F))
+    ratio, note = rp.result_premise_ratio(P, rd)
+    assert low <= ratio * (1 + 1e-9) and ratio == pytest.approx(bound) and "M̂P − N̂" in note
+    assert rp._equation_error_norm(control.ss([[1.0]], [[1.0] * m], [[1.0]] * l, np.zeros((l, m)), 1.0), F) \
+        == float("inf")  # an integrator: R is not stable, no such perturbation
