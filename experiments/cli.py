@@ -33,16 +33,23 @@ class Options:
     extra: dict = field(default_factory=dict)
 
 
-def _positive(text: str) -> int:
-    """``--workers``, ``--repeats``: an integer ≥ 1, refused at parsing (a negative count had reached the run and ended
-    in a DataError traceback)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid count {text!r}: give an integer ≥ 1") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"invalid count {value}: give an integer ≥ 1")
-    return value
+def _int_at_least(minimum: int, what: str):
+    """An argparse type: an integer ≥ ``minimum``, refused at parsing with ``invalid <what>``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: give an integer ≥ {minimum}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"invalid {what} {value}: give an integer ≥ {minimum}")
+        return value
+    return parse
+
+
+#: ``--workers``, ``--repeats``: a negative count had reached the run and ended in a DataError traceback
+_positive = _int_at_least(1, "count")
+#: ``--seed``: numpy's generators take no negative seed
+_seed = _int_at_least(0, "seed")
 
 
 #: name -> ("module", "function", "one-line help"[, extra options]).  The optional fourth element is a
@@ -159,17 +166,6 @@ def _parser() -> argparse.ArgumentParser:
         for flags, kwargs in extra:
             _add_option(s, flags, kwargs)
     return p
-
-
-def _seed(text: str) -> int:
-    """``--seed``: an integer ≥ 0 (numpy's generators take no negative seed)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid seed {text!r}: give an integer ≥ 0") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"invalid seed {value}: give an integer ≥ 0")
-    return value
 
 
 def output_dir(out: Path, command: str) -> Path:
