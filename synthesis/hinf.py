@@ -184,7 +184,9 @@ def _warn_no_control(pred, stacklevel: int) -> None:
             f"the data show no effect of the control on the predicted output over the horizon i={i} (F-test of "
             f"L_u = 0: p = {p:.2g}): the plant's delay is at least {i} sample(s) (i = 1 on a strictly proper plant), "
             f"or L_u is lost in what so short a horizon leaves unpredicted, and the law acts on noise in L_u; use a "
-            f"horizon longer than the plant's delay (i >= 2 for a strictly proper plant) and the plant's order",
+            f"horizon longer than the plant's delay (i >= 2 for a strictly proper plant) and the plant's order (on "
+            f"closed-loop data, where the input is mostly the loop's response, the test can fail at any horizon: "
+            f"excite the loop through its reference, or fit on an open-loop record)",
             HorizonWarning, stacklevel=stacklevel + 1)
 
 
