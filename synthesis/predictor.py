@@ -20,7 +20,8 @@ from scipy.special import fdtrc
 from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import DataError, as_real_array, as_signal, check_count, check_horizon, check_nonnegative, check_sample_time
+from ._validation import (DataError, as_real_array, as_signal, check_count, check_horizon, check_nonnegative,
+                          check_sample_time)
 from .fingerprint import RecordFingerprint, record_fingerprint
 from .hankel import hankel_gram
 from ._repr import result

@@ -91,7 +91,8 @@ def tustin(sys_continuous, dt: float) -> control.StateSpace:
 _GAIN_ACCURACY_MARGIN = float(np.finfo(float).eps) * 1e6
 #: the refusal of gains a first-order weight cannot carry in double precision (:func:`makeweight`)
 _EXTREME = ("makeweight: dc = {dc:g}, crossover gain {mag:g} and hf = {hf:g} {why}; lower the ratios dc/mag and "
-            "mag/hf or raise the crossover frequency towards the sample rate (a weight's absolute level only rescales γ)")
+            "mag/hf or raise the crossover frequency towards the sample rate (a weight's absolute level only "
+            "rescales γ)")
 
 
 def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace:

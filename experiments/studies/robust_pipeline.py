@@ -160,8 +160,9 @@ def true_factors(P, like: uf.CoprimeFactors | None = None, points: int = 1024) -
     (2026-11-29, judgeM scripts): 0.56 s against 17 s at degree 4, 4.0 s against 42 s at degree 16, with σ̄ gaps
     equal to 4 digits (0.9092, 0.06244).  The norm the bracket reports is the singular value one, measured on the
     result, and since ``σ̄ ≤ ‖·‖_F ≤ √l σ̄`` it is at most √l times the least the σ̄ program would reach at that
-    degree: the upper end of the bracket is a proven bound of the distance either way, at worst less tight.  Factors made ``like`` a model are kept for the last few plants:
-    the judge and :func:`result_premise_ratio` ask for the same ones.
+    degree: the upper end of the bracket is a proven bound of the distance either way, at worst less tight.
+    Factors made ``like`` a model are kept for the last few plants: the judge and :func:`result_premise_ratio` ask
+    for the same ones.
 
     Examples
     --------
