@@ -140,8 +140,9 @@ class AdaptiveHinf:
         windows of 150 columns, 10 seeds), 88–96 % of the designs at ``i = d`` failed the check, 14 % at ``i = 1``
         below ``d = 2``.  The initial design, on the open-loop record, is the most telling.  A record spliced from
         two experiments (an integrating plant restarted from rest) fails the check as well, and so can a sliding
-        window of closed-loop data at a horizon well above the delay (the servo at ``i = 8``, 150 columns mostly
-        closed-loop: ``p = 0.019`` at the second update, measured): there the window does not determine ``L_u``.
+        window of closed-loop data at a horizon well above the delay (the servo at ``i = 8``, reference steps, noise
+        0.05: 2 of 30 runs warned with a 150-column window, 3 of 270 updates; 0 of 30 with a growing window):
+        there the window does not determine ``L_u``.
     PersistenceWarning, and any other
         The first warning of the run is raised once, the later ones are recorded in :attr:`history`.
 
