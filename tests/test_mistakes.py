@@ -362,3 +362,16 @@ def test_predict_and_the_recursive_options_refuse_text_and_arrays():
     with pytest.raises(DataError, match="unknown track"):
         synthesis.RecursivePredictor.from_data(u, y, 4, track=np.ones(3))
     assert pred.predict(pred.past_vector(u[-4:], y[-4:]), np.ones(4)).shape == (4, 1)
+
+
+def test_a_predictor_of_other_channels_is_named():
+    """estimate_delta / robust_design_from_data with a 2 × 2 predictor on one-input data had raised numpy's matmul
+    ValueError in the window check (a fuzz of the several-channel front ends, 2026-11-29)."""
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal((300, 2)))
+    y = np.column_stack([np.convolve(u[:, 0], [0, 0.5, 0.2])[:300], np.convolve(u[:, 1], [0, 0.3])[:300]])
+    pred = synthesis.fit_predictor(u, y + 0.02 * rng.standard_normal(y.shape), 3)
+    for call in (lambda: uf.estimate_delta(u[:60, :1], y[:60], 3, 0.001, predictor=pred),
+                 lambda: uf.estimate_delta(u[:60, :1], y[:60], 3, "auto", predictor=pred)):
+        with pytest.raises(DataError, match="its channels are not the data's"):
+            call()

@@ -493,7 +493,12 @@ def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, floa
     regressors and columns of ``[W_p; U_f]``, and ``‖R‖_F/‖Y_f‖_F``."""
     A, _, Yf = subspace_data(u, y, i)
     if predictor is not None:
-        R = Yf - np.hstack([predictor.Lw, predictor.Lu]) @ A
+        L = np.hstack([predictor.Lw, predictor.Lu])
+        if L.shape != (Yf.shape[0], A.shape[0]):  # a predictor of other channels had raised numpy's matmul error
+            raise DataError(f"predictor has [Lw Lu] of shape {L.shape} but these data need {Yf.shape[0]}×{A.shape[0]} "
+                            f"at horizon {i} (its channels are not the data's): fit it on data with the same inputs "
+                            f"and outputs (synthesis.fit_predictor(u, y, {i}))")
+        R = Yf - L @ A
     else:
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
         R = Yf - L @ A
