@@ -277,14 +277,21 @@ def _minimax_multiplier(plant, target, w: np.ndarray, degree: int) -> np.ndarray
     for p, b in zip(plant, target):
         Aq = p[:, None] * zq
         rows += [Aq.real @ q - b.real, Aq.imag @ q - b.imag]
-    problem = cp.Problem(cp.Minimize(t), [cp.norm(cp.vstack(rows), 2, axis=0) <= t, q[0] == 1.0])
+    return _optimal_value(cp.Problem(cp.Minimize(t), [cp.norm(cp.vstack(rows), 2, axis=0) <= t, q[0] == 1.0]), q)
+
+
+def _optimal_value(problem, variable) -> np.ndarray | None:
+    """``variable``'s value after solving ``problem`` with Clarabel, or None unless the solve is optimal and finite
+    (the multiplier searches then fall back to another degree or to least squares)."""
+    import cvxpy as cp
+
     try:
         problem.solve(solver="CLARABEL")
     except cp.error.SolverError:
         return None
-    if problem.status != cp.OPTIMAL or q.value is None or not np.all(np.isfinite(q.value)):
+    if problem.status != cp.OPTIMAL or variable.value is None or not np.all(np.isfinite(variable.value)):
         return None
-    return np.asarray(q.value, float)
+    return np.asarray(variable.value, float)
 
 
 def _gap(num: np.ndarray, den: np.ndarray, q: np.ndarray, like: uf.CoprimeFactors) -> float:
@@ -350,14 +357,11 @@ def _minimax_multiplier_mimo(plant: np.ndarray, target: np.ndarray, w: np.ndarra
     for e in range(c):   # entry e of every row k: basis[:, :, e] @ X[:, k] − target[:, k, e]
         B, T = basis[:, :, e], target[:, :, e]
         parts += [B.real @ X - T.real, B.imag @ X - T.imag]
-    problem = cp.Problem(cp.Minimize(t), [cp.norm(cp.hstack(parts), 2, axis=1) <= t, X[:l, :] == np.eye(l)])
-    try:
-        problem.solve(solver="CLARABEL")
-    except cp.error.SolverError:
+    value = _optimal_value(cp.Problem(cp.Minimize(t), [cp.norm(cp.hstack(parts), 2, axis=1) <= t,
+                                                       X[:l, :] == np.eye(l)]), X)
+    if value is None:
         return None
-    if problem.status != cp.OPTIMAL or X.value is None or not np.all(np.isfinite(X.value)):
-        return None
-    Q = np.asarray(X.value, float).reshape(degree + 1, l, l).transpose(0, 2, 1)
+    Q = value.reshape(degree + 1, l, l).transpose(0, 2, 1)
     Q[0] = np.eye(l)  # exact: the solver meets the equality to its tolerance only
     return Q
 
