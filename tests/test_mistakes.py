@@ -115,6 +115,16 @@ def test_predictor_dt_reaches_the_models_and_the_lqg_design():
     "uf.subspace_unfalsify(np.ones(60), np.ones(60), 3, 0.1, backend='structured', form='thesis')",
     "uf.toeplitz_norm(np.r_[1.0, np.nan])",  # had raised numpy's LinAlgError (SVD did not converge)
     "uf.untested_premises(np.r_[1.0, np.nan])",  # had returned () (every premise testable)
+    # a fuzz of the experiments' helpers (2026-11-29): numpy's or python-control's bare errors, or NaN poles
+    "ex.collect_data(ex.servo(), np.array(['1', 'x']))",
+    "ex.closed_loop(ex.servo(), ex.servo(), 1j * np.ones(10))",
+    "ex.step_sequence(10, ['a', 'b'], hold=2)",
+    "ex.damped_pair(None, 1.0)",
+    "ex.damped_pair(0.5, float('nan'))",
+    "ex.damped_pair(1.5, 1.0)",
+    "ex.zoh('P', 0.1)",
+    "ex.zoh(ex.servo(), 0.1)",  # already discrete
+    "ex.zoh(ex.third_order(continuous=True), 'x')",
 ])
 def test_bad_input_raises_the_toolkits_error_not_a_plain_value_error(call):
     """Every bad input names its problem through the toolkit's ValueError subclass (DataError), including the

@@ -16,13 +16,14 @@ block), which keeps the sampled model numerically sane, unlike a companion
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import control as ct
 import numpy as np
 from scipy.linalg import block_diag
 
-from synthesis.validation import DataError
+from synthesis.validation import DataError, check_instance, check_level, check_sample_time
 
 __all__ = [
     "servo",
@@ -261,6 +262,10 @@ def damped_pair(zeta: float, omega: float) -> np.ndarray:
     >>> damped_pair(0.6, 5.0)
     array([-3.+4.j, -3.-4.j])
     """
+    # checked: None or text had raised TypeError, NaN had returned NaN poles, ζ ≥ 1 a NaN imaginary part
+    omega = check_level(omega, "omega (the natural frequency, rad/s)")
+    if isinstance(zeta, bool) or not isinstance(zeta, numbers.Real) or not 0.0 <= zeta < 1.0:
+        raise DataError(f"zeta must be a damping ratio in [0, 1) (an oscillating pair), got {zeta!r}")
     re = -zeta * omega
     im = omega * np.sqrt(1.0 - zeta * zeta)
     return np.array([re + 1j * im, re - 1j * im])
@@ -282,9 +287,12 @@ def zoh(sys: ct.StateSpace, dt: float) -> ct.StateSpace:
     >>> P.dt, P.name, round(float(P.A[0, 0]), 6)
     (0.1, 'lag_zoh', 0.904837)
     """
-    if not np.isscalar(dt) or not np.isfinite(dt) or dt <= 0:
-        raise DataError(f"dt must be a positive sample time in seconds, got {dt!r}")
-    return ct.c2d(sys, float(dt), method="zoh", name=sys.name + "_zoh")
+    # checked: a non-system had raised AttributeError, a text dt TypeError; a discrete system is not re-sampled
+    check_instance(sys, (ct.StateSpace, ct.TransferFunction), "sys", "a continuous-time python-control system")
+    if sys.dt not in (0, None):
+        raise DataError(f"sys is already discrete (dt = {sys.dt}); zoh discretises a continuous plant (dt = 0)")
+    dt = check_sample_time(dt, "dt", allow_true=False)
+    return ct.c2d(sys, dt, method="zoh", name=sys.name + "_zoh")
 
 
 def modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) -> ct.StateSpace:

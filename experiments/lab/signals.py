@@ -118,7 +118,10 @@ def step_sequence(n: int, levels, hold: int) -> np.ndarray:
     """
     n = _check_length(n)
     hold = _check_length(hold, "hold")
-    lv = np.asarray(levels, dtype=float)
+    lv = np.asarray(levels)
+    if lv.dtype.kind not in "biuf":  # text or complex levels had raised numpy's ValueError or TypeError
+        raise DataError(f"levels must be real step values, got an array of dtype {lv.dtype}")
+    lv = lv.astype(float)
     if lv.ndim == 0 or lv.shape[0] == 0 or not np.all(np.isfinite(lv)):
         raise DataError("levels must be a non-empty finite array of step values")
     idx = (np.arange(n) // hold) % lv.shape[0]
