@@ -189,19 +189,18 @@ def main(argv: list[str] | None = None) -> int:
     # one folder per subcommand: results/demo/, results/design_example/, ... (``run`` writes into opts.out)
     opts = Options(quick=args.quick, json=args.json, out=output_dir(args.out, args.command), seed=args.seed,
                    extra={kw["dest"]: getattr(args, kw["dest"]) for _, kw in extra})
+    sub = parser._subparsers._group_actions[0].choices[args.command]  # the subcommand's own usage line
     try:
         opts.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # a folder that cannot be made had ended every command in a traceback
-        parser._subparsers._group_actions[0].choices[args.command].error(
-            f"cannot create the output folder {str(opts.out)!r} ({exc.strerror or exc}); pass --out a folder you can "
-            "write to")
+        sub.error(f"cannot create the output folder {str(opts.out)!r} ({exc.strerror or exc}); pass --out a folder "
+                  "you can write to")
     # with --json, stdout carries the JSON summary only: whatever a subcommand prints goes to stderr
     input_errors = tuple(getattr(mod, "INPUT_ERRORS", ()))
     try:
         with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
             summary = run(opts)
     except input_errors as exc:
-        sub = parser._subparsers._group_actions[0].choices[args.command]  # the subcommand's own usage line
         sub.error(str(exc))
     if args.json:
         sys.stdout.write(dumps_json(summary, strict=True) + "\n")
