@@ -134,6 +134,7 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
 ------------------------------------------------------------------------------
 
    result                 -- class decorator of the frozen result dataclasses (short repr, equality, pickling)
+   as_real_array          -- an array of real numbers of any shape (text, complex, None refused), or a ``DataError``
    as_signal              -- a signal as a float array ``(n, k)``, time along axis 0, or a ``DataError``
    as_discrete_system     -- a discrete-time python-control system, or a ``DataError`` naming the fix
    check_horizon          -- a prediction horizon i checked against the number of samples
@@ -253,8 +254,9 @@ from importlib.metadata import version as _version
 
 from .exceptions import DataError, InputTypeError
 from .results import result
-from .validation import (as_discrete_system, as_signal, check_count, check_flag, check_horizon, check_instance,
-                         check_level, check_nonnegative, check_predictor_dt, check_same_dt, check_sample_time)
+from .validation import (as_discrete_system, as_real_array, as_signal, check_count, check_flag, check_horizon,
+                         check_instance, check_level, check_nonnegative, check_predictor_dt, check_same_dt,
+                         check_sample_time)
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -377,6 +379,7 @@ __all__ = [
     "NEAR_GAMMA_MIN_RATIO",
     # building blocks for the packages on synthesis
     "result",
+    "as_real_array",
     "as_signal",
     "as_discrete_system",
     "check_horizon",

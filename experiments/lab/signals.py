@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import max_len_seq
 
-from synthesis.validation import DataError, check_count
+from synthesis.validation import DataError, as_real_array, check_count
 
 __all__ = ["prbs", "white_noise", "step_sequence", "step"]
 
@@ -118,10 +118,7 @@ def step_sequence(n: int, levels, hold: int) -> np.ndarray:
     """
     n = _check_length(n)
     hold = _check_length(hold, "hold")
-    lv = np.asarray(levels)
-    if lv.dtype.kind not in "biuf":  # text or complex levels had raised numpy's ValueError or TypeError
-        raise DataError(f"levels must be real step values, got an array of dtype {lv.dtype}")
-    lv = lv.astype(float)
+    lv = as_real_array(levels, "levels")  # text or complex levels had raised numpy's ValueError or TypeError
     if lv.ndim == 0 or lv.shape[0] == 0 or not np.all(np.isfinite(lv)):
         raise DataError("levels must be a non-empty finite array of step values")
     idx = (np.arange(n) // hold) % lv.shape[0]

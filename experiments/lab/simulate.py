@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from synthesis.validation import DataError, as_discrete_system
+from synthesis.validation import DataError, as_discrete_system, as_real_array
 
 __all__ = [
     "AlgebraicLoopError",
@@ -133,10 +133,7 @@ def _check_same_dt(a, b, what: str) -> None:
 
 
 def _signal(x, name: str, width: int, n: int | None = None) -> np.ndarray:
-    arr = np.asarray(x)
-    if arr.dtype.kind not in "biuf":  # text or complex samples had raised numpy's ValueError or TypeError
-        raise DataError(f"{name} must be real numbers, got an array of dtype {arr.dtype}")
-    arr = arr.astype(float)
+    arr = as_real_array(x, name)  # text or complex samples had raised numpy's ValueError or TypeError
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] == 0:

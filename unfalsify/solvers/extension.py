@@ -23,6 +23,7 @@ import scipy.signal
 from scipy.sparse.linalg import svds
 
 from synthesis import DataError
+from synthesis.validation import as_real_array
 
 from ..exceptions import IllConditionedWarning
 from .toeplitz import DENSE_LIMIT, block_certified_norm, block_toeplitz_matrix, norm_below_by_cholesky
@@ -70,10 +71,7 @@ def minimal_extension(h, n: int) -> np.ndarray:
     [1.0, 1.0]
     """
     siso = np.ndim(h) == 1
-    h = np.asarray(h)
-    if h.dtype.kind not in "biuf":  # a string or complex h had raised numpy's bare ValueError or TypeError
-        raise DataError(f"Markov parameters h must be real numbers, got an array of dtype {h.dtype}")
-    h = h.astype(float)
+    h = as_real_array(h, "the Markov parameters h")  # a string or complex h had raised numpy's bare errors
     h3 = h[:, None, None] if siso else h
     if h3.ndim != 3:
         raise DataError(f"Markov parameters must have shape (k,) or (k, l, m), got {h.shape}")
