@@ -383,5 +383,5 @@ def test_a_predictor_of_other_channels_is_named():
     pred = synthesis.fit_predictor(u, y + 0.02 * rng.standard_normal(y.shape), 3)
     for call in (lambda: uf.estimate_delta(u[:60, :1], y[:60], 3, 0.001, predictor=pred),
                  lambda: uf.estimate_delta(u[:60, :1], y[:60], 3, "auto", predictor=pred)):
-        with pytest.raises(DataError, match="its channels are not the data's"):
+        with pytest.raises(DataError, match=r"predictor of horizon 3 for 1 input\(s\) and 2 output\(s\)"):
             call()

@@ -81,7 +81,7 @@ from .options import (CertificateOptions, DesignOptions, DesignSearch, Estimatio
 from .premise import (HIDDEN_LINE_LIMIT, LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _hidden_gain,
                       _hidden_line_statement, _line_gain, _line_spectra, check_premise,
                       glitch_note, operating_point_note, unconfirmed_premise, untested_premises)
-from .subspace import SubspaceResult, subspace_data, subspace_unfalsify
+from .subspace import SubspaceResult, _fixed_predictor, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
 
@@ -492,16 +492,11 @@ def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, floa
     """rms of ``R = Y_f − L [W_p; U_f]`` on the window (L: the given predictor, or least squares on the window), the
     regressors and columns of ``[W_p; U_f]``, and ``‖R‖_F/‖Y_f‖_F``."""
     A, _, Yf = subspace_data(u, y, i)
-    if predictor is not None:
-        L = np.hstack([predictor.Lw, predictor.Lu])
-        if L.shape != (Yf.shape[0], A.shape[0]):  # a predictor of other channels had raised numpy's matmul error
-            raise DataError(f"predictor has [Lw Lu] of shape {L.shape} but these data need {Yf.shape[0]}×{A.shape[0]} "
-                            f"at horizon {i} (its channels are not the data's): fit it on data with the same inputs "
-                            f"and outputs (synthesis.fit_predictor(u, y, {i}))")
-        R = Yf - L @ A
+    if predictor is not None:  # the problem's own check (a predictor of other channels had raised numpy's matmul error)
+        L = _fixed_predictor(predictor, i, *_channels(*channel_pair(u, y)))
     else:
         L = np.linalg.lstsq(A.T, Yf.T, rcond=None)[0].T
-        R = Yf - L @ A
+    R = Yf - L @ A
     norm = float(np.linalg.norm(R))
     return norm / np.sqrt(R.size), A.shape[0], A.shape[1], norm / max(float(np.linalg.norm(Yf)), np.finfo(float).tiny)
 
@@ -1118,13 +1113,13 @@ REFERENCE_COLUMNS = 10
 REFERENCE_HORIZON_CAP = 60
 
 
-def _reference_horizon(options: CertificateOptions, i: int, space: "_DesignSpace | None" = None) -> int:
+def _reference_horizon(options: CertificateOptions, i: int, space: "_DesignSpace") -> int:
     """The horizon of the reference model P̂_ref: ``options.reference_horizon`` when given; otherwise the longest
     horizon the fitting record supports (:func:`_record_horizon`), at least 2i; 2i when the record's length is
     unknown (a ``predictor_for`` without a fitted predictor)."""
     if options.reference_horizon is not None:
         return int(options.reference_horizon)
-    longest = _record_horizon(space) if space is not None else None
+    longest = _record_horizon(space)
     return 2 * i if longest is None else max(2 * i, longest)
 
 

@@ -253,19 +253,7 @@ class SubspaceProblem:
         A, Uf, Yf = subspace_data(u, y, horizon)
         i, j = Uf.shape[0] // m, Uf.shape[1]
         check_noise_resolution(sigma, Yf.size, Yf, "Y_f")
-        L_fixed = None
-        if predictor is not None:
-            if not all(hasattr(predictor, name) for name in ("Lw", "Lu", "horizon")):  # by what it offers, not its class
-                raise InputTypeError(f"predictor must be a synthesis.Predictor (synthesis.fit_predictor(u, y, {i})), "
-                                     f"got {type(predictor).__name__}")
-            L_fixed = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
-            if int(predictor.horizon) != i or L_fixed.shape != (i * l, i * (2 * m + l)) or not np.all(
-                    np.isfinite(L_fixed)):
-                raise DataError(
-                    f"predictor must be a finite predictor of horizon {i} for {m} input(s) and {l} output(s) "
-                    f"(Lw {i * l}×{i * (m + l)}, Lu {i * l}×{i * m}); got horizon {predictor.horizon}, [Lw Lu] of "
-                    f"shape {L_fixed.shape} (fit it on the same data: synthesis.fit_predictor(u, y, {i}))"
-                )
+        L_fixed = None if predictor is None else _fixed_predictor(predictor, i, m, l)
         if m == 1:
             cond = max(toeplitz_cond(Uf[:, k]) for k in range(j))
         else:
@@ -421,6 +409,23 @@ def _window_shift(old: SubspaceProblem, new: SubspaceProblem) -> int | None:
         if np.array_equal(zo[k : k + n], zn[:n]):
             return int(k)
     return None
+
+
+def _fixed_predictor(predictor, i: int, m: int, l: int) -> np.ndarray:
+    """``[L_w L_u]`` of a given predictor, checked against data of horizon ``i``, ``m`` inputs and ``l`` outputs:
+    :class:`InputTypeError` for an object that is no predictor, :class:`DataError` for another horizon, other
+    channels or non-finite entries (the window check of :func:`unfalsify.estimate_delta` uses it too)."""
+    if not all(hasattr(predictor, name) for name in ("Lw", "Lu", "horizon")):  # by what it offers, not its class
+        raise InputTypeError(f"predictor must be a synthesis.Predictor (synthesis.fit_predictor(u, y, {i})), "
+                             f"got {type(predictor).__name__}")
+    L = np.hstack([np.asarray(predictor.Lw, float), np.asarray(predictor.Lu, float)])
+    if int(predictor.horizon) != i or L.shape != (i * l, i * (2 * m + l)) or not np.all(np.isfinite(L)):
+        raise DataError(
+            f"predictor must be a finite predictor of horizon {i} for {m} input(s) and {l} output(s) "
+            f"(Lw {i * l}×{i * (m + l)}, Lu {i * l}×{i * m}); got horizon {predictor.horizon}, [Lw Lu] of "
+            f"shape {L.shape} (fit it on the same data: synthesis.fit_predictor(u, y, {i}))"
+        )
+    return L
 
 
 def _warm_state(prev, P: SubspaceProblem, name: str) -> tuple[dict | None, str]:
