@@ -243,14 +243,23 @@ def _closest_multiplier(num: np.ndarray, den: np.ndarray, like: uf.CoprimeFactor
     plant = [zp @ c for c in (*num, den)]                                          # N_j(ω), M(ω)
     Nh, Mh = like.response(w / like.dt)
     target = [Nh[:, 0, j] for j in range(num.shape[0])] + [Mh[:, 0, 0]]
-    lower = uf.coprime_distance(like, sys)[0]
-    q = _least_squares_multiplier(plant, target, w, like.horizon)
-    candidates = [(_gap(num, den, q, like), q)]
-    degree = like.horizon
-    while degree <= _Q_DEGREE_FACTOR * like.horizon:
-        q = _minimax_multiplier(plant, target, w, degree)
+    return _multiplier_ladder(lambda q: _gap(num, den, q, like),
+                              lambda d: _least_squares_multiplier(plant, target, w, d),
+                              lambda d: _minimax_multiplier(plant, target, w, d),
+                              like.horizon, uf.coprime_distance(like, sys)[0])
+
+
+def _multiplier_ladder(gap, least_squares, minimax, horizon: int, lower: float):
+    """The candidate Q of least ``gap``: least squares at degree ``horizon``, then the minimax at ``horizon``, twice
+    that, … up to :data:`_Q_DEGREE_FACTOR` times it, stopping once a gap is within 1 % of the pointwise ``lower``
+    bound (a failed minimax solve, None, is skipped).  Shared by one output and several."""
+    q = least_squares(horizon)
+    candidates = [(gap(q), q)]
+    degree = horizon
+    while degree <= _Q_DEGREE_FACTOR * horizon:
+        q = minimax(degree)
         if q is not None:
-            candidates.append((_gap(num, den, q, like), q))
+            candidates.append((gap(q), q))
             if candidates[-1][0] <= 1.01 * lower:
                 break
         degree *= 2
@@ -310,20 +319,11 @@ def _closest_multiplier_mimo(N: np.ndarray, M: np.ndarray, like: uf.CoprimeFacto
     plant = np.concatenate([np.einsum("fd,dab->fab", zp, N), np.einsum("fd,dab->fab", zp, M)], axis=2)  # (F, l, m+l)
     Nh, Mh = like.response(w / like.dt)
     target = np.concatenate([Nh, Mh], axis=2)                                                          # (F, l, m+l)
-    lower = uf.coprime_distance(like, sys)[0]
-    gap = lambda Q: _fir_gap(uf.CoprimeFactors(N=_left_multiply(Q, N), M=_left_multiply(Q, M), dt=like.dt),  # noqa
-                             like)
-    Q = _least_squares_multiplier_mimo(plant, target, w, like.horizon)
-    candidates = [(gap(Q), 0, Q)]
-    degree = like.horizon
-    while degree <= _Q_DEGREE_FACTOR * like.horizon:
-        Q = _minimax_multiplier_mimo(plant, target, w, degree)
-        if Q is not None:
-            candidates.append((gap(Q), len(candidates), Q))
-            if candidates[-1][0] <= 1.01 * lower:
-                break
-        degree *= 2
-    return min(candidates, key=lambda c: c[:2])[2]
+    return _multiplier_ladder(
+        lambda Q: _fir_gap(uf.CoprimeFactors(N=_left_multiply(Q, N), M=_left_multiply(Q, M), dt=like.dt), like),
+        lambda d: _least_squares_multiplier_mimo(plant, target, w, d),
+        lambda d: _minimax_multiplier_mimo(plant, target, w, d),
+        like.horizon, uf.coprime_distance(like, sys)[0])
 
 
 def _multiplier_basis(plant: np.ndarray, w: np.ndarray, degree: int) -> np.ndarray:
