@@ -187,7 +187,8 @@ class RobustDesignResult:
         Why there is no reference model (``''`` when there is one).
     uncertainty : {"additive", "coprime"}
         The family the certificate speaks of (``CertificateOptions.uncertainty``): ``P̂ + Δ`` with
-        ``‖Δ‖∞ ≤ (1 + margin)·delta``, or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)·epsilon``.
+        ``‖Δ‖∞ ≤ (1 + certificate.margin)·delta``, or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with
+        ``‖[Δ_N Δ_M]‖∞ ≤ (1 + certificate.margin)·epsilon`` (the certificate's margin, not the W3 rule's ``margin``).
         The design is sized by ``delta`` either way.
     coprime : CoprimePremise or None
         The coprime-factor premise (ε by Theorem 7.1 on the equation error, in sample and held out, each with

@@ -674,7 +674,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "uncertainty": res.uncertainty, "epsilon": float(res.epsilon) if res.uncertainty == "coprime" else None,
-        "margin": float(res.margin), "additive_reason": res.additive_reason,
+        "certificate_margin": float(res.certificate.margin), "margin": float(res.margin),
+        "additive_reason": res.additive_reason,
         "tracking_floor": _floors_json(res.certificate.tracking_floor), "assumed": list(res.assumed),
         "premise_note": res.premise_note,
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
@@ -709,7 +710,9 @@ def _floors_json(floor):
 
 def _family(res) -> str:
     """The set of plants the verdict speaks of: the additive ball about P̂, or the coprime-factor ball."""
-    ball = f"every plant within (1 + {res.margin:g})"
+    # the certificate's margin (default 0.25), not ``res.margin``, the W3 rule's (0.1): the report had stated the
+    # ball as 1.1 δ beside a premise note and a README that say 1.25 δ
+    ball = f"every plant within (1 + {res.certificate.margin:g})"
     if res.uncertainty == "coprime":
         return (f"ε = {_fmt(res.epsilon)} in coprime-factor form ({ball}·ε of P̂ = M̂⁻¹N̂ in ‖[Δ_N Δ_M]‖∞; "
                 f"the design is sized by δ = {_fmt(res.delta)})")
