@@ -41,3 +41,31 @@ def test_every_public_function_has_a_runnable_examples_section(pkg):
     missing = [name for name in pkg.__all__ if inspect.isfunction(getattr(pkg, name))
                and not re.search(r"^Examples\n-+\n", inspect.getdoc(getattr(pkg, name)) or "", re.M)]
     assert not missing, f"public functions without a numpydoc Examples section: {missing}"
+
+
+def _readme_rows(text: str) -> list[tuple[str, str]]:
+    """(first cell, second cell) of every markdown table row of ``experiments/README.md``."""
+    rows = []
+    for line in text.splitlines():
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+        if len(cells) >= 2:
+            rows.append((cells[0], cells[1]))
+    return rows
+
+
+def test_experiments_readme_lists_every_subcommand_and_its_options():
+    # the README promises "every python -m experiments subcommand, its options and the files it writes":
+    # robust-adversarial (and four bench-unfalsify options) had been left out of its tables
+    from experiments.cli import COMMANDS, _entry
+
+    rows = _readme_rows((ROOT / "experiments" / "README.md").read_text())
+    firsts = [first for first, _ in rows]
+    missing = [name for name in COMMANDS if not any(re.match(rf"`{re.escape(name)}[ `]", f) for f in firsts)]
+    assert not missing, f"subcommands without a row in experiments/README.md: {missing}"
+    undocumented = []
+    for name in COMMANDS:
+        for flags, _ in _entry(name)[3]:
+            flag = flags[0] if flags[0].startswith("-") else flags[0].upper()
+            if not any(first == f"`{name}`" and flag in second for first, second in rows):
+                undocumented.append(f"{name} {flag}")
+    assert not undocumented, f"options without a row in experiments/README.md's options table: {undocumented}"
