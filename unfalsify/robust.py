@@ -62,7 +62,8 @@ from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_level, check_nonnegative, check_predictor_dt, check_sample_time)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
+from ._common import (NOISE_RESOLUTION, channel_pair, check_output_moves, check_predictor, check_sigma,
+                      samples_at_rest)
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
@@ -1031,6 +1032,7 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
         "or None")
     predictor = check_predictor(predictor)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+    check_output_moves(channel_pair(u, y)[1], "the window")  # before σ = "auto", which a zero output makes 0
     if isinstance(sigma, str) and sigma == "auto":
         sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]
     sigma = check_sigma(sigma)
