@@ -273,3 +273,23 @@ def test_an_empty_array_is_a_record_error(tmp_path):
     np.savez(path, u=np.zeros(0), y=np.zeros(0))
     with pytest.raises(RecordError, match="'u' is empty"):
         load_record(path, u="u", y="y", dt=0.1)
+
+
+def test_a_spreadsheet_file_names_the_formats_to_save_it_in(tmp_path, capsys):
+    # record_columns (the design CLI's first look at a file) had passed an .xlsx to the NPZ/MAT reader: "cannot read
+    # ... as NPZ or MAT: its ending is '.xlsx'", which names no format to save the data in
+    from experiments import record_columns
+    from experiments.cli import main
+
+    sheet = tmp_path / "run.xlsx"
+    sheet.write_bytes(b"PK\x03\x04 a spreadsheet")
+    fix = r"the ending '\.xlsx' is not one of \.csv, \.txt, \.npz, \.mat; save the data as CSV"
+    with pytest.raises(RecordError, match=fix):
+        record_columns(sheet)
+    with pytest.raises(RecordError, match=fix):
+        load_record(sheet, u=0, y=1, dt=1)
+    with pytest.raises(SystemExit) as exc:
+        main(["design", str(sheet), "--horizon", "5", "--out", str(tmp_path)])
+    assert exc.value.code == 2 and "save the data as CSV" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError):
+        record_columns(tmp_path / "missing.csv")

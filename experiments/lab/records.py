@@ -339,13 +339,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     (2, 2, 50, 1.0)
     """
     path = Path(path)
-    fmt = path.suffix.lower()
-    if fmt not in RECORD_FORMATS:
-        raise RecordError(f"cannot read {str(path)!r}: the ending {fmt or '(none)'!r} is not one of "
-                          f"{', '.join(RECORD_FORMATS)}; save the data as CSV (a header row and one column per "
-                          "signal), NPZ or MAT")
-    if not path.exists():
-        raise FileNotFoundError(f"no data file {str(path)!r}")
+    fmt = _record_format(path)
     u_sel, y_sel = _as_list(u, "u"), _as_list(y, "y")
     if u_sel is None or y_sel is None:
         raise RecordError("pass both u= and y= (the input and output columns)")
@@ -430,6 +424,18 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                   t=T)
 
 
+def _record_format(path: Path) -> str:
+    """The file's ending, checked: one :data:`RECORD_FORMATS` reads, and a file that exists."""
+    fmt = path.suffix.lower()
+    if fmt not in RECORD_FORMATS:
+        raise RecordError(f"cannot read {str(path)!r}: the ending {fmt or '(none)'!r} is not one of "
+                          f"{', '.join(RECORD_FORMATS)}; save the data as CSV (a header row and one column per "
+                          "signal), NPZ or MAT")
+    if not path.exists():
+        raise FileNotFoundError(f"no data file {str(path)!r}")
+    return fmt
+
+
 def record_columns(path, variable: str | None = None) -> tuple[list[str] | None, int | None]:
     """The column names and the number of columns of a record file, before choosing ``u`` and ``y``.
 
@@ -452,7 +458,8 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     FileNotFoundError
         No file at ``path``.
     RecordError
-        A CSV without data rows.
+        A CSV without data rows; an ending :func:`load_record` does not read (``.xlsx``: the message names the
+        formats to save the data in).
 
     Examples
     --------
@@ -464,10 +471,10 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     ...     record_columns(f)
     (['t', 'u', 'y'], 3)
     """
+    # the ending first, as load_record checks it: an .xlsx had reached the NPZ/MAT reader and its bare
+    # "cannot read as NPZ or MAT", which names no format to save the data in
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no data file {str(path)!r}")
-    fmt = path.suffix.lower()
+    fmt = _record_format(path)
     if fmt in (".csv", ".txt"):
         header, table = _read_csv(path, None)
         _check_orientation(table, path)
