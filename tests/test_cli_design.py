@@ -461,3 +461,17 @@ def test_a_time_array_in_an_npz_or_mat_file_is_read_like_a_time_column(tmp_path)
         assert rec.dt == pytest.approx(dt) and np.array_equal(rec.u[:, 0], u)
     np.savez(tmp_path / "two.npz", u=u, y=y, t=t, time=t)  # two candidates: none is guessed
     assert _select(tmp_path / "two.npz", {})[2] is None
+
+
+@pytest.mark.parametrize("name", ["time [s]", "Time (s)", "t [ms]", "TIME"])
+def test_a_time_column_with_its_unit_in_the_name_is_found(tmp_path, name):
+    # loggers write the unit into the header; "time [s]" had not been found, the record had then been refused for
+    # "no time column" (with --u/--y given) or its time column offered as a third signal (without)
+    from experiments.lab.records import load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "units.csv", [name, "force [N]", "position [m]"], [t, u, y])
+    assert _select(path, {})[:3] == ("force [N]", "position [m]", name)
+    assert _select(path, {"u": "force [N]", "y": "position [m]"})[2] == name
+    assert load_record(path, u="force [N]", y="position [m]", t=name).dt == pytest.approx(dt)

@@ -293,3 +293,33 @@ def test_a_spreadsheet_file_names_the_formats_to_save_it_in(tmp_path, capsys):
     assert exc.value.code == 2 and "save the data as CSV" in capsys.readouterr().err
     with pytest.raises(FileNotFoundError):
         record_columns(tmp_path / "missing.csv")
+
+
+def test_a_units_row_under_the_header_is_named(tmp_path, signals):
+    # a logger's units row had been read as data: "'s' is not a number; fix the file or drop that column"
+    t, u, y = signals
+    path = tmp_path / "units.csv"
+    rows = "\n".join(",".join(f"{x:.17g}" for x in row) for row in np.column_stack([t, u, y]))
+    path.write_text("time,u1,u2,y\ns,N,N,m\n" + rows + "\n")
+    with pytest.raises(RecordError, match=r"the row after the header \(s, N, N, m\) holds no number: a second header "
+                                          r"row \(units\?\); delete it, or start it with '#'"):
+        load_record(path, u="u1", y="y", t="time")
+    path.write_text("time,u1,u2,y\n# s,N,N,m\n" + rows + "\n")  # the fix the message names
+    assert load_record(path, u="u1", y="y", t="time").n == len(t)
+
+
+@pytest.mark.parametrize("header", [True, False])
+def test_a_delimiter_at_the_end_of_every_line_adds_no_column(tmp_path, signals, header):
+    # "t,u1,u2,y," (a spreadsheet's export) had given a fourth column of NaN named '', offered as a signal
+    from experiments import record_columns
+
+    t, u, y = signals
+    rows = "\n".join(",".join(f"{x:.17g}" for x in row) + "," for row in np.column_stack([t, u, y]))
+    path = tmp_path / "trailing.csv"
+    path.write_text(("time,u1,u2,y,\n" if header else "") + rows + "\n")
+    names, width = record_columns(path)
+    assert width == 4 and names == (["time", "u1", "u2", "y"] if header else None)
+    rec = load_record(path, u=[1, 2], y=3, t=0)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+    with pytest.raises(RecordError, match="out of range"):  # the empty column is gone, not a NaN signal
+        load_record(path, u=1, y=4, t=0)

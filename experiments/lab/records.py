@@ -143,11 +143,17 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         except ValueError:
             return False
 
+    rows = _without_trailing_empty_column(rows)
     header = None
     if not all(numeric(c) for c in rows[0]):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
+    if header is not None and not any(numeric(c) for c in rows[0]):
+        # a logger's units row ("s,N,m") under the names had been read as data: "'s' is not a number; drop that
+        # column", which sends the user to the wrong fix
+        raise RecordError(f"{str(path)!r}: the row after the header ({', '.join(rows[0])}) holds no number: a second "
+                          "header row (units?); delete it, or start it with '#' to mark it as a comment")
     if header is not None and _labels_in_first_column(header, rows, numeric):
         names = ", ".join([header[0]] + [r[0] for r in rows])
         raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row "
@@ -169,6 +175,15 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                 raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
                                   "fix the file or drop that column") from None
     return header, data
+
+
+def _without_trailing_empty_column(rows):
+    """Drop the empty last field that a delimiter at the end of every line (the header's too) makes (``t,u,y,``, as
+    some spreadsheets export): it had been read as a signal column of NaN named '', or, without a header, had made the
+    first data row look like one."""
+    while rows and all(len(r) > 1 and r[-1] == "" for r in rows):
+        rows = [r[:-1] for r in rows]
+    return rows
 
 
 def _labels_in_first_column(header, rows, numeric) -> bool:

@@ -4,7 +4,7 @@ The §7.4 workflow on a data file, with no simulator behind it:
 
 1. :func:`experiments.load_record` reads the input and output channels (CSV, NPZ or MAT; ``--u`` and ``--y``
    take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``, by default a
-   CSV column or an NPZ/MAT array named t or time);
+   CSV column or an NPZ/MAT array named t or time, also with a unit in brackets: ``time [s]``);
    ``--detrend mean`` subtracts the record's means (an operating point: the models have no constant term), and
    without it the report names any channel whose mean is large (:func:`operating_point`);
 2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import time
 import warnings
 from pathlib import Path
@@ -252,7 +253,7 @@ def _select(path: Path, extra: dict):
     if t is None and names is not None:
         # a CSV with a column called t/time: its step is the sample time (no --dt needed; with --dt, the two are
         # checked against each other), and it is never taken for a signal
-        hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
+        hits = [k for k, nm in enumerate(names) if _is_time_name(nm)]
         t = names[hits[0]] if hits else None
     elif t is None and width is None and variable is None:
         t = _time_array(path, u, y)
@@ -290,9 +291,17 @@ def _time_array(path: Path, u, y):
 
     chosen = _chosen(u, y)
     arrays = read_variables(path, error=RecordError)
-    hits = [k for k, a in arrays.items() if k.strip().lower() in _TIME_NAMES and k not in chosen
+    hits = [k for k, a in arrays.items() if _is_time_name(k) and k not in chosen
             and np.asarray(a).dtype.kind in "biuf" and np.size(a) > 1 and max(np.shape(a)) == np.size(a)]
     return hits[0] if len(hits) == 1 else None
+
+
+def _is_time_name(name: str) -> bool:
+    """A column or array named like a time column: t, time, … (:data:`_TIME_NAMES`, any case), also with a unit in
+    brackets, ``time [s]`` or ``Time (ms)`` as loggers write them (such a column had not been found, and the record
+    was refused for "no time column")."""
+    bare = re.sub(r"\s*(\[[^\]]*\]|\([^)]*\))\s*$", "", str(name).strip())
+    return bare.strip().lower() in _TIME_NAMES
 
 
 def _chosen(u, y) -> list:
