@@ -22,14 +22,37 @@ def test_every_public_name_is_in_the_package_index(pkg):
     assert not sorted(indexed - set(pkg.__all__)), "index entries that are not public names"
 
 
-@pytest.mark.parametrize("doc", ["README.md", "experiments/README.md", "experiments/studies/README.md",
-                                 "experiments/studies/RESULTS.md", "experiments/bench/README.md",
-                                 "experiments/bench/BENCHMARKS.md", "experiments/data/README.md",
-                                 "docs/UNFALSIFICATION.md", "docs/ERRATA.md", "docs/ERRORS.md", "CHANGELOG.md"])
+_DOCS = ["README.md", "experiments/README.md", "experiments/studies/README.md", "experiments/studies/RESULTS.md",
+         "experiments/bench/README.md", "experiments/data/README.md", "docs/UNFALSIFICATION.md", "docs/ERRATA.md",
+         "docs/ERRORS.md", "experiments/bench/BENCHMARKS.md", "CHANGELOG.md"]
+
+
+@pytest.mark.parametrize("doc", _DOCS)
 def test_relative_links_point_to_files(doc):
     path = ROOT / doc
     for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", path.read_text()):
         assert (path.parent / target).exists(), f"{doc} links to missing {target}"
+
+
+def _slug(heading: str) -> str:
+    """The anchor GitHub gives a markdown heading: lower case, punctuation dropped, spaces as hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+@pytest.mark.parametrize("doc", _DOCS)
+def test_link_anchors_name_a_heading(doc):
+    # ERRATA's link to UNFALSIFICATION.md#robust-design-74-two-corrections-to-the-thesis led nowhere: the heading had
+    # been overwritten when the several-channels section was added above it
+    path = ROOT / doc
+    for target, anchor in re.findall(r"\]\(([^)#:]*)#([^)]*)\)", path.read_text()):
+        heads = [_slug(h) for h in re.findall(r"^#+ (.*)$", (path.parent / target if target else path).read_text(), re.M)]
+        assert anchor in heads, f"{doc} links to {target or doc}#{anchor}, which has no such heading"
+
+
+@pytest.mark.parametrize("doc", _DOCS[:-2])  # the measurement log and the CHANGELOG record history, issues included
+def test_user_docs_cite_no_internal_issue_numbers(doc):
+    # a user has the repository, not its issue tracker: "(issue 29)" in a heading names nothing they can open
+    assert not re.search(r"\bissue[ -]\d+", (ROOT / doc).read_text(), re.I), f"{doc} cites an internal issue number"
 
 
 @pytest.mark.parametrize("pkg", [synthesis, unfalsify, experiments, experiments.lab, baselines],
