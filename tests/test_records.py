@@ -323,3 +323,22 @@ def test_a_delimiter_at_the_end_of_every_line_adds_no_column(tmp_path, signals, 
     assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
     with pytest.raises(RecordError, match="out of range"):  # the empty column is gone, not a NaN signal
         load_record(path, u=1, y=4, t=0)
+
+
+def test_a_text_column_refuses_the_file_only_when_it_is_selected(tmp_path, signals):
+    # a logger's status column or a date-time stamp beside the signals had refused the whole file
+    t, u, y = signals
+    rows = [f"2026-11-29T10:00:{s:06.3f},{a!r},{b!r},{c!r},OK"
+            for s, a, b, c in zip(t.tolist(), u[:, 0].tolist(), u[:, 1].tolist(), y[:, 0].tolist())]
+    path = tmp_path / "logger.csv"
+    path.write_text("stamp,u1,u2,y,status\n" + "\n".join(rows) + "\n")
+    rec = load_record(path, u=["u1", "u2"], y="y", dt=0.05)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+    for sel in (dict(u="status", y="y"), dict(u="u1", y="y", t="stamp")):  # selected: the cell's own message
+        with pytest.raises(RecordError, match=r"data row 0: '(OK|2026-11-29T10:00:00.000)' is not a number"):
+            load_record(path, dt=0.05, **sel)
+    # without a header, a status column does not make the first data row a header (its sample would be lost)
+    bare = tmp_path / "bare.csv"
+    bare.write_text("\n".join(r[r.index(",") + 1:] for r in rows) + "\n")
+    rec = load_record(bare, u=[0, 1], y=2, dt=0.05)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)

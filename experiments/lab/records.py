@@ -145,7 +145,7 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
 
     rows = _without_trailing_empty_column(rows)
     header = None
-    if not all(numeric(c) for c in rows[0]):
+    if not all(numeric(c) for c in rows[0]) and not _data_row_with_text(rows, numeric):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
@@ -161,6 +161,7 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                           "per signal: save the transposed table (names in the first row)")
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
+    text = {}  # column -> why it is not numbers; an error only once the column is selected (load_record)
     for r, row in enumerate(rows):
         if len(row) != width:
             raise RecordError(f"{str(path)!r}: data row {r} has {len(row)} fields but {width} were expected; "
@@ -169,12 +170,23 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
             try:
                 data[r, c] = number(cell) if cell != "" else np.nan
             except ValueError:
-                col = repr(header[c]) if header is not None else f"column {c}"
-                hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
-                        else "")
-                raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
-                                  "fix the file or drop that column") from None
-    return header, data
+                data[r, c] = np.nan
+                if c not in text:  # (row, column) orders the messages as the cells were read
+                    col = repr(header[c]) if header is not None else f"column {c}"
+                    hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
+                            else "")
+                    text[c] = (r, c, f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; fix the "
+                                     "file or drop that column")
+    return header, data, text
+
+
+def _data_row_with_text(rows, numeric) -> bool:
+    """Is the first row, partly numbers, a data row of a file without a header whose text columns (a status) hold
+    text on the next row too?  Such a row is not a header: it would lose the record's first sample."""
+    # a wide table is a record saved transposed, names in its first column (_labels_in_first_column), not this
+    if len(rows) < max(2, len(rows[0])) or not any(numeric(c) for c in rows[0]) or len(rows[1]) != len(rows[0]):
+        return False
+    return all(numeric(a) == numeric(b) for a, b in zip(rows[0], rows[1]))
 
 
 def _without_trailing_empty_column(rows):
@@ -366,9 +378,12 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         if fmt in (".csv", ".txt"):
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
-            header, table = _read_csv(path, delimiter, decimal)
+            header, table, text = _read_csv(path, delimiter, decimal)
+            if text and table.shape[1] > table.shape[0]:  # text in a wide table: its first cell says more than its shape
+                raise RecordError(min(text.values())[2])
             _check_orientation(table, path)
         else:
+            text = {}
             arrays = read_variables(path, error=RecordError)
             if variable not in arrays:
                 raise RecordError(f"{str(path)!r} has no variable {variable!r} (it has: "
@@ -390,6 +405,11 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         T, _, t_cols = _pick_columns(table, header, t_sel, "t", path) if t_sel else (None, None, [])
         T = None if T is None else T[:, 0]
         _check_distinct({"u": u_cols, "y": y_cols, "t": t_cols}, path)
+        # a column of text (a logger's status, a date-time stamp) is refused only when it is selected: unselected,
+        # it had refused the whole file ("'status', data row 0: 'OK' is not a number; drop that column")
+        selected = [text[k] for k in t_cols + u_cols + y_cols if k in text]
+        if selected:
+            raise RecordError(min(selected)[2])
         if variable is not None:
             u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
             y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
@@ -491,7 +511,7 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     path = Path(path)
     fmt = _record_format(path)
     if fmt in (".csv", ".txt"):
-        header, table = _read_csv(path, None)
+        header, table, _ = _read_csv(path, None)
         _check_orientation(table, path)
         return header, table.shape[1]
     if variable is not None and fmt in (".npz", ".mat"):
