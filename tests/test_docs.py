@@ -92,3 +92,22 @@ def test_experiments_readme_lists_every_subcommand_and_its_options():
             if not any(first == f"`{name}`" and flag in second for first, second in rows):
                 undocumented.append(f"{name} {flag}")
     assert not undocumented, f"options without a row in experiments/README.md's options table: {undocumented}"
+
+
+def test_results_say_that_the_scripts_they_name_are_not_in_the_repository():
+    # RESULTS.md labels studies by their scratch folders ("slowH scripts", "s18/hunt_m3"), which a user does not have
+    text = (ROOT / "experiments" / "studies" / "RESULTS.md").read_text()
+    intro = text[:text.index("\n## ")]
+    labels = set(re.findall(r"\b(\w+) scripts\b", text)) - {"the", "one-off"}
+    assert "not part of the\nrepository" in intro or "not part of the repository" in intro
+    assert all(label in intro for label in labels), sorted(label for label in labels if label not in intro)
+
+
+def test_studies_readme_has_a_section_for_every_study_subcommand():
+    # "one module per subcommand: what each runs": robust-adversarial, design and cd-player had no section
+    from experiments.cli import COMMANDS
+
+    heads = re.findall(r"^## (.*)$", (ROOT / "experiments" / "studies" / "README.md").read_text(), re.M)
+    studies = [name for name, entry in COMMANDS.items() if entry[0].startswith("experiments.studies.")]
+    missing = [name for name in studies if not any(f"`{name}`" in h for h in heads)]
+    assert not missing, f"study subcommands without a section in experiments/studies/README.md: {missing}"
