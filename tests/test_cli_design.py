@@ -72,6 +72,9 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     assert summary["reason"] == res.reason
     assert summary["assumed"] == list(res.assumed) and len(res.assumed) == 1  # a ±1 PRBS: linearity untestable
     assert summary["premise_note"] == res.premise_note  # the ball the data do not confirm, if any
+    # the ball the verdict states is the certificate's (1.25 δ), as in the premise note, not the W3 rule's 1.1 δ
+    assert summary["certificate_margin"] == res.certificate.margin == 0.25 and summary["margin"] == res.margin
+    assert "(1 + 0.25)·δ of P̂" in md
     assert (f"Not confirmed by the data: {res.premise_note}." in md) == bool(res.premise_note)
     assert all(f"Assumed, not testable on these data: {a}." in md for a in res.assumed)
     # time invariance tested on the whole record (record mode), as the pipeline's own result says
@@ -356,9 +359,12 @@ def test_a_coprime_certificate_is_reported_as_such():
 
     from experiments.studies.design_cli import _family, summary_lines
 
-    res = SimpleNamespace(uncertainty="coprime", epsilon=0.0277, delta=0.128, margin=0.25)
+    # margin is the W3 rule's (0.1); the ball the certificate proves has the certificate's margin (0.25)
+    cert = SimpleNamespace(margin=0.25)
+    res = SimpleNamespace(uncertainty="coprime", epsilon=0.0277, delta=0.128, margin=0.1, certificate=cert)
     assert _family(res).startswith("ε = 0.0277 in coprime-factor form") and "sized by δ = 0.128" in _family(res)
-    additive = SimpleNamespace(uncertainty="additive", epsilon=float("nan"), delta=0.128, margin=0.25)
+    assert "(1 + 0.25)·ε" in _family(res)
+    additive = SimpleNamespace(uncertainty="additive", epsilon=float("nan"), delta=0.128, margin=0.1, certificate=cert)
     assert _family(additive) == "δ = 0.128 (every plant within (1 + 0.25)·δ of P̂ in ‖Δ‖∞)"
     summary = dict(certified=True, uncertainty="coprime", epsilon=0.0277, delta=0.128, decided_by="subspace (7.5)",
                    controller_npz="K.npz", controller_mat="K.mat")
@@ -455,3 +461,17 @@ def test_a_time_array_in_an_npz_or_mat_file_is_read_like_a_time_column(tmp_path)
         assert rec.dt == pytest.approx(dt) and np.array_equal(rec.u[:, 0], u)
     np.savez(tmp_path / "two.npz", u=u, y=y, t=t, time=t)  # two candidates: none is guessed
     assert _select(tmp_path / "two.npz", {})[2] is None
+
+
+@pytest.mark.parametrize("name", ["time [s]", "Time (s)", "t [ms]", "TIME"])
+def test_a_time_column_with_its_unit_in_the_name_is_found(tmp_path, name):
+    # loggers write the unit into the header; "time [s]" had not been found, the record had then been refused for
+    # "no time column" (with --u/--y given) or its time column offered as a third signal (without)
+    from experiments.lab.records import load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "units.csv", [name, "force [N]", "position [m]"], [t, u, y])
+    assert _select(path, {})[:3] == ("force [N]", "position [m]", name)
+    assert _select(path, {"u": "force [N]", "y": "position [m]"})[2] == name
+    assert load_record(path, u="force [N]", y="position [m]", t=name).dt == pytest.approx(dt)

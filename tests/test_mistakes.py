@@ -385,3 +385,20 @@ def test_a_predictor_of_other_channels_is_named():
                  lambda: uf.estimate_delta(u[:60, :1], y[:60], 3, "auto", predictor=pred)):
         with pytest.raises(DataError, match=r"predictor of horizon 3 for 1 input\(s\) and 2 output\(s\)"):
             call()
+
+
+@pytest.mark.parametrize("level, outputs", [(0.0, 1), (5.0, 1), (0.0, 2)])
+def test_a_constant_output_names_the_column_and_the_sensor(level, outputs):
+    # a dead sensor or the wrong output column: a zero output had been refused as "sigma must be > 0" (σ = "auto" =
+    # half a zero residual) and a constant one as noise-free data; neither names the slip
+    rng = np.random.default_rng(0)
+    u = rng.uniform(-1, 1, (600, outputs))
+    y = np.convolve(u[:, 0], [0.0, 0.5, 0.3])[:600, None] + 0.01 * rng.standard_normal((600, outputs))
+    y[:, -1] = level
+    W = synthesis.makeweight(10.0, (0.5, 1.0), 0.5, 1.0)
+    W1, W2 = (W, 0.1) if outputs == 1 else (synthesis.diagonal_weight(W, 2), 0.1 * np.eye(2))
+    what = "the output" if outputs == 1 else "output 1"
+    with pytest.raises(DataError, match=rf"{what} is constant \({level:g}\) on every sample of the window.*sensor"):
+        uf.robust_design_from_data(u, y, 3, W1, W2, "auto", window="auto", dt=1.0)
+    with pytest.raises(DataError, match=rf"{what} is constant"):
+        uf.estimate_delta(u[:100], y[:100], 3, "auto")

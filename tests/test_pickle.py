@@ -74,6 +74,9 @@ def test_results_do_not_pickle_without_the_machinery():
     # python-control fixed it and the StateSpace recipe may go)
     with pytest.raises(Exception):
         pickle.dumps(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1))
+    # ... and a user who pickles a controller alone meets it: the pitfall and its way round are documented
+    errata = (ROOT / "docs" / "ERRATA.md").read_text()
+    assert "`StateSpace` does not pickle" in errata and "synthesis.save_controller" in errata
 
 
 def test_round_trip_in_the_same_process_is_equal(results):

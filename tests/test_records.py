@@ -273,3 +273,72 @@ def test_an_empty_array_is_a_record_error(tmp_path):
     np.savez(path, u=np.zeros(0), y=np.zeros(0))
     with pytest.raises(RecordError, match="'u' is empty"):
         load_record(path, u="u", y="y", dt=0.1)
+
+
+def test_a_spreadsheet_file_names_the_formats_to_save_it_in(tmp_path, capsys):
+    # record_columns (the design CLI's first look at a file) had passed an .xlsx to the NPZ/MAT reader: "cannot read
+    # ... as NPZ or MAT: its ending is '.xlsx'", which names no format to save the data in
+    from experiments import record_columns
+    from experiments.cli import main
+
+    sheet = tmp_path / "run.xlsx"
+    sheet.write_bytes(b"PK\x03\x04 a spreadsheet")
+    fix = r"the ending '\.xlsx' is not one of \.csv, \.txt, \.npz, \.mat; save the data as CSV"
+    with pytest.raises(RecordError, match=fix):
+        record_columns(sheet)
+    with pytest.raises(RecordError, match=fix):
+        load_record(sheet, u=0, y=1, dt=1)
+    with pytest.raises(SystemExit) as exc:
+        main(["design", str(sheet), "--horizon", "5", "--out", str(tmp_path)])
+    assert exc.value.code == 2 and "save the data as CSV" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError):
+        record_columns(tmp_path / "missing.csv")
+
+
+def test_a_units_row_under_the_header_is_named(tmp_path, signals):
+    # a logger's units row had been read as data: "'s' is not a number; fix the file or drop that column"
+    t, u, y = signals
+    path = tmp_path / "units.csv"
+    rows = "\n".join(",".join(f"{x:.17g}" for x in row) for row in np.column_stack([t, u, y]))
+    path.write_text("time,u1,u2,y\ns,N,N,m\n" + rows + "\n")
+    with pytest.raises(RecordError, match=r"the row after the header \(s, N, N, m\) holds no number: a second header "
+                                          r"row \(units\?\); delete it, or start it with '#'"):
+        load_record(path, u="u1", y="y", t="time")
+    path.write_text("time,u1,u2,y\n# s,N,N,m\n" + rows + "\n")  # the fix the message names
+    assert load_record(path, u="u1", y="y", t="time").n == len(t)
+
+
+@pytest.mark.parametrize("header", [True, False])
+def test_a_delimiter_at_the_end_of_every_line_adds_no_column(tmp_path, signals, header):
+    # "t,u1,u2,y," (a spreadsheet's export) had given a fourth column of NaN named '', offered as a signal
+    from experiments import record_columns
+
+    t, u, y = signals
+    rows = "\n".join(",".join(f"{x:.17g}" for x in row) + "," for row in np.column_stack([t, u, y]))
+    path = tmp_path / "trailing.csv"
+    path.write_text(("time,u1,u2,y,\n" if header else "") + rows + "\n")
+    names, width = record_columns(path)
+    assert width == 4 and names == (["time", "u1", "u2", "y"] if header else None)
+    rec = load_record(path, u=[1, 2], y=3, t=0)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+    with pytest.raises(RecordError, match="out of range"):  # the empty column is gone, not a NaN signal
+        load_record(path, u=1, y=4, t=0)
+
+
+def test_a_text_column_refuses_the_file_only_when_it_is_selected(tmp_path, signals):
+    # a logger's status column or a date-time stamp beside the signals had refused the whole file
+    t, u, y = signals
+    rows = [f"2026-11-29T10:00:{s:06.3f},{a!r},{b!r},{c!r},OK"
+            for s, a, b, c in zip(t.tolist(), u[:, 0].tolist(), u[:, 1].tolist(), y[:, 0].tolist())]
+    path = tmp_path / "logger.csv"
+    path.write_text("stamp,u1,u2,y,status\n" + "\n".join(rows) + "\n")
+    rec = load_record(path, u=["u1", "u2"], y="y", dt=0.05)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+    for sel in (dict(u="status", y="y"), dict(u="u1", y="y", t="stamp")):  # selected: the cell's own message
+        with pytest.raises(RecordError, match=r"data row 0: '(OK|2026-11-29T10:00:00.000)' is not a number"):
+            load_record(path, dt=0.05, **sel)
+    # without a header, a status column does not make the first data row a header (its sample would be lost)
+    bare = tmp_path / "bare.csv"
+    bare.write_text("\n".join(r[r.index(",") + 1:] for r in rows) + "\n")
+    rec = load_record(bare, u=[0, 1], y=2, dt=0.05)
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)

@@ -118,3 +118,17 @@ def test_noise_free_data_of_a_plant_with_a_feedthrough_name_both_causes():
         uf.robust_design_from_data(d.u[:, 0], d.y[:, 0], 10, W["W11"], W["W21"], "auto", dt=0.1, window=(0, 49),
                                    search=False)
     assert "feedback loop without a reference" in str(info.value)
+
+
+def test_an_open_loop_record_with_input_and_output_swapped_names_the_swap():
+    # measured before the hint: a lightly damped plant's record with u and y exchanged was refused with the closed-loop
+    # statement alone ("record in open loop"), which a user who did record in open loop cannot act on
+    P = third_order()
+    d = collect_data(P, prbs(1200, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    t = uf.check_feedback(d.y, d.u)  # the columns swapped
+    assert t.detected and t.lag >= 1
+    assert "input and output columns are swapped" in t.statement and "--u and --y" in t.statement
+    assert not t.reason or "swapped" in t.reason
+    # at lag 0 the alternative is a feedthrough, not a swap
+    _, u, y = _closed_loop_record(0.05)
+    assert "swapped" not in uf.check_feedback(u, y).statement

@@ -13,7 +13,7 @@ to a solver of the registry :data:`unfalsify.solvers.SOLVERS` (``backend=`` and 
 and build the certificate from its answer.  The solvers, the Toeplitz toolkit they share and the one
 barrier skeleton live in :mod:`unfalsify.solvers`; the exceptions and warnings in :mod:`unfalsify.exceptions`.
 
-Several inputs and outputs (issue 28): ``unfalsified_gain`` and ``subspace_unfalsify`` take u of shape
+Several inputs and outputs: ``unfalsified_gain`` and ``subspace_unfalsify`` take u of shape
 (n, m) and y of shape (n, l), time along axis 0.  Δ is then an l × m causal LTI operator, its first n
 Markov parameters h (n, l, m) enter the data relation linearly, and ``‖T(h)‖₂`` of the nl × nm block
 lower-triangular Toeplitz matrix is the least H∞ norm with those Markov parameters (matrix

@@ -71,6 +71,12 @@ FEEDTHROUGH_STATEMENT = ("the plant has a direct feedthrough (declared): a contr
 _LAG0_ALTERNATIVE = ("; at lag 0 a direct feedthrough of the plant (y_k responding to u_k) gives the same correlation "
                      "in open loop: if the plant has one, declare it (CertificateOptions(feedthrough=True), "
                      "check_feedback(..., feedthrough=True), or --feedthrough of python -m experiments design)")
+#: at a lag ≥ 1 an open-loop record shows the same dependence when its input and output columns are swapped: the
+#: recorded "input" is then the plant's response to the recorded "output" (measured: a lightly damped plant's record
+#: with u and y exchanged was refused with the closed-loop statement alone, which sent the user to the wrong fix)
+_SWAP_ALTERNATIVE = ("; in an open-loop record the same dependence can also mean that the input and output columns "
+                     "are swapped (the column taken as the input responds to the one taken as the output): check "
+                     "which is which (u= and y=, or --u and --y of python -m experiments design)")
 
 
 @result
@@ -208,7 +214,7 @@ def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL, feedthrough: bool = F
     statement, reason = "", ""
     if pv < level and abs(rho) >= FEEDBACK_NOTED:
         where = f"input {pair[0]} on output {pair[1]}, " if m * l > 1 else ""
-        alternative = _LAG0_ALTERNATIVE if lag == 0 else ""
+        alternative = _LAG0_ALTERNATIVE if lag == 0 else _SWAP_ALTERNATIVE
         statement = (f"the record is that of a closed loop: the input's innovation follows the output's ({where}"
                      f"correlation {rho:+.2f} at lag {lag}, p = {pv:.2g}), so the output's noise reaches the input "
                      "through a controller and biases P̂ (towards −1/K where the noise dominates the reference's share "

@@ -62,7 +62,8 @@ from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_level, check_nonnegative, check_predictor_dt, check_sample_time)
 
-from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
+from ._common import (NOISE_RESOLUTION, channel_pair, check_output_moves, check_predictor, check_sigma,
+                      samples_at_rest)
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
@@ -187,7 +188,8 @@ class RobustDesignResult:
         Why there is no reference model (``''`` when there is one).
     uncertainty : {"additive", "coprime"}
         The family the certificate speaks of (``CertificateOptions.uncertainty``): ``P̂ + Δ`` with
-        ``‖Δ‖∞ ≤ (1 + margin)·delta``, or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with ``‖[Δ_N Δ_M]‖∞ ≤ (1 + margin)·epsilon``.
+        ``‖Δ‖∞ ≤ (1 + certificate.margin)·delta``, or ``(M̂ + Δ_M)⁻¹(N̂ + Δ_N)`` with
+        ``‖[Δ_N Δ_M]‖∞ ≤ (1 + certificate.margin)·epsilon`` (the certificate's margin, not the W3 rule's ``margin``).
         The design is sized by ``delta`` either way.
     coprime : CoprimePremise or None
         The coprime-factor premise (ε by Theorem 7.1 on the equation error, in sample and held out, each with
@@ -1030,6 +1032,7 @@ def estimate_delta(u, y, horizon: int, sigma, *, predictor=None,
         "or None")
     predictor = check_predictor(predictor)
     i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+    check_output_moves(channel_pair(u, y)[1], "the window")  # before σ = "auto", which a zero output makes 0
     if isinstance(sigma, str) and sigma == "auto":
         sigma = 0.5 * _window_residual_rms(u, y, i, predictor)[0]
     sigma = check_sigma(sigma)

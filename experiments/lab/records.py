@@ -143,11 +143,17 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         except ValueError:
             return False
 
+    rows = _without_trailing_empty_column(rows)
     header = None
-    if not all(numeric(c) for c in rows[0]):
+    if not all(numeric(c) for c in rows[0]) and not _data_row_with_text(rows, numeric):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
+    if header is not None and not any(numeric(c) for c in rows[0]):
+        # a logger's units row ("s,N,m") under the names had been read as data: "'s' is not a number; drop that
+        # column", which sends the user to the wrong fix
+        raise RecordError(f"{str(path)!r}: the row after the header ({', '.join(rows[0])}) holds no number: a second "
+                          "header row (units?); delete it, or start it with '#' to mark it as a comment")
     if header is not None and _labels_in_first_column(header, rows, numeric):
         names = ", ".join([header[0]] + [r[0] for r in rows])
         raise RecordError(f"{str(path)!r}: its first column holds names ({names}) and the rest of each row "
@@ -155,6 +161,7 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                           "per signal: save the transposed table (names in the first row)")
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
+    text = {}  # column -> why it is not numbers; an error only once the column is selected (load_record)
     for r, row in enumerate(rows):
         if len(row) != width:
             raise RecordError(f"{str(path)!r}: data row {r} has {len(row)} fields but {width} were expected; "
@@ -163,12 +170,32 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
             try:
                 data[r, c] = number(cell) if cell != "" else np.nan
             except ValueError:
-                col = repr(header[c]) if header is not None else f"column {c}"
-                hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
-                        else "")
-                raise RecordError(f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; "
-                                  "fix the file or drop that column") from None
-    return header, data
+                data[r, c] = np.nan
+                if c not in text:  # (row, column) orders the messages as the cells were read
+                    col = repr(header[c]) if header is not None else f"column {c}"
+                    hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
+                            else "")
+                    text[c] = (r, c, f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; fix the "
+                                     "file or drop that column")
+    return header, data, text
+
+
+def _data_row_with_text(rows, numeric) -> bool:
+    """Is the first row, partly numbers, a data row of a file without a header whose text columns (a status) hold
+    text on the next row too?  Such a row is not a header: it would lose the record's first sample."""
+    # a wide table is a record saved transposed, names in its first column (_labels_in_first_column), not this
+    if len(rows) < max(2, len(rows[0])) or not any(numeric(c) for c in rows[0]) or len(rows[1]) != len(rows[0]):
+        return False
+    return all(numeric(a) == numeric(b) for a, b in zip(rows[0], rows[1]))
+
+
+def _without_trailing_empty_column(rows):
+    """Drop the empty last field that a delimiter at the end of every line (the header's too) makes (``t,u,y,``, as
+    some spreadsheets export): it had been read as a signal column of NaN named '', or, without a header, had made the
+    first data row look like one."""
+    while rows and all(len(r) > 1 and r[-1] == "" for r in rows):
+        rows = [r[:-1] for r in rows]
+    return rows
 
 
 def _labels_in_first_column(header, rows, numeric) -> bool:
@@ -339,13 +366,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     (2, 2, 50, 1.0)
     """
     path = Path(path)
-    fmt = path.suffix.lower()
-    if fmt not in RECORD_FORMATS:
-        raise RecordError(f"cannot read {str(path)!r}: the ending {fmt or '(none)'!r} is not one of "
-                          f"{', '.join(RECORD_FORMATS)}; save the data as CSV (a header row and one column per "
-                          "signal), NPZ or MAT")
-    if not path.exists():
-        raise FileNotFoundError(f"no data file {str(path)!r}")
+    fmt = _record_format(path)
     u_sel, y_sel = _as_list(u, "u"), _as_list(y, "y")
     if u_sel is None or y_sel is None:
         raise RecordError("pass both u= and y= (the input and output columns)")
@@ -357,9 +378,12 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         if fmt in (".csv", ".txt"):
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
-            header, table = _read_csv(path, delimiter, decimal)
+            header, table, text = _read_csv(path, delimiter, decimal)
+            if text and table.shape[1] > table.shape[0]:  # text in a wide table: its first cell says more than its shape
+                raise RecordError(min(text.values())[2])
             _check_orientation(table, path)
         else:
+            text = {}
             arrays = read_variables(path, error=RecordError)
             if variable not in arrays:
                 raise RecordError(f"{str(path)!r} has no variable {variable!r} (it has: "
@@ -381,6 +405,11 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         T, _, t_cols = _pick_columns(table, header, t_sel, "t", path) if t_sel else (None, None, [])
         T = None if T is None else T[:, 0]
         _check_distinct({"u": u_cols, "y": y_cols, "t": t_cols}, path)
+        # a column of text (a logger's status, a date-time stamp) is refused only when it is selected: unselected,
+        # it had refused the whole file ("'status', data row 0: 'OK' is not a number; drop that column")
+        selected = [text[k] for k in t_cols + u_cols + y_cols if k in text]
+        if selected:
+            raise RecordError(min(selected)[2])
         if variable is not None:
             u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
             y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
@@ -430,6 +459,18 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                   t=T)
 
 
+def _record_format(path: Path) -> str:
+    """The file's ending, checked: one :data:`RECORD_FORMATS` reads, and a file that exists."""
+    fmt = path.suffix.lower()
+    if fmt not in RECORD_FORMATS:
+        raise RecordError(f"cannot read {str(path)!r}: the ending {fmt or '(none)'!r} is not one of "
+                          f"{', '.join(RECORD_FORMATS)}; save the data as CSV (a header row and one column per "
+                          "signal), NPZ or MAT")
+    if not path.exists():
+        raise FileNotFoundError(f"no data file {str(path)!r}")
+    return fmt
+
+
 def record_columns(path, variable: str | None = None) -> tuple[list[str] | None, int | None]:
     """The column names and the number of columns of a record file, before choosing ``u`` and ``y``.
 
@@ -452,7 +493,8 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     FileNotFoundError
         No file at ``path``.
     RecordError
-        A CSV without data rows.
+        A CSV without data rows; an ending :func:`load_record` does not read (``.xlsx``: the message names the
+        formats to save the data in).
 
     Examples
     --------
@@ -464,12 +506,12 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
     ...     record_columns(f)
     (['t', 'u', 'y'], 3)
     """
+    # the ending first, as load_record checks it: an .xlsx had reached the NPZ/MAT reader and its bare
+    # "cannot read as NPZ or MAT", which names no format to save the data in
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no data file {str(path)!r}")
-    fmt = path.suffix.lower()
+    fmt = _record_format(path)
     if fmt in (".csv", ".txt"):
-        header, table = _read_csv(path, None)
+        header, table, _ = _read_csv(path, None)
         _check_orientation(table, path)
         return header, table.shape[1]
     if variable is not None and fmt in (".npz", ".mat"):

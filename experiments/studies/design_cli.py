@@ -4,7 +4,7 @@ The §7.4 workflow on a data file, with no simulator behind it:
 
 1. :func:`experiments.load_record` reads the input and output channels (CSV, NPZ or MAT; ``--u`` and ``--y``
    take comma lists for several) and the sample time (``--dt``, or the step of a time column ``--t``, by default a
-   CSV column or an NPZ/MAT array named t or time);
+   CSV column or an NPZ/MAT array named t or time, also with a unit in brackets: ``time [s]``);
    ``--detrend mean`` subtracts the record's means (an operating point: the models have no constant term), and
    without it the report names any channel whose mean is large (:func:`operating_point`);
 2. :func:`unfalsify.robust_design_from_data` in record mode: the (7.5) window (``--window``), σ
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import time
 import warnings
 from pathlib import Path
@@ -252,7 +253,7 @@ def _select(path: Path, extra: dict):
     if t is None and names is not None:
         # a CSV with a column called t/time: its step is the sample time (no --dt needed; with --dt, the two are
         # checked against each other), and it is never taken for a signal
-        hits = [k for k, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES]
+        hits = [k for k, nm in enumerate(names) if _is_time_name(nm)]
         t = names[hits[0]] if hits else None
     elif t is None and width is None and variable is None:
         t = _time_array(path, u, y)
@@ -290,9 +291,17 @@ def _time_array(path: Path, u, y):
 
     chosen = _chosen(u, y)
     arrays = read_variables(path, error=RecordError)
-    hits = [k for k, a in arrays.items() if k.strip().lower() in _TIME_NAMES and k not in chosen
+    hits = [k for k, a in arrays.items() if _is_time_name(k) and k not in chosen
             and np.asarray(a).dtype.kind in "biuf" and np.size(a) > 1 and max(np.shape(a)) == np.size(a)]
     return hits[0] if len(hits) == 1 else None
+
+
+def _is_time_name(name: str) -> bool:
+    """A column or array named like a time column: t, time, … (:data:`_TIME_NAMES`, any case), also with a unit in
+    brackets, ``time [s]`` or ``Time (ms)`` as loggers write them (such a column had not been found, and the record
+    was refused for "no time column")."""
+    bare = re.sub(r"\s*(\[[^\]]*\]|\([^)]*\))\s*$", "", str(name).strip())
+    return bare.strip().lower() in _TIME_NAMES
 
 
 def _chosen(u, y) -> list:
@@ -674,7 +683,8 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
         "horizon": int(horizon), "window": list(win), "fit_end": fit_end,
         "sigma": float(cert.sigma), "certified": bool(res.certified), "reason": res.reason,
         "uncertainty": res.uncertainty, "epsilon": float(res.epsilon) if res.uncertainty == "coprime" else None,
-        "margin": float(res.margin), "additive_reason": res.additive_reason,
+        "certificate_margin": float(res.certificate.margin), "margin": float(res.margin),
+        "additive_reason": res.additive_reason,
         "tracking_floor": _floors_json(res.certificate.tracking_floor), "assumed": list(res.assumed),
         "premise_note": res.premise_note,
         "invariance_p_value": float(res.invariance.p_value) if res.invariance is not None else None,
@@ -709,7 +719,9 @@ def _floors_json(floor):
 
 def _family(res) -> str:
     """The set of plants the verdict speaks of: the additive ball about P̂, or the coprime-factor ball."""
-    ball = f"every plant within (1 + {res.margin:g})"
+    # the certificate's margin (default 0.25), not ``res.margin``, the W3 rule's (0.1): the report had stated the
+    # ball as 1.1 δ beside a premise note and a README that say 1.25 δ
+    ball = f"every plant within (1 + {res.certificate.margin:g})"
     if res.uncertainty == "coprime":
         return (f"ε = {_fmt(res.epsilon)} in coprime-factor form ({ball}·ε of P̂ = M̂⁻¹N̂ in ‖[Δ_N Δ_M]‖∞; "
                 f"the design is sized by δ = {_fmt(res.delta)})")
