@@ -76,6 +76,7 @@ Lab records
    Record                 -- result of ``load_record``
    RECORD_FORMATS         -- the file suffixes ``load_record`` reads
    record_columns         -- column names and count of a record file, before choosing ``u`` and ``y``
+   time_unit              -- a column name's unit in brackets (``time [ms]``), in seconds where it is one of time
    RecordError            -- a record that cannot be read as asked (the message names the fix)
 
 Tour
@@ -123,7 +124,7 @@ from .lab.plants import (
     three_disk,
     zoh,
 )
-from .lab.records import RECORD_FORMATS, Record, RecordError, load_record, record_columns
+from .lab.records import RECORD_FORMATS, Record, RecordError, load_record, record_columns, time_unit
 from .lab.signals import prbs, step, step_sequence, white_noise
 from .lab.simulate import (
     AlgebraicLoopError,
@@ -168,6 +169,7 @@ __all__: list[str] = [
     "RecordError",
     "load_record",
     "record_columns",
+    "time_unit",
 ]
 
 # the library modules' paths before they moved into lab/: the same module objects under their old names

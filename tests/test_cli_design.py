@@ -463,7 +463,7 @@ def test_a_time_array_in_an_npz_or_mat_file_is_read_like_a_time_column(tmp_path)
     assert _select(tmp_path / "two.npz", {})[2] is None
 
 
-@pytest.mark.parametrize("name", ["time [s]", "Time (s)", "t [ms]", "TIME"])
+@pytest.mark.parametrize("name", ["time [s]", "Time (s)", "t (sec)", "TIME"])
 def test_a_time_column_with_its_unit_in_the_name_is_found(tmp_path, name):
     # loggers write the unit into the header; "time [s]" had not been found, the record had then been refused for
     # "no time column" (with --u/--y given) or its time column offered as a third signal (without)
@@ -475,3 +475,23 @@ def test_a_time_column_with_its_unit_in_the_name_is_found(tmp_path, name):
     assert _select(path, {})[:3] == ("force [N]", "position [m]", name)
     assert _select(path, {"u": "force [N]", "y": "position [m]"})[2] == name
     assert load_record(path, u="force [N]", y="position [m]", t=name).dt == pytest.approx(dt)
+
+
+@pytest.mark.parametrize("name, per_second", [("time [ms]", 1e3), ("Time (us)", 1e6), ("t [min]", 1 / 60)])
+def test_a_time_column_in_other_units_gives_the_sample_time_in_seconds(tmp_path, name, per_second):
+    """A logger's clock in ms: the column's step (100) had been taken as the sample time in seconds, and the design
+    saved a controller and weights at dt = 100 with no note.  The unit in the name converts it; --dt in seconds is
+    checked against the converted stamps; a unit that is not one of time is refused, naming the fix."""
+    from experiments.lab.records import RecordError, load_record
+
+    t, u, y, dt = _record()
+    path = _signals_csv(tmp_path / "clock.csv", [name, "u", "y"], [t * per_second, u, y])
+    rec = load_record(path, u="u", y="y", t=name)
+    assert rec.dt == pytest.approx(dt, rel=1e-9) and rec.t == pytest.approx(t, rel=1e-9, abs=1e-12)
+    assert load_record(path, u="u", y="y", t=name, dt=dt).dt == pytest.approx(dt)
+    from experiments.studies.design_cli import _select
+
+    assert _select(path, {})[:3] == ("u", "y", name)  # the command finds it and reads it with load_record
+    bad = _signals_csv(tmp_path / "odd.csv", ["time [m]", "u", "y"], [t, u, y])
+    with pytest.raises(RecordError, match=r"'time \[m\]' is in 'm', not a unit of time .* pass dt="):
+        load_record(bad, u="u", y="y", t="time [m]")

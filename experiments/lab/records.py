@@ -19,10 +19,45 @@ from synthesis.export import read_variables
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal, check_sample_time
 
-__all__ = ["Record", "RecordError", "load_record", "record_columns", "RECORD_FORMATS"]
+__all__ = ["Record", "RecordError", "load_record", "record_columns", "time_unit", "RECORD_FORMATS"]
 
 #: File endings :func:`load_record` reads.
 RECORD_FORMATS = (".csv", ".txt", ".npz", ".mat")
+#: Seconds per unit of the units a time column's name may carry in brackets (``time [ms]``), by lower-case name.
+_SECONDS = {**dict.fromkeys(("s", "sec", "secs", "second", "seconds"), 1.0),
+            **dict.fromkeys(("ms", "msec", "millisecond", "milliseconds"), 1e-3),
+            **dict.fromkeys(("us", "µs", "μs", "usec", "microsecond", "microseconds"), 1e-6),
+            **dict.fromkeys(("ns", "nanosecond", "nanoseconds"), 1e-9),
+            **dict.fromkeys(("min", "minute", "minutes"), 60.0),
+            **dict.fromkeys(("h", "hr", "hour", "hours"), 3600.0)}
+_UNIT_SUFFIX = re.compile(r"\s*(\[([^\]]*)\]|\(([^)]*)\))\s*$")
+
+
+def time_unit(name) -> tuple[str, str | None, float | None]:
+    """A column name split into its bare name and the unit a logger writes after it in brackets, with the unit's
+    length in seconds where it is a unit of time: ``"time [ms]"`` → ``("time", "ms", 0.001)``.
+
+    :func:`load_record` converts a time column named with its unit to seconds, so that the sample time is in
+    seconds whatever the logger's clock counted (a column ``time [ms]`` had given ``dt = 100`` for a 0.1 s record,
+    and a controller and weights at that sample time).
+
+    Returns
+    -------
+    (bare, unit, seconds)
+        ``unit`` None when the name carries none; ``seconds`` None when the unit is not one of time
+        (s, ms, µs/us, ns, min, h and their spelled-out names).
+
+    Examples
+    --------
+    >>> time_unit("time [ms]"), time_unit("Time (s)"), time_unit("position [m]"), time_unit("t")
+    (('time', 'ms', 0.001), ('Time', 's', 1.0), ('position', 'm', None), ('t', None, None))
+    """
+    text = str(name).strip()
+    found = _UNIT_SUFFIX.search(text)
+    if found is None:
+        return text, None, None
+    unit = (found.group(2) if found.group(2) is not None else found.group(3)).strip()
+    return text[:found.start()].strip(), unit, _SECONDS.get(unit.lower())
 
 
 class RecordError(DataError):
@@ -309,7 +344,9 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     t : str or int, optional
         The time column (selected like ``u``).  The sample time is then its mean step (rounded to
         12 significant digits, fewer for stamps whose float rounding is coarser, e.g. a Unix time), and every
-        step must equal it to the relative tolerance ``rtol`` (plus the stamps' rounding).
+        step must equal it to the relative tolerance ``rtol`` (plus the stamps' rounding).  A name with its unit
+        in brackets (``time [ms]``, ``Time (us)``; :func:`time_unit`) is converted to seconds; without one the
+        stamps are taken as seconds.
     dt : float, optional
         The sample time, when the file has no time column (e.g. ``dt=1`` for a record in samples).
         Given together with ``t``, the two must agree: every stamp within half a sample of the grid
@@ -452,11 +489,25 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
 
     _check_finite(U, u_names, path, "input")
     _check_finite(Y, y_names, path, "output")
+    if T is not None and isinstance(t_sel[0], str):
+        T = _in_seconds(T, t_sel[0], path)
     dt_value = _sample_time(T, dt, rtol, path, t_sel[0] if t_sel else None)
     U = as_signal(U, "u")
     Y = as_signal(Y, "y", n=U.shape[0])
     return Record(u=U, y=Y, dt=dt_value, source=str(path), u_columns=tuple(u_names), y_columns=tuple(y_names),
                   t=T)
+
+
+def _in_seconds(T: np.ndarray, name: str, path: Path) -> np.ndarray:
+    """The time column ``name`` in seconds, by the unit its name carries (:func:`time_unit`); as read without one."""
+    _, unit, seconds = time_unit(name)
+    if unit is None:
+        return T
+    if seconds is None:
+        raise RecordError(f"{str(path)!r}: the time column {name!r} is in {unit!r}, not a unit of time this reader "
+                          "converts (s, ms, us, ns, min, h); rename it with its unit of time, or pass dt=<sample time "
+                          "in seconds> without t=")
+    return T * seconds
 
 
 def _record_format(path: Path) -> str:

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import time
 import warnings
 from pathlib import Path
@@ -45,7 +44,7 @@ import numpy as np
 
 from synthesis.validation import DataError
 
-from ..lab.records import RecordError, load_record, record_columns
+from ..lab.records import RecordError, load_record, record_columns, time_unit
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
            "untracked_outputs", "operating_point", "scale_note", "INPUT_ERRORS", "UNTRACKED_WEIGHT", "SCALE_NOTE"]
@@ -300,8 +299,7 @@ def _is_time_name(name: str) -> bool:
     """A column or array named like a time column: t, time, … (:data:`_TIME_NAMES`, any case), also with a unit in
     brackets, ``time [s]`` or ``Time (ms)`` as loggers write them (such a column had not been found, and the record
     was refused for "no time column")."""
-    bare = re.sub(r"\s*(\[[^\]]*\]|\([^)]*\))\s*$", "", str(name).strip())
-    return bare.strip().lower() in _TIME_NAMES
+    return time_unit(name)[0].lower() in _TIME_NAMES
 
 
 def _chosen(u, y) -> list:
