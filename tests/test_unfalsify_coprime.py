@@ -427,3 +427,20 @@ def test_noise_free_record_certifies_epsilon_at_the_sigma_floor():
     assert 0.5 * true_norm < cu.epsilon <= true_norm * (1 + 1e-9)
     rows = cu.residual[cu.burn_in:cu.burn_in + 60]                      # the rows the noise ball covers
     assert "at its floor" in cu.sigma_rule and cu.sigma == pytest.approx(1e-8 * np.sqrt(np.mean(rows ** 2)))
+
+
+def test_a_held_out_record_too_short_for_the_equation_error_is_a_reason_not_an_error():
+    """A validation record of at most i samples: the coprime test on it could not run (a reason), and the frequency
+    estimate after it then formed its residual anyway and raised ("the record has 3 samples; the equation error needs
+    more than i = 4"), naming neither the validation record nor the fix, out of robust_design_from_data."""
+    rng = np.random.default_rng(3)
+    u = np.sign(rng.standard_normal(1200))
+    y = np.zeros(1200)
+    for k in range(1, 1200):
+        y[k] = y[k - 1] + 0.1 * u[k - 1]
+    y += 0.02 * rng.standard_normal(1200)
+    F = uf.coprime_factors(sy.fit_predictor(u[:700], y[:700], 4), 1.0)
+    p = uf.check_coprime_premise(F, u[:300], y[:300], 0.01, validation=(u[700:703], y[700:703]))
+    assert not p.ok
+    assert "the coprime test on the held-out record cannot run" in p.reason
+    assert "equation error on the held-out record" in p.reason

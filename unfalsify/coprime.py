@@ -582,14 +582,16 @@ def check_coprime_premise(factors: CoprimeFactors, u, y, sigma_window: float, *,
     worst, frf, low = float("nan"), None, None
     if math.isfinite(eps):
         uu, _ = data
-        # the equation error of the whole record (FIR: every row usable), already formed by the solve above
-        e = outside.residual if outside is not None else factors.residual(*data)
         ue = uu[factors.horizon:]
         dt = _step(factors.dt)  # the estimates need a number
         try:
+            # the equation error of the whole record (FIR: every row usable), already formed by the solve above; a
+            # held-out record too short for its test is too short for this one (its residual had raised, uncaught)
+            e = outside.residual if outside is not None else factors.residual(*data)
             frf = frequency_response_estimate(ue, e, dt, nperseg=opts.nperseg, confidence=opts.confidence)
         except DataError as exc:
-            reasons.append(f"no frequency-response estimate of the equation error ({exc})")
+            reasons.append(f"no frequency-response estimate of the equation error on the "
+                           f"{'held-out record' if validation is not None else 'window'} ({exc})")
     if frf is not None:
         worst, why = _gap_reason(factors, frf, eps, "at the Welch frequencies")
         if why:
