@@ -342,3 +342,13 @@ def test_a_text_column_refuses_the_file_only_when_it_is_selected(tmp_path, signa
     bare.write_text("\n".join(r[r.index(",") + 1:] for r in rows) + "\n")
     rec = load_record(bare, u=[0, 1], y=2, dt=0.05)
     assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+
+
+def test_a_time_column_of_date_time_stamps_names_dt_as_the_fix(tmp_path):
+    # a logger's date-time stamps selected as the time column: the message had said "drop that column"
+    path = tmp_path / "stamps.csv"
+    path.write_text("timestamp,u,y\n" + "".join(f"2026-11-29 10:00:0{k},{k % 2},{0.1 * k}\n" for k in range(6)))
+    with pytest.raises(RecordError, match=r"'timestamp', data row 0: .* is not a number: the time column must hold "
+                                          r"numbers .* pass dt=<sample time> instead of t="):
+        load_record(path, u="u", y="y", t="timestamp")
+    assert load_record(path, u="u", y="y", dt=1.0).n == 6  # unselected, the text column is no obstacle
