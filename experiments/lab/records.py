@@ -445,7 +445,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         # a column of text (a logger's status, a date-time stamp) is refused only when it is selected: unselected,
         # it had refused the whole file ("'status', data row 0: 'OK' is not a number; drop that column")
         selected = [text[k] for k in t_cols + u_cols + y_cols if k in text]
-        if t_cols and t_cols[0] in text:
+        if t_cols and t_cols[0] in text and min(selected) == text[t_cols[0]]:
             # a date-time stamp ("2026-11-29 10:00:00.1"): the reader takes numbers only, and "drop that column" had
             # been the fix named for the column that gives the sample time
             raise RecordError(f"{text[t_cols[0]][2].split('; fix the file')[0]}: the time column must hold numbers "
