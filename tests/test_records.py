@@ -352,3 +352,12 @@ def test_a_time_column_of_date_time_stamps_names_dt_as_the_fix(tmp_path):
                                           r"numbers .* pass dt=<sample time> instead of t="):
         load_record(path, u="u", y="y", t="timestamp")
     assert load_record(path, u="u", y="y", dt=1.0).n == 6  # unselected, the text column is no obstacle
+
+
+@pytest.mark.parametrize("t_sel", ["time [ms]", 0, -4])
+def test_a_time_column_with_a_unit_is_converted_however_it_is_selected(tmp_path, signals, t_sel):
+    # by index (t=0, or --t 0 of the design command) the name's unit had been ignored: dt = 50 for a 0.05 s record
+    t, u, y = signals
+    path = _write_csv(tmp_path / "clock.csv", ["time [ms]", "u1", "u2", "y"], [1e3 * t, u, y])
+    rec = load_record(path, u=[1, 2], y=3, t=t_sel)
+    assert rec.dt == pytest.approx(0.05, rel=1e-12) and rec.t == pytest.approx(t, rel=1e-12, abs=1e-15)

@@ -344,9 +344,9 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     t : str or int, optional
         The time column (selected like ``u``).  The sample time is then its mean step (rounded to
         12 significant digits, fewer for stamps whose float rounding is coarser, e.g. a Unix time), and every
-        step must equal it to the relative tolerance ``rtol`` (plus the stamps' rounding).  A name with its unit
-        in brackets (``time [ms]``, ``Time (us)``; :func:`time_unit`) is converted to seconds; without one the
-        stamps are taken as seconds.
+        step must equal it to the relative tolerance ``rtol`` (plus the stamps' rounding).  A column whose name
+        (or NPZ/MAT key) carries its unit in brackets (``time [ms]``, ``Time (us)``; :func:`time_unit`) is converted
+        to seconds, whether selected by name or by index; without one the stamps are taken as seconds.
     dt : float, optional
         The sample time, when the file has no time column (e.g. ``dt=1`` for a record in samples).
         Given together with ``t``, the two must agree: every stamp within half a sample of the grid
@@ -441,6 +441,9 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         Y, y_names, y_cols = _pick_columns(table, header, y_sel, "y", path)
         T, _, t_cols = _pick_columns(table, header, t_sel, "t", path) if t_sel else (None, None, [])
         T = None if T is None else T[:, 0]
+        # the unit is the column's, however it was selected: by index (t=0, --t 0) it had been ignored (dt = 100 for
+        # a 0.1 s record in ms)
+        t_name = header[t_cols[0]] if t_cols and header is not None else None
         _check_distinct({"u": u_cols, "y": y_cols, "t": t_cols}, path)
         # a column of text (a logger's status, a date-time stamp) is refused only when it is selected: unselected,
         # it had refused the whole file ("'status', data row 0: 'OK' is not a number; drop that column")
@@ -483,7 +486,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         _check_distinct({"u": u_sel, "y": y_sel, "t": t_sel or []}, path)
         U, u_names = gather(u_sel, "u")
         Y, y_names = gather(y_sel, "y")
-        T = None
+        T, t_name = None, (t_sel[0] if t_sel else None)
         if t_sel:
             T = _key(arrays, t_sel[0], "t", path)
             if T.ndim != 1:
@@ -495,8 +498,8 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
 
     _check_finite(U, u_names, path, "input")
     _check_finite(Y, y_names, path, "output")
-    if T is not None and isinstance(t_sel[0], str):
-        T = _in_seconds(T, t_sel[0], path)
+    if T is not None and t_name is not None:
+        T = _in_seconds(T, t_name, path)
     dt_value = _sample_time(T, dt, rtol, path, t_sel[0] if t_sel else None)
     U = as_signal(U, "u")
     Y = as_signal(Y, "y", n=U.shape[0])
