@@ -495,3 +495,20 @@ def test_a_time_column_in_other_units_gives_the_sample_time_in_seconds(tmp_path,
     bad = _signals_csv(tmp_path / "odd.csv", ["time [m]", "u", "y"], [t, u, y])
     with pytest.raises(RecordError, match=r"'time \[m\]' is in 'm', not a unit of time .* pass dt="):
         load_record(bad, u="u", y="y", t="time [m]")
+
+
+def test_a_time_column_named_with_a_unit_not_of_time_is_not_taken_for_the_sample_time(tmp_path):
+    # "Time (UTC)" holding date-time stamps: since 'time [...]' names are found, it had been taken as the time column
+    # and the record refused even with --dt (and a message naming "--dt instead of --t", neither of which helped)
+    from experiments.lab.records import load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, dt = _record()
+    path = tmp_path / "utc.csv"
+    path.write_text("Time (UTC),u,y\n" + "".join(f"2026-11-29 10:{k // 600:02d}:{k % 600 / 10:04.1f},{a!r},{b!r}\n"
+                                                 for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    u_sel, y_sel, t_sel, _ = _select(path, {"u": "u", "y": "y", "dt": dt})
+    assert t_sel is None
+    rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
+    assert rec.dt == dt and np.array_equal(rec.y[:, 0], y)
+    assert _select(_signals_csv(tmp_path / "ms.csv", ["Time (ms)", "u", "y"], [1e3 * t, u, y]), {})[2] == "Time (ms)"

@@ -298,8 +298,10 @@ def _time_array(path: Path, u, y):
 def _is_time_name(name: str) -> bool:
     """A column or array named like a time column: t, time, … (:data:`_TIME_NAMES`, any case), also with a unit in
     brackets, ``time [s]`` or ``Time (ms)`` as loggers write them (such a column had not been found, and the record
-    was refused for "no time column")."""
-    return time_unit(name)[0].lower() in _TIME_NAMES
+    was refused for "no time column").  A unit that is not one of time (``Time (UTC)``, date-time stamps) is not: it
+    cannot give the sample time, and taken for it, had refused the record even with ``--dt``."""
+    bare, unit, seconds = time_unit(name)
+    return bare.lower() in _TIME_NAMES and (unit is None or seconds is not None)
 
 
 def _chosen(u, y) -> list:
