@@ -361,3 +361,20 @@ def test_a_time_column_with_a_unit_is_converted_however_it_is_selected(tmp_path,
     path = _write_csv(tmp_path / "clock.csv", ["time [ms]", "u1", "u2", "y"], [1e3 * t, u, y])
     rec = load_record(path, u=[1, 2], y=3, t=t_sel)
     assert rec.dt == pytest.approx(0.05, rel=1e-12) and rec.t == pytest.approx(t, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("sel", [dict(t="time"), dict(t=0), dict(dt=0.05)])
+def test_a_units_row_with_a_number_in_it_is_named(tmp_path, signals, sel):
+    # "s,N,N,1" (a dimensionless output) has a number, so it was read as data: "'s' is not a number: the time column
+    # must hold numbers ... pass dt= instead of t=", or with dt= "'N' is not a number; drop that column"
+    t, u, y = signals
+    rows = "\n".join(",".join(f"{x:.17g}" for x in row) for row in np.column_stack([t, u, y]))
+    path = tmp_path / "units.csv"
+    path.write_text("time,u1,u2,y\ns,N,N,1\n" + rows + "\n")
+    with pytest.raises(RecordError, match=r"data row 0: '(s|N)' is not a number and the column's other rows are: the "
+                                          r"row after the header \(s, N, N, 1\) looks like a second header row \(units"
+                                          r"\?\); delete it, or start it with '#'"):
+        load_record(path, u=["u1", "u2"], y="y", **sel)
+    path.write_text("time,u1,u2,y,note\n" + "\n".join(f"{r},{'start' if k == 0 else k}"
+                                                      for k, r in enumerate(rows.splitlines())) + "\n")
+    assert load_record(path, u=["u1", "u2"], y="y", **sel).n == len(t)  # text on row 0 of a column not selected

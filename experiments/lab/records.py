@@ -197,6 +197,7 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
     width = len(header) if header is not None else len(rows[0])
     data = np.empty((len(rows), width))
     text = {}  # column -> why it is not numbers; an error only once the column is selected (load_record)
+    fails = dict.fromkeys(range(width), 0)
     for r, row in enumerate(rows):
         if len(row) != width:
             raise RecordError(f"{str(path)!r}: data row {r} has {len(row)} fields but {width} were expected; "
@@ -206,12 +207,21 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
                 data[r, c] = number(cell) if cell != "" else np.nan
             except ValueError:
                 data[r, c] = np.nan
+                fails[c] += 1
                 if c not in text:  # (row, column) orders the messages as the cells were read
                     col = repr(header[c]) if header is not None else f"column {c}"
                     hint = ("; decimal commas? pass decimal=','" if decimal == "." and _DECIMAL_COMMA.fullmatch(cell)
                             else "")
-                    text[c] = (r, c, f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number{hint}; fix the "
-                                     "file or drop that column")
+                    text[c] = (r, c, f"{str(path)!r}: {col}, data row {r}: {cell!r} is not a number", hint)
+    for c, (r, _, where, hint) in text.items():
+        if header is not None and r == 0 and fails[c] == 1 and len(rows) > 1:
+            # text on the first row alone: a units row with a number in it ("s,N,1"), which the check above lets
+            # through; "drop that column" (or, for the time column, "pass dt=") had named the wrong fix
+            text[c] = (r, c, f"{where} and the column's other rows are: the row after the header "
+                             f"({', '.join(rows[0])}) looks like a second header row (units?); delete it, or start it "
+                             "with '#' to mark it as a comment", "units")
+        else:
+            text[c] = (r, c, f"{where}{hint}; fix the file or drop that column", "cell")
     return header, data, text
 
 
@@ -448,7 +458,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         # a column of text (a logger's status, a date-time stamp) is refused only when it is selected: unselected,
         # it had refused the whole file ("'status', data row 0: 'OK' is not a number; drop that column")
         selected = [text[k] for k in t_cols + u_cols + y_cols if k in text]
-        if t_cols and t_cols[0] in text and min(selected) == text[t_cols[0]]:
+        if t_cols and t_cols[0] in text and min(selected) == text[t_cols[0]] and text[t_cols[0]][3] == "cell":
             # a date-time stamp ("2026-11-29 10:00:00.1"): the reader takes numbers only, and "drop that column" had
             # been the fix named for the column that gives the sample time
             raise RecordError(f"{text[t_cols[0]][2].split('; fix the file')[0]}: the time column must hold numbers "
