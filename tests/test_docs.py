@@ -45,7 +45,8 @@ def test_link_anchors_name_a_heading(doc):
     # been overwritten when the several-channels section was added above it
     path = ROOT / doc
     for target, anchor in re.findall(r"\]\(([^)#:]*)#([^)]*)\)", path.read_text()):
-        heads = [_slug(h) for h in re.findall(r"^#+ (.*)$", (path.parent / target if target else path).read_text(), re.M)]
+        linked = path.parent / target if target else path
+        heads = [_slug(h) for h in re.findall(r"^#+ (.*)$", linked.read_text(), re.M)]
         assert anchor in heads, f"{doc} links to {target or doc}#{anchor}, which has no such heading"
 
 

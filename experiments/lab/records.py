@@ -426,7 +426,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
             header, table, text = _read_csv(path, delimiter, decimal)
-            if text and table.shape[1] > table.shape[0]:  # text in a wide table: its first cell says more than its shape
+            if text and table.shape[1] > table.shape[0]:  # a wide table with text: name its first text cell
                 raise RecordError(min(text.values())[2])
             _check_orientation(table, path)
         else:
