@@ -512,3 +512,22 @@ def test_a_time_column_named_with_a_unit_not_of_time_is_not_taken_for_the_sample
     rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
     assert rec.dt == dt and np.array_equal(rec.y[:, 0], y)
     assert _select(_signals_csv(tmp_path / "ms.csv", ["Time (ms)", "u", "y"], [1e3 * t, u, y]), {})[2] == "Time (ms)"
+
+
+def test_a_time_column_of_date_time_stamps_found_by_its_name_names_a_fix_that_works_with_dt(tmp_path):
+    # the command takes a column named 'time' for the time column; holding date-time stamps, it was refused with
+    # "pass --dt instead of --t" to a user who had passed --dt and no --t
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    _, u, y, dt = _record()
+    path = tmp_path / "stamps.csv"
+    path.write_text("time,u,y\n" + "".join(f"2026-11-29 10:{k // 600:02d}:{k % 600 / 10:04.1f},{a!r},{b!r}\n"
+                                           for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    u_sel, y_sel, t_sel, _ = _select(path, {"u": "u", "y": "y", "dt": dt})
+    with pytest.raises(RecordError, match=r"the time column must hold numbers .*; dt= is given: omit t=, or rename "
+                                          r"the column .* --t is not given") as info:
+        load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
+    assert "instead of --t" not in str(info.value)
+    path.write_text(path.read_text().replace("time,", "stamp,", 1))  # the fix it names
+    assert load_record(path, **dict(zip(("u", "y", "t"), _select(path, {"u": "u", "y": "y"})[:3])), dt=dt).dt == dt

@@ -461,9 +461,14 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
         if t_cols and t_cols[0] in text and min(selected) == text[t_cols[0]] and text[t_cols[0]][3] == "cell":
             # a date-time stamp ("2026-11-29 10:00:00.1"): the reader takes numbers only, and "drop that column" had
             # been the fix named for the column that gives the sample time
+            # with dt= given, "--dt instead of --t" named what the user of the design command had done: it takes a
+            # column named t/time for the time column by itself
+            fix = ("dt= is given: omit t=, or rename the column (python -m experiments design takes a column named t "
+                   "or time for the time column when --t is not given)" if dt is not None else
+                   "pass dt=<sample time> instead of t= (--dt instead of --t)")
             raise RecordError(f"{text[t_cols[0]][2].split('; fix the file')[0]}: the time column must hold numbers "
-                              "(seconds, or a unit in its name, e.g. 'time [ms]'); pass dt=<sample time> instead of "
-                              "t= (--dt instead of --t), or convert the stamps to numbers")
+                              f"(seconds, or a unit in its name, e.g. 'time [ms]'); {fix}, or convert the stamps to "
+                              "numbers")
         if selected:
             raise RecordError(min(selected)[2])
         if variable is not None:
