@@ -82,7 +82,7 @@ class Record:
     u_columns, y_columns : tuple of str
         Where each channel came from (column name, ``"column 2"``, ``"key u"``, ...).
     t : ndarray, shape (n,), or None
-        The time column, when there was one.
+        The time column, when there was one: in seconds where its name gave a unit (``time [ms]``), else as read.
     """
 
     u: np.ndarray
