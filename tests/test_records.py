@@ -378,3 +378,16 @@ def test_a_units_row_with_a_number_in_it_is_named(tmp_path, signals, sel):
     path.write_text("time,u1,u2,y,note\n" + "\n".join(f"{r},{'start' if k == 0 else k}"
                                                       for k, r in enumerate(rows.splitlines())) + "\n")
     assert load_record(path, u=["u1", "u2"], y="y", **sel).n == len(t)  # text on row 0 of a column not selected
+
+
+def test_a_space_separated_header_with_units_in_brackets_keeps_each_unit_with_its_name(tmp_path, signals):
+    # "time [ms] u1 [N] u2 [N] y [m]" split at every space had given 8 names for 4 columns: "data row 0 has 4 fields
+    # but 8 were expected", and the unit of the time column was lost
+    t, u, y = signals
+    path = _write_csv(tmp_path / "log.txt", ["time [ms]", "u1 [N]", "u2 (N)", "y [m]"], [1e3 * t, u, y],
+                      delimiter=" ")
+    from experiments import record_columns
+
+    assert record_columns(path) == (["time [ms]", "u1 [N]", "u2 (N)", "y [m]"], 4)
+    rec = load_record(path, u=["u1 [N]", "u2 (N)"], y="y [m]", t="time [ms]")
+    assert rec.dt == pytest.approx(0.05, rel=1e-12) and np.array_equal(rec.u, u) and np.array_equal(rec.y, y)

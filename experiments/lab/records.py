@@ -184,6 +184,8 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         header, rows = rows[0], rows[1:]
     if not rows:
         raise RecordError(f"{str(path)!r} has a header but no data rows")
+    if header is not None and delimiter == " ":
+        header = _units_with_names(header)
     if header is not None and not any(numeric(c) for c in rows[0]):
         # a logger's units row ("s,N,m") under the names had been read as data: "'s' is not a number; drop that
         # column", which sends the user to the wrong fix
@@ -232,6 +234,18 @@ def _data_row_with_text(rows, numeric) -> bool:
     if len(rows) < max(2, len(rows[0])) or not any(numeric(c) for c in rows[0]) or len(rows[1]) != len(rows[0]):
         return False
     return all(numeric(a) == numeric(b) for a, b in zip(rows[0], rows[1]))
+
+
+def _units_with_names(header):
+    """A space-separated header's names with their units put back (``time [ms]`` had split into ``time``,
+    ``[ms]``): a field that is a unit in brackets alone belongs to the name before it (:func:`time_unit`)."""
+    merged = []
+    for cell in header:
+        if merged and _UNIT_SUFFIX.fullmatch(cell) and not _UNIT_SUFFIX.search(merged[-1]):
+            merged[-1] = f"{merged[-1]} {cell}"
+        else:
+            merged.append(cell)
+    return merged
 
 
 def _without_trailing_empty_column(rows):
