@@ -221,9 +221,9 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
             # through; "drop that column" (or, for the time column, "pass dt=") had named the wrong fix
             text[c] = (r, c, f"{where} and the column's other rows are: the row after the header "
                              f"({', '.join(rows[0])}) looks like a second header row (units?); delete it, or start it "
-                             "with '#' to mark it as a comment", "units")
+                             "with '#' to mark it as a comment", "units", where)
         else:
-            text[c] = (r, c, f"{where}{hint}; fix the file or drop that column", "cell")
+            text[c] = (r, c, f"{where}{hint}; fix the file or drop that column", "cell", f"{where}{hint}")
     return header, data, text
 
 
@@ -480,7 +480,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             fix = ("dt= is given: omit t=, or rename the column (python -m experiments design takes a column named t "
                    "or time for the time column when --t is not given)" if dt is not None else
                    "pass dt=<sample time> instead of t= (--dt instead of --t)")
-            raise RecordError(f"{text[t_cols[0]][2].split('; fix the file')[0]}: the time column must hold numbers "
+            raise RecordError(f"{text[t_cols[0]][4]}: the time column must hold numbers "
                               f"(seconds, or a unit in its name, e.g. 'time [ms]'); {fix}, or convert the stamps to "
                               "numbers")
         if selected:
@@ -522,7 +522,8 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                 raise RecordError(f"{str(path)!r}: the time array {t_sel[0]!r} must be one column, got shape {T.shape}")
         lens = {"u": U.shape[0], "y": Y.shape[0], **({"t": T.shape[0]} if T is not None else {})}
         if len(set(lens.values())) > 1:
-            raise RecordError(f"{str(path)!r}: the signals have different lengths ({', '.join(f'{k}: {v}' for k, v in lens.items())}); "
+            listed = ", ".join(f"{k}: {v}" for k, v in lens.items())
+            raise RecordError(f"{str(path)!r}: the signals have different lengths ({listed}); "
                               "every signal needs one value per sample: cut them to a common length")
 
     _check_finite(U, u_names, path, "input")

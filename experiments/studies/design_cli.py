@@ -798,8 +798,10 @@ OPTIONS = (
                            help="NPZ/MAT: the matrix holding the channels (then columns are indices)")),
     (("--weights",), dict(dest="weights", nargs=2, default=None, metavar=("W1FILE", "W2FILE"),
                           help="W1 and W2 saved with synthesis.save_controller (.npz or .mat each)")),
-    (("--w1",), dict(dest="w1", default=None, metavar="DC,FREQ,MAG,HF", help="W1 = makeweight(DC, (FREQ, MAG), HF, dt)")),
-    (("--w2",), dict(dest="w2", default=None, metavar="DC,FREQ,MAG,HF", help="W2 = makeweight(DC, (FREQ, MAG), HF, dt)")),
+    (("--w1",), dict(dest="w1", default=None, metavar="DC,FREQ,MAG,HF",
+                      help="W1 = makeweight(DC, (FREQ, MAG), HF, dt)")),
+    (("--w2",), dict(dest="w2", default=None, metavar="DC,FREQ,MAG,HF",
+                      help="W2 = makeweight(DC, (FREQ, MAG), HF, dt)")),
     (("--detrend",), dict(dest="detrend", choices=("none", "mean"), default="none",
                           help="mean: subtract the record's means of u and y (an operating point) before the design; "
                                "the report says how to apply the controller (default: none, the record as read)")),
