@@ -497,6 +497,13 @@ def test_a_time_column_in_other_units_gives_the_sample_time_in_seconds(tmp_path,
         load_record(bad, u="u", y="y", t="time [m]")
 
 
+def _date_time_csv(path, time_name, u, y):
+    """A logger's CSV whose time column holds date-time stamps at 0.1 s (text, not numbers)."""
+    path.write_text(f"{time_name},u,y\n" + "".join(f"2026-11-29 10:{k // 600:02d}:{k % 600 / 10:04.1f},{a!r},{b!r}\n"
+                                                    for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    return path
+
+
 def test_a_time_column_named_with_a_unit_not_of_time_is_not_taken_for_the_sample_time(tmp_path):
     # "Time (UTC)" holding date-time stamps: since 'time [...]' names are found, it had been taken as the time column
     # and the record refused even with --dt (and a message naming "--dt instead of --t", neither of which helped)
@@ -504,9 +511,7 @@ def test_a_time_column_named_with_a_unit_not_of_time_is_not_taken_for_the_sample
     from experiments.studies.design_cli import _select
 
     t, u, y, dt = _record()
-    path = tmp_path / "utc.csv"
-    path.write_text("Time (UTC),u,y\n" + "".join(f"2026-11-29 10:{k // 600:02d}:{k % 600 / 10:04.1f},{a!r},{b!r}\n"
-                                                 for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    path = _date_time_csv(tmp_path / "utc.csv", "Time (UTC)", u, y)
     u_sel, y_sel, t_sel, _ = _select(path, {"u": "u", "y": "y", "dt": dt})
     assert t_sel is None
     rec = load_record(path, u=u_sel, y=y_sel, t=t_sel, dt=dt)
@@ -521,9 +526,7 @@ def test_a_time_column_of_date_time_stamps_found_by_its_name_names_a_fix_that_wo
     from experiments.studies.design_cli import _select
 
     _, u, y, dt = _record()
-    path = tmp_path / "stamps.csv"
-    path.write_text("time,u,y\n" + "".join(f"2026-11-29 10:{k // 600:02d}:{k % 600 / 10:04.1f},{a!r},{b!r}\n"
-                                           for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    path = _date_time_csv(tmp_path / "stamps.csv", "time", u, y)
     u_sel, y_sel, t_sel, _ = _select(path, {"u": "u", "y": "y", "dt": dt})
     with pytest.raises(RecordError, match=r"the time column must hold numbers .*; dt= is given: omit t=, or rename "
                                           r"the column .* --t is not given") as info:
