@@ -234,20 +234,35 @@ def _one_input_two_outputs(tmp_path):
     return path, u, y, dt
 
 
-def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys):
+def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys, monkeypatch):
     """One input, two outputs: no loop tracks independent steps on both, and the refusal names --tracking-floor;
     ``--tracking-floor 0.2,inf`` is the certificate's floor per output (the library's verdict and δ with it)."""
+    from experiments.studies import design_cli
+
     path, u, y, dt = _one_input_two_outputs(tmp_path)
     args = ["design", str(path), "--u", "u", "--y", "y1,y2", "--dt", str(dt), "--horizon", "8", "--json"]
     assert main([*args, "--out", str(tmp_path / "default")]) == 0
     default = json.loads(capsys.readouterr().out)
     assert not default["certified"] and "--tracking-floor 0.1,inf" in default["reason"]
     assert default["tracking_floor"] == 0.1
+    calls = []  # the library call the command makes, and its result (a second solve of the same design had
+    # doubled this test's time for the same comparison)
+
+    def spy(*a, **kw):
+        calls.append((a, kw, design_record(*a, **kw)))
+        return calls[-1][2]
+
+    monkeypatch.setattr(design_cli, "design_record", spy)
     assert main([*args, "--tracking-floor", "0.2,inf", "--out", str(tmp_path / "floors")]) == 0
     floors = json.loads(capsys.readouterr().out)
     assert floors["tracking_floor"] == [0.2, None] and "fewer inputs" not in (floors["reason"] or "")
+    (a, kw, (res, _)), = calls
+    np.testing.assert_allclose(a[0], u[:, None], rtol=1e-15)  # the CSV holds repr(float): the same numbers
+    np.testing.assert_allclose(a[1], y, rtol=1e-15)
+    assert a[2:4] == (dt, 8) and kw["tracking_floor"] == (0.2, np.inf)
     W1, W2, _ = default_weights(dt, 1, 2, untracked=(1,))  # the untracked output weighed by UNTRACKED_WEIGHT
-    res, _ = design_record(u, y, dt, 8, W1, W2, tracking_floor=(0.2, np.inf))
+    for got, want in ((a[4], W1), (a[5], W2)):
+        assert got.dt == want.dt and all(np.array_equal(getattr(got, x), getattr(want, x)) for x in "ABCD")
     assert res.certificate.tracking_floor == (0.2, np.inf)
     assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
     md = (tmp_path / "floors" / "design" / "design.md").read_text()
