@@ -62,6 +62,8 @@ def test_design_json_files_and_controller_bit_for_bit(design_run, capsys):
     assert_reports_complete(out, "design")
     md = (out / "design.md").read_text()
     assert "certificate bracket" in md and "decided by" in md and "Design search" in md
+    # where dt came from, and in which unit (a bare 'time' column in ms cannot be told from one in seconds)
+    assert f"dt = {dt:g} (the time column's step, in seconds" in md and "'time [ms]'" in md
 
     # the same design, rebuilt here: the saved matrices are bit for bit its controller's
     W1, W2, _ = default_weights(dt)
@@ -266,6 +268,7 @@ def test_a_floor_per_output_reaches_the_certificate(tmp_path, capsys, monkeypatc
     assert res.certificate.tracking_floor == (0.2, np.inf)
     assert (floors["certified"], floors["delta"]) == (res.certified, res.delta)
     md = (tmp_path / "floors" / "design" / "design.md").read_text()
+    assert f"dt = {dt:g} (given)" in md
     # the floors reach the certificate (above); the verdict is the library's, a refusal since the whole record's low
     # band refutes the premise (premise ratio 4.1 on the true plant), and a refused report states no floor
     assert floors["certified"] == ("at most (0.2, inf) per output" in md)

@@ -625,7 +625,7 @@ def report_design(out: Path, rec, res, warned, *, horizon, window_arg, sigma_arg
     if intro:
         rep.text(intro)
     rep.section("Record",
-                f"`{rec.source}`: {n} samples, dt = {rec.dt:g}, input{'s' if rec.m > 1 else ''} "
+                f"`{rec.source}`: {n} samples, dt = {rec.dt:g}{_dt_origin(rec)}, input{'s' if rec.m > 1 else ''} "
                 f"{', '.join(map(str, rec.u_columns))}, output{'s' if rec.l > 1 else ''} "
                 f"{', '.join(map(str, rec.y_columns))}.  The (7.5) window is samples [{win[0]}, {win[1]}) (`--window "
                 f"{'auto' if window_arg == 'auto' else f'{window_arg[0]}:{window_arg[1]}'}`); the predictors "
@@ -708,6 +708,15 @@ def _floors_text(floor) -> str:
     """The tracking floor as the report states it: one number, or one per output (``inf``: not tracked)."""
     floors = np.atleast_1d(np.asarray(floor, float))
     return f"{floors[0]:g}" if floors.size == 1 else "(" + ", ".join(f"{f:g}" for f in floors) + ") per output"
+
+
+def _dt_origin(rec) -> str:
+    """Where the sample time came from, for the report: the weights and the controller take it in seconds, and a
+    time column in ms or µs under a bare name (``time``) cannot be told from one in seconds."""
+    if rec.t is None:
+        return " (given)"
+    return (" (the time column's step, in seconds: a column in other units names them, e.g. 'time [ms]', and is "
+            "converted)")
 
 
 def _floors_json(floor):
