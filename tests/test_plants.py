@@ -123,3 +123,25 @@ def test_bad_arguments():
         servo(dt=0.0)
     with pytest.raises(ValueError, match="dt"):
         three_disk(dt=-1.0)
+
+
+@pytest.mark.parametrize("make", [servo, lambda: three_disk("y1"), lambda: three_disk("all")])
+def test_plants_use_the_signal_names_of_the_toolkits_controllers(make):
+    # a plant named "u"/"y" did not connect by name to a controller with inputs "r[0]", "y[0]" and output "u[0]"
+    P = make()
+    assert P.input_labels == ["u[0]"]
+    assert P.output_labels == [f"y[{k}]" for k in range(P.noutputs)]
+
+
+def test_interconnect_by_name_closes_the_same_loop_as_closed_loop_system():
+    import synthesis as sy
+    from experiments import closed_loop_system, collect_data, prbs
+
+    P = servo()
+    data = collect_data(P, prbs(400, seed=0), sensor_noise=0.01, seed=1)
+    K = sy.hinf_design(sy.fit_predictor(data.u, data.y, 6, dt=P.dt), 1.0, 0.1).controller
+    loop = ct.interconnect([P, K], inplist=["r[0]"], outlist=["y[0]", "u[0]"])
+    ref = closed_loop_system(P, K)
+    w = np.linspace(0.01, 3.0, 7) / P.dt
+    np.testing.assert_allclose(loop.frequency_response(w).complex, ref.frequency_response(w).complex,
+                               rtol=1e-9, atol=1e-12)

@@ -365,3 +365,60 @@ def test_bounds_that_cross_at_the_rounding_level_of_the_data_are_warned_with_the
         warnings.simplefilter("error", uf.SolverWarning)
         r = uf.subspace_unfalsify(u, y, 4, 0.5 * rms, backend="structured", progress=False)
     assert r.certificate.lower_bound <= r.certificate.upper_bound
+
+
+def _hand_bound(V, W, B, cert):
+    """The certificate's dual formula written out: (⟨V, B⟩ − σ√N ‖V‖_F) / Σ_k ‖W_k‖_*."""
+    return (np.sum(V * B) - cert.noise_bound * np.linalg.norm(V)) / sum(np.linalg.norm(w, "nuc") for w in W)
+
+
+def _toeplitz_adjoint(Wk):
+    return np.array([np.trace(Wk, offset=-d) for d in range(Wk.shape[0])])
+
+
+@pytest.mark.parametrize("backend", ["cvxpy", "structured"])
+def test_dual_point_gives_the_lower_bound_by_hand_subspace(backend):
+    # The stored (dual_v, dual_G) of a conic solve satisfy T*(W_k) = T(u_k)ᵀ v_k only to the solver's tolerance: the
+    # formula with them is no bound (measured above the upper bound); dual_point() is the repaired point.
+    i = 4
+    u, y, sigma = _sub_data(i, 30, 3)
+    cert = uf.subspace_unfalsify(u, y, i, sigma, backend=backend, progress=False).certificate
+    V, W, B = cert.dual_point()
+    A, Uf, Yf = uf.subspace_data(u, y, i)
+    assert V.shape == Yf.shape and W.shape == (Yf.shape[1], i, i) and np.array_equal(B, Yf)
+    assert np.abs(V @ A.T).max() <= 1e-12 * np.abs(V).max() * np.abs(A).max()
+    for k in range(Uf.shape[1]):
+        Tu = np.array([[Uf[a - b, k] if a >= b else 0.0 for b in range(i)] for a in range(i)])
+        np.testing.assert_allclose(_toeplitz_adjoint(W[k]), Tu.T @ V[:, k], rtol=1e-10,
+                                   atol=1e-12 * np.abs(Tu.T @ V[:, k]).max())
+    np.testing.assert_allclose(_hand_bound(V, W, B, cert), cert.lower_bound, rtol=1e-9)
+    assert cert.lower_bound <= cert.upper_bound
+
+
+def test_dual_point_gives_the_lower_bound_by_hand_arx():
+    u, y = servo_arx_data(25, 1)
+    _, rms = uf.arx_least_squares(u, y, 2, 2)
+    cert = uf.arx_unfalsify(u, y, 2, 2, 0.5 * rms, backend="structured", tol=1e-8).certificate
+    V, W, B = cert.dual_point()
+    assert V.shape == B.shape == (25, 1) and W.shape == (1, 25, 25)
+    assert cert.lower_bound > 0
+    np.testing.assert_allclose(_hand_bound(V, W, B, cert), cert.lower_bound, rtol=1e-9)
+
+
+def test_dual_point_without_a_dual_is_refused():
+    u, y, sigma = _sub_data(3, 20, 0)
+    cert = uf.subspace_unfalsify(u, y, 3, sigma, backend="structured", progress=False).certificate
+    with pytest.raises(uf.UnfalsificationError, match="structured"):
+        dataclasses.replace(cert, dual_v=None).dual_point()
+
+
+def test_dual_point_gives_the_lower_bound_by_hand_two_channels():
+    rng = np.random.default_rng(1)
+    n, i = 40, 3
+    u = rng.standard_normal((n, 2))
+    y = np.column_stack([np.convolve(u[:, 0], [0, .5, .2])[:n], np.convolve(u[:, 1], [0, .3])[:n]])
+    y = y + 0.05 * rng.standard_normal((n, 2))
+    cert = uf.subspace_unfalsify(u, y, i, 0.03, progress=False).certificate
+    V, W, B = cert.dual_point()
+    assert V.shape == B.shape == (6, 35) and W.shape == (35, 6, 6) and cert.lower_bound > 0
+    np.testing.assert_allclose(_hand_bound(V, W, B, cert), cert.lower_bound, rtol=1e-9)

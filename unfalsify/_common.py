@@ -237,6 +237,8 @@ class Certificate:
         V, shape (n,) or (i, j).
     dual_G : ndarray, tuple or None
         W: dense ``(n, n)`` / ``(j, i, i)``, or a factor pair ``(P, Q)`` meaning ``P @ Q.T`` (per column).
+        ``dual_v`` and ``dual_G`` are the solver's multipliers before the bound's projection and correction: to
+        check the bound by hand use :meth:`dual_point`.
     problem : object
         The problem object (:class:`ArxProblem` or :class:`SubspaceProblem`) holding the data.
     """
@@ -253,6 +255,52 @@ class Certificate:
     dual_v: object = None
     dual_G: object = None
     problem: object = None
+
+    def dual_point(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The dual point of :attr:`lower_bound` in the form the bound's formula takes, to check it by hand.
+
+        :attr:`dual_v` and :attr:`dual_G` are the solver's multipliers as returned (a conic solver's ``W = −2 G21``
+        satisfies ``T*(W_k) = T(u_k)ᵀ v_k`` only to its tolerance; the formula with it is no bound and can exceed
+        :attr:`upper_bound`).  This applies the bound's steps 1–2 (V projected off the model directions, each
+        ``W_k`` corrected by a lower-triangular Toeplitz term) and returns ``(V, W, B)`` in data units, with B the
+        program's target (``Y_f`` for (7.5), ``Y_f − L A`` with the predictor fixed, ``y`` for (7.4)), so that
+        ``(⟨V, B⟩ − σ√N ‖V‖_F) / Σ_k ‖W_k‖_*`` is :attr:`lower_bound` (at least it, when the solver's W came as
+        factors or a circulant, whose nuclear norm the certificate bounds from above).
+
+        Returns
+        -------
+        V : ndarray, shape (rows, j)
+            Rows of a column of the program (i·l for (7.5), n·l for (7.4)); j columns (1 for (7.4)).
+        W : ndarray, shape (j, rows, i·m)
+            One dense multiplier per column, ``T*(W_k) = T(u_k)ᵀ v_k`` exactly.
+        B : ndarray, shape (rows, j)
+
+        Raises
+        ------
+        UnfalsificationError
+            Without a dual point (a cvxpy solve that returned none, a structured solve stopped before its first)
+            or without the problem (a certificate built by hand).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import unfalsify as uf
+        >>> rng = np.random.default_rng(0)
+        >>> u = rng.standard_normal(30)
+        >>> y = np.convolve(u, [0.0, 0.6, 0.3])[:30] + 0.05 * rng.standard_normal(30)
+        >>> c = uf.subspace_unfalsify(u, y, 3, 0.03, backend="structured", progress=False).certificate
+        >>> V, W, B = c.dual_point()
+        >>> lower = (np.sum(V * B) - c.noise_bound * np.linalg.norm(V)) / sum(np.linalg.norm(w, "nuc") for w in W)
+        >>> bool(np.isclose(lower, c.lower_bound, rtol=1e-9)), bool(lower <= c.upper_bound)
+        (True, True)
+        """
+        if self.dual_v is None or self.dual_G is None or self.problem is None:
+            raise UnfalsificationError(
+                "this certificate holds no dual point (or no problem): its lower bound is the trivial 0 or NaN; "
+                "backend='structured' returns one with every answer")
+        form = self.problem.column_form(scaled=False)
+        V, W = form.repaired_dual(self.dual_v, self.dual_G)
+        return V, W, form.B
 
     @property
     def delta_certified(self) -> float:

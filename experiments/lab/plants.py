@@ -104,7 +104,7 @@ def servo(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
     -------
     control.StateSpace
         Two-state modal realisation (integrator and the pole at −1), one input
-        ``u`` and one output ``y``; ``dt`` is the sample time (0 when continuous).
+        ``u[0]`` and one output ``y[0]``; ``dt`` is the sample time (0 when continuous).
 
     Examples
     --------
@@ -314,7 +314,11 @@ def modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) ->
     Returns
     -------
     control.StateSpace
-        Continuous, one input ``u``, one output per numerator.
+        Continuous, one input ``u[0]`` and one output ``y[k]`` per numerator (in the order of ``numerators``):
+        python-control's default signal names, which the toolkit's controllers use too (inputs ``r[0]``,
+        ``y[0]``, output ``u[0]``), so that ``control.interconnect([P, K], inplist=["r[0]"],
+        outlist=["y[0]", "u[0]"])`` closes the loop by name.  The keys of ``numerators`` stay in ``name``'s
+        caller (e.g. ``three_disk("y3")``), not in the signal names.
 
     Examples
     --------
@@ -354,4 +358,5 @@ def modal_ss(numerators: dict[str, np.ndarray], poles: np.ndarray, name: str) ->
     B = np.vstack(blocks_b)
     C = np.hstack(blocks_c)
     D = np.zeros((len(outputs), 1))
-    return ct.ss(A, B, C, D, inputs=["u"], outputs=outputs, name=name)
+    # python-control's default names: a plant named "u"/"y" did not connect by name to the controllers' "u[0]"/"y[0]"
+    return ct.ss(A, B, C, D, inputs=["u[0]"], outputs=[f"y[{k}]" for k in range(len(outputs))], name=name)

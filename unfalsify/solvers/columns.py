@@ -190,6 +190,38 @@ class ColumnForm:
             return 0.0
         return max(0.0, num / den)
 
+    def repaired_dual(self, V, W) -> tuple[np.ndarray, np.ndarray]:
+        """The dual point that :meth:`lower_bound` evaluates, after its steps 1–2: ``(V, W)`` with V projected
+        onto 𝓛^⊥ and each ``W_k`` dense and corrected so that ``T*(W_k) = T(u_k)ᵀ v_k`` holds exactly.
+
+        With them the bound of the module docstring is a direct formula, to be checked by hand:
+        ``(⟨V, B⟩ − ρ‖V‖_F) / Σ_k ‖W_k‖_*``.  It equals :meth:`lower_bound` for a dense W and is at least it for a
+        factor pair or a :class:`CirculantDual` (whose nuclear norms :meth:`lower_bound` bounds from above).
+
+        Returns
+        -------
+        V : ndarray, shape (m, j)
+        W : ndarray, shape (j, m, m)
+        """
+        V = self.project(np.asarray(V, float).reshape(self.m, self.j, order="F"))
+        if isinstance(W, CirculantDual):
+            col = np.zeros(int(W.size))
+            col[: np.size(W.column)] = np.ravel(W.column)
+            idx = np.arange(self.m)
+            Ws = col[np.subtract.outer(idx, idx) % int(W.size)][None]  # the circulant's leading m × m block
+        elif isinstance(W, tuple):
+            P, Q = (np.asarray(a, float) for a in W)
+            Ws = P @ np.swapaxes(Q, -1, -2) if P.ndim == 3 else (P @ Q.T)[None]
+        else:
+            Ws = np.array(W, float)  # a copy: the certificate's arrays may be read-only
+            Ws = Ws[None] if Ws.ndim == 2 else Ws
+        g = self.apply_T(V)
+        idx = np.arange(self.m)
+        for k in range(self.j):
+            c = (g[:, k] - adjoint(Ws[k])) / (self.m - idx)
+            Ws[k] = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
+        return V, Ws
+
     def _circulant_bound(self, num: float, g: np.ndarray, W: CirculantDual) -> float:
         """The bound with a :class:`CirculantDual` W (j = 1), repaired inside the same circulant family:
         adding ``c_d = (g − T*(W))_d/(m − d)`` to the column makes ``T*(W) = g`` exact."""
@@ -299,6 +331,21 @@ class BlockColumnForm(ColumnForm):
     def apply_T(self, X: np.ndarray) -> np.ndarray:
         """Adjoint of :meth:`apply`: ``M_k* x_k`` stacked as (i, l, m, j)."""
         return block_conv_cols_T(self.U, X, self.n_in)
+
+    def repaired_dual(self, V, W) -> tuple[np.ndarray, np.ndarray]:
+        """The dual point that :meth:`lower_bound` evaluates, after its steps 1–2: V (il, j) projected onto 𝓛^⊥ and
+        W (j, il, im) with ``T*(W_k) = M_k* v_k`` exactly; ``(⟨V, B⟩ − ρ‖V‖_F) / Σ_k ‖W_k‖_*`` is then the bound."""
+        V = self.project(np.asarray(V, float).reshape(self.m, self.j, order="F"))
+        Ws = np.array(W, float)  # a copy: the certificate's arrays may be read-only
+        Ws = Ws[None] if Ws.ndim == 2 else Ws
+        i, l, m = self.i, self.n_out, self.n_in
+        if Ws.shape != (self.j, i * l, i * m):
+            raise ValueError(f"W must be a stack ({self.j}, {i * l}, {i * m}) of norm multipliers, got {Ws.shape}")
+        g = self.apply_T(V)
+        scale = (i - np.arange(i))[:, None, None]
+        for k in range(self.j):
+            Ws[k] = Ws[k] + block_toeplitz_matrix((g[..., k] - block_adjoint(Ws[k], i, l, m)) / scale)
+        return V, Ws
 
     def lower_bound(self, V, W, rho: float | None = None) -> float:
         """The weak-duality bound of the class docstring; ``W`` a dense stack (j, il, im) (or (il, im) for j = 1)."""
