@@ -64,6 +64,15 @@ class CirculantDual:
         return CirculantDual(column=a * np.asarray(self.column, float), size=self.size)
 
 
+def _corrected(Wk: np.ndarray, gk: np.ndarray) -> np.ndarray:
+    """``W_k`` plus the lower-triangular Toeplitz term that makes ``T*(W_k) = g_k`` exact (step 2 of the bound in the
+    module docstring: the d-th diagonal of an m × m lower-triangular Toeplitz matrix appears m − d times in T*)."""
+    m = Wk.shape[0]
+    idx = np.arange(m)
+    c = (gk - adjoint(Wk)) / (m - idx)
+    return Wk + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
+
+
 class ColumnForm:
     """Program (C) of the module docstring in given (original or scaled) units.
 
@@ -180,12 +189,8 @@ class ColumnForm:
                 Ws = Ws[None]
             if not np.all(np.isfinite(Ws)):
                 return float("nan")
-            idx = np.arange(self.m)
             for k in range(self.j):
-                d = g[:, k] - adjoint(Ws[k])
-                c = d / (self.m - idx)
-                Wk = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
-                den += float(np.linalg.svd(Wk, compute_uv=False).sum())
+                den += float(np.linalg.svd(_corrected(Ws[k], g[:, k]), compute_uv=False).sum())
         if not den > 0.0:
             return 0.0
         return max(0.0, num / den)
@@ -216,10 +221,8 @@ class ColumnForm:
             Ws = np.array(W, float)  # a copy: the certificate's arrays may be read-only
             Ws = Ws[None] if Ws.ndim == 2 else Ws
         g = self.apply_T(V)
-        idx = np.arange(self.m)
         for k in range(self.j):
-            c = (g[:, k] - adjoint(Ws[k])) / (self.m - idx)
-            Ws[k] = Ws[k] + np.tril(c[np.subtract.outer(idx, idx).clip(0)])
+            Ws[k] = _corrected(Ws[k], g[:, k])
         return V, Ws
 
     def _circulant_bound(self, num: float, g: np.ndarray, W: CirculantDual) -> float:
