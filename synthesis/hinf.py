@@ -93,7 +93,10 @@ class HinfDesign:
     Attributes
     ----------
     gamma, gamma_min : float
-        Level used and the exact threshold (3.8)/(3.41)/(3.46)/(3.64).
+        Level used and the exact threshold (3.8)/(3.41)/(3.46)/(3.64): of the finite-horizon game on the predictor,
+        not a bound on the H∞ norm of the LTI loop (5.3)–(5.4) with a plant (measured on a third-order plant:
+        γ = 0.970, the weighted loop on the true plant 0.981).  That norm is :func:`~synthesis.hinf_norm` of the
+        closed loop (``control.feedback``, or ``experiments.closed_loop_system``, with the weights).
     gain : ndarray, shape (i·m, n_x)
         ``u_opt = gain @ v`` over the horizon (3.9), with ``v`` stacked as in :attr:`columns`:
         ``[w_p; x_w1; x_w2]`` (Thm 3.1), ``[r_k; w_p; x_w1; x_w2]`` (causal, (3.38)),
