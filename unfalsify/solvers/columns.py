@@ -339,16 +339,24 @@ class BlockColumnForm(ColumnForm):
         """The dual point that :meth:`lower_bound` evaluates, after its steps 1–2: V (il, j) projected onto 𝓛^⊥ and
         W (j, il, im) with ``T*(W_k) = M_k* v_k`` exactly; ``(⟨V, B⟩ − ρ‖V‖_F) / Σ_k ‖W_k‖_*`` is then the bound."""
         V = self.project(np.asarray(V, float).reshape(self.m, self.j, order="F"))
-        Ws = np.array(W, float)  # a copy: the certificate's arrays may be read-only
+        Ws = self._stack(W)
+        g = self.apply_T(V)
+        return V, np.stack([self._block_corrected(Ws[k], g[..., k]) for k in range(self.j)])
+
+    def _stack(self, W) -> np.ndarray:
+        """``W`` as a stack (j, il, im) of dense multipliers (one (il, im) matrix for j = 1), its shape checked."""
+        Ws = np.asarray(W, float)
         Ws = Ws[None] if Ws.ndim == 2 else Ws
         i, l, m = self.i, self.n_out, self.n_in
         if Ws.shape != (self.j, i * l, i * m):
             raise ValueError(f"W must be a stack ({self.j}, {i * l}, {i * m}) of norm multipliers, got {Ws.shape}")
-        g = self.apply_T(V)
-        scale = (i - np.arange(i))[:, None, None]
-        for k in range(self.j):
-            Ws[k] = Ws[k] + block_toeplitz_matrix((g[..., k] - block_adjoint(Ws[k], i, l, m)) / scale)
-        return V, Ws
+        return Ws
+
+    def _block_corrected(self, Wk: np.ndarray, gk: np.ndarray) -> np.ndarray:
+        """``W_k`` plus the block-Toeplitz term that makes ``T*(W_k) = g_k`` exact (step 2 of the bound): block d
+        of the i × i lower-triangular block-Toeplitz matrix appears i − d times in the adjoint."""
+        i, l, m = self.i, self.n_out, self.n_in
+        return Wk + block_toeplitz_matrix((gk - block_adjoint(Wk, i, l, m)) / (i - np.arange(i))[:, None, None])
 
     def lower_bound(self, V, W, rho: float | None = None) -> float:
         """The weak-duality bound of the class docstring; ``W`` a dense stack (j, il, im) (or (il, im) for j = 1)."""
@@ -356,12 +364,7 @@ class BlockColumnForm(ColumnForm):
         if W is None:
             return float("nan")
         V = np.asarray(V, float).reshape(self.m, self.j, order="F")
-        Ws = np.asarray(W, float)
-        if Ws.ndim == 2:
-            Ws = Ws[None]
-        i, l, m = self.i, self.n_out, self.n_in
-        if Ws.shape != (self.j, i * l, i * m):
-            raise ValueError(f"W must be a stack ({self.j}, {i * l}, {i * m}) of norm multipliers, got {Ws.shape}")
+        Ws = self._stack(W)
         if not (np.all(np.isfinite(V)) and np.all(np.isfinite(Ws))):
             return float("nan")
         V = self.project(V)
@@ -369,11 +372,9 @@ class BlockColumnForm(ColumnForm):
         if not num > 0.0:
             return 0.0
         g = self.apply_T(V)  # (i, l, m, j)
-        scale = (i - np.arange(i))[:, None, None]
         den = 0.0
         for k in range(self.j):
-            c = (g[..., k] - block_adjoint(Ws[k], i, l, m)) / scale
-            den += float(np.linalg.svd(Ws[k] + block_toeplitz_matrix(c), compute_uv=False).sum())
+            den += float(np.linalg.svd(self._block_corrected(Ws[k], g[..., k]), compute_uv=False).sum())
         if not den > 0.0:
             return 0.0
         return max(0.0, num / den)
