@@ -325,6 +325,42 @@ def test_a_delimiter_at_the_end_of_every_line_adds_no_column(tmp_path, signals, 
         load_record(path, u=1, y=4, t=0)
 
 
+@pytest.mark.parametrize("ends", ["header", "rows but the last", "one row", "rows, not the header"])
+def test_a_delimiter_at_the_end_of_some_lines_only_adds_no_column(tmp_path, signals, ends):
+    # "t,u1,u2,y," over rows without the trailing delimiter (or every row with it but the last) had been refused:
+    # "data row 0 has 4 fields but 5 were expected", though the one extra field is empty wherever it is
+    t, u, y = signals
+    rows = [",".join(f"{x:.17g}" for x in row) for row in np.column_stack([t, u, y])]
+    header = "time,u1,u2,y" + ("," if ends in ("header", "rows but the last") else "")
+    if ends == "rows but the last":
+        rows = [r + "," for r in rows[:-1]] + rows[-1:]
+    elif ends == "one row":
+        rows[7] += ","
+    elif ends == "rows, not the header":
+        rows = [r + "," for r in rows]
+    path = tmp_path / "some_trailing.csv"
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    rec = load_record(path, u=["u1", "u2"], y="y", t="time")
+    assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y) and rec.u_columns == ("u1", "u2")
+
+
+def test_a_field_count_error_names_the_line_that_ends_with_a_delimiter(tmp_path):
+    # a difference in fields that is not the empty last one alone is refused, and the message says which line ends
+    # with a delimiter (it had said "data row 1 has 3 fields but 4 were expected")
+    path = tmp_path / "ragged.csv"
+    path.write_text("t,u,y,\n0,1,2,3\n0.1,1,2\n")
+    with pytest.raises(RecordError, match=r"data row 1 has 3 fields but the header has 4; the header ends with a "
+                                          r"delimiter.*delete the delimiter where no value follows it"):
+        load_record(path, u="u", y="y", t="t")
+    path.write_text("t,u,y\n0,1,2\n0.1,1\n")  # a value missing: no delimiter to blame
+    with pytest.raises(RecordError, match=r"data row 1 has 2 fields but the header has 3; every row needs one value"):
+        load_record(path, u="u", y="y", t="t")
+    rows = "".join(f"0.{k},1,2,\n" for k in range(2, 9))  # a value missing before the delimiter: a NaN, not a shift
+    path.write_text("t,u,y,\n0,1,2,\n0.1,1,\n" + rows)
+    with pytest.raises(RecordError, match=r"output y has NaN, empty or infinite values \(1\), the first at data row 1"):
+        load_record(path, u="u", y="y", t="t")
+
+
 def test_a_text_column_refuses_the_file_only_when_it_is_selected(tmp_path, signals):
     # a logger's status column or a date-time stamp beside the signals had refused the whole file
     t, u, y = signals

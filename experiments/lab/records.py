@@ -202,8 +202,7 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
     fails = dict.fromkeys(range(width), 0)
     for r, row in enumerate(rows):
         if len(row) != width:
-            raise RecordError(f"{str(path)!r}: data row {r} has {len(row)} fields but {width} were expected; "
-                              "every row needs one value per column")
+            raise RecordError(_field_count_message(path, header, rows, r))
         for c, cell in enumerate(row):
             try:
                 data[r, c] = number(cell) if cell != "" else np.nan
@@ -225,6 +224,17 @@ def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
         else:
             text[c] = (r, c, f"{where}{hint}; fix the file or drop that column", "cell", f"{where}{hint}")
     return header, data, text
+
+
+def _field_count_message(path: Path, header, rows, r: int) -> str:
+    """Data row ``r`` has another number of fields than the header (or the first row): which line has how many, and
+    which of them ends with a delimiter, the likely slip where the two differ by that empty last field alone."""
+    first, what = (header, "the header") if header is not None else (rows[0], "data row 0")
+    ends = [name for name, line in ((what, first), (f"data row {r}", rows[r])) if line and line[-1] == ""]
+    hint = (f"; {' and '.join(ends)} end{'s' if len(ends) == 1 else ''} with a delimiter, which counts as an empty "
+            "last field: delete the delimiter where no value follows it" if ends else "")
+    return (f"{str(path)!r}: data row {r} has {len(rows[r])} fields but {what} has {len(first)}{hint}; every row "
+            "needs one value per column")
 
 
 def _data_row_with_text(rows, numeric) -> bool:
@@ -249,11 +259,21 @@ def _units_with_names(header):
 
 
 def _without_trailing_empty_column(rows):
-    """Drop the empty last field that a delimiter at the end of every line (the header's too) makes (``t,u,y,``, as
-    some spreadsheets export): it had been read as a signal column of NaN named '', or, without a header, had made the
-    first data row look like one."""
-    while rows and all(len(r) > 1 and r[-1] == "" for r in rows):
-        rows = [r[:-1] for r in rows]
+    """Drop the empty last field that a delimiter at the end of a line makes (``t,u,y,``, as some spreadsheets
+    export): it had been read as a signal column of NaN named '', or, without a header, had made the first data row
+    look like one.
+
+    The field goes also when only some lines end with the delimiter (the header and not the rows, or every row but
+    the last): every line is then the one field longer or shorter, and that field is empty wherever it is.  Dropping
+    a last field that holds nothing moves no other field, so no column is misaligned; any other difference in the
+    number of fields is left to the reader's field-count error.
+    """
+    while rows:
+        width = max(len(r) for r in rows)
+        long = [r for r in rows if len(r) == width]
+        if width < 2 or any(r[-1] != "" for r in long) or any(len(r) not in (width, width - 1) for r in rows):
+            return rows
+        rows = [r[:-1] if len(r) == width else r for r in rows]
     return rows
 
 
