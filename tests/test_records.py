@@ -112,7 +112,7 @@ def test_errors_name_the_problem_and_the_fix(tmp_path, signals):
     (tmp_path / "empty_cell.csv").write_text("t,u,y\n0,1,2\n1,,3\n2,1,2\n")
     with pytest.raises(RecordError, match="input u has NaN.*data row 1"):
         load_record(tmp_path / "empty_cell.csv", u="u", y="y", t="t")
-    (tmp_path / "text.csv").write_text("t,u,y\n0,1,2\n1,abc,3\n")
+    (tmp_path / "text.csv").write_text("t,u,y\n0,1,2\n1,abc,3\n2,1,2\n")  # two rows: "too few samples" first
     with pytest.raises(RecordError, match=r"'u', data row 1: 'abc' is not a number"):
         load_record(tmp_path / "text.csv", u="u", y="y", t="t")
     # NPZ: mismatched lengths, missing key, time along axis 1
@@ -378,6 +378,32 @@ def test_a_text_column_refuses_the_file_only_when_it_is_selected(tmp_path, signa
     bare.write_text("\n".join(r[r.index(",") + 1:] for r in rows) + "\n")
     rec = load_record(bare, u=[0, 1], y=2, dt=0.05)
     assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y)
+
+
+@pytest.mark.parametrize("text", ["0.0,1.0,0.0,ok\n0.1,1.0,0.5,ok\n", "0.0,1.0,0.0\n0.1,1.0,0.5\n",
+                                  "t,u,y,status\n0.0,1.0,0.0,ok\n0.1,1.0,0.5,ok\n"])
+def test_a_two_row_file_is_refused_for_its_few_samples(tmp_path, text):
+    # without a header, a status column had made the first of two data rows the header, and the two-row file was
+    # then refused as "signals stored in rows: save the transposed table", which gives four samples: no record either
+    from experiments import record_columns
+
+    path = tmp_path / "two.csv"
+    path.write_text(text)
+    message = r"has 2 data rows and [34] columns: 2 samples are far too few for a design.*record a longer one"
+    with pytest.raises(RecordError, match=message):
+        record_columns(path)
+    with pytest.raises(RecordError, match=message):
+        load_record(path, u=1, y=2, dt=0.1)
+
+
+def test_the_fewest_samples_are_those_the_design_asks_for():
+    # the reader's "far too few for a design" names the design's own least record: one input, one output, horizon 1
+    from experiments.lab.records import _FEWEST_SAMPLES
+    from experiments.studies.design_cli import default_weights, design_record
+
+    W1, W2 = default_weights(0.1)[:2]
+    with pytest.raises(DataError, match=rf"record at least {_FEWEST_SAMPLES} samples"):
+        design_record(np.ones(4), np.ones(4), 0.1, 1, W1, W2)
 
 
 def test_a_time_column_of_date_time_stamps_names_dt_as_the_fix(tmp_path):

@@ -134,13 +134,31 @@ def _as_list(sel, what: str):
 
 
 # ---------------------------------------------------------------------------------------------- CSV
-def _check_orientation(table: np.ndarray, path: Path) -> None:
-    """A CSV table with more columns than rows holds its signals in rows (a record saved transposed)."""
+#: The samples the design asks for at the least: one input and one output at horizon 1 (unfalsify's record check,
+#: 3·i(2m + l) + 2i − 1 fitting samples with the last third held out).  A table with fewer rows and fewer columns
+#: than this is too short read either way, by rows or (signals stored in rows) by columns.
+_FEWEST_SAMPLES = 15
+
+
+def _check_orientation(table: np.ndarray, path: Path, text=None) -> None:
+    """A CSV table with more columns than rows holds its signals in rows (a record saved transposed), unless it is
+    too short read either way: then the problem is the few samples (``text``: the text cells, named first in a wide
+    table, as :func:`load_record` passes them)."""
     rows, cols = table.shape
-    if cols > rows:
-        raise RecordError(f"{str(path)!r} has {rows} data row{'s' if rows != 1 else ''} and {cols} columns: more "
-                          "columns than samples, so the signals look stored in rows; a record has one row per sample "
-                          "and one column per signal: save the transposed table")
+    if cols <= rows:
+        return
+    if cols < _FEWEST_SAMPLES:
+        # two rows under four columns had been called "signals stored in rows: save the transposed table", which
+        # gives four samples: no design either
+        raise RecordError(f"{str(path)!r} has {rows} data row{'s' if rows != 1 else ''} and {cols} columns: "
+                          f"{rows} sample{'s are' if rows != 1 else ' is'} far too few for a design (a record has one "
+                          f"row per sample; one input and one output at horizon 1 ask for {_FEWEST_SAMPLES}); record "
+                          "a longer one")
+    if text:  # a wide table with text: name its first text cell
+        raise RecordError(min(text.values())[2])
+    raise RecordError(f"{str(path)!r} has {rows} data row{'s' if rows != 1 else ''} and {cols} columns: more "
+                      "columns than samples, so the signals look stored in rows; a record has one row per sample "
+                      "and one column per signal: save the transposed table")
 
 
 def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
@@ -240,8 +258,11 @@ def _field_count_message(path: Path, header, rows, r: int) -> str:
 def _data_row_with_text(rows, numeric) -> bool:
     """Is the first row, partly numbers, a data row of a file without a header whose text columns (a status) hold
     text on the next row too?  Such a row is not a header: it would lose the record's first sample."""
-    # a wide table is a record saved transposed, names in its first column (_labels_in_first_column), not this
-    if len(rows) < max(2, len(rows[0])) or not any(numeric(c) for c in rows[0]) or len(rows[1]) != len(rows[0]):
+    if len(rows) < 2 or not any(numeric(c) for c in rows[0]) or len(rows[1]) != len(rows[0]):
+        return False
+    # a wide table with a name first and numbers after it is a record saved transposed (_labels_in_first_column),
+    # not this; any other text (a status column of a two-row file) had made a wide table's first row its header
+    if len(rows) < len(rows[0]) and not numeric(rows[0][0]) and all(numeric(c) for c in rows[0][1:]):
         return False
     return all(numeric(a) == numeric(b) for a, b in zip(rows[0], rows[1]))
 
@@ -460,9 +481,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
             if variable is not None:
                 raise RecordError("variable= is for NPZ/MAT files; a CSV file's columns are selected by u=, y=, t=")
             header, table, text = _read_csv(path, delimiter, decimal)
-            if text and table.shape[1] > table.shape[0]:  # a wide table with text: name its first text cell
-                raise RecordError(min(text.values())[2])
-            _check_orientation(table, path)
+            _check_orientation(table, path, text)
         else:
             text = {}
             arrays = read_variables(path, error=RecordError)
