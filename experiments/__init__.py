@@ -76,6 +76,7 @@ Lab records
    Record                 -- result of ``load_record``
    RECORD_FORMATS         -- the file suffixes ``load_record`` reads
    record_columns         -- column names and count of a record file, before choosing ``u`` and ``y``
+   text_columns           -- the columns of a CSV record that hold text, no number (a status): not signals
    time_unit              -- a column name's unit in brackets (``time [ms]``), in seconds where it is one of time
    RecordError            -- a record that cannot be read as asked (the message names the fix)
 
@@ -124,7 +125,7 @@ from .lab.plants import (
     three_disk,
     zoh,
 )
-from .lab.records import RECORD_FORMATS, Record, RecordError, load_record, record_columns, time_unit
+from .lab.records import RECORD_FORMATS, Record, RecordError, load_record, record_columns, text_columns, time_unit
 from .lab.signals import prbs, step, step_sequence, white_noise
 from .lab.simulate import (
     AlgebraicLoopError,
@@ -169,6 +170,7 @@ __all__: list[str] = [
     "RecordError",
     "load_record",
     "record_columns",
+    "text_columns",
     "time_unit",
 ]
 

@@ -340,6 +340,38 @@ def test_one_of_u_and_y_on_a_wide_record_is_refused(tmp_path):
     assert _select(three, {"u": "u"})[:3] == ("u", "y", "t")  # one column left: unambiguous
 
 
+def _with_status(path, header, columns, at):
+    """A record with a logger's status column ("ok" in every row) inserted at position ``at``."""
+    rows = [[f"{float(v)!r}" for v in row] for row in zip(*columns)]
+    lines = [header[:at] + ["status"] + header[at:]] + [r[:at] + ["ok"] + r[at:] for r in rows]
+    path.write_text("\n".join(",".join(line) for line in lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("at", [1, 3])
+def test_a_text_column_is_not_counted_as_a_signal(tmp_path, at):
+    # "t,u,y,status" without --u/--y had been refused as "3 signal columns (u, y, status)": the status, text in every
+    # row, counted as a signal; the selection is now the one of the file without it
+    from experiments.lab.records import RecordError, load_record
+    from experiments.studies.design_cli import _select
+
+    t, u, y, _ = _record()
+    path = _with_status(tmp_path / "status.csv", ["t", "u", "y"], [t, u, y], at)
+    assert _select(path, {})[:3] == ("u", "y", "t")
+    assert _select(path, {"u": "u"})[:3] == ("u", "y", "t")
+    wide = _with_status(tmp_path / "wide.csv", ["t", "u1", "u2", "y"], [t, u, u, y], at)
+    with pytest.raises(RecordError, match=r"has 3 signal columns \(u1, u2, y; status holds text, not a "
+                                          r"signal\): say which are inputs with --u"):
+        _select(wide, {})
+    lone = _with_status(tmp_path / "lone.csv", ["t", "u"], [t, u], at)
+    with pytest.raises(RecordError, match=r"status holds text, not a signal\) leaves no column for --u and --y"):
+        _select(lone, {})
+    for role, sel in (("y", dict(u="u", y="status")), ("u", dict(u="status", y="y"))):  # selected: refused, named
+        with pytest.raises(RecordError, match=rf"'status', data row 0: 'ok' is not a number: the column holds text in "
+                                              rf"every row, not a signal; select a column of numbers as {role}="):
+            load_record(path, t="t", **sel)
+
+
 def test_a_time_column_is_never_a_signal_also_with_dt(tmp_path):
     from experiments.lab.records import RecordError, load_record
     from experiments.studies.design_cli import _select

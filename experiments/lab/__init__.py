@@ -4,7 +4,8 @@
                        they are built (``modal_ss``, ``damped_pair``, ``zoh``)
    signals          -- PRBS, white noise, steps
    simulate         -- open-loop experiments, closed loops (LTI, receding-horizon, adaptive controllers), ``lsim``
-   records          -- ``load_record``: measured ``u``, ``y``, ``dt`` from CSV, NPZ or MAT; ``record_columns``
+   records          -- ``load_record``: measured ``u``, ``y``, ``dt`` from CSV, NPZ or MAT; ``record_columns``,
+                       ``text_columns``
    report           -- markdown reports, CSV/JSON files and checked figures under ``--out``
    servo_setup      -- the §5.4 servo set-up shared by several studies (data, weights, step responses and plots)
    torsional_setup  -- the Ch. 6 three-disk weights (chosen: the thesis gives them only as plots)

@@ -19,7 +19,7 @@ from synthesis.export import read_variables
 from synthesis.results import result
 from synthesis.validation import DataError, as_signal, check_sample_time
 
-__all__ = ["Record", "RecordError", "load_record", "record_columns", "time_unit", "RECORD_FORMATS"]
+__all__ = ["Record", "RecordError", "load_record", "record_columns", "text_columns", "time_unit", "RECORD_FORMATS"]
 
 #: File endings :func:`load_record` reads.
 RECORD_FORMATS = (".csv", ".txt", ".npz", ".mat")
@@ -523,7 +523,7 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
                               f"(seconds, or a unit in its name, e.g. 'time [ms]'); {fix}, or convert the stamps to "
                               "numbers")
         if selected:
-            raise RecordError(min(selected)[2])
+            raise RecordError(_selected_text_message(min(selected), table, {"u": u_cols, "y": y_cols, "t": t_cols}))
         if variable is not None:
             u_names = [f"{variable}[:, {c.split()[-1]}]" for c in u_names]
             y_names = [f"{variable}[:, {c.split()[-1]}]" for c in y_names]
@@ -574,6 +574,18 @@ def load_record(path, *, u, y, t=None, dt=None, variable: str | None = None, del
     Y = as_signal(Y, "y", n=U.shape[0])
     return Record(u=U, y=Y, dt=dt_value, source=str(path), u_columns=tuple(u_names), y_columns=tuple(y_names),
                   t=T)
+
+
+def _selected_text_message(entry, table: np.ndarray, roles: dict) -> str:
+    """The refusal of a selected column with text (``entry`` from the CSV reader's ``text``): a column with text in
+    every row (a status) is no signal, and "fix the file or drop that column" had not said that another column is
+    to be selected."""
+    r, c, message, kind, where = entry
+    if kind != "cell" or not np.isnan(table[:, c]).all():
+        return message
+    role = next(name for name, cols in roles.items() if c in cols)
+    return (f"{where}: the column holds text in every row, not a signal; select a column of numbers as {role}= "
+            f"(--{role} of python -m experiments design)")
 
 
 def _in_seconds(T: np.ndarray, name: str, path: Path) -> np.ndarray:
@@ -648,6 +660,45 @@ def record_columns(path, variable: str | None = None) -> tuple[list[str] | None,
         if variable in arrays and np.ndim(arrays[variable]) == 2:
             return None, int(np.shape(arrays[variable])[1])
     return None, None
+
+
+def text_columns(path) -> list[int]:
+    """The columns of a CSV record that hold text and no number (a logger's status, date-time stamps): not signals.
+
+    :func:`load_record` reads such a column only when it is selected (and then refuses it, naming the cell); the
+    design command leaves it out when it picks the signals itself, as if the file had no such column.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV/TXT file; NPZ/MAT files hold numbers only and give ``[]``.
+
+    Returns
+    -------
+    list of int
+        0-based column indices, in order.  A column with a number in any data row is not listed: it is a signal
+        with bad cells, which :func:`load_record` names when it is selected.
+
+    Raises
+    ------
+    FileNotFoundError, RecordError
+        As :func:`record_columns`.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from experiments import text_columns
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     f = pathlib.Path(d) / "run.csv"
+    ...     _ = f.write_text("t,u,y,status\\n0,1,0,ok\\n0.1,1,0.5,ok\\n0.2,1,0.8,ok\\n0.3,1,0.9,ok\\n")
+    ...     text_columns(f)
+    [3]
+    """
+    path = Path(path)
+    if _record_format(path) not in (".csv", ".txt"):
+        return []
+    _, table, text = _read_csv(path, None)
+    return sorted(c for c in text if np.isnan(table[:, c]).all())
 
 
 def _sample_time(T, dt, rtol: float, path: Path, t_name) -> float:

@@ -44,7 +44,7 @@ import numpy as np
 
 from synthesis.validation import DataError
 
-from ..lab.records import RecordError, load_record, record_columns, time_unit
+from ..lab.records import RecordError, load_record, record_columns, text_columns, time_unit
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
            "untracked_outputs", "operating_point", "scale_note", "INPUT_ERRORS", "UNTRACKED_WEIGHT", "SCALE_NOTE"]
@@ -261,25 +261,37 @@ def _select(path: Path, extra: dict):
             u, y = ("u" if u is None else u), ("y" if y is None else y)  # NPZ/MAT arrays named u and y
         else:
             t_index = None if t is None else _time_index(t, names, width, path)
-            rest = [k for k in range(width) if k != t_index]
+            # a column of text (a logger's status) is no signal: counted as one, it had made "t,u,y,status" a file of
+            # "3 signal columns" that must name --u and --y, and without a header been offered as the output
+            text = [k for k in text_columns(path) if k != t_index]
+            rest = [k for k in range(width) if k != t_index and k not in text]
             taken = _chosen(u, y)
             free = [k for k in rest if k not in taken and not (names and names[k] in taken)]
             missing = " and ".join(f"--{w}" for w, sel in (("u", u), ("y", y)) if sel is None)
+            left_out = _text_note(text, names)
             if len(rest) > 2 and len(free) > (u is None) + (y is None):
                 cols = ", ".join(names[k] for k in rest) if names else f"{len(rest)} columns"
-                raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}): say which are inputs "
-                                  "with --u and which are outputs with --y (names or 0-based indices, comma-separated "
-                                  f"for several channels, e.g. --u 0,1 --y 2,3); {missing} is missing")
+                raise RecordError(f"{str(path)!r} has {len(rest)} signal columns ({cols}{left_out}): say which are "
+                                  "inputs with --u and which are outputs with --y (names or 0-based indices, "
+                                  f"comma-separated for several channels, e.g. --u 0,1 --y 2,3); {missing} is missing")
             pick = (lambda k: names[k]) if names else (lambda k: k)
             if len(free) < (u is None) + (y is None):
                 cols = ", ".join(names) if names else f"{width} columns"
-                raise RecordError(f"{str(path)!r} ({cols}) leaves no column for {missing} once the others are "
-                                  f"taken; pass {missing} (names or 0-based indices)")
+                raise RecordError(f"{str(path)!r} ({cols}{left_out}) leaves no column for {missing} once the others "
+                                  f"are taken; pass {missing} (names or 0-based indices)")
             if u is None:
                 u, free = pick(free[0]), free[1:]
             if y is None:
                 y = pick(free[0])
     return u, y, t, variable
+
+
+def _text_note(text, names) -> str:
+    """``"; status holds text, not a signal"`` for the text columns left out of the signals, '' without any."""
+    if not text:
+        return ""
+    cols = ", ".join(names[k] if names else f"column {k}" for k in text)
+    return f"; {cols} hold{'s' if len(text) == 1 else ''} text, not a signal"
 
 
 def _time_array(path: Path, u, y):
