@@ -212,9 +212,13 @@ def subspace_id(u, y, horizon: int, *, order="floor", floor_ratio: float = 5.0, 
         ``"floor"``: how many times the noise floor a singular value must exceed (default 5).
     max_order : int, optional
         Largest order considered, default ``min(⌊i·l/2⌋, 20)``.
-    dt : float, optional
-        The data's sample time, stored in the model (default ``True``: unspecified; pass it
-        before designing with :func:`~synthesis.discrete_mixsyn`).
+    dt : float or True, optional
+        The data's sample time in seconds, stored in the model.  Default (None): ``True``,
+        python-control's discrete time with an unspecified sample time, as :func:`~synthesis.arx_id`
+        gives and :func:`~synthesis.validation.check_sample_time` accepts: the model combines with
+        systems of any sample time and takes theirs; ``dt=1`` would state one second.  Pass the
+        data's sample time before designing with :func:`~synthesis.discrete_mixsyn`, which needs a
+        number and says so.
     feedthrough : bool
         Estimate ``D`` (default False: ``D = 0``, as for every ZOH-sampled physical plant).
     validation_fraction : float
@@ -259,6 +263,15 @@ def subspace_id(u, y, horizon: int, *, order="floor", floor_ratio: float = 5.0, 
     >>> G = control.tf(sid.model)
     >>> print(np.round(G.num[0][0] / G.den[0][0][0], 6), np.round(G.den[0][0] / G.den[0][0][0], 6))
     [0.5 0.3] [ 1.  -1.2  0.5]
+
+    Without ``dt`` the model is discrete with an unspecified sample time, which a product with a
+    system sampled at 0.1 s takes on:
+
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     free = subspace_id(u, y, 6).model
+    >>> free.dt, (free * control.tf(1, [1, -0.5], 0.1)).dt
+    (True, 0.1)
     """
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])

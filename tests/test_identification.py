@@ -273,3 +273,18 @@ def test_an_order_at_the_cap_warns_and_names_the_fix():
         warnings.simplefilter("error", sy.OrderWarning)
         assert sy.subspace_id(u, y, 12).order == 5
         assert sy.subspace_id(u, y, 8, order=4).order == 4      # a stated order is the user's
+
+
+def test_without_dt_the_models_are_discrete_with_an_unspecified_sample_time():
+    # python-control's convention, which the package follows (check_sample_time accepts True): dt=True is discrete
+    # time with no stated sample time and takes that of the systems it is combined with; dt=1 would state 1 s and
+    # dt=None would be read as continuous time
+    u, y = _data(_plant4(), 400, 3, noise=0.01)
+    for fit in (lambda **kw: sy.subspace_id(u, y, 12, **kw), lambda **kw: sy.arx_id(u, y, **kw)):
+        free, timed = fit().model, fit(dt=DT).model
+        assert free.dt is True and control.isdtime(free, strict=True) and timed.dt == DT
+        assert (free * control.tf(1, [1, -0.5], DT)).dt == DT
+        np.testing.assert_array_equal(free.A, timed.A)            # the sample time changes no coefficient
+    W1, W2 = control.tf([0.5, -0.4], [1, -0.99], True), control.tf(0.1, 1, True)
+    with pytest.raises(sy.DataError, match=r"numeric sample time \(dt > 0\)"):  # the design needs one, and says so
+        sy.discrete_mixsyn(free, W1, W2)
