@@ -187,6 +187,46 @@ class RecedingHorizonController:
     Parameters
     ----------
     design : HinfDesign or LqgDesign
+
+    Examples
+    --------
+    A design at ``i = 4`` on a record of the plant ``y_k = 0.5 u_{k-1} + 0.2 u_{k-2}``, its past-data window
+    started from the record's last samples:
+
+    >>> import numpy as np
+    >>> from synthesis import fit_predictor, hinf_design, makeweight
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(200)
+    >>> y = np.convolve(u, [0.0, 0.5, 0.2])[:200] + 0.01 * rng.standard_normal(200)
+    >>> W1 = makeweight(10.0, (0.5, 1.0), 0.5, 0.1)
+    >>> design = hinf_design(fit_predictor(u, y, 4), W1, 0.1, dt=0.1)
+    >>> K = RecedingHorizonController(design)
+    >>> K.reset(u_past=u, y_past=y)
+    >>> K.state.shape  # [u_p; y_p; x_w1]: 4 + 4 past samples and W1's state
+    (9,)
+
+    Each step: :meth:`control` gives ``u_k``, the plant answers, :meth:`observe` records ``u_k``, ``y_k`` and the
+    reference ``r_k`` (here a unit step; W1 has a state, so ``r_k`` is needed):
+
+    >>> u_hist, y_out = list(u[-2:]), []
+    >>> for k in range(60):
+    ...     u_k = K.control()
+    ...     y_k = 0.5 * u_hist[-1] + 0.2 * u_hist[-2]
+    ...     K.observe(u_k, y_k, r_k=1.0)
+    ...     u_hist.append(u_k[0])
+    ...     y_out.append(y_k)
+    >>> u_k.shape, K.plan.shape  # the applied control and the whole plan over the horizon
+    ((1,), (4, 1))
+    >>> bool(abs(y_out[-1] - 1.0) < 0.1)  # settles near r (W1 has no integrator, so not on it)
+    True
+
+    :meth:`set_design` swaps in new gains (same ``i``, ``m``, ``l`` and weight states) and keeps the state:
+
+    >>> calmer = hinf_design(design.predictor, W1, 0.1, gamma_ratio=2.0, dt=0.1)
+    >>> before = K.state
+    >>> K.set_design(calmer)
+    >>> bool(np.array_equal(K.state, before)), round(K.design.gamma / K.design.gamma_min, 6)
+    (True, 2.0)
     """
 
     def __init__(self, design):

@@ -89,6 +89,42 @@ class Predictor:
         columns ``j`` than twice the regressor's rank (the test could not tell "no effect" from "too few data"),
         ``U_f`` adding no direction beyond ``W_p`` (an input that is not persistently exciting, which a
         :class:`~synthesis.PersistenceWarning` names), or a predictor pickled before the field existed.
+
+    Examples
+    --------
+    Made by :func:`fit_predictor` (or :meth:`RecursivePredictor.predictor <synthesis.RecursivePredictor.predictor>`).
+    The FIR plant ``y_k = u_{k-1} + 0.5 u_{k-2}`` at horizon ``i = 4``, one input and one output:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(500)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:500] + 0.01 * rng.standard_normal(500)
+    >>> pred = fit_predictor(u, y, 4, dt=0.1)
+    >>> pred.horizon, pred.m, pred.l, pred.n_columns, pred.dt
+    (4, 1, 1, 493, 0.1)
+    >>> pred.Lw.shape, pred.Lu.shape, pred.rank, pred.full_rank, pred.persistently_exciting
+    ((4, 8), (4, 4), 12, True, True)
+    >>> bool(pred.control_pvalue < 0.01)  # the data show u acting on y over the horizon
+    True
+
+    ``Lu`` holds the plant's Markov parameters 0, 1, 0.5, block lower triangular (2.10)
+    (``+ 0.0`` turns a rounded ``-0.`` into ``0.``):
+
+    >>> np.round(pred.Lu, 1) + 0.0
+    array([[0. , 0. , 0. , 0. ],
+           [1. , 0. , 0. , 0. ],
+           [0.5, 1. , 0. , 0. ],
+           [0. , 0.5, 1. , 0. ]])
+
+    :meth:`predict` maps the past ``i`` samples (stacked by :meth:`past_vector`) and ``i`` planned inputs to the
+    next ``i`` outputs (2.6); on a fresh noise-free record of the same plant:
+
+    >>> u_new = rng.standard_normal(20)
+    >>> y_new = np.convolve(u_new, [0.0, 1.0, 0.5])[:20]
+    >>> w_p = pred.past_vector(u_new[:10], y_new[:10])  # samples 6–9 of u, then of y
+    >>> y_hat = pred.predict(w_p, u_new[10:14])          # outputs 10–13
+    >>> w_p.shape, y_hat.shape, bool(np.abs(y_hat[:, 0] - y_new[10:14]).max() < 0.01)
+    ((8,), (4, 1), True)
     """
 
     Lw: np.ndarray

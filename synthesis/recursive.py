@@ -90,6 +90,41 @@ class RecursivePredictor:
         Sliding-window length in columns (``None``: growing window).
     track : str
         ``"gram"`` or ``"factor"`` (see the module docstring).
+
+    Examples
+    --------
+    A growing window: start from 200 samples at ``i = 4``, push 100 more; the predictor equals the batch fit on
+    all 300 samples, and only the last ``2i − 1 = 7`` samples are kept:
+
+    >>> import numpy as np
+    >>> from synthesis import fit_predictor
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(400)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:400] + 0.01 * rng.standard_normal(400)
+    >>> rp = RecursivePredictor.from_data(u[:200], y[:200], 4)
+    >>> rp.n_columns
+    193
+    >>> rp = rp.push(u[200:300], y[200:300])
+    >>> rp.n_columns, rp.n_samples_kept
+    (293, 7)
+    >>> p, q = rp.predictor(), fit_predictor(u[:300], y[:300], 4)
+    >>> err = max(np.abs(p.Lw - q.Lw).max(), np.abs(p.Lu - q.Lu).max())
+    >>> p.method, bool(err < 1e-10)
+    ('recursive', True)
+
+    A sliding window of 150 columns: the record's last 150 columns are used, then each sample pushed adds a
+    column and downdates the oldest.  After 60 more samples the window covers samples 103–259
+    (``150 + 2i − 1 = 157`` samples), and the predictor is the batch fit on them:
+
+    >>> sw = RecursivePredictor.from_data(u[:200], y[:200], 4, window=150)
+    >>> for k in range(200, 260):
+    ...     sw = sw.push(u[k], y[k])
+    >>> sw.n_columns, sw.n_samples_kept
+    (150, 157)
+    >>> p, q = sw.predictor(), fit_predictor(u[103:260], y[103:260], 4)
+    >>> err = max(np.abs(p.Lw - q.Lw).max(), np.abs(p.Lu - q.Lu).max())
+    >>> q.n_columns, bool(err < 1e-10)
+    (150, True)
     """
 
     def __init__(self, horizon: int, m: int, l: int, *, window=None, track: str = "gram", rcond=None):
