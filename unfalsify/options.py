@@ -95,6 +95,39 @@ class DesignOptions:
         ``"thesis"``: the literal §7.4 ``W3 = (1/δ) I``, for comparison only.
     causal : bool
         Causal law (Thm 3.2 variant).
+
+    Examples
+    --------
+    Made with keywords (the other fields keep their defaults) and passed to :func:`robust_design_from_data`; here
+    on the setting of its example (a FIR plant, ``i = 3``, a 45-sample window, the predictors fitted on the
+    whole record); ``search=False`` returns the first design, certified or not:
+
+    >>> import warnings
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import robust_design_from_data
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    >>> W1, W2 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0), sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    >>> fits = {"predictor": sy.fit_predictor(u, y, 3), "predictor_for": lambda h: sy.fit_predictor(u, y, h)}
+    >>> opts = DesignOptions(gamma_ratio=1.5)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")  # NotCertifiedWarning or UntestedPremiseWarning
+    ...     rd = robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, design=opts, search=False, **fits)
+    >>> round(rd.gamma / rd.gamma_min_a, 6), rd.w3_rule, rd.margin, len(rd.search)
+    (1.5, 'small-gain', 0.1, 1)
+
+    The options are frozen: :func:`dataclasses.replace` makes a variant, checked like a new one; a bad value
+    raises :class:`~synthesis.validation.DataError` naming the field:
+
+    >>> import dataclasses
+    >>> dataclasses.replace(opts, causal=True).causal
+    True
+    >>> dataclasses.replace(opts, gamma_ratio=0.9)
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: gamma_ratio must be a finite real number > 1, got 0.9
     """
 
     gamma_ratio: float = 1.1
@@ -164,6 +197,42 @@ class CertificateOptions:
         (:func:`unfalsify.check_feedback`), which an open-loop record of a plant with a feedthrough also shows.
         ``True``: the feedback test leaves lag 0 out, and ``assumed`` states that feedback within the sample is not
         tested (:data:`unfalsify.FEEDTHROUGH_STATEMENT`).
+
+    Examples
+    --------
+    Made with keywords (the other fields keep their defaults) and passed to :func:`robust_design_from_data`; here
+    on the setting of its example (a FIR plant, ``i = 3``, a 45-sample window, the predictors fitted on the
+    whole record):
+
+    >>> import warnings
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import robust_design_from_data
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    >>> W1, W2 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0), sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    >>> fits = {"predictor": sy.fit_predictor(u, y, 3), "predictor_for": lambda h: sy.fit_predictor(u, y, h)}
+    >>> opts = CertificateOptions(margin=0.5, untested="refuse")
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")  # NotCertifiedWarning or UntestedPremiseWarning
+    ...     rd = robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, certificate=opts, **fits)
+    >>> rd.certificate.margin
+    0.5
+
+    With ``untested="refuse"`` a premise these data cannot test refuses the certificate, and the reason says so
+    (``rd.assumed`` states them: here P̂'s output error tested in sample, and one time-invariant plant, which a
+    45-sample window is too short to test):
+
+    >>> len(rd.assumed) > 0, rd.certified, "untested='refuse'" in rd.premise_reason
+    (True, False, True)
+
+    A bad value raises :class:`~synthesis.validation.DataError` naming the field:
+
+    >>> CertificateOptions(uncertainty="multiplicative")
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: unknown uncertainty 'multiplicative'; use one of 'auto', 'additive', 'coprime'
     """
 
     margin: float = CERTIFICATE_MARGIN
@@ -203,6 +272,45 @@ class EstimationOptions:
     solver_options : dict or None
     backend : {"structured", "cvxpy"} or None
         None: ``"structured"`` for the conditioned form (faster, O(i²j) memory), the cvxpy models otherwise.
+
+    Examples
+    --------
+    Made with keywords (the other fields keep their defaults) and passed to :func:`robust_design_from_data`; here
+    on the setting of its example (a FIR plant, ``i = 3``, a 45-sample window, the predictors fitted on the
+    whole record):
+
+    >>> import warnings
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import robust_design_from_data
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    >>> W1, W2 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0), sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    >>> fits = {"predictor": sy.fit_predictor(u, y, 3), "predictor_for": lambda h: sy.fit_predictor(u, y, h)}
+    >>> opts = EstimationOptions(backend="cvxpy")  # the cvxpy model and CLARABEL, not the structured solver
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")  # NotCertifiedWarning or UntestedPremiseWarning
+    ...     rd = robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, estimation=opts,
+    ...                                  search=False, **fits)
+    >>> rd.unfalsification.backend, rd.unfalsification.certificate.verify()
+    ('cvxpy', True)
+
+    The default (``backend=None``: the structured solver for the conditioned form) finds the same δ;
+    :func:`estimate_delta` takes the options too:
+
+    >>> from unfalsify import estimate_delta
+    >>> unf = estimate_delta(u[:45], y[:45], 3, "auto", predictor=fits["predictor"],
+    ...                      estimation=EstimationOptions())
+    >>> unf.backend, bool(np.isclose(unf.delta, rd.unfalsification.delta, rtol=1e-3))
+    ('structured', True)
+
+    A bad value raises :class:`~synthesis.validation.DataError` naming the field:
+
+    >>> EstimationOptions(backend="scs")
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: backend must be None or one of ('cvxpy', 'structured'), got 'scs'
     """
 
     form: str = "conditioned"

@@ -112,6 +112,39 @@ class PremiseOptions:
         Largest number of rows of the coprime-factor program (:func:`unfalsify.coprime_unfalsify`), whose Δ acts
         on ``[u; y]``: twice the variables of the output-error program per row for one channel each, and a solve
         that grows like their cube (measured: 200 rows take about a third of the time of 300).
+
+    Examples
+    --------
+    Made with keywords (the other fields keep their defaults) and passed to :func:`robust_design_from_data`; here
+    on the setting of its example (a FIR plant, ``i = 3``, a 45-sample window, the predictors fitted on the
+    whole record), with the output error's noise level given instead of estimated:
+
+    >>> import warnings
+    >>> import numpy as np
+    >>> import synthesis as sy
+    >>> from unfalsify import robust_design_from_data
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(300)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    >>> W1, W2 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0), sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    >>> fits = {"predictor": sy.fit_predictor(u, y, 3), "predictor_for": lambda h: sy.fit_predictor(u, y, h)}
+    >>> opts = PremiseOptions(sigma=0.01)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")  # NotCertifiedWarning or UntestedPremiseWarning
+    ...     rd = robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", dt=1.0, premise=opts, search=False,
+    ...                                  **fits)
+    >>> rd.premise.output_error.sigma, rd.premise.output_error.sigma_rule
+    (0.01, 'given')
+    >>> bool(rd.delta >= rd.premise.output_error.delta)  # the loop is designed for the larger δ
+    True
+
+    :func:`check_premise` takes them as ``options=``.  A bad value raises
+    :class:`~synthesis.validation.DataError` naming the field:
+
+    >>> PremiseOptions(sigma=-0.01)
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: sigma must be None (estimated) or a finite number > 0, got -0.01
     """
 
     sigma: float | None = None
