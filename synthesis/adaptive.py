@@ -324,6 +324,12 @@ class AdaptiveHinf:
         if self.samples_seen % self.period == 0:
             self.update()
 
+    def __repr__(self) -> str:
+        d = self.design
+        return (f"AdaptiveHinf(horizon={self.recursive.horizon}, m={self.recursive.m}, l={self.recursive.l}, "
+                f"period={self.period}, policy={self.policy!r}, samples_seen={self.samples_seen}, "
+                f"updates={len(self.history) - 1}, gamma={float(d.gamma):.6g}, gamma_min={float(d.gamma_min):.6g})")
+
     @property
     def gamma_min_history(self) -> np.ndarray:
         """``(step, γ_min)`` of every design, shape ``(n_updates + 1, 2)``."""

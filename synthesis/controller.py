@@ -244,6 +244,12 @@ class RecedingHorizonController:
     def design(self):
         return self._design
 
+    def __repr__(self) -> str:
+        d = self._design
+        pred = d.predictor
+        return (f"RecedingHorizonController(horizon={pred.horizon}, m={pred.m}, l={pred.l}, "
+                f"gamma={float(d.gamma):.6g}, gamma_min={float(d.gamma_min):.6g})")
+
     def reset(self, u_past=None, y_past=None) -> None:
         """Initialise the past-data window (zeros unless given) and zero the weight states (§5.1 comments 5–6).
 

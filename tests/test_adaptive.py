@@ -275,3 +275,19 @@ def test_horizon_warning_rates_of_adaptive_runs_over_50_seeds():
     at = sum(bool(_delayed_run(seed, 2, 2, steps=100)[0]) for seed in range(50))
     above = sum(bool(_delayed_run(seed, 2, 3, steps=100)[0]) for seed in range(50))
     assert at >= 49 and above <= 1
+
+
+def test_repr_names_the_loop_and_the_design_in_force():
+    """A research script prints the adaptive loop and its controller: the horizon, the period, the policy and the
+    γ of the design in force (the object's address had been all it showed)."""
+    u0, y0 = _init_data()
+    W1, W2 = _weights()
+    ad = AdaptiveHinf.from_data(u0, y0, I_H, W1, W2, period=25, window=150, policy=GammaPolicy("offset", 0.5))
+    for k in range(60):
+        ad.observe(ad.control(0.0), y0[k], 0.0)
+    text = repr(ad)
+    assert text.startswith(f"AdaptiveHinf(horizon={I_H}, m=1, l=1, period=25, policy=GammaPolicy(kind='offset'")
+    assert "samples_seen=60, updates=2" in text and len(ad.history) == 3
+    assert f"gamma={ad.design.gamma:.6g}, gamma_min={ad.design.gamma_min:.6g}" in text
+    assert repr(ad.controller) == (f"RecedingHorizonController(horizon={I_H}, m=1, l=1, gamma={ad.design.gamma:.6g}, "
+                                   f"gamma_min={ad.design.gamma_min:.6g})")
