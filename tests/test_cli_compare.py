@@ -91,3 +91,32 @@ def test_evaluate_matches_a_frequency_grid():
     # an unstable loop is reported as such, not measured
     bad = compare.evaluate(P, W["W11"], W["W21"], -10 * K, 20.0)
     assert not bad["stable"] and bad["additive_radius"] == 0 and bad["weighted_norm"] == float("inf")
+
+
+def test_evaluate_reports_the_feedback_loops_mixed_sensitivity_of_a_two_input_controller():
+    """A ``[r; y]`` controller's reference channel r → [e; u] is not its loop's [W1 S; W2 K_y S]
+    (S = 1/(1 − P K_y)): the study reports both, and they coincide for error feedback."""
+    from experiments.lab.servo_setup import design_weights
+    from experiments.lab.plants import servo
+    from experiments.lab.signals import prbs
+    from experiments.lab.simulate import collect_data
+
+    P = servo()
+    W = design_weights(0.1)
+    data = collect_data(P, prbs(1000, seed=0), process_noise=0.05, sensor_noise=0.05, seed=100)
+    K = sy.hinf_design(sy.fit_predictor(data.u, data.y, 20, dt=0.1), W["W11"], W["W21"], gamma_ratio=1.1,
+                       dt=0.1).controller
+    ev = compare.evaluate(P, W["W11"], W["W21"], K, 20.0)
+    z = np.exp(1j * np.linspace(1e-4, np.pi, 20000))
+    Pz = np.squeeze(control.ss(P)(z))
+    Kz = np.squeeze(control.ss(K)(z))                      # (1, 2, nz): gains from r and from y
+    Ky = Kz[1]
+    w1, w2 = (np.squeeze(control.ss(G)(z)) for G in (W["W11"], W["W21"]))
+    S = 1 / (1 - Pz * Ky)
+    loop_peak = np.max(np.sqrt(np.abs(w1 * S) ** 2 + np.abs(w2 * Ky * S) ** 2))
+    assert ev["stable"]
+    assert loop_peak <= ev["feedback_weighted_norm"] <= 1.001 * loop_peak
+    assert ev["feedback_weighted_norm"] > 2 * ev["weighted_norm"]      # measured 4.27 against 1.28
+    K1 = sy.discrete_mixsyn(P, W["W11"], W["W21"]).controller
+    ev1 = compare.evaluate(P, W["W11"], W["W21"], K1, 20.0)
+    assert ev1["feedback_weighted_norm"] == ev1["weighted_norm"]
