@@ -47,6 +47,26 @@ class DesignSearch:
     horizons : tuple of int
         Further horizons ``i`` (each needs a predictor: ``predictor_for(i)``, or a least-squares
         fit on the given data when the pipeline estimates the predictor itself).
+
+    Examples
+    --------
+    The default family: every combination of level, W3 factor and causality at the given horizon,
+    40 designs (the ones tried are ``RobustDesignResult.search``):
+
+    >>> from unfalsify import DesignSearch
+    >>> s = DesignSearch()
+    >>> len(s.gamma_ratios) * len(s.w3_factors) * len(s.causal)
+    40
+
+    A narrower family, with one further horizon, is passed as ``search=`` to
+    :func:`robust_design_from_data`; an empty one is refused:
+
+    >>> DesignSearch(gamma_ratios=(1.1, 2.0), w3_factors=(1.0,), causal=(False,), horizons=(20,))
+    DesignSearch(gamma_ratios=(1.1, 2.0), w3_factors=(1.0,), causal=(False,), horizons=(20,))
+    >>> DesignSearch(gamma_ratios=())  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    synthesis.exceptions.DataError: gamma_ratios is empty: the search would try no design; give at least one value ...
     """
 
     gamma_ratios: tuple = (1.1, 1.5, 2.0, 4.0, 10.0)
