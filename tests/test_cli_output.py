@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import types
 
@@ -129,3 +130,43 @@ def test_counts_are_refused_at_parsing(command, option, value, tmp_path, capsys)
         cli.main([command, option, value, "--quick", "--out", str(tmp_path)])
     assert caught.value.code == 2
     assert "give an integer ≥ 1" in capsys.readouterr().err
+
+
+
+_BLAS_SCRIPT = """
+import json, os, sys, types
+from threadpoolctl import threadpool_info
+from experiments import cli
+
+def threads():
+    return sorted({p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"})
+
+seen = {}
+for module in ("fake_study", "experiments.bench.fake_bench", "fake_study_with_variable"):
+    if module == "fake_study_with_variable":
+        os.environ["OPENBLAS_NUM_THREADS"] = "2"   # the user's own count
+    mod = types.ModuleType(module)
+    mod.run = lambda opts, module=module: (seen.__setitem__(module, threads()), {"report": "", "seconds": 0.0})[1]
+    sys.modules[module] = mod
+    cli.COMMANDS["fake"] = (module, "run", "a test double")
+    cli.main(["fake", "--json", "--out", sys.argv[1]])
+print(json.dumps({"seen": seen, "after": threads()}), file=sys.stderr)
+"""
+
+
+def test_studies_run_blas_on_one_thread_unless_the_environment_says_otherwise(tmp_path):
+    """The study commands on 2 cores ran twice as long with OpenBLAS's two threads (chapter7 --quick 19 s against
+    9 s): they hold BLAS to one thread for the run and restore it after; benchmarks and a user's own thread count
+    are left alone.  In a child process: this suite's conftest holds its own process to one thread."""
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k not in cli.BLAS_VARIABLES}
+    child = subprocess.run([sys.executable, "-c", _BLAS_SCRIPT, str(tmp_path)], env=env, capture_output=True,
+                           text=True, timeout=120)
+    assert child.returncode == 0, child.stderr
+    report = json.loads(child.stderr.strip().splitlines()[-1])
+    configured = report["after"]
+    if configured == [1]:
+        pytest.skip("BLAS runs one thread on this machine: nothing to hold")
+    assert report["seen"] == {"fake_study": [1], "experiments.bench.fake_bench": configured,
+                              "fake_study_with_variable": configured}
