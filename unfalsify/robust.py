@@ -82,6 +82,7 @@ from .options import (CertificateOptions, DesignOptions, DesignSearch, Estimatio
 from .premise import (HIDDEN_LINE_LIMIT, LINE_LOOP_GAIN, PremiseOptions, PremiseTest, _hidden_gain,
                       _hidden_line_statement, _line_gain, _line_spectra, check_premise,
                       glitch_note, operating_point_note, unconfirmed_premise, untested_premises)
+from .solvers.base import one_blas_thread
 from .subspace import SubspaceResult, _fixed_predictor, subspace_data, subspace_unfalsify
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 from synthesis.results import result
@@ -735,6 +736,10 @@ def robust_design_from_data(
         ``require_reference``, ``form``, ``solver``, ``solver_options``, ``backend``) still work: each
         sets the field of its option object.
 
+    BLAS runs on one thread during the call (restored after; :func:`unfalsify.solvers.base.one_blas_thread`): its
+    many small dense operations ran 2.2 times slower with OpenBLAS's two threads (measured on 2 cores: a
+    record-mode design of a 1500-sample record at i = 8, 14 s against 6.5 s).
+
     The steps can be run one by one: :func:`estimate_delta` (data checks and δ of (7.5)),
     :func:`unfalsify.predictor_model` (P̂), :func:`unfalsify.check_premise` (δ of the output error, the
     frequency-response tests), :func:`unfalsify.check_time_invariance` (one plant over the record),
@@ -805,48 +810,52 @@ def robust_design_from_data(
     if predictor is not None and int(predictor.horizon) != i:
         raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
     _warn_few_columns(predictor)
-    unf = unfalsification
-    if unf is None:
-        unf = estimate_delta(u, y, i, sigma, predictor=predictor, estimation=estimation)
-    elif unf.horizon != i:
-        raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
-    pred = _model_predictor(unf, predictor)
-    # a predictor fitted with dt= knows the data's sample time: prefer it to the weights' (hinf_design does too)
-    model = predictor_model(pred, _data_dt(check_predictor_dt(pred, dt), W1, W2))
-    # the longest contiguous record holding the window: its low band reaches below the held-out record's (refutes only)
-    contiguous = whole or ((u, y) if validation is not None else None)
-    prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
-                         fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions(),
-                         record=contiguous)
-    delta = prem.delta
-    if design.w3_rule == "thesis" and delta == 0:
-        raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
-    space = _DesignSpace(u, y, pred, predictor, predictor_for, W1, W2, delta, design, dt)
-    ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
-    persistence = _persistence_reason(pred, u, i, "predictor of P̂")
-    cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
-                                           ref_model, persistence, contiguous)
-    additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
-    record = whole or _longest(u, y, validation)
-    split = _held_out_start(np.shape(record[0])[0]) if held_out_here else None
-    invariance, invariance_note = _time_invariance(record, split)
-    across = _across_records(whole or (u, y), None if held_out_here else validation, whole is not None)
-    feedback = check_feedback(*record, feedthrough=certificate.feedthrough)
-    assumed = (untested_premises(u, validation) + _in_sample(prem)
-               + (_untested_invariance(*record, whole is not None) if invariance is None else ()) + across
-               + ((feedback.statement,) if feedback is not None and feedback.detected else ())
-               + ((FEEDTHROUGH_STATEMENT,) if certificate.feedthrough else ()))
-    untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
-    premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason, untested_reason,
-                                           invariance.reason if invariance is not None else "",
-                                           feedback.reason if feedback is not None else "",
-                                           clipped_outputs(record[1]))
-                               if r)
-    judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
-                       line_record=(*record, i))
-    if premise_reason or judge.missing is not None:
-        search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
-    chosen, c, rec, records = _search_designs(space, judge, search, i)
+    # many small BLAS calls: OpenBLAS's other threads cost more than they bring (measured on 2 cores: a
+    # record-mode design of a 1500-sample record at i = 8 took 14 s with two threads, 6.5 s with one)
+    with one_blas_thread():
+        unf = unfalsification
+        if unf is None:
+            unf = estimate_delta(u, y, i, sigma, predictor=predictor, estimation=estimation)
+        elif unf.horizon != i:
+            raise DataError(f"the given unfalsification has horizon {unf.horizon}, not {i}")
+        pred = _model_predictor(unf, predictor)
+        # a predictor fitted with dt= knows the data's sample time: prefer it to the weights' (hinf_design does too)
+        model = predictor_model(pred, _data_dt(check_predictor_dt(pred, dt), W1, W2))
+        # the longest contiguous record holding the window: its low band reaches below the held-out record's
+        # (refutes only)
+        contiguous = whole or ((u, y) if validation is not None else None)
+        prem = check_premise(model, u, y, i, _delta_of(unf), dt=float(model.dt), validation=validation,
+                             fitted_on=_fitted_on(predictor, u, y, validation), options=premise or PremiseOptions(),
+                             record=contiguous)
+        delta = prem.delta
+        if design.w3_rule == "thesis" and delta == 0:
+            raise DataError("w3_rule='thesis' needs δ > 0 (W3 = 1/δ)")
+        space = _DesignSpace(u, y, pred, predictor, predictor_for, W1, W2, delta, design, dt)
+        ref_model, ref_note, ref_reason = _reference_model(space, certificate, i, float(model.dt))
+        persistence = _persistence_reason(pred, u, i, "predictor of P̂")
+        cop, ball, form_reason = _coprime_form(certificate, prem, pred, model, u, y, unf, validation, premise, space,
+                                               ref_model, persistence, contiguous)
+        additive_reason = prem.reason if ball is not None and certificate.uncertainty == "auto" else ""
+        record = whole or _longest(u, y, validation)
+        split = _held_out_start(np.shape(record[0])[0]) if held_out_here else None
+        invariance, invariance_note = _time_invariance(record, split)
+        across = _across_records(whole or (u, y), None if held_out_here else validation, whole is not None)
+        feedback = check_feedback(*record, feedthrough=certificate.feedthrough)
+        assumed = (untested_premises(u, validation) + _in_sample(prem)
+                   + (_untested_invariance(*record, whole is not None) if invariance is None else ()) + across
+                   + ((feedback.statement,) if feedback is not None and feedback.detected else ())
+                   + ((FEEDTHROUGH_STATEMENT,) if certificate.feedthrough else ()))
+        untested_reason = _untested_reason(assumed) if certificate.untested == "refuse" else ""
+        premise_reason = "; ".join(r for r in (form_reason, persistence, ref_reason, untested_reason,
+                                               invariance.reason if invariance is not None else "",
+                                               feedback.reason if feedback is not None else "",
+                                               clipped_outputs(record[1]))
+                                   if r)
+        judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
+                           line_record=(*record, i))
+        if premise_reason or judge.missing is not None:
+            search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
+        chosen, c, rec, records = _search_designs(space, judge, search, i)
     if not rec.certified:
         tried = len(records)
         size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
@@ -857,13 +866,15 @@ def robust_design_from_data(
         if require_certified:
             raise NotCertifiedError(msg)
         warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
-    hidden, hidden_freq = judge.hidden_gain(chosen.controller)
+    with one_blas_thread():
+        hidden, hidden_freq = judge.hidden_gain(chosen.controller)
     if hidden >= HIDDEN_LINE_LIMIT and rec.certificate.stable:  # an unstable loop's channel bounds nothing
         assumed = assumed + (_hidden_line_statement(hidden, hidden_freq, float(model.dt)),)
     if rec.certified and assumed:
         warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
                       UntestedPremiseWarning, stacklevel=2)
-    g_nom = synthesis.gamma_min(chosen.predictor, W1, W2, causal=chosen.causal, dt=dt)
+    with one_blas_thread():
+        g_nom = synthesis.gamma_min(chosen.predictor, W1, W2, causal=chosen.causal, dt=dt)
     return RobustDesignResult(
         unfalsification=unf, design=chosen, delta=delta, w3_gain=float(c), w3_rule=design.w3_rule,
         margin=float(design.margin), gamma=float(chosen.gamma), gamma_min_a=float(chosen.gamma_min),
