@@ -127,9 +127,7 @@ def one_blas_thread():
     measured on 2 cores with another job running, the set-up and certificate of a (7.5) solve at (i, j) = (50, 500)
     took 6.5–9 s around a 14 s solve with BLAS as configured, 0.33 s with one BLAS thread (an SVD of the 150 × 500
     regressor 2.5 s against milliseconds); idle, a record-mode :func:`unfalsify.robust_design_from_data` of a
-    1500-sample record at i = 8 took 14 s with two threads and 6.5 s with one.  OpenBLAS (0.3.31, as numpy 2.4
-    ships it) keeps the count per calling thread: a limit taken in one thread is not seen in another, so each
-    thread holds and restores its own.
+    1500-sample record at i = 8 took 14 s with two threads and 6.5 s with one.
     """
     from threadpoolctl import threadpool_limits
 
