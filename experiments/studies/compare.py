@@ -533,7 +533,8 @@ def _radius_figure(out: Path, agg: list[dict]):
 
 # ---------------------------------------------------------------------------------------------
 _AGG_HEADERS = ["plant", "method", "stable runs", "no design", "certified (unstable)",
-                "median ‖[W1 e; W2 u]‖∞ from r", "median ‖[W1 S; W2 K_y S]‖∞ (loop)", "median radius 1/‖K(I+PK)⁻¹‖∞",
+                "median ‖[W1 e; W2 u]‖∞ from r", "median ‖[W1 S; W2 K_y S]‖∞ (loop)",
+                "median radius 1/‖K(I+PK)⁻¹‖∞",
                 "radius / ideal's", "median rise time (s)", "median overshoot (%)", "median design time (s)"]
 _RUN_HEADERS = ["plant", "n", "seed", "method", "note", "stable", "spectral radius", "‖[W1 e; W2 u]‖∞ from r",
                 "‖[W1 S; W2 K_y S]‖∞", "radius", "rise time (s)", "overshoot (%)", "ss error", "design time (s)"]
@@ -605,8 +606,8 @@ def _fig66_report(rep: Report, s: dict, figs: dict) -> None:
     rep.text(f"Same 2048-sample experiment as `noncollocated`; model-free design at i = 64, γ = 1.35 γ_min "
              f"(γ_min = {s['gamma_min']:.3g}); model-based design (`discrete_mixsyn`, γ = 1.35 γ_opt, "
              f"γ_opt = {s['gamma_opt_model']:.3g}) on a physics model with {s['physics_error']}. On the true plant:")
-    rep.table(["controller", "stable", "max |closed-loop pole|", "‖[W1 e; W2 u]‖∞ from r", "‖[W1 S; W2 K_y S]‖∞",
-               "radius", "rise time (s)"], [
+    rep.table(["controller", "stable", "max |closed-loop pole|", "‖[W1 e; W2 u]‖∞ from r",
+               "‖[W1 S; W2 K_y S]‖∞", "radius", "rise time (s)"], [
         ["model-free", mf["stable"], f"{mf['spectral_radius']:.6f}", mf["weighted_norm"],
          mf["feedback_weighted_norm"], mf["additive_radius"], mf["rise_time_s"]],
         ["model-based (physics model)", mb["stable"], f"{mb['spectral_radius']:.6f}", mb["weighted_norm"],
@@ -623,22 +624,22 @@ def _fig66_report(rep: Report, s: dict, figs: dict) -> None:
 def _intro(cfg: Config) -> str:
     lines = [f"Plants {', '.join(cfg.plants)}; seeds {', '.join(map(str, cfg.seeds))}; data lengths "
              + "; ".join(f"{p}: {', '.join(map(str, cfg.lengths(p)))}" for p in cfg.plants) + "."]
-    lines.append("10 Hz plants: PRBS ±1 (seeded), process and sensor noise σ = 0.05, §5.4 weights W11/W21, model-free "
-                 "horizon i = 20. Three-disk (y3, 64 Hz): periodic 10-bit PRBS, σ = 0.05 V at the input and 0.01 rad on "
-                 "the sensor, §6.2 weights, i = 64 (subspace identification uses the same i).")
-    lines.append(f"Identify-then-design and the physics/ideal rows use `discrete_mixsyn` at γ = {MODEL_BASED_RATIO} γ_opt. "
+    lines.append("10 Hz plants: PRBS ±1 (seeded), process and sensor noise σ = 0.05, §5.4 weights W11/W21, "
+                 "model-free horizon i = 20. Three-disk (y3, 64 Hz): periodic 10-bit PRBS, σ = 0.05 V at the input "
+                 "and 0.01 rad on the sensor, §6.2 weights, i = 64 (subspace identification uses the same i).")
+    lines.append("Identify-then-design and the physics/ideal rows use `discrete_mixsyn` at "
+                 f"γ = {MODEL_BASED_RATIO} γ_opt. "
                  "All numbers are measured on the true plant (proven upper bounds of the norms; medians over "
                  "the stable runs): 'radius' is 1/‖K_y(I − P K_y)⁻¹‖∞ (K_y the feedback channel); "
                  "‖[W1 e; W2 u]‖∞ from r is the reference channel the model-free design minimises, "
                  "‖[W1 S; W2 K_y S]‖∞ with S = (I − P K_y)⁻¹ the feedback loop's mixed sensitivity. The two "
                  "coincide for the error-feedback (model-based) controllers, not for the two-input [r; y] "
                  "model-free ones.")
-    lines.append("Model-free robust (§7.4): " + (f"i = {ROBUST_SIZE[0]}, j = {ROBUST_SIZE[1]}, a held-out "
-                                                  f"{ROBUST_SIZE[2]}-sample experiment, on every plant (on the three-disk plant "
-                                                  "i = 10 is a 0.16 s horizon; (7.5) near the §6.2 horizon, (i, j) = "
-                                                  "(50, 500), takes 21–35 s per solve in bench-unfalsify)." if cfg.robust else
-                                                  "skipped in --quick (seconds per run); `robust-pipeline --quick` "
-                                                  "runs it."))
+    robust = (f"i = {ROBUST_SIZE[0]}, j = {ROBUST_SIZE[1]}, a held-out {ROBUST_SIZE[2]}-sample experiment, on every "
+              "plant (on the three-disk plant i = 10 is a 0.16 s horizon; (7.5) near the §6.2 horizon, (i, j) = "
+              "(50, 500), takes 21–35 s per solve in bench-unfalsify)." if cfg.robust else
+              "skipped in --quick (seconds per run); `robust-pipeline --quick` runs it.")
+    lines.append("Model-free robust (§7.4): " + robust)
     return "\n\n".join(lines)
 
 
