@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+from experiments.cli import BLAS_VARIABLES
 
 _SCRIPT = """
 import json, sys, warnings
@@ -47,7 +47,7 @@ print(json.dumps(report), file=sys.stderr)
 def test_the_pipeline_holds_blas_to_one_thread_and_gives_it_back():
     """Measured on 2 cores: a record-mode design of a 1500-sample record at i = 8 took 14 s with OpenBLAS's two
     threads and 6.5 s with one; the pipeline now holds one thread itself, and restores the configured count."""
-    env = {k: v for k, v in os.environ.items() if k not in _VARIABLES}
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_VARIABLES}
     child = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True, text=True, timeout=300)
     assert child.returncode == 0, child.stderr
     report = json.loads(child.stderr.strip().splitlines()[-1])

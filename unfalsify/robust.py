@@ -736,9 +736,9 @@ def robust_design_from_data(
         ``require_reference``, ``form``, ``solver``, ``solver_options``, ``backend``) still work: each
         sets the field of its option object.
 
-    BLAS runs on one thread during the call (restored after; :func:`unfalsify.solvers.base.one_blas_thread`): its
-    many small dense operations ran 2.2 times slower with OpenBLAS's two threads (measured on 2 cores: a
-    record-mode design of a 1500-sample record at i = 8, 14 s against 6.5 s).
+    BLAS runs on one thread during the call (threadpoolctl; the configured count is restored after): its many
+    small dense operations ran 2.2 times slower with OpenBLAS's two threads (measured on 2 cores: a record-mode
+    design of a 1500-sample record at i = 8, 14 s against 6.5 s).
 
     The steps can be run one by one: :func:`estimate_delta` (data checks and δ of (7.5)),
     :func:`unfalsify.predictor_model` (P̂), :func:`unfalsify.check_premise` (δ of the output error, the
@@ -800,19 +800,19 @@ def robust_design_from_data(
         check_instance(predictor_for, Callable, "predictor_for",
                        "a callable horizon -> Predictor (e.g. lambda h: synthesis.fit_predictor(u_long, y_long, h)) "
                        "or None")
-    whole = (u, y) if window is not None else None
-    held_out_here = window is not None and validation is None  # record mode holds out the record's last third
-    span = None
-    if window is not None:
-        u, y, validation, predictor, predictor_for, span = _record_mode(u, y, horizon, window, validation, predictor,
-                                                                        predictor_for)
-    i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
-    if predictor is not None and int(predictor.horizon) != i:
-        raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
-    _warn_few_columns(predictor)
     # many small BLAS calls: OpenBLAS's other threads cost more than they bring (measured on 2 cores: a
     # record-mode design of a 1500-sample record at i = 8 took 14 s with two threads, 6.5 s with one)
     with one_blas_thread():
+        whole = (u, y) if window is not None else None
+        held_out_here = window is not None and validation is None  # record mode holds out the record's last third
+        span = None
+        if window is not None:
+            u, y, validation, predictor, predictor_for, span = _record_mode(u, y, horizon, window, validation,
+                                                                            predictor, predictor_for)
+        i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
+        if predictor is not None and int(predictor.horizon) != i:
+            raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
+        _warn_few_columns(predictor)
         unf = unfalsification
         if unf is None:
             unf = estimate_delta(u, y, i, sigma, predictor=predictor, estimation=estimation)
@@ -856,36 +856,34 @@ def robust_design_from_data(
         if premise_reason or judge.missing is not None:
             search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
         chosen, c, rec, records = _search_designs(space, judge, search, i)
-    if not rec.certified:
-        tried = len(records)
-        size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
-        notes = [n for n in (operating_point_note(*record), glitch_note(model, *record, i)) if n]
-        msg = (f"the §7.4 loop is NOT certified for {size}: {_with_form(rec.reason, additive_reason)}"
-               + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made")
-               + "".join(f"; note: {n}" for n in notes))
-        if require_certified:
-            raise NotCertifiedError(msg)
-        warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
-    with one_blas_thread():
+        if not rec.certified:
+            tried = len(records)
+            size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
+            notes = [n for n in (operating_point_note(*record), glitch_note(model, *record, i)) if n]
+            msg = (f"the §7.4 loop is NOT certified for {size}: {_with_form(rec.reason, additive_reason)}"
+                   + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made")
+                   + "".join(f"; note: {n}" for n in notes))
+            if require_certified:
+                raise NotCertifiedError(msg)
+            warnings.warn(msg, NotCertifiedWarning, stacklevel=2)
         hidden, hidden_freq = judge.hidden_gain(chosen.controller)
-    if hidden >= HIDDEN_LINE_LIMIT and rec.certificate.stable:  # an unstable loop's channel bounds nothing
-        assumed = assumed + (_hidden_line_statement(hidden, hidden_freq, float(model.dt)),)
-    if rec.certified and assumed:
-        warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
-                      UntestedPremiseWarning, stacklevel=2)
-    with one_blas_thread():
+        if hidden >= HIDDEN_LINE_LIMIT and rec.certificate.stable:  # an unstable loop's channel bounds nothing
+            assumed = assumed + (_hidden_line_statement(hidden, hidden_freq, float(model.dt)),)
+        if rec.certified and assumed:
+            warnings.warn("the §7.4 loop is certified on a premise these data cannot test: " + "; ".join(assumed),
+                          UntestedPremiseWarning, stacklevel=2)
         g_nom = synthesis.gamma_min(chosen.predictor, W1, W2, causal=chosen.causal, dt=dt)
-    return RobustDesignResult(
-        unfalsification=unf, design=chosen, delta=delta, w3_gain=float(c), w3_rule=design.w3_rule,
-        margin=float(design.margin), gamma=float(chosen.gamma), gamma_min_a=float(chosen.gamma_min),
-        gamma_min_nominal=float(g_nom), covered_delta=float(c / chosen.gamma if chosen.gamma > 0 else np.inf),
-        model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
-        reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
-        premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
-        uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
-        assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback,
-        hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq),
-        reference_horizon=space.reference_horizon)
+        return RobustDesignResult(
+            unfalsification=unf, design=chosen, delta=delta, w3_gain=float(c), w3_rule=design.w3_rule,
+            margin=float(design.margin), gamma=float(chosen.gamma), gamma_min_a=float(chosen.gamma_min),
+            gamma_min_nominal=float(g_nom), covered_delta=float(c / chosen.gamma if chosen.gamma > 0 else np.inf),
+            model=model, certificate=rec.certificate, search=tuple(records), reference_model=ref_model,
+            reference_certificate=rec.reference_certificate, reference_note=ref_note, premise=prem,
+            premise_reason=premise_reason, excitation=rec.excitation, tracking_reason=rec.tracking_reason,
+            uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
+            assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback,
+            hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq),
+            reference_horizon=space.reference_horizon)
 
 
 def _fitted_on(predictor, u, y, validation):
