@@ -1,5 +1,6 @@
 """``synthesis.choose_horizon``: the horizon from the data, by a stated rule (issue 29, item 3)."""
 import pickle
+import warnings
 
 import control
 import numpy as np
@@ -7,9 +8,10 @@ import pytest
 
 import synthesis as sy
 from experiments.lab.servo_setup import design_weights
-from experiments.lab.plants import nonminimum_phase, servo
+from experiments.lab.plants import nonminimum_phase, servo, third_order, three_disk
 from experiments.lab.signals import prbs
 from experiments.lab.simulate import closed_loop_system, collect_data
+from experiments.lab.torsional_setup import torsional_weights
 
 DT = 0.1
 
@@ -57,6 +59,57 @@ def test_the_rule_is_applied_as_stated(nmp):
     assert choice.model_order == 2
     zeros = control.ss(choice.model).zeros()
     assert np.any(np.abs(zeros) > 1.05)
+    # the margin check, recomputed: models of P̂'s order from each half, at the largest horizon <= P̂'s with
+    # 3 columns per regressor in 500 samples (found by search here, by formula there)
+    half = len(d.u) // 2
+    h = max(k for k in range(2, 65) if half - 2 * k + 1 >= 3 * k * 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        split = [sy.subspace_id(d.u[s], d.y[s], h, order=2, dt=DT).model for s in (slice(0, half), slice(half, None))]
+    for r in rows:
+        K = sy.hinf_design(sy.fit_predictor(d.u, d.y, r.horizon, dt=DT), W1, W2, dt=DT).controller
+        radii = [_radius(M, K) for M in split]
+        assert r.split_radii == pytest.approx(radii, rel=1e-9)
+        assert r.spread == pytest.approx(max(abs(x - r.spectral_radius) for x in radii), rel=1e-9)
+        assert r.margin_clear == (1 - r.spectral_radius > r.spread)
+        assert r.passes == (r.stable and r.margin_clear and not r.cancels and r.settled)
+    # what the result claims is said to be about the data's models, not the plant
+    assert "not on the plant" in choice.reason and "none on the plant" in choice.assumptions
+    assert f"i = {h}" in choice.assumptions and "unfalsify.robust_design_from_data" in choice.assumptions
+
+
+def test_a_margin_on_the_model_that_the_split_models_do_not_vouch_for_is_refused():
+    # the case that passed the checks on P̂ alone (experiments compare, three-disk y3, n = 4096, seed 4,
+    # 1.35 γ_min): at i = 50 the loop with P̂ has radius 0.9997, the split models move it by 0.004, and the
+    # loop with the plant is unstable
+    P = three_disk("y3")
+    dt = float(P.dt)
+    W1, W2 = torsional_weights("noncollocated", dt)
+    d = collect_data(P, prbs(4096, 10), process_noise=0.05, sensor_noise=0.01, seed=104)
+    choice = sy.choose_horizon(d.u, d.y, W1, W2, dt=dt, gamma_ratio=1.35)
+    row = {r.horizon: r for r in choice.candidates}[50]
+    assert row.stable and row.settled and not row.cancels and not row.margin_clear
+    K = sy.hinf_design(sy.fit_predictor(d.u, d.y, 50, dt=dt), W1, W2, gamma_ratio=1.35, dt=dt).controller
+    assert _radius(P, K) > 1                                              # unstable on the TRUE plant
+    assert not choice.ok and "i = 50: margin on P̂ not clear of the split spread" in choice.reason
+    assert not any(r.passes for r in choice.candidates)
+
+
+def test_a_record_too_short_to_split_fails_the_margin_check_and_says_how_long():
+    W = design_weights(DT)
+    d = collect_data(third_order(), prbs(200, seed=0))                    # noise-free: P̂ has the plant's order 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                                   # noise-free: rank-deficient regressors
+        short = sy.choose_horizon(d.u[:85], d.y[:85], W["W11"], W["W21"], dt=DT, horizons=(6, 7))
+        enough = sy.choose_horizon(d.u[:86], d.y[:86], W["W11"], W["W21"], dt=DT, horizons=(6, 7))
+    assert short.model_order == enough.model_order == 3
+    # 42-sample halves support i = 3 at 3 columns per regressor, which cannot carry order 3; 43 support i = 4
+    assert short.split_models == () and not short.ok
+    assert all(r.split_radii == () and r.spread == np.inf and not r.margin_clear for r in short.candidates)
+    assert "too short to split" in short.reason and "collect at least 86 samples" in short.reason
+    assert "could not run" in short.assumptions
+    assert len(enough.split_models) == 2 and "too short to split" not in enough.reason
+    assert all(len(r.split_radii) == 2 and np.isfinite(r.spread) for r in enough.candidates)
 
 
 def test_a_tight_settling_tolerance_is_not_met_and_says_so(nmp):
