@@ -34,7 +34,7 @@ on the true plant although every finite-horizon bound holds); longer costs data 
 
 What the checks are **not**: a statement about the true plant.  They are computed on ``P̂`` and the split
 models only, and are neither necessary nor sufficient for a stable loop on the plant (measured on the
-three-disk plant, ``experiments compare`` records: a loop with ``ρ̂ = 0.9997`` was unstable on the plant,
+three-disk plant, ``experiments compare`` records: a loop with ``ρ̂ = 0.99965`` was unstable on the plant,
 ``ρ = 1.0018``, and one with ``ρ̂ = 1.047`` stable, ``ρ = 0.9998``).  The split spread is one sample of a
 sampling error, an estimate and not a bound.  For a certificate use :func:`unfalsify.robust_design_from_data`.
 """
