@@ -1,7 +1,7 @@
 """The prediction horizon ``i`` chosen from the data, by a stated rule that explains itself.
 
 The horizon is the one design choice of the model-free method (§5.4) without a formula: too short and the
-finite-horizon game can cancel a right-half-plane zero or miss a slow mode (the closed loop is unstable
+finite-horizon game can destabilise a non-minimum-phase plant or miss a slow mode (the closed loop is unstable
 on the true plant although every finite-horizon bound holds); longer costs data and time.  The rule of
 :func:`choose_horizon`:
 

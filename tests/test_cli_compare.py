@@ -57,7 +57,7 @@ def test_compare_quick_reproduces_the_papers_mechanisms(quick):
     for plant in summary["plants"]:
         ideal = runs[(plant, "ideal")]
         assert ideal["stable"] and ideal["additive_radius"] > 0 and np.isfinite(ideal["weighted_norm"])
-    # non-minimum phase: i = 20 cancels the zero (unstable), the horizon from the data does not
+    # non-minimum phase: i = 20 is unstable (no controller pole on the zero), the horizon from the data is not
     assert not runs[("nonminimum_phase", "mf_1.1")]["stable"]
     assert runs[("nonminimum_phase", "mf_auto")]["stable"]
     # Figs 6.6/6.7: the physics model 5 % off at the first resonance gives an unstable loop, the model-free one works

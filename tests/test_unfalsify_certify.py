@@ -202,7 +202,7 @@ def nmp_window():
 def test_search_finds_what_the_first_design_misses_and_reports_it(nmp_window):
     s = nmp_window
     u, y, n = s["u"], s["y"], s["n"]
-    # without the search: the requested design cancels the right-half-plane zero; said plainly
+    # without the search: the requested design destabilises the plant (a controller pole at 1.21, not on the zero)
     with pytest.warns(uf.NotCertifiedWarning, match="nominal loop unstable"):
         r0 = uf.robust_design_from_data(u[:n], y[:n], 10, s["W1"], s["W2"], 0.5 * s["rms"], predictor=s["pred"],
                                         dt=s["dt"], search=False, validation=s["val"])

@@ -674,8 +674,9 @@ def robust_design_from_data(
     horizon : int
         i, for both (7.5) and the design.  Choose i above the plant's order and long enough to see its
         slowest relevant dynamics and any right-half-plane zero: the law is a finite-horizon game over i
-        samples, and a short horizon lets it cancel a non-minimum-phase zero (measured: on a
-        non-minimum-phase plant at 10 Hz the i = 10 design is unstable on the true plant in every seed,
+        samples, and a short horizon can destabilise a non-minimum-phase plant (measured: on a
+        non-minimum-phase plant at 10 Hz the i = 10 design is unstable on the true plant in every seed, its
+        controller with an unstable pole at 1.20 -- not on the zero at 1.11 --,
         while the search's i = 20 certifies; a 4th-order plant at 50 Hz with i = 15 -- 0.3 s -- missed a
         slow mode).  The (7.5) window needs ``j`` well above the ``i(2m + l)`` regressors when the
         predictor is estimated on it (``window="auto"`` takes ``j = 3 i(2m + l)``), and its cost grows like

@@ -208,8 +208,8 @@ def resonant(zeta: float = 0.05, omega: float = 2.0, dt: float = SERVO_DT, conti
 def nonminimum_phase(dt: float = SERVO_DT, continuous: bool = False) -> ct.StateSpace:
     """Non-minimum-phase plant ``2(1 − s)/((s+1)(s+2))`` (unit DC gain, zero at s = +1), ZOH-sampled.
 
-    Not from the thesis.  The receding-horizon laws with short horizons tend to cancel its
-    right-half-plane zero (unstable loops at i = 10 on 10 Hz data).
+    Not from the thesis.  The receding-horizon laws with short horizons destabilise it
+    (unstable loops at i = 10–20 on 10 Hz data, with a controller pole at 1.2, not on the zero at 1.11).
 
     Examples
     --------
