@@ -89,6 +89,7 @@ Identify-then-design baselines and the horizon from data
    choose_horizon         -- the prediction horizon ``i`` chosen from the data by a stated rule, explained
    HorizonChoice          -- result of ``choose_horizon``: ``horizon``, ``reason``, the design, every candidate
    HorizonCandidate       -- one horizon tried by ``choose_horizon`` and its checks
+   HorizonChoiceWarning   -- ``choose_horizon`` found no candidate passing its checks (a fallback design returned)
 
 Certified H∞ norm
 -----------------
@@ -252,7 +253,7 @@ True
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
-from .exceptions import DataError, InputTypeError
+from .exceptions import DataError, HorizonChoiceWarning, InputTypeError
 from .results import result
 from .validation import (as_discrete_system, as_real_array, as_signal, check_count, check_flag, check_horizon,
                          check_instance, check_level, check_nonnegative, check_predictor_dt, check_same_dt,
@@ -398,6 +399,7 @@ __all__ = [
     "arx_id",
     "HorizonCandidate",
     "HorizonChoice",
+    "HorizonChoiceWarning",
     "choose_horizon",
 ]
 

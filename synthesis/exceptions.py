@@ -96,6 +96,14 @@ class HorizonWarning(UserWarning):
     """
 
 
+class HorizonChoiceWarning(HorizonWarning):
+    """:func:`~synthesis.choose_horizon` found no candidate horizon passing its checks on the data-based models.
+
+    The returned :class:`~synthesis.HorizonChoice` (``ok`` False) holds a fallback design, the largest candidate
+    stable on ``P̂``, which may be unstable on the plant; the warning's text is the choice's ``reason``.
+    """
+
+
 class StageSaddleError(InfeasibleGammaError):
     """A stage of the H∞ Riccati recursion (4.17) has no saddle point: γ is too small."""
 

@@ -53,6 +53,7 @@ import numpy as np
 
 from ._repr import result
 from ._validation import DataError, as_signal, check_level, check_sample_time
+from .exceptions import HorizonChoiceWarning
 from .hinf import HinfDesign, hinf_design
 from .predictor import PersistenceWarning, fit_predictor
 from .subspace_id import subspace_id
@@ -226,6 +227,11 @@ def choose_horizon(u, y, W1, W2, *, dt, horizons=None, gamma_ratio: float = 1.1,
         Bad data or weights; fewer than two candidate horizons fit the record (collect more data or
         pass smaller ``horizons``); bad tolerances.
 
+    Warns
+    -----
+    HorizonChoiceWarning
+        When no candidate passes (``ok`` False): the returned design is a fallback, with the reason.
+
     Examples
     --------
     The non-minimum-phase plant ``2(1 − s)/((s + 1)(s + 2))`` at 10 Hz with the §5.4 weights: short
@@ -327,6 +333,7 @@ def choose_horizon(u, y, W1, W2, *, dt, horizons=None, gamma_ratio: float = 1.1,
                   + ("one stable" if stable else "candidate, none being stable") + f" on the data-based model "
                   f"{model_note}: collect more data (longer horizons) or revise the weights")
         ok = False
+        warnings.warn(f"choose_horizon: {reason}", HorizonChoiceWarning, stacklevel=2)
     assumptions = (f"Every check is on data-based models, none on the plant: P̂ (order {sid.order}, subspace "
                    f"identification of all {n} samples at i = {sid.horizon}) stands in for the plant, and "
                    + (f"the spread of the loop's spectral radius over two models of the same order from the record's "

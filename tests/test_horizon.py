@@ -87,7 +87,9 @@ def test_a_margin_on_the_model_that_the_split_models_do_not_vouch_for_is_refused
     dt = float(P.dt)
     W1, W2 = torsional_weights("noncollocated", dt)
     d = collect_data(P, prbs(4096, 10), process_noise=0.05, sensor_noise=0.01, seed=104)
-    choice = sy.choose_horizon(d.u, d.y, W1, W2, dt=dt, gamma_ratio=1.35)
+    with pytest.warns(sy.HorizonChoiceWarning, match="no candidate horizon passes") as caught:
+        choice = sy.choose_horizon(d.u, d.y, W1, W2, dt=dt, gamma_ratio=1.35)
+    assert str(caught[0].message) == f"choose_horizon: {choice.reason}"  # the fallback is not silent
     row = {r.horizon: r for r in choice.candidates}[50]
     assert row.stable and row.settled and not row.cancels and not row.margin_clear
     K = sy.hinf_design(sy.fit_predictor(d.u, d.y, 50, dt=dt), W1, W2, gamma_ratio=1.35, dt=dt).controller
@@ -115,7 +117,8 @@ def test_a_record_too_short_to_split_fails_the_margin_check_and_says_how_long():
 
 def test_a_tight_settling_tolerance_is_not_met_and_says_so(nmp):
     _, W1, W2, d = nmp
-    choice = sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(10, 20, 30), settle_tol=1e-6)
+    with pytest.warns(sy.HorizonChoiceWarning):
+        choice = sy.choose_horizon(d.u, d.y, W1, W2, dt=DT, horizons=(10, 20, 30), settle_tol=1e-6)
     assert not choice.ok and "no candidate horizon passes" in choice.reason
     assert len(choice.candidates) == 3 and not any(r.settled for r in choice.candidates)
 
@@ -124,7 +127,9 @@ def test_an_easy_plant_takes_a_short_horizon_and_the_result_pickles():
     P = servo()
     W = design_weights(DT)
     d = collect_data(P, prbs(1000, seed=1), process_noise=0.05, sensor_noise=0.05, seed=101)
-    choice = sy.choose_horizon(d.u, d.y, W["W11"], W["W21"], dt=DT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sy.HorizonChoiceWarning)          # a passing choice does not warn
+        choice = sy.choose_horizon(d.u, d.y, W["W11"], W["W21"], dt=DT)
     assert choice.ok and choice.horizon <= 20 and _radius(P, choice.design.controller) < 1
     again = pickle.loads(pickle.dumps(choice))
     assert again == choice and again.horizon == choice.horizon
