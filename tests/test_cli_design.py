@@ -7,6 +7,7 @@ rebuilt here with the same call, and its step on P̂ against the rebuilt one's.
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -370,6 +371,25 @@ def test_a_text_column_is_not_counted_as_a_signal(tmp_path, at):
         with pytest.raises(RecordError, match=rf"'status', data row 0: 'ok' is not a number: the column holds text in "
                                               rf"every row, not a signal; select a column of numbers as {role}="):
             load_record(path, t="t", **sel)
+
+
+@pytest.mark.parametrize("dt", [None, "0.01"])
+def test_a_text_column_chosen_as_the_time_column_is_refused_as_text_not_as_stamps(tmp_path, capsys, dt):
+    # "--t status" (text in every row) had been told "the time column must hold numbers ... convert the stamps to
+    # numbers": stamps it does not hold; a column of date-time stamps keeps that message
+    t, u, y, _ = _record()
+    path = _with_status(tmp_path / "status.csv", ["t", "u", "y"], [t, u, y], 3)
+    argv = ["design", str(path), "--horizon", "10", "--u", "u", "--y", "y", "--out", str(tmp_path)]
+    argv += ["--dt", dt] if dt else []
+    err = _bad(tmp_path, capsys, argv + ["--t", "status"])
+    fix = ("; dt= is given: omit t=" if dt else r", or pass dt=<sample time> instead of t= \(--dt instead of --t\)")
+    assert re.search(r"'status', data row 0: 'ok' is not a number: the column holds text in every row, not times; "
+                     r"select a column of numbers as t= \(--t of python -m experiments design\)" + fix, err), err
+    assert "stamps" not in err
+    stamps = path.with_name("stamps.csv")
+    stamps.write_text(path.read_text().replace(",ok", ",2026-11-29 10:00:00"))
+    err = _bad(tmp_path, capsys, [a if a != str(path) else str(stamps) for a in argv] + ["--t", "status"])
+    assert "the time column must hold numbers" in err and "convert the stamps to numbers" in err
 
 
 def test_a_time_column_is_never_a_signal_also_with_dt(tmp_path):
