@@ -223,7 +223,8 @@ class Certificate:
         δ outside its own bracket).  The solver's δ differs from its point's recomputed norm by a rounding step (the
         structured solvers: it is that norm, computed in their scaled form) or by the solver's tolerance (cvxpy: up
         to 1.3e-7 relative either way on small records, measured), and either side of the bracket is a proven bound on
-        δ_unf, so the move only brings δ nearer it.  Where the bounds cross by rounding (a warned case, δ about 1e-12
+        δ_unf (the upper one where the point's noise is within σ√N, which :meth:`ok` checks), so the move only brings
+        δ nearer it.  Where the bounds cross by rounding (a warned case, δ about 1e-12
         of the data's scale) δ is the upper bound, and without a dual point (a cvxpy solve that returned none) only
         ``delta <= upper_bound`` holds.
     upper_bound : float
