@@ -44,7 +44,7 @@ import numpy as np
 
 from synthesis.validation import DataError
 
-from ..lab.records import RecordError, _parsed_once, load_record, record_columns, text_columns, time_unit
+from ..lab.records import RecordError, load_record, record_columns, text_columns, time_unit
 
 __all__ = ["run", "summary_lines", "design_record", "default_weights", "parse_window", "parse_tracking_floor",
            "untracked_outputs", "operating_point", "scale_note", "INPUT_ERRORS", "UNTRACKED_WEIGHT", "SCALE_NOTE"]
@@ -770,9 +770,8 @@ def run(opts) -> dict:
     t_start = time.perf_counter()
     ex = opts.extra
     path = Path(ex["data"])
-    with _parsed_once():  # _select's record_columns and text_columns, then load_record: one parse of a CSV
-        u, y, t, variable = _select(path, ex)
-        rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
+    u, y, t, variable = _select(path, ex)
+    rec = load_record(path, u=u, y=y, t=t, dt=ex.get("dt"), variable=variable)
     rec, point, point_text = operating_point(rec, ex.get("detrend") or "none")
     floor = parse_tracking_floor(ex.get("tracking_floor"))
     if isinstance(floor, tuple) and len(floor) != rec.l:
