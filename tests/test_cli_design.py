@@ -7,6 +7,7 @@ rebuilt here with the same call, and its step on P̂ against the rebuilt one's.
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -370,6 +371,70 @@ def test_a_text_column_is_not_counted_as_a_signal(tmp_path, at):
         with pytest.raises(RecordError, match=rf"'status', data row 0: 'ok' is not a number: the column holds text in "
                                               rf"every row, not a signal; select a column of numbers as {role}="):
             load_record(path, t="t", **sel)
+
+
+@pytest.mark.parametrize("dt", [None, "0.01"])
+def test_a_text_column_chosen_as_the_time_column_is_refused_as_text_not_as_stamps(tmp_path, capsys, dt):
+    # "--t status" (text in every row) had been told "the time column must hold numbers ... convert the stamps to
+    # numbers": stamps it does not hold; a column of date-time stamps keeps that message
+    t, u, y, _ = _record()
+    path = _with_status(tmp_path / "status.csv", ["t", "u", "y"], [t, u, y], 3)
+    argv = ["design", str(path), "--horizon", "10", "--u", "u", "--y", "y", "--out", str(tmp_path)]
+    argv += ["--dt", dt] if dt else []
+    err = _bad(tmp_path, capsys, argv + ["--t", "status"])
+    fix = ("; dt= is given: omit t=" if dt else r", or pass dt=<sample time> instead of t= \(--dt instead of --t\)")
+    assert re.search(r"'status', data row 0: 'ok' is not a number: the column holds text in every row, not times; "
+                     r"select a column of numbers as t= \(--t of python -m experiments design\)" + fix, err), err
+    assert "stamps" not in err
+    stamps = path.with_name("stamps.csv")
+    stamps.write_text(path.read_text().replace(",ok", ",2026-11-29 10:00:00"))
+    err = _bad(tmp_path, capsys, [a if a != str(path) else str(stamps) for a in argv] + ["--t", "status"])
+    assert "the time column must hold numbers" in err and "convert the stamps to numbers" in err
+
+
+def test_the_design_command_parses_a_csv_record_once(tmp_path, monkeypatch):
+    # record_columns, then text_columns (no --u/--y: the status column is left out), then load_record had each parsed
+    # the file: three parses of the same text
+    import os
+
+    import experiments.lab.records as records
+    from experiments.lab.records import load_record, record_columns, text_columns
+    from experiments.studies import design_cli
+
+    t, u, y, _ = _record()
+    path = _with_status(tmp_path / "status.csv", ["t", "u", "y"], [t, u, y], 3)
+    parsed = []
+    parse = records._parse_csv
+    monkeypatch.setattr(records, "_parse_csv", lambda *a, **k: parsed.append(a[0]) or parse(*a, **k))
+
+    class Read(Exception):
+        """Raised with the record the command read, before its design."""
+
+    def stop(rec, detrend):
+        raise Read(rec)
+
+    monkeypatch.setattr(design_cli, "operating_point", stop)
+    with pytest.raises(Read) as read:
+        main(["design", str(path), "--horizon", "10", "--out", str(tmp_path)])
+    assert len(parsed) == 1
+    rec = read.value.args[0]  # the record the file holds, as a parse of its own reads it
+    parsed.clear()
+    monkeypatch.setattr(records, "_last_parse", None)
+    alone = load_record(path, u="u", y="y", t="t")
+    assert len(parsed) == 1 and np.array_equal(rec.u, alone.u) and np.array_equal(rec.y, alone.y)
+    assert rec.dt == alone.dt and (rec.u_columns, rec.y_columns) == (("u",), ("y",))
+    # the public functions answer as before: the header is the caller's copy
+    names = record_columns(path)[0]
+    names.append("mine")
+    assert record_columns(path) == (["t", "u", "y", "status"], 4) and text_columns(path) == [3] and len(parsed) == 1
+    # a file rewritten to the same size with the same modification time is read anew (its bytes are compared)
+    stat = path.stat()
+    path.write_text(path.read_text().replace(",ok", ",no"))
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert path.stat().st_size == stat.st_size and path.stat().st_mtime_ns == stat.st_mtime_ns
+    assert record_columns(path) == (["t", "u", "y", "status"], 4) and len(parsed) == 2
+    path.write_text(path.read_text().replace(",no", ",1.0"))
+    assert text_columns(path) == [] and len(parsed) == 3
 
 
 def test_a_time_column_is_never_a_signal_also_with_dt(tmp_path):
