@@ -165,7 +165,7 @@ def test_coprime_form_names_epsilon_and_the_part_that_decides_it():
     why = rd.size_reason
     assert why.startswith(f"ε = {rd.epsilon:.4g} is too large") and rd.reason.startswith(why)
     assert "only checks that grow with ε" in why and "(7.5)" not in why
-    assert (f"ε comes from P̂'s equation error on the window [0, 109) (109 samples, j = 90 columns), above the held-out "
-            f"record's ε = {rd.coprime.held_out.epsilon:.3g}") in why
+    assert (f"ε comes from P̂'s equation error on the window [0, 109) (109 samples, j = 90 columns), above the "
+            f"held-out record's ε = {rd.coprime.held_out.epsilon:.3g}") in why
     assert rd.coprime.held_out.epsilon < rd.epsilon == pytest.approx(rd.coprime.in_sample.epsilon)
     assert "a smaller σ raises ε" in why

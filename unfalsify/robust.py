@@ -877,9 +877,9 @@ def robust_design_from_data(
             if whole is not None:
                 n_whole = int(np.shape(whole[0])[0])
                 fit_samples = _held_out_start(n_whole) if held_out_here else n_whole
+            source = _size_source(prem, unf, model, i, span, fit_samples, cop if ball is not None else None)
             size_reason = _size_reason(judge, records, designs, delta if ball is None else ball.eps,
-                                       "δ" if ball is None else "ε",
-                                       *_size_source(prem, unf, model, i, span, fit_samples, cop if ball is not None else None))
+                                       "δ" if ball is None else "ε", *source)
             notes = [n for n in (operating_point_note(*record), glitch_note(model, *record, i)) if n]
             msg = (f"the §7.4 loop is NOT certified for {size}: "
                    + (f"{size_reason}; the requested design: " if size_reason else "")
@@ -1393,41 +1393,41 @@ def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch
     return first, c0, records[0], records, designs
 
 
-def _tolerated_size(judge: _LoopJudge, rec: SearchRecord, controller, size: float,
-                    beat: float = 0.0) -> tuple[float, str]:
-    """``(size, check)``: the largest δ (ε in coprime-factor form) at which the loop of ``rec`` passes the checks that
-    grow with it -- the proven small gain on P̂ and P̂_ref, tracking across the ball -- and the check that limits it;
-    found only where it exceeds ``beat`` (below, some size under ``beat``: the search's best is bisected once).
+def _size_limit(judge: _LoopJudge, rec: SearchRecord, controller, size: float) -> tuple[float, bool]:
+    """``(limit, tracking fails there)`` for the loop of ``rec``: ``limit = min(size, small-gain bound)``, the
+    largest δ (ε in coprime-factor form) its proven small gain on P̂ and P̂_ref allows, at most ``size``; and whether
+    its tracking across the ball fails at that δ (then a smaller δ decides it: :func:`_tracking_limit`).
 
-    NaN when the loop fails a check the size does not decide (unstable, a step that does not track on P̂ or
-    P̂_ref, no reference model, the excitation test, the premise, tracking at the data's low-frequency gain), or
-    when it passes the size's checks at ``size`` itself (it was refused for something else, e.g. the bounded-real
-    proof).  Tracking across the ball is bisected: the static plants it tries at a radius lie on the rays of
-    those it tries at a larger one.
+    ``(NaN, False)`` when the loop fails a check the size does not decide (unstable, a step that does not track on
+    P̂ or P̂_ref, no reference model, the excitation test, the premise, tracking at the data's low-frequency gain),
+    or passes the size's checks at ``size`` itself (it was refused for something else, e.g. the bounded-real proof).
     """
     cert, ref = rec.certificate, rec.reference_certificate
+    nothing = float("nan"), False
     if controller is None or cert is None or rec.premise_reason or (
             rec.excitation is not None and not rec.excitation.ok):
-        return float("nan"), ""
+        return nothing
     checked = [c for c in (cert, ref) if c is not None]  # a missing reference is unstable (spectral radius NaN)
     if not all(c.stable and c.tracks and c.norm is not None for c in checked):
-        return float("nan"), ""
+        return nothing
     upper = max(float(c.norm.upper) for c in checked)
     if not math.isfinite(upper):
-        return float("nan"), ""
-    small_gain = 1.0 / ((1.0 + judge.margin) * upper) if upper > 0 else float("inf")
-    lo = size * 1e-9
-    if judge.tracking(controller, lo):  # refused at P̂ itself or at the data's gain: no smaller δ helps
-        return float("nan"), ""
-    hi = min(small_gain, size)
-    if not judge.tracking(controller, hi):
-        return (small_gain, "the small gain") if small_gain < size else (float("nan"), "")
-    if hi <= beat:
-        return lo, ""
-    for _ in range(24):  # to 6e-8 of hi: the reason prints three digits
+        return nothing
+    if judge.tracking(controller, size * 1e-9):  # refused at P̂ itself or at the data's gain: no smaller δ helps
+        return nothing
+    limit = min(size, 1.0 / ((1.0 + judge.margin) * upper) if upper > 0 else float("inf"))
+    fails = bool(rec.tracking_reason) if limit == size else bool(judge.tracking(controller, limit))
+    return (limit, fails) if (limit < size or fails) else nothing
+
+
+def _tracking_limit(judge: _LoopJudge, controller, hi: float) -> float:
+    """The largest δ (ε) below ``hi``, where tracking across the ball fails, at which it passes; by bisection (the
+    static plants tried at a radius lie on the rays of those tried at a larger one), to 6e-5 of ``hi``."""
+    lo = hi * 1e-9
+    for _ in range(14):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if judge.tracking(controller, mid) else (mid, hi)
-    return lo, "tracking across the ball"
+    return lo
 
 
 def _size_reason(judge: _LoopJudge, records, designs, size: float, name: str, where: str, fix: str) -> str:
@@ -1435,23 +1435,29 @@ def _size_reason(judge: _LoopJudge, records, designs, size: float, name: str, wh
     form) is what refuses: ``''`` otherwise.
 
     Two findings, each general: loops of the search that are stable and track on P̂ (and P̂_ref) but fail only the
-    checks that grow with the size, with the largest size one of them tolerates (:func:`_tolerated_size`); and,
-    for any controller, an additive ball that holds a plant of singular DC gain, which no loop makes track (the
-    step's steady error is 1 there; checked when every output is tracked with a floor below 1).  ``where`` says
-    where the size came from, ``fix`` what lowers it.
+    checks that grow with the size (the proven small gain, tracking across the ball), with the largest size one of
+    them tolerates; and, for any controller, an additive ball that holds a plant of singular DC gain, which no loop
+    makes track (the step's steady error is 1 there; checked when every output is tracked with a floor below 1).
+    ``where`` says where the size came from, ``fix`` what lowers it.
     """
-    tolerated = []  # (size, check) of every loop refused for the size alone
-    for r, d in zip(records, designs):
-        t = _tolerated_size(judge, r, d.controller if d is not None else None, size, max(tolerated, default=(0.0,))[0])
-        if t[0] < size:  # NaN compares False
-            tolerated.append(t)
+    limits = [(*_size_limit(judge, r, d.controller if d is not None else None, size), d)
+              for r, d in zip(records, designs)]
+    limits = [x for x in limits if x[0] <= size]  # NaN compares False
+    best, check = 0.0, ""
+    # the loops whose tracking fails below their small-gain limit are bisected from the largest limit down, and only
+    # while they can beat the best so far (the bisection costs fourteen tracking checks)
+    for limit, fails, d in sorted(limits, key=lambda x: -x[0]):
+        if limit <= best:
+            break
+        tolerated = _tracking_limit(judge, d.controller, limit) if fails else limit
+        if tolerated > best:
+            best, check = tolerated, "tracking across the ball" if fails else "the small gain"
     found = []
     dc = _singular_dc_gain(judge, size)
     if dc:
         found.append(dc)
-    if tolerated:
-        k, ref = len(tolerated), " and P̂_ref" if judge.ref_model is not None else ""
-        best, check = max(tolerated)
+    if limits:
+        k, ref = len(limits), " and P̂_ref" if judge.ref_model is not None else ""
         found.append(f"{k} of the {len(records)} designs tried {'is' if k == 1 else 'are'} stable and "
                      f"track{'s' if k == 1 else ''} on P̂{ref} but fail{'s' if k == 1 else ''} only checks that grow "
                      f"with {name}; the best holds up to {name} = {best:.3g} ({check})")
@@ -1507,8 +1513,8 @@ def _size_source(prem: PremiseTest, unf: SubspaceResult, model, i: int, span, fi
     # "may": measured, on the FIR example's 32-sample window one noise sample of 3.8 standard deviations made δ 0.60
     # (0.008 without it), while otherwise (four plants, seeds 0-4, records of 300 and 1000 samples) lengthening the
     # window from "auto" to the whole fitting part moved δ by a factor of at most 1.8, either way
-    longer = (f"what may lower it: {longer}; a larger σ, if the noise is larger than σ = {float(unf.sigma):.3g} (what σ "
-              f"leaves of the residual is charged to the uncertainty: a smaller σ raises {name})")
+    longer = (f"what may lower it: {longer}; a larger σ, if the noise is larger than σ = {float(unf.sigma):.3g} "
+              f"(what σ leaves of the residual is charged to the uncertainty: a smaller σ raises {name})")
     refit = "what may lower it: P̂ refitted at another horizon, or on a longer or richer record"
     if cop is not None:
         if cop.decided_by == "in sample" and cop.in_sample is not None:
