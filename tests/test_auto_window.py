@@ -2,9 +2,9 @@
 
 The FIR example of :func:`unfalsify.robust_design_from_data` (``y = u₋₁ + 0.5u₋₂`` plus noise 0.01, i = 3, seed 0) in
 record mode on 300 samples: ``window="auto"`` takes j = 3·i(2m + l) = 27 columns, 32 samples, where (7.5) gives
-δ = 0.60 (measured: 0.015–0.03 from 45 samples on, and at every length for seeds 1–4), and none of the 40 designs
-of the search certifies.  The refusal must say that δ is what refuses, where it came from and what lowers it; the
-numbers it states are checked here by a second route (python-control loops, a frequency grid, ``P̂(1)``).
+δ = 0.60 (measured: 0.014–0.028 from 45 samples on; 0.010–0.024 at every length for seeds 1–4), and none of the 40
+designs of the search certifies.  The refusal must say that δ is what refuses, where it came from and what lowers
+it; the numbers it states are checked here by a second route (python-control loops, a frequency grid, ``P̂(1)``).
 """
 import re
 import warnings

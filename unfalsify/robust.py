@@ -775,7 +775,7 @@ def robust_design_from_data(
         says why (nominal loop unstable on P̂, small gain, performance floor).  When the size of δ is what
         refuses, ``result.size_reason`` leads it: δ, where it came from (the (7.5) window or P̂'s output
         error) and what lowers it (measured: the docstring's FIR record of 300 samples at seed 0 gives
-        δ = 0.60 on ``window="auto"``'s 32 samples, 0.015–0.03 from 45 samples on).
+        δ = 0.60 on ``window="auto"``'s 32 samples, 0.014–0.028 from 45 samples on).
     FewDataWarning
         j < 3 × the regressors of a predictor estimated on the window.
     SolverWarning
