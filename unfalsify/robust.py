@@ -57,17 +57,17 @@ import numpy as np
 from scipy.optimize import brentq
 
 import synthesis
-from synthesis import Additive, HinfDesign, record_fingerprint
+from synthesis import Additive, HinfDesign, hinf_norm, record_fingerprint
 from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_level, check_nonnegative, check_predictor_dt, check_sample_time)
 
 from ._common import (NOISE_RESOLUTION, channel_pair, check_output_moves, check_predictor, check_sigma,
-                      samples_at_rest)
+                      samples_at_rest, spectral_radius)
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here
-from .certify import LoopCertificate, certify_loop
+from .certify import LoopCertificate, certify_loop, tracking_floors
 from .coprime import (CoprimePremise, check_coprime_premise, coprime_factors, coprime_unfalsify,
                       unconfirmed_coprime_premise)
 from .clipping import clipped_outputs
@@ -228,6 +228,12 @@ class RobustDesignResult:
         ``P − P̂`` has no such mode; NaN on results made before it was measured.
     hidden_line_frequency : float
         The frequency where ``X`` is reached (NaN without).
+    size_reason : str
+        When no design certifies and the size of the uncertainty is what refuses: δ (ε) with where it came from
+        (the (7.5) window, P̂'s output error) and what lowers it, and why it is too large -- designs of the search
+        that are stable and track on P̂ (and P̂_ref) but fail only the checks that grow with δ, with the largest δ
+        one of them tolerates, or an additive ball holding a plant of singular DC gain, which no controller makes
+        track.  :attr:`reason` starts with it.  ``''`` otherwise (and on results made before it was added).
     """
 
     unfalsification: SubspaceResult
@@ -261,6 +267,7 @@ class RobustDesignResult:
     hidden_line_gain: float = float("nan")
     hidden_line_frequency: float = float("nan")
     reference_horizon: int | None = None
+    size_reason: str = ""
 
     @property
     def controller(self) -> control.StateSpace:
@@ -276,9 +283,11 @@ class RobustDesignResult:
 
     @property
     def reason(self) -> str:
-        """Why the loop is not certified (``''`` when it is)."""
-        return _with_form(_verdict_reason(self.certificate, self.reference_certificate, self.premise_reason,
-                                          self.excitation, self.tracking_reason), self.additive_reason)
+        """Why the loop is not certified (``''`` when it is): :attr:`size_reason` first when there is one, then why the
+        returned (requested) design is refused."""
+        why = _with_form(_verdict_reason(self.certificate, self.reference_certificate, self.premise_reason,
+                                         self.excitation, self.tracking_reason), self.additive_reason)
+        return f"{self.size_reason}; the requested design: {why}" if why and self.size_reason else why
 
     @property
     def premise_note(self) -> str:
@@ -730,7 +739,8 @@ def robust_design_from_data(
         least squares -- no lambda needed.  ``"auto"``: ``2i + j − 1`` samples with ``j = 3·i(2m + l)``
         columns (three per regressor of the predictor), or as many as the fitting part holds, from the
         start of the record, or from i samples before the input first moves if it starts at rest.  None
-        (default): ``u, y`` are the window itself.
+        (default): ``u, y`` are the window itself.  When δ of a window is what refuses every design,
+        ``result.size_reason`` says so and proposes a window twice as long.
     **legacy
         The keywords of earlier releases (``gamma_ratio``, ``margin``, ``w3_rule``, ``causal``,
         ``certificate_margin``, ``tracking_floor``, ``step_samples``, ``reference_horizon``,
@@ -763,7 +773,10 @@ def robust_design_from_data(
     -----
     NotCertifiedWarning
         No design of the search certifies; ``result.certified`` is False and ``result.reason``
-        says why (nominal loop unstable on P̂, small gain, performance floor).
+        says why (nominal loop unstable on P̂, small gain, performance floor).  When the size of δ is what
+        refuses, ``result.size_reason`` leads it: δ, where it came from (the (7.5) window or P̂'s output
+        error) and what lowers it (measured: the docstring's FIR record of 300 samples at seed 0 gives
+        δ = 0.60 on ``window="auto"``'s 32 samples, 0.014–0.028 from 45 samples on).
     FewDataWarning
         j < 3 × the regressors of a predictor estimated on the window.
     SolverWarning
@@ -856,12 +869,22 @@ def robust_design_from_data(
                            line_record=(*record, i))
         if premise_reason or judge.missing is not None:
             search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
-        chosen, c, rec, records = _search_designs(space, judge, search, i)
+        chosen, c, rec, records, designs = _search_designs(space, judge, search, i)
+        size_reason = ""
         if not rec.certified:
             tried = len(records)
             size = f"δ = {delta:.4g}" if ball is None else f"coprime-factor ε = {ball.eps:.4g}"
+            fit_samples = None
+            if whole is not None:
+                n_whole = int(np.shape(whole[0])[0])
+                fit_samples = _held_out_start(n_whole) if held_out_here else n_whole
+            source = _size_source(prem, unf, model, i, span, fit_samples, cop if ball is not None else None)
+            size_reason = _size_reason(judge, records, designs, delta if ball is None else ball.eps,
+                                       "δ" if ball is None else "ε", *source)
             notes = [n for n in (operating_point_note(*record), glitch_note(model, *record, i)) if n]
-            msg = (f"the §7.4 loop is NOT certified for {size}: {_with_form(rec.reason, additive_reason)}"
+            msg = (f"the §7.4 loop is NOT certified for {size}: "
+                   + (f"{size_reason}; the requested design: " if size_reason else "")
+                   + _with_form(rec.reason, additive_reason)
                    + (f"; none of the {tried} designs searched certifies" if tried > 1 else "; no search was made")
                    + "".join(f"; note: {n}" for n in notes))
             if require_certified:
@@ -884,7 +907,7 @@ def robust_design_from_data(
             uncertainty="additive" if ball is None else "coprime", coprime=cop, additive_reason=additive_reason,
             assumed=assumed, invariance=invariance, invariance_note=invariance_note, window=span, feedback=feedback,
             hidden_line_gain=float(hidden), hidden_line_frequency=float(hidden_freq),
-            reference_horizon=space.reference_horizon)
+            reference_horizon=space.reference_horizon, size_reason=size_reason)
 
 
 def _fitted_on(predictor, u, y, validation):
@@ -1210,10 +1233,19 @@ class _LoopJudge:
                if prem.frf is not None and cert.stable else None)
         if exc is not None and exc.ok:
             exc = self._line_check(exc, d.controller)
-        gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
-        track = (_steady_state_reason(self.model, d.controller, (1.0 + self.margin) * self.delta, self.floor, gain)
-                 if cert.stable else "")
+        track = self.tracking(d.controller, self.delta) if cert.stable else ""
         return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+
+    def tracking(self, controller, size: float) -> str:
+        """Why the loop does not track across the ball of ``size`` (δ, or ε in coprime-factor form) and at the data's
+        low-frequency gain (``''`` when it does; a ball of size 0 is not checked)."""
+        radius = (1.0 + self.margin) * size
+        if self.ball is not None:
+            b = self.ball
+            return _coprime_tracking_reason(b.factors, b.data_gain, controller, radius, self.floor)
+        prem = self.prem
+        gain = prem.plant_low_band.response[0] if prem.plant_low_band is not None else None
+        return _steady_state_reason(self.model, controller, radius, self.floor, gain)
 
     @functools.cached_property
     def _spectra(self):
@@ -1277,8 +1309,7 @@ class _LoopJudge:
                if b.frf is not None and cert.stable else None)
         if exc is not None and exc.ok:
             exc = self._line_check(exc, d.controller)
-        track = (_coprime_tracking_reason(b.factors, b.data_gain, d.controller, (1.0 + self.margin) * b.eps,
-                                          self.floor) if cert.stable else "")
+        track = self.tracking(d.controller, b.eps) if cert.stable else ""
         ref = self.missing
         if self.ref_model is not None and b.ref_factors is not None:
             ref = certify_loop(self.ref_model, d.controller, b.eps, factors=b.ref_factors, model_name="P̂_ref",
@@ -1340,12 +1371,13 @@ def _coprime_form(options: CertificateOptions, prem: PremiseTest, pred, model, u
 
 
 def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch | None, i: int):
-    """``(design, c, record, records)``: the requested design, then the search's first certified one."""
+    """``(design, c, record, records, designs)``: the requested design, then the search's first certified one;
+    ``designs`` lists the design of each record (None where it could not be built)."""
     o = space.options
     first, c0 = space.build(i, bool(o.causal), o.gamma_ratio, 1.0)
-    records = [judge.record(i, bool(o.causal), o.gamma_ratio, c0, first)]
+    records, designs = [judge.record(i, bool(o.causal), o.gamma_ratio, c0, first)], [first]
     if records[0].certified or search is None:
-        return first, c0, records[0], records
+        return first, c0, records[0], records, designs
     for h, cz, ratio, factor in _candidates(search, i, bool(o.causal), o.gamma_ratio)[1:]:
         try:
             d, c = space.build(h, cz, ratio, factor)
@@ -1353,11 +1385,160 @@ def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch
         except (ValueError, np.linalg.LinAlgError) as exc:  # DataError / InfeasibleGammaError / no predictor
             records.append(SearchRecord(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
                                         error=f"{type(exc).__name__}: {exc}"))
+            designs.append(None)
             continue
         records.append(rec)
+        designs.append(d)
         if rec.certified:
-            return d, c, rec, records
-    return first, c0, records[0], records
+            return d, c, rec, records, designs
+    return first, c0, records[0], records, designs
+
+
+def _size_limit(judge: _LoopJudge, rec: SearchRecord, controller, size: float) -> tuple[float, bool]:
+    """``(limit, tracking fails there)`` for the loop of ``rec``: ``limit = min(size, small-gain bound)``, the
+    largest δ (ε in coprime-factor form) its proven small gain on P̂ and P̂_ref allows, at most ``size``; and whether
+    its tracking across the ball fails at that δ (then a smaller δ decides it: :func:`_tracking_limit`).
+
+    ``(NaN, False)`` when the loop fails a check the size does not decide (unstable, a step that does not track on
+    P̂ or P̂_ref, no reference model, the excitation test, the premise, tracking at the data's low-frequency gain),
+    or passes the size's checks at ``size`` itself (it was refused for something else, e.g. the bounded-real proof).
+    """
+    cert, ref = rec.certificate, rec.reference_certificate
+    nothing = float("nan"), False
+    if controller is None or cert is None or rec.premise_reason or (
+            rec.excitation is not None and not rec.excitation.ok):
+        return nothing
+    checked = [c for c in (cert, ref) if c is not None]  # a missing reference is unstable (spectral radius NaN)
+    if not all(c.stable and c.tracks and c.norm is not None for c in checked):
+        return nothing
+    upper = max(float(c.norm.upper) for c in checked)
+    if not math.isfinite(upper):
+        return nothing
+    if judge.tracking(controller, size * 1e-9):  # refused at P̂ itself or at the data's gain: no smaller δ helps
+        return nothing
+    limit = min(size, 1.0 / ((1.0 + judge.margin) * upper) if upper > 0 else float("inf"))
+    fails = bool(rec.tracking_reason) if limit == size else bool(judge.tracking(controller, limit))
+    return (limit, fails) if (limit < size or fails) else nothing
+
+
+def _tracking_limit(judge: _LoopJudge, controller, hi: float) -> float:
+    """The largest δ (ε) below ``hi``, where tracking across the ball fails, at which it passes; by bisection (the
+    static plants tried at a radius lie on the rays of those tried at a larger one), to 6e-5 of ``hi``."""
+    lo = hi * 1e-9
+    for _ in range(14):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if judge.tracking(controller, mid) else (mid, hi)
+    return lo
+
+
+def _size_reason(judge: _LoopJudge, records, designs, size: float, name: str, where: str, fix: str) -> str:
+    """Why no design certifies, when the size of the uncertainty (``name`` = ``size``: δ, or ε in coprime-factor
+    form) is what refuses: ``''`` otherwise.
+
+    Two findings, each general: loops of the search that are stable and track on P̂ (and P̂_ref) but fail only the
+    checks that grow with the size (the proven small gain, tracking across the ball), with the largest size one of
+    them tolerates; and, for any controller, an additive ball that holds a plant of singular DC gain, which no loop
+    makes track (the step's steady error is 1 there; checked when every output is tracked with a floor below 1).
+    ``where`` says where the size came from, ``fix`` what lowers it.
+    """
+    limits = [(*_size_limit(judge, r, d.controller if d is not None else None, size), d)
+              for r, d in zip(records, designs)]
+    limits = [x for x in limits if x[0] <= size]  # NaN compares False
+    best, check = 0.0, ""
+    # the loops whose tracking fails below their small-gain limit are bisected from the largest limit down, and only
+    # while they can beat the best so far (the bisection costs fourteen tracking checks)
+    for limit, fails, d in sorted(limits, key=lambda x: -x[0]):
+        if limit <= best:
+            break
+        tolerated = _tracking_limit(judge, d.controller, limit) if fails else limit
+        if tolerated > best:
+            best, check = tolerated, "tracking across the ball" if fails else "the small gain"
+    found = []
+    dc = _singular_dc_gain(judge, size)
+    if dc:
+        found.append(dc)
+    if limits:
+        k, ref = len(limits), " and P̂_ref" if judge.ref_model is not None else ""
+        found.append(f"{k} of the {len(records)} designs tried {'is' if k == 1 else 'are'} stable and "
+                     f"track{'s' if k == 1 else ''} on P̂{ref} but fail{'s' if k == 1 else ''} only checks that grow "
+                     f"with {name}; the best holds up to {name} = {best:.3g} ({check})")
+    if not found:
+        return ""
+    return f"{name} = {size:.4g} is too large: " + "; ".join(found) + f"; {where}: {fix}"
+
+
+def _singular_dc_gain(judge: _LoopJudge, delta: float) -> str:
+    """The statement that the additive ball of ``δ`` holds a plant of singular DC gain, which no loop makes track
+    (``''`` when it does not, in coprime-factor form, for a P̂ without a finite DC gain, or when an output is not
+    tracked or its floor is 1 or more)."""
+    if judge.ball is not None:
+        return ""
+    floors = np.asarray(tracking_floors(judge.floor, judge.model.noutputs), float)
+    if not np.all(floors < 1.0):  # an untracked output (inf), or a floor that a zero output meets
+        return ""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # python-control warns for a pole at 1
+        try:
+            G = np.atleast_2d(np.asarray(control.dcgain(judge.model), float))
+        except (ValueError, np.linalg.LinAlgError):
+            return ""
+    if not np.all(np.isfinite(G)):
+        return ""
+    low = float(np.linalg.svd(G, compute_uv=False).min())
+    radius = (1.0 + judge.margin) * delta
+    if radius < low:
+        return ""
+    what = "zero DC gain" if G.size == 1 else "a singular DC gain"
+    return (f"the ball of radius (1 + margin)·δ = {radius:.4g} around P̂ holds a plant with {what} (P̂'s smallest DC "
+            f"singular value is {low:.4g}), which no controller makes track")
+
+
+def _size_source(prem: PremiseTest, unf: SubspaceResult, model, i: int, span, fit_samples: int | None,
+                 cop: CoprimePremise | None = None) -> tuple[str, str]:
+    """``(where, fix)`` for :func:`_size_reason`: where δ came from -- (7.5) on the window or P̂'s output error --
+    with its share of ‖P̂‖∞, or ε (``cop``, the coprime-factor form) -- the equation error on the window or on the
+    held-out record -- and what lowers it: a longer window where the window decides, a better P̂ where held-out data
+    do (no window lowers those)."""
+    window = (f"the window [{span[0]}, {span[1]}) ({span[1] - span[0]} samples, j = {span[1] - span[0] - 2 * i + 1} "
+              "columns)" if span is not None else "the window given")
+    if span is not None and fit_samples is not None and span[1] < fit_samples:
+        # twice the window, within the fitting part: (7.5)'s cost grows with its columns
+        length = min(2 * (span[1] - span[0]), fit_samples - span[0])
+        longer = (f"a longer window, e.g. window=({span[0]}, {length}) (the fitting part holds {fit_samples} "
+                  "samples), or a longer record")
+    elif span is not None:
+        longer = "a longer record (the window spans the fitting part)"
+    else:
+        longer = "a longer window (more samples of u, y), or the whole record with window="
+    name = "δ" if cop is None else "ε"
+    # "may": measured, on the FIR example's 32-sample window one noise sample of 3.8 standard deviations made δ 0.60
+    # (0.008 without it), while otherwise (four plants, seeds 0-4, records of 300 and 1000 samples) lengthening the
+    # window from "auto" to the whole fitting part moved δ by a factor of at most 1.8, either way
+    longer = (f"what may lower it: {longer}; a larger σ, if the noise is larger than σ = {float(unf.sigma):.3g} "
+              f"(what σ leaves of the residual is charged to the uncertainty: a smaller σ raises {name})")
+    refit = "what may lower it: P̂ refitted at another horizon, or on a longer or richer record"
+    if cop is not None:
+        if cop.decided_by == "in sample" and cop.in_sample is not None:
+            other = (f", above the held-out record's ε = {cop.held_out.epsilon:.3g}"
+                     if cop.held_out is not None and cop.held_out.held_out else "")
+            return f"ε comes from P̂'s equation error on {window}{other}", longer
+        return f"ε comes from P̂'s equation error ({cop.decided_by})", refit
+    relative = ""
+    try:
+        norm = hinf_norm(model).upper if spectral_radius(np.asarray(model.A, float)) < 1.0 else float("inf")
+    except (ValueError, np.linalg.LinAlgError):
+        norm = float("inf")
+    if math.isfinite(norm) and norm > 0:
+        relative = f", {100.0 * prem.delta / norm:.3g} % of ‖P̂‖∞ = {norm:.4g}"
+    oe = prem.output_error
+    if prem.decided_by.startswith("subspace"):
+        other = ""
+        if oe is not None and math.isfinite(prem.delta_output_error):
+            other = (f", while P̂'s output error ({'held out' if oe.held_out else 'in sample'}) gives "
+                     f"δ = {prem.delta_output_error:.3g}")
+        return f"δ comes from (7.5) on {window}{relative}{other}", longer
+    return (f"δ comes from P̂'s output error (Theorem 7.1{', held out' if oe is not None and oe.held_out else ''})"
+            f"{relative}, above (7.5)'s δ = {prem.delta_subspace:.3g} on {window}", refit)
 
 
 #: fraction of a record held out for the premise test in record mode (``window=``)
