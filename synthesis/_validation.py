@@ -213,8 +213,9 @@ def as_discrete_system(sys, name: str, *, hint: str = ""):
     return sys
 
 
-def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0.0) -> float:
-    """Return ``value`` as a float ``> minimum`` (a level γ, a ratio, a tolerance, ...).
+def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0.0,
+                maximum: float | None = None) -> float:
+    """Return ``value`` as a float ``> minimum`` (a level γ, a ratio, a tolerance, ...), and ``< maximum`` if given.
 
     Parameters
     ----------
@@ -226,11 +227,13 @@ def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0
         Accept ``+inf`` (e.g. ``gamma = inf``, the LQ limit).
     minimum : float
         Strict lower bound.
+    maximum : float, optional
+        Strict upper bound (e.g. 1 for a significance level in (0, 1)).
 
     Raises
     ------
     DataError
-        If ``value`` is not a real number, is NaN, is infinite (unless allowed) or is ``<= minimum``.
+        If ``value`` is not a real number, is NaN, is infinite (unless allowed), ``<= minimum`` or ``>= maximum``.
 
     Examples
     --------
@@ -240,12 +243,19 @@ def check_level(value, name: str, *, allow_inf: bool = False, minimum: float = 0
     Traceback (most recent call last):
     ...
     synthesis.exceptions.DataError: gamma must be a real number > 0, got '2'
+    >>> check_level(0.05, "level", maximum=1.0)
+    0.05
+    >>> check_level(None, "level", maximum=1.0)
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: level must be a real number in (0, 1), got None
     """
+    bounds = f"> {minimum:g}" if maximum is None else f"in ({minimum:g}, {maximum:g})"
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise DataError(f"{name} must be a real number > {minimum:g}, got {value!r}")
+        raise DataError(f"{name} must be a real number {bounds}, got {value!r}")
     v = float(value)
-    if np.isnan(v) or not v > minimum or (np.isinf(v) and not allow_inf):
-        raise DataError(f"{name} must be a {'' if allow_inf else 'finite '}number > {minimum:g}, got {value!r}")
+    if np.isnan(v) or not v > minimum or (np.isinf(v) and not allow_inf) or (maximum is not None and not v < maximum):
+        raise DataError(f"{name} must be a {'' if allow_inf else 'finite '}number {bounds}, got {value!r}")
     return v
 
 

@@ -40,6 +40,13 @@ def _prepare(L, x, lower: bool, overwrite: bool):
         raise DataError(f"x must have {L.shape[0]} entries to match the factor, got {x.size}")
     if not (np.all(np.isfinite(L)) and np.all(np.isfinite(x))):
         raise DataError("the factor and x must be finite (no NaN/inf)")
+    # the update reads one triangle only: a full matrix (a Gram matrix passed for its factor) had returned a result
+    # that kept the other triangle, silently neither a factor nor the update of one
+    if np.any(np.triu(L, 1) if lower else np.tril(L, -1)):
+        side, other = ("lower", "upper") if lower else ("upper", "lower")
+        raise DataError(f"the Cholesky factor must be {side} triangular (lower={lower}), but its strictly {other} "
+                        f"triangle is not zero: pass the factor, not the matrix it factors (e.g. np.linalg.cholesky(G) "
+                        f"for G), or lower={not lower} for {'an' if lower else 'a'} {other} triangular factor")
     # Work on Rt, an upper-triangular view whose rows are the columns of the lower factor.
     if overwrite and L.flags.writeable:
         W = L

@@ -233,7 +233,9 @@ def block_hankel(x: np.ndarray, rows: int, cols: int, start: int = 0) -> np.ndar
     k = x.shape[1]
     seg = x[start : start + rows + cols - 1]
     if seg.shape[0] < rows + cols - 1:
-        raise DataError("not enough samples for the requested block Hankel matrix")
+        raise DataError(f"x has {seg.shape[0]} sample(s) from start = {start} but a block Hankel matrix of {rows} "
+                        f"rows and {cols} columns needs rows + cols − 1 = {rows + cols - 1}: pass a longer x, or "
+                        "fewer rows or columns")
     # windows[c, ch, r] = seg[c + r, ch]
     windows = sliding_window_view(seg, rows, axis=0)  # (cols, k, rows)
     return np.ascontiguousarray(windows.transpose(2, 1, 0).reshape(rows * k, cols))

@@ -164,6 +164,9 @@ def makeweight(dc: float, crossover, hf: float, dt: float) -> control.StateSpace
     except (TypeError, ValueError):
         raise WeightError(f"makeweight: crossover must be a pair (freq in rad/s, mag), got {crossover!r}") from None
     freq, mag = positive(freq, "the crossover frequency"), positive(mag, "the crossover gain mag")
+    if dc == hf:  # the interval below is empty: "choose mag in (1, 1)" named no fix
+        raise WeightError(f"makeweight: dc = hf = {dc:g} leaves no gain strictly between them for the crossover: a "
+                          f"weight of constant gain has none; pass the number {dc:g} itself as a static weight")
     if not min(dc, hf) < mag < max(dc, hf):
         raise WeightError(
             f"makeweight: the crossover gain mag = {mag:g} must lie strictly between dc = {dc:g} and hf = {hf:g} "

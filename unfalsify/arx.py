@@ -76,8 +76,8 @@ from synthesis.validation import check_count, check_flag
 from synthesis.results import result
 
 from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_input_moves,
-                      check_noise_floor, check_noise_resolution, check_sigma, check_solver_options, into_ball,
-                      rms_or_one)
+                      check_noise_floor, check_noise_resolution, check_output_moves, check_sigma, check_solver_options,
+                      into_ball, rms_or_one)
 from .cost import _guard_arx
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
@@ -328,6 +328,7 @@ class ArxProblem:
         u, y = channel_pair(u, y)
         na, nb = _order(na, "na"), _order(nb, "nb")
         free_rows = _order(free_rows, "free_rows")
+        check_output_moves(y, "the record")  # a zero output had given δ = NaN with status 'optimal'
         sigma = check_sigma(sigma)
         n = u.shape[0]
         m, l = (1, 1) if u.ndim == 1 else (u.shape[1], y.shape[1])

@@ -53,13 +53,13 @@ from synthesis.results import result
 from synthesis.validation import (DataError, as_discrete_system, check_count, check_flag, check_instance, check_level,
                                   check_nonnegative)
 
-from ._common import channel_pair, check_sigma
+from ._common import channel_pair, check_input_moves, check_output_moves, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _inverse_root,
                                  _step, _unit, frequency_response_estimate, low_band_estimate)
 from .premise import (PremiseOptions, _fir_sigma, _floor_note, _low_bins, _model_gap, _premise_options,
-                      _region_reach, _residual_low_band)
+                      _region_reach, _residual_low_band, _times)
 
 __all__ = ["CoprimeFactors", "coprime_factors", "coprime_gap", "coprime_distance", "error_gap",
            "CoprimeUnfalsification", "coprime_unfalsify", "CoprimePremise", "check_coprime_premise",
@@ -312,6 +312,9 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
     if sigma is not None:
         sigma = check_sigma(sigma)  # a string had reached float() below, and 0 or a negative σ the solver
     u, y = channel_pair(u, y)
+    # a zero input or a dead sensor's constant output had given an ε, as the output-error test refuses them
+    check_input_moves(u, "the record")
+    check_output_moves(y, "the record")
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)
     e_all = factors.residual(u, y).reshape(u.shape[0] - i, factors.outputs)
@@ -680,7 +683,7 @@ def unconfirmed_coprime_premise(premise: CoprimePremise, bound: float) -> str:
     return (f"the data do not confirm the premise of the coprime-factor certificate, the plant within "
             f"(1 + margin)·ε = {bound:.4g} of P̂'s factors: their {est.confidence:.0%} confidence regions of the "
             f"equation error's response M̂P − N̂ (a perturbation of N̂ that reaches the plant) reach {upper:.3g} "
-            f"({upper / bound:.3g} × that) at {where:.3g} {_unit(est.dt)}; the plant is assumed inside the family "
+            f"({_times(upper, bound)} that) at {where:.3g} {_unit(est.dt)}; the plant is assumed inside the family "
             "there (the loop's own test against those regions, the excitation check, refuses on evidence only, and a "
             "model error slower than the record shows is not seen); a longer record or a larger input amplitude "
             "narrows the regions, and a higher horizon lowers a slow error of P̂ itself")

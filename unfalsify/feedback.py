@@ -43,7 +43,7 @@ import numpy as np
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_flag
+from synthesis.validation import as_signal, check_flag, check_level
 
 from .arx import arx_regressor
 
@@ -194,8 +194,7 @@ def check_feedback(u, y, *, level: float = FEEDBACK_LEVEL, feedthrough: bool = F
     """
     u = as_signal(u, "u")
     y = as_signal(y, "y", n=u.shape[0])
-    if not 0.0 < float(level) < 1.0:
-        raise DataError(f"level must lie in (0, 1), got {level!r}")
+    level = check_level(level, "level", maximum=1.0)  # float(level) had passed '0.1' and raised TypeError on None
     feedthrough = check_flag(feedthrough, "feedthrough")
     n, m = u.shape
     l = y.shape[1]

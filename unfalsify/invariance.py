@@ -67,7 +67,7 @@ import numpy as np
 import scipy.stats
 
 from synthesis.results import result
-from synthesis.validation import DataError, as_signal, check_count
+from synthesis.validation import DataError, as_signal, check_count, check_level
 
 from .arx import arx_regressor
 
@@ -268,8 +268,7 @@ def check_time_invariance(u, y, *, order: int | None = None, segments: int = 2,
     n, m = u.shape
     l = y.shape[1]
     segments = check_count(segments, "segments", 2)
-    if not 0.0 < float(level) < 1.0:
-        raise DataError(f"level must lie in (0, 1), got {level!r}")
+    level = check_level(level, "level", maximum=1.0)  # float(level) had passed '0.1' and raised TypeError on None
     if against is not None:
         if split is not None:
             raise DataError("pass split= (a change inside one record) or against= (a second record), not both")

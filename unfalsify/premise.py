@@ -67,7 +67,7 @@ from synthesis.results import result
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
                                   check_nonnegative, check_sample_time)
 
-from ._common import channel_pair, spectral_radius
+from ._common import channel_pair, check_output_moves, spectral_radius
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here
@@ -234,6 +234,19 @@ def _check_model(model) -> None:
     check_instance(model, control.StateSpace, "model", "the StateSpace of unfalsify.predictor_model(pred, dt)")
 
 
+def _model_dt(model, dt) -> float:
+    """The data's sample time ``dt`` (checked), which must be the model's: a model built with ``dt=True`` leaves its
+    sample time unspecified, and then nothing contradicts ``dt``."""
+    dt = check_sample_time(dt, "dt", allow_true=False)
+    model_dt = getattr(model, "dt", None)
+    if isinstance(model_dt, numbers.Real) and not isinstance(model_dt, bool) and not np.isclose(
+            float(model_dt), dt, rtol=1e-9, atol=0):
+        raise DataError(f"dt = {dt!r} but the model P̂ has sample time {model_dt}: the frequency estimates would be "
+                        f"read at the wrong frequencies; pass dt={model_dt} (the data's), or rebuild P̂ with "
+                        f"unfalsify.predictor_model(pred, {dt})")
+    return dt
+
+
 def output_error_residual(model, u, y, horizon: int) -> np.ndarray:
     """``e = y − P̂u`` for ``k ≥ horizon``, P̂ simulated from the measured past.
 
@@ -396,6 +409,9 @@ def output_error_unfalsify(model, u, y, horizon: int, *, held_out: bool, options
     held_out = check_flag(held_out, "held_out")
     i = check_horizon(horizon)  # int() had passed 3.5 and '3'
     u, y = channel_pair(u, y)
+    # the program below sees the output error y − P̂u, which moves with u even when y does not: a dead sensor's
+    # constant output had given δ = 0 (its error, −P̂u, is a FIR response of u, which the σ fit took for noise)
+    check_output_moves(y, "the output-error record")
     burn = i if opts.burn_in is None else int(opts.burn_in)
     N = u.shape[0]
     n = min(N - i, burn + int(opts.samples))
@@ -649,14 +665,7 @@ def check_premise(model, u, y, horizon: int, delta_subspace: float, *, dt: float
     check_horizon(horizon)  # here: the tests below turn their own DataErrors into reasons
     delta_subspace = check_nonnegative(delta_subspace,
                                        "delta_subspace (δ of (7.5), e.g. subspace_unfalsify(...).delta)")
-    dt = check_sample_time(dt, "dt", allow_true=False)
-    model_dt = getattr(model, "dt", None)
-    # a model built with dt=True leaves its sample time unspecified: nothing to contradict
-    if isinstance(model_dt, numbers.Real) and not isinstance(model_dt, bool) and not np.isclose(
-            float(model_dt), dt, rtol=1e-9, atol=0):
-        raise DataError(f"dt = {dt!r} but the model P̂ has sample time {model_dt}: the frequency estimates would be "
-                        f"read at the wrong frequencies; pass dt={model_dt} (the data's), or rebuild P̂ with "
-                        f"unfalsify.predictor_model(pred, {dt})")
+    dt = _model_dt(model, dt)
     u, y = channel_pair(u, y)
     if validation is not None:
         try:
@@ -825,13 +834,19 @@ def unconfirmed_premise(test: PremiseTest, bound: float) -> str:
     conf = f"{test.frf.confidence:.0%} " if test.frf is not None else ""
     unit = _unit(test.frf.dt) if test.frf is not None else "rad/sample"
     return (f"the data do not confirm the premise ‖P − P̂‖∞ ≤ (1 + margin)·δ = {bound:.4g}: their {conf}confidence "
-            f"regions of P − P̂ reach {upper:.3g} ({upper / bound:.3g} × that) at {test.upper_frequency:.3g} {unit}, "
+            f"regions of P − P̂ reach {upper:.3g} ({_times(upper, bound)} that) at {test.upper_frequency:.3g} "
+            f"{unit}, "
             "and δ of (7.5) bounds P − P̂ over the horizon's steps only, so a slower model error can exceed the ball "
             "unseen; the plant is assumed inside it there (the loop's own test against those regions, the "
             "excitation check, holds at the Welch frequencies; below them it refuses on evidence only, and a model "
             "error slower than the record shows is not seen: a loop with integral action fails on a plant whose DC "
             "gain the record leaves open); a longer record or a larger input amplitude narrows the regions, and a "
             "higher horizon lowers a slow error of P̂ itself")
+
+
+def _times(upper: float, bound: float) -> str:
+    """``upper/bound`` as "3.2 ×" for a reason's text; a zero bound (δ = 0) had raised ZeroDivisionError."""
+    return f"{upper / bound:.3g} ×" if bound > 0 else "infinitely many times"
 
 
 def _shared_fraction(fitted_on, u, y) -> float:
@@ -1370,7 +1385,8 @@ def _line_spectra(model, u, y, horizon: int, dt: float) -> tuple[tuple, tuple | 
     # the public entries (residual_line, hidden_line_gain) had raised IndexError, TypeError or ZeroDivisionError on a
     # scalar record, a fractional horizon or dt = 0
     horizon = check_horizon(horizon)
-    dt = check_sample_time(dt, "dt", allow_true=False)
+    _check_model(model)
+    dt = _model_dt(model, dt)  # a dt other than P̂'s had been taken: the line's frequency came out in wrong units
     u, y = channel_pair(u, y)
     x = u
     if x.shape[0] - horizon < 8 * (LINE_HALF_WIDTH + LINE_GAP):  # too few bins for a local level on each side

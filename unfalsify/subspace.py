@@ -56,8 +56,8 @@ from synthesis.results import result
 from synthesis.validation import InputTypeError, as_signal, check_flag, check_horizon
 
 from ._common import (COND_WARN, Certificate, certify, check_form, check_input_moves, check_noise_floor,
-                      check_noise_resolution, check_predictor, check_sigma, check_solver_options, into_ball,
-                      rms_or_one)
+                      check_noise_resolution, check_output_moves, check_predictor, check_sigma, check_solver_options,
+                      into_ball, rms_or_one)
 from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -249,6 +249,7 @@ class SubspaceProblem:
         m, l = u.shape[1], y.shape[1]
         if m == 1 and l == 1:  # SISO: 1-D signals, as before several channels were accepted
             u, y = u[:, 0].copy(), y[:, 0].copy()
+        check_output_moves(y, "the window")  # a zero output had given δ = NaN with status 'optimal' (cvxpy)
         sigma = check_sigma(sigma)
         A, Uf, Yf = subspace_data(u, y, horizon)
         i, j = Uf.shape[0] // m, Uf.shape[1]

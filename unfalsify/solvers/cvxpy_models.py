@@ -56,6 +56,15 @@ def _conic_solve(problem: cp.Problem, solver: str, solver_options: dict | None, 
             problem.solve(solver=solver, **opts)
     except cp.error.SolverError as exc:
         raise UnfalsificationError(f"{what}: solver {solver} failed ({exc}); try another solver or smaller data") from exc
+    except BaseException as exc:
+        # a Rust solver's crash reaches Python as pyo3's PanicException, a BaseException that `except Exception`
+        # lets through (measured: CLARABEL's equilibration at sigma = 1e20 on data of unit size)
+        if type(exc).__name__ != "PanicException":
+            raise
+        raise UnfalsificationError(
+            f"{what}: solver {solver} crashed ({exc}); check that sigma is in the units of y (a noise level far "
+            "above the data explains every output as noise, δ = 0), or use backend='structured' or another "
+            "solver (e.g. solver='SCS')") from None
     elapsed = time.perf_counter() - t0
     status = problem.status
     if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):

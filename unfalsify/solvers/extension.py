@@ -74,7 +74,8 @@ def minimal_extension(h, n: int) -> np.ndarray:
     h = as_real_array(h, "the Markov parameters h")  # a string or complex h had raised numpy's bare errors
     h3 = h[:, None, None] if siso else h
     if h3.ndim != 3:
-        raise DataError(f"Markov parameters must have shape (k,) or (k, l, m), got {h.shape}")
+        raise DataError(f"Markov parameters must have shape (k,) or (k, l, m), got {h.shape}: pass one channel's as a "
+                        "1-D array (e.g. h.ravel() for a column), several channels' as (k, l, m) (l outputs, m inputs)")
     k, l, m = h3.shape
     if not (isinstance(n, (int, np.integer)) and n >= k):
         raise DataError(f"n must be an integer ≥ len(h) = {k}, got {n!r}")
