@@ -489,3 +489,33 @@ def check_instance(value, types, name: str, what: str):
         shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
         raise InputTypeError(f"{name} must be {what}, got {type(value).__name__} {shown}")
     return value
+
+
+def check_output_moves(y: np.ndarray, where: str) -> None:
+    """Raise DataError when an output channel is constant on every sample of ``where``: it holds no response to the
+    input.  Without this a zero output reached σ = "auto" = 0 and was refused as "sigma must be > 0", and a constant
+    one (fitted exactly by y_k = y_{k−1}) as "noise-free data": neither names the slip, a wrong output column or a
+    sensor that recorded nothing."""
+    y = np.asarray(y, dtype=float).reshape(np.shape(y)[0], -1)
+    flat = [k for k in range(y.shape[1]) if y.shape[0] and np.ptp(y[:, k]) == 0.0]
+    if flat:
+        k = flat[0]
+        name = "the output" if y.shape[1] == 1 else f"output {k}"
+        raise DataError(
+            f"{name} is constant ({y[0, k]:.4g}) on every sample of {where}: it holds no response to the input, so the "
+            "data say nothing of the plant; check that the output column is the sensor's (y=, or --y of python -m "
+            "experiments design) and that the sensor recorded (a disconnected or saturated sensor reads a constant)")
+
+
+def check_inputs_move(u: np.ndarray, where: str) -> None:
+    """Raise DataError when an input channel is zero on every sample of ``where``: the record holds no response to
+    it.  Without this :func:`~synthesis.fit_predictor` went on with a ``PersistenceWarning`` and returned
+    ``L_u ≈ 0``, from which ``hinf_design`` built a controller with no word about the control's effect (the F-test
+    of ``L_u = 0`` has no power then)."""
+    u = np.asarray(u, dtype=float).reshape(np.shape(u)[0], -1)
+    dead = [k for k in range(u.shape[1]) if not np.any(u[:, k])]
+    if dead:
+        name = "the input" if u.shape[1] == 1 else f"input {dead[0]}"
+        raise DataError(
+            f"{name} is zero on every sample of {where}: the data hold no response to it; use a record whose input "
+            "moves (a PRBS, a multisine), or check the input column (u=, or --u of python -m experiments design)")

@@ -156,7 +156,10 @@ def _predictor_parts(pred):
         Lu = np.asarray(pred.Lu, dtype=float)
         i, m, l = int(pred.horizon), int(pred.m), int(pred.l)
     except AttributeError as exc:
-        raise DataError("pred must be a Predictor (attributes Lw, Lu, horizon, m, l); use fit_predictor") from exc
+        # a RecursivePredictor is the most likely thing to be passed here: it holds a Predictor, it is not one
+        recursive = callable(getattr(pred, "predictor", None))
+        hint = ": a RecursivePredictor is not one, pass its rp.predictor()" if recursive else "; use fit_predictor"
+        raise DataError(f"pred must be a Predictor (attributes Lw, Lu, horizon, m, l){hint}") from exc
     if i < 1 or m < 1 or l < 1:
         raise DataError(f"predictor has horizon={i}, m={m}, l={l}; all must be >= 1")
     if Lw.shape != (i * l, i * (m + l)) or Lu.shape != (i * l, i * m):

@@ -20,8 +20,8 @@ from scipy.special import fdtrc
 from .exceptions import PersistenceWarning
 
 from ._lazy import _Deferred, _LazyField
-from ._validation import (DataError, as_real_array, as_signal, check_count, check_horizon, check_nonnegative,
-                          check_sample_time)
+from ._validation import (DataError, as_real_array, as_signal, check_count, check_horizon, check_inputs_move,
+                          check_nonnegative, check_output_moves, check_sample_time)
 from .fingerprint import RecordFingerprint, record_fingerprint
 from .hankel import hankel_gram
 from ._repr import result
@@ -778,7 +778,8 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     ------
     DataError
         On NaN/inf, length mismatch, wrong dimensions, too few samples for the horizon, a bad
-        horizon or a bad ``rcond``; with ``"cholesky"``, a channel whose peak lies outside
+        horizon or a bad ``rcond``; an input channel zero on every sample or a constant output channel (no
+        response in the record); with ``"cholesky"``, a channel whose peak lies outside
         ``[1e-100, 1e100]`` (its Gram matrix would leave floating-point range: rescale, or ``"qr"``).
     ValueError
         On an unknown ``method``.
@@ -809,6 +810,8 @@ def fit_predictor(u, y, horizon: int, *, method: str = "cholesky", rcond: float 
     n, m = u.shape
     l = y.shape[1]
     i = check_horizon(horizon, n)
+    check_inputs_move(u, "the record")
+    check_output_moves(y, "the record")
     n_reg = i * (2 * m + l)
     j = n - 2 * i + 1
     tol = _resolve_rcond(rcond, method, n_reg, j)

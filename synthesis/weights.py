@@ -384,7 +384,9 @@ def as_weight(W, name: str, *, inputs: int | None = None, outputs: int | None = 
         sys = _static(D, dt if dt is not None else True)
     if inputs is not None and sys.ninputs != inputs:
         hint = (f"; for several channels stack SISO weights: synthesis.diagonal_weight({name}, channels={inputs})"
-                if sys.ninputs == 1 else "")
+                if sys.ninputs == 1 else
+                f"; build {name} for the predictor's {inputs} channel(s) (a weight of a record with other channels, or "
+                f"diagonal_weight(..., channels={sys.ninputs}) where channels={inputs} was meant?)")
         raise WeightError(f"{name} has {sys.ninputs} input(s) but must have {inputs} to match the predictor{hint}")
     if outputs is not None and sys.noutputs != outputs:
         raise WeightError(f"{name} has {sys.noutputs} output(s) but must have {outputs} to match the predictor")

@@ -10,7 +10,7 @@ import numpy as np
 
 from synthesis import DataError, Predictor
 from synthesis.results import result
-from synthesis.validation import as_signal, check_instance
+from synthesis.validation import as_signal, check_instance, check_output_moves  # noqa: F401 -- shared checks
 
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
@@ -85,22 +85,6 @@ def check_input_moves(u: np.ndarray, where: str) -> None:
             f"the input is zero on every sample of {where}: the data hold no response to an input, so they say "
             "nothing about the uncertainty Δ; use a record whose input moves (a PRBS or a multisine; a constant "
             "input with its mean subtracted, `--detrend mean`, is zero)")
-
-
-def check_output_moves(y: np.ndarray, where: str) -> None:
-    """Raise DataError when an output channel is constant on every sample of ``where``: it holds no response to the
-    input.  Without this a zero output reached σ = "auto" = 0 and was refused as "sigma must be > 0", and a constant
-    one (fitted exactly by y_k = y_{k−1}) as "noise-free data": neither names the slip, a wrong output column or a
-    sensor that recorded nothing."""
-    y = np.asarray(y, dtype=float).reshape(np.shape(y)[0], -1)
-    flat = [k for k in range(y.shape[1]) if y.shape[0] and np.ptp(y[:, k]) == 0.0]
-    if flat:
-        k = flat[0]
-        name = "the output" if y.shape[1] == 1 else f"output {k}"
-        raise DataError(
-            f"{name} is constant ({y[0, k]:.4g}) on every sample of {where}: it holds no response to the input, so the "
-            "data say nothing of the plant; check that the output column is the sensor's (y=, or --y of python -m "
-            "experiments design) and that the sensor recorded (a disconnected or saturated sensor reads a constant)")
 
 
 def check_noise_floor(form, sigma: float, where: str, fix: str) -> None:

@@ -825,7 +825,9 @@ def robust_design_from_data(
                                                                             predictor, predictor_for)
         i = check_horizon(horizon, np.asarray(u).shape[0] if np.ndim(u) else 0)
         if predictor is not None and int(predictor.horizon) != i:
-            raise DataError(f"predictor has horizon {predictor.horizon}, expected {i}")
+            raise DataError(f"predictor has horizon {predictor.horizon}, but the design's horizon is {i}: fit it at "
+                            f"the design's horizon (synthesis.fit_predictor(u, y, {i})) or pass horizon="
+                            f"{predictor.horizon}")
         _warn_few_columns(predictor)
         unf = unfalsification
         if unf is None:
