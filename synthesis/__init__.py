@@ -147,6 +147,8 @@ Building blocks for the packages on synthesis (``unfalsify``, ``experiments``)
    check_nonnegative      -- a finite number ≥ 0 checked (NaN, a string or a bool is refused)
    check_predictor_dt     -- a design's sample time checked against the predictor's
    check_instance         -- an argument of the expected type, or ``InputTypeError`` naming it
+   check_inputs_move      -- every input channel moves (one of zeros is refused: the record holds no response to it)
+   check_output_moves     -- every output channel moves (a constant one is refused: a wrong column, a dead sensor)
 
 Also in ``synthesis.results`` and ``synthesis.validation``.
 
@@ -256,8 +258,8 @@ from importlib.metadata import version as _version
 from .exceptions import DataError, HorizonChoiceWarning, InputTypeError
 from .results import result
 from .validation import (as_discrete_system, as_real_array, as_signal, check_count, check_flag, check_horizon,
-                         check_instance, check_level, check_nonnegative, check_predictor_dt, check_same_dt,
-                         check_sample_time)
+                         check_inputs_move, check_instance, check_level, check_nonnegative, check_output_moves,
+                         check_predictor_dt, check_same_dt, check_sample_time)
 from .predictor import PersistenceWarning, Predictor, block_hankel, fit_predictor
 from .predictor import default_rcond
 from .hankel import hankel_gram, hankel_order
@@ -392,6 +394,8 @@ __all__ = [
     "check_nonnegative",
     "check_predictor_dt",
     "check_instance",
+    "check_inputs_move",
+    "check_output_moves",
     # identify-then-design baselines and the horizon from data
     "SubspaceModel",
     "subspace_id",

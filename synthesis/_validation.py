@@ -495,7 +495,17 @@ def check_output_moves(y: np.ndarray, where: str) -> None:
     """Raise DataError when an output channel is constant on every sample of ``where``: it holds no response to the
     input.  Without this a zero output reached σ = "auto" = 0 and was refused as "sigma must be > 0", and a constant
     one (fitted exactly by y_k = y_{k−1}) as "noise-free data": neither names the slip, a wrong output column or a
-    sensor that recorded nothing."""
+    sensor that recorded nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_output_moves(np.array([0.1, 0.3, 0.2]), "the record")          # moves: nothing to say
+    >>> check_output_moves(np.column_stack([[0.1, 0.3, 0.2], [2.0, 2.0, 2.0]]), "the record")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: output 1 is constant (2) on every sample of the record: it holds no response ...
+    """
     y = np.asarray(y, dtype=float).reshape(np.shape(y)[0], -1)
     flat = [k for k in range(y.shape[1]) if y.shape[0] and np.ptp(y[:, k]) == 0.0]
     if flat:
@@ -511,11 +521,21 @@ def check_inputs_move(u: np.ndarray, where: str) -> None:
     """Raise DataError when an input channel is zero on every sample of ``where``: the record holds no response to
     it.  Without this :func:`~synthesis.fit_predictor` went on with a ``PersistenceWarning`` and returned
     ``L_u ≈ 0``, from which ``hinf_design`` built a controller with no word about the control's effect (the F-test
-    of ``L_u = 0`` has no power then)."""
+    of ``L_u = 0`` has no power then).  An input at rest for part of the record moves.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_inputs_move(np.array([0.0, 0.0, 1.0, -1.0]), "the record")    # at rest, then moving: accepted
+    >>> check_inputs_move(np.zeros((4, 1)), "the record")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: the input is zero on every sample of the record: the data hold no response to ...
+    """
     u = np.asarray(u, dtype=float).reshape(np.shape(u)[0], -1)
     dead = [k for k in range(u.shape[1]) if not np.any(u[:, k])]
     if dead:
-        name = "the input" if u.shape[1] == 1 else f"input {dead[0]}"
+        name = "the input" if u.shape[1] == 1 else f"input u[:, {dead[0]}]"
         raise DataError(
             f"{name} is zero on every sample of {where}: the data hold no response to it; use a record whose input "
             "moves (a PRBS, a multisine), or check the input column (u=, or --u of python -m experiments design)")

@@ -21,7 +21,7 @@ def test_an_input_of_zeros_is_refused_not_fitted_to_a_zero_lu(fir, method):
     with pytest.raises(sy.DataError, match=r"the input is zero on every sample of the record"):
         sy.fit_predictor(np.zeros(300), y, 4, method=method)
     u2 = np.column_stack([fir[0], np.zeros(300)])
-    with pytest.raises(sy.DataError, match=r"input 1 is zero on every sample of the record"):
+    with pytest.raises(sy.DataError, match=r"input u\[:, 1\] is zero on every sample of the record"):
         sy.fit_predictor(u2, y, 4, method=method)
 
 
