@@ -142,8 +142,9 @@ def as_real_array(x, name: str, *, error=DataError) -> np.ndarray:
     return arr.astype(float, copy=False)
 
 
-def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1) -> int:
-    """Validate the prediction horizon ``i`` (and, given ``n``, that ``j = n - 2i + 1 >= min_columns``).
+def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1, name: str = "horizon") -> int:
+    """Validate the prediction horizon ``i`` (and, given ``n``, that ``j = n - 2i + 1 >= min_columns``); ``name``
+    is what the message calls it (an option's field, e.g. ``"DesignSearch.horizons entry"``).
 
     Examples
     --------
@@ -155,7 +156,7 @@ def check_horizon(horizon, n_samples: int | None = None, *, min_columns: int = 1
     ...
     synthesis.exceptions.DataError: too few samples for horizon i=10: n=15 gives j = n - 2i + 1 = -4 columns, need at least 1; collect at least 20 samples or reduce the horizon
     """
-    i = check_count(horizon, "horizon", 1)
+    i = check_count(horizon, name, 1)
     if n_samples is not None:
         j = n_samples - 2 * i + 1
         if j < min_columns:

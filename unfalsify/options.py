@@ -89,7 +89,7 @@ class DesignSearch:
         for c in self.causal:
             check_flag(c, "each of causal")
         for h in self.horizons:
-            check_horizon(h)
+            check_horizon(h, name="each of horizons (DesignSearch)")
 
 
 def _positive_real(value, name: str, *, above: float = 0.0, allow_equal: bool = False) -> float:
@@ -269,7 +269,7 @@ class CertificateOptions:
         tracking_floors(self.tracking_floor, None)  # their count is the plant's outputs, not known yet
         _check_step_samples(self.step_samples)
         if self.reference_horizon is not None:
-            check_horizon(self.reference_horizon)
+            check_horizon(self.reference_horizon, name="reference_horizon (CertificateOptions)")
         check_flag(self.require_reference, "require_reference")
         check_flag(self.feedthrough, "feedthrough")
         if self.uncertainty not in UNCERTAINTY_FORMS:
