@@ -87,7 +87,10 @@ def as_signal(x, name: str, *, n: int | None = None, width: int | None = None, r
             f"{name} has {arr.shape[0]} samples but {n} were expected (all signals must have the same length)"
         )
     if width is not None and arr.shape[1] != width:
-        raise DataError(f"{name} has {arr.shape[1]} channel(s) but {width} were expected")
+        # a short window given with time along axis 1 reaches here (the record check above is off for windows)
+        turned = (f"; with time along axis 1 (shape {arr.shape}) pass {name}.T"
+                  if arr.shape[0] == width and arr.ndim == 2 else "")
+        raise DataError(f"{name} has {arr.shape[1]} channel(s) but {width} were expected{turned}")
     return arr
 
 

@@ -68,3 +68,14 @@ def test_a_predictor_of_another_horizon_names_both_fixes(fir):
     W2 = sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
     with pytest.raises(sy.DataError, match=r"fit_predictor\(u, y, 3\)\) or pass horizon=5"):
         uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", predictor=pred, dt=1.0)
+
+
+def test_a_past_window_with_time_along_axis_1_is_told_to_transpose(fir):
+    u, y = fir
+    pred = sy.fit_predictor(u, y, 3)
+    with pytest.raises(sy.DataError, match=r"with time along axis 1 \(shape \(1, 3\)\) pass u_past\.T"):
+        pred.past_vector(u[:3][None, :], y[:3, None])
+    assert np.array_equal(pred.past_vector(u[:3, None], y[:3, None]), np.concatenate([u[:3], y[:3]]))
+    with pytest.raises(sy.DataError, match="channel") as info:                   # a real channel mismatch
+        pred.past_vector(np.zeros((5, 2)), y[:5, None])
+    assert ".T" not in str(info.value)
