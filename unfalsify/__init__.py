@@ -280,8 +280,8 @@ from .premise import (
 from .coprime import (CoprimeFactors, CoprimePremise, CoprimeUnfalsification, check_coprime_premise, coprime_distance,
                       coprime_factors, coprime_gap, coprime_unfalsify, error_gap, unconfirmed_coprime_premise)
 from .options import CertificateOptions, DesignOptions, DesignSearch, EstimationOptions
-from .robust import RobustDesignResult, SearchRecord, estimate_delta, robust_design_from_data
-from .search import REFERENCE_COLUMNS, REFERENCE_HORIZON_CAP, additive_weight_fixed_point
+from .robust import RobustDesignResult, estimate_delta, robust_design_from_data
+from .search import REFERENCE_COLUMNS, REFERENCE_HORIZON_CAP, SearchRecord, additive_weight_fixed_point
 from .cost import arx_solve_estimate, solve_estimate
 from .clipping import CLIP_FRACTION, clipped_outputs
 from .feedback import (FEEDBACK_LEVEL, FEEDBACK_NOTED, FEEDBACK_REFUSED, FEEDTHROUGH_STATEMENT, FeedbackTest,

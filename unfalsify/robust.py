@@ -45,7 +45,6 @@ certifies.  With a plant model in hand, :func:`additive_robustness` checks a loo
 from __future__ import annotations
 
 import functools
-import math
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -77,45 +76,15 @@ from .premise import (HIDDEN_LINE_LIMIT, PremiseOptions, PremiseTest, _hidden_li
                       glitch_note, operating_point_note, unconfirmed_premise, untested_premises)
 # the names of this module before the design search moved to search.py (code and tests import them from here)
 from .search import REFERENCE_COLUMNS, REFERENCE_HORIZON_CAP, additive_weight_fixed_point  # noqa: F401
+# SearchRecord: results pickled before the split name it here
+from .search import SearchRecord, _verdict_reason  # noqa: F401
 from .search import (_DesignSpace, _LoopJudge, _channels, _coprime_form, _persistence_reason, _reference_model,
                      _search_designs, _size_reason, _size_source, _untested_reason)
 from .solvers.base import one_blas_thread
 from .subspace import SubspaceResult, _fixed_predictor, subspace_data, subspace_unfalsify
 from synthesis.results import result
 
-__all__ = ["estimate_delta", "SearchRecord", "RobustDesignResult", "robust_design_from_data"]
-
-
-@result
-@dataclass(frozen=True)
-class SearchRecord:
-    """One design tried by the search: its options, level and certificate (or why it could not be built)."""
-
-    horizon: int
-    causal: bool
-    gamma_ratio: float
-    w3_gain: float
-    gamma: float
-    gamma_min: float
-    certificate: LoopCertificate | None
-    error: str = ""
-    reference_certificate: LoopCertificate | None = None
-    premise_reason: str = ""
-    excitation: ExcitationCheck | None = None
-    tracking_reason: str = ""
-
-    @property
-    def certified(self) -> bool:
-        """Certified on P̂ (and on P̂_ref when there is one), with the premise unfalsified by the data."""
-        return bool(self.certificate is not None and not self.reason)
-
-    @property
-    def reason(self) -> str:
-        """Why not certified (``''`` when it is)."""
-        if self.error or self.certificate is None:
-            return self.error
-        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
-                               self.tracking_reason)
+__all__ = ["estimate_delta", "RobustDesignResult", "robust_design_from_data"]
 
 
 @result
@@ -339,22 +308,6 @@ def _with_form(reason: str, additive_reason: str) -> str:
         return reason
     return (f"in coprime-factor form: {reason}; the additive form was not used: premise not supported by the data: "
             f"{additive_reason}")
-
-
-def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
-                    excitation: ExcitationCheck | None = None, tracking_reason: str = "") -> str:
-    """Every reason the loop is not certified, joined (``''`` when it is)."""
-    reasons = [] if cert.certified else [cert.reason]
-    if ref is not None and not ref.certified:
-        reasons.append(ref.reason if ref.norm is None and math.isnan(ref.spectral_radius)
-                       else f"on the reference model P̂_ref: {ref.reason}")
-    if premise_reason:
-        reasons.append(f"premise not supported by the data: {premise_reason}")
-    if excitation is not None and not excitation.ok:
-        reasons.append(excitation.reason)
-    if tracking_reason:
-        reasons.append(tracking_reason)
-    return "; ".join(reasons)
 
 
 def _window_residual_rms(u, y, i: int, predictor) -> tuple[float, int, int, float]:
@@ -708,7 +661,7 @@ def robust_design_from_data(
                                                clipped_outputs(record[1]))
                                    if r)
         judge = _LoopJudge(model, ref_model, ref_note, prem, premise_reason, delta, certificate, ball,
-                           line_record=(*record, i), record_type=SearchRecord)
+                           line_record=(*record, i))
         if premise_reason or judge.missing is not None:
             search = None  # the data falsify (or cannot test) the premise, or no reference: no design can fix that
         chosen, c, rec, records, designs = _search_designs(space, judge, search, i)

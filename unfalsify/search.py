@@ -20,6 +20,7 @@ import functools
 import itertools
 import math
 import warnings
+from dataclasses import dataclass
 
 import control
 import numpy as np
@@ -27,6 +28,7 @@ from scipy.optimize import brentq
 
 import synthesis
 from synthesis import Additive, hinf_norm
+from synthesis.results import result
 from synthesis.validation import (DataError, check_count, check_flag, check_instance, check_level,
                                   check_nonnegative)
 
@@ -43,7 +45,55 @@ from .premise import (HIDDEN_LINE_LIMIT, LINE_LOOP_GAIN, PremiseOptions, Premise
 from .subspace import SubspaceResult
 from .tracking import _coprime_data_gain, _coprime_tracking_reason, _steady_state_reason
 
-__all__ = ["additive_weight_fixed_point", "REFERENCE_COLUMNS", "REFERENCE_HORIZON_CAP"]
+__all__ = ["SearchRecord", "additive_weight_fixed_point", "REFERENCE_COLUMNS", "REFERENCE_HORIZON_CAP"]
+
+
+@result
+@dataclass(frozen=True)
+class SearchRecord:
+    """One design tried by the search: its options, level and certificate (or why it could not be built)."""
+
+    horizon: int
+    causal: bool
+    gamma_ratio: float
+    w3_gain: float
+    gamma: float
+    gamma_min: float
+    certificate: LoopCertificate | None
+    error: str = ""
+    reference_certificate: LoopCertificate | None = None
+    premise_reason: str = ""
+    excitation: ExcitationCheck | None = None
+    tracking_reason: str = ""
+
+    @property
+    def certified(self) -> bool:
+        """Certified on P̂ (and on P̂_ref when there is one), with the premise unfalsified by the data."""
+        return bool(self.certificate is not None and not self.reason)
+
+    @property
+    def reason(self) -> str:
+        """Why not certified (``''`` when it is)."""
+        if self.error or self.certificate is None:
+            return self.error
+        return _verdict_reason(self.certificate, self.reference_certificate, self.premise_reason, self.excitation,
+                               self.tracking_reason)
+
+
+def _verdict_reason(cert: LoopCertificate, ref: LoopCertificate | None, premise_reason: str = "",
+                    excitation: ExcitationCheck | None = None, tracking_reason: str = "") -> str:
+    """Every reason the loop is not certified, joined (``''`` when it is)."""
+    reasons = [] if cert.certified else [cert.reason]
+    if ref is not None and not ref.certified:
+        reasons.append(ref.reason if ref.norm is None and math.isnan(ref.spectral_radius)
+                       else f"on the reference model P̂_ref: {ref.reason}")
+    if premise_reason:
+        reasons.append(f"premise not supported by the data: {premise_reason}")
+    if excitation is not None and not excitation.ok:
+        reasons.append(excitation.reason)
+    if tracking_reason:
+        reasons.append(tracking_reason)
+    return "; ".join(reasons)
 
 
 def _untested_reason(assumed: tuple) -> str:
@@ -310,16 +360,11 @@ def _reference_at(space: _DesignSpace, ref_h: int, i: int, dt: float):
 
 
 class _LoopJudge:
-    """Every check a design's loop must pass: certificates on P̂ and P̂_ref, the premise, excitation, tracking.
-
-    ``record_type``: the class of its verdicts, :class:`unfalsify.SearchRecord` (a result of the pipeline, in
-    :mod:`unfalsify.robust`, which pickles name: passed in, as this module does not import the pipeline).
-    """
+    """Every check a design's loop must pass: certificates on P̂ and P̂_ref, the premise, excitation, tracking."""
 
     def __init__(self, model, ref_model, ref_note, prem, premise_reason, delta, options: CertificateOptions,
-                 ball: "_CoprimeBall | None" = None, line_record=None, *, record_type):
+                 ball: "_CoprimeBall | None" = None, line_record=None):
         self.model, self.ref_model, self.prem, self.ball = model, ref_model, prem, ball
-        self.record_type = record_type
         self.line_record = line_record  # (u, y, i): the record whose output error is searched for narrow lines
         self.premise_reason, self.delta = premise_reason, delta
         self.refuse_hidden = options.untested == "refuse"  # a hidden line the loop could not tolerate refuses it too
@@ -347,7 +392,7 @@ class _LoopJudge:
         if exc is not None and exc.ok:
             exc = self._line_check(exc, d.controller)
         track = self.tracking(d.controller, self.delta) if cert.stable else ""
-        return _record(self.record_type, h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+        return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
 
     def tracking(self, controller, size: float) -> str:
         """Why the loop does not track across the ball of ``size`` (δ, or ε in coprime-factor form) and at the data's
@@ -432,7 +477,7 @@ class _LoopJudge:
                 ref = (certify_loop(self.ref_model, d.controller, eps_ref, factors=b.ref_factors,
                                     model_name="P̂_ref", **self.cert_opts)
                        if not why else dataclasses.replace(ref, certified=False, reason=why))
-        return _record(self.record_type, h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
+        return _record(h, cz, ratio, c, d, cert, ref, self.premise_reason, exc, track)
 
 
 class _CoprimeBall:
@@ -496,8 +541,8 @@ def _search_designs(space: _DesignSpace, judge: _LoopJudge, search: DesignSearch
             d, c = space.build(h, cz, ratio, factor)
             rec = judge.record(h, cz, ratio, c, d)
         except (ValueError, np.linalg.LinAlgError) as exc:  # DataError / InfeasibleGammaError / no predictor
-            records.append(judge.record_type(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
-                                             error=f"{type(exc).__name__}: {exc}"))
+            records.append(SearchRecord(h, cz, ratio, float("nan"), float("nan"), float("nan"), None,
+                                        error=f"{type(exc).__name__}: {exc}"))
             designs.append(None)
             continue
         records.append(rec)
@@ -654,11 +699,12 @@ def _size_source(prem: PremiseTest, unf: SubspaceResult, model, i: int, span, fi
             f"{relative}, above (7.5)'s δ = {prem.delta_subspace:.3g} on {window}", refit)
 
 
-def _record(record_type, h, cz, ratio, c, design, cert, ref_cert, premise_reason="", excitation=None, tracking=""):
-    return record_type(horizon=int(h), causal=bool(cz), gamma_ratio=float(ratio), w3_gain=float(c),
-                       gamma=float(design.gamma), gamma_min=float(design.gamma_min), certificate=cert,
-                       reference_certificate=ref_cert, premise_reason=premise_reason, excitation=excitation,
-                       tracking_reason=tracking)
+def _record(h, cz, ratio, c, design, cert, ref_cert, premise_reason="", excitation=None,
+            tracking="") -> SearchRecord:
+    return SearchRecord(horizon=int(h), causal=bool(cz), gamma_ratio=float(ratio), w3_gain=float(c),
+                        gamma=float(design.gamma), gamma_min=float(design.gamma_min), certificate=cert,
+                        reference_certificate=ref_cert, premise_reason=premise_reason, excitation=excitation,
+                        tracking_reason=tracking)
 
 
 def _predictor_at(h: int, u, y, predictor, predictor_for):
