@@ -14,6 +14,11 @@ def fir():
     return u, y
 
 
+@pytest.fixture
+def weights():
+    return sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0), sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+
+
 @pytest.mark.parametrize("method", ["cholesky", "qr", "lstsq"])
 def test_an_input_of_zeros_is_refused_not_fitted_to_a_zero_lu(fir, method):
     _, y = fir
@@ -41,31 +46,28 @@ def test_a_moving_record_is_fitted_as_before(fir):
     sy.fit_predictor(u1, y, 4)
 
 
-def test_a_recursive_predictor_passed_for_a_predictor_names_its_predictor_method(fir):
+def test_a_recursive_predictor_passed_for_a_predictor_names_its_predictor_method(fir, weights):
     u, y = fir
     rp = sy.RecursivePredictor(4, 1, 1)
-    W1 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
-    W2 = sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    W1, W2 = weights
     with pytest.raises(sy.DataError, match=r"pass its rp\.predictor\(\)"):
         sy.hinf_design(rp, W1, W2, dt=1.0)
     with pytest.raises(sy.DataError, match="use fit_predictor"):
         sy.hinf_design(object(), W1, W2, dt=1.0)
 
 
-def test_a_weight_for_other_channels_says_what_to_build(fir):
+def test_a_weight_for_other_channels_says_what_to_build(fir, weights):
     u, y = fir
     pred = sy.fit_predictor(u, y, 4)
-    W1 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
-    W2 = sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    W1, W2 = weights
     with pytest.raises(sy.WeightError, match=r"build W1 for the predictor's 1 channel"):
         sy.hinf_design(pred, sy.diagonal_weight(W1, channels=2), W2, dt=1.0)
 
 
-def test_a_predictor_of_another_horizon_names_both_fixes(fir):
+def test_a_predictor_of_another_horizon_names_both_fixes(fir, weights):
     u, y = fir
     pred = sy.fit_predictor(u, y, 5)
-    W1 = sy.makeweight(10.0, (0.3, 1.0), 0.5, 1.0)
-    W2 = sy.makeweight(0.1, (2.0, 0.3), 1.0, 1.0)
+    W1, W2 = weights
     with pytest.raises(sy.DataError, match=r"fit_predictor\(u, y, 3\)\) or pass horizon=5"):
         uf.robust_design_from_data(u[:45], y[:45], 3, W1, W2, "auto", predictor=pred, dt=1.0)
 
