@@ -521,11 +521,15 @@ def check_output_moves(y: np.ndarray, where: str) -> None:
             "experiments design) and that the sensor recorded (a disconnected or saturated sensor reads a constant)")
 
 
-def check_inputs_move(u: np.ndarray, where: str) -> None:
+def check_inputs_move(u: np.ndarray, where: str, *, each_channel: bool = True) -> None:
     """Raise DataError when an input channel is zero on every sample of ``where``: the record holds no response to
     it.  Without this :func:`~synthesis.fit_predictor` went on with a ``PersistenceWarning`` and returned
     ``L_u ≈ 0``, from which ``hinf_design`` built a controller with no word about the control's effect (the F-test
     of ``L_u = 0`` has no power then).  An input at rest for part of the record moves.
+
+    ``each_channel=False`` refuses only an input that is zero everywhere (``u`` of any shape, e.g. the block Hankel
+    ``U_f`` of a window): the unfalsification programs, where no output is then a response, δ is undefined, and
+    their noise-floor refusal would blame σ and the window instead.
 
     Examples
     --------
@@ -535,11 +539,25 @@ def check_inputs_move(u: np.ndarray, where: str) -> None:
     Traceback (most recent call last):
     ...
     synthesis.exceptions.DataError: the input is zero on every sample of the record: the data hold no response to ...
+
+    One channel of zeros among moving ones: refused channel by channel, accepted as a whole:
+
+    >>> two = np.column_stack([[0.0, 1.0, -1.0, 1.0], np.zeros(4)])
+    >>> check_inputs_move(two, "the record")
+    Traceback (most recent call last):
+    ...
+    synthesis.exceptions.DataError: input u[:, 1] is zero on every sample of the record: the data hold no response ...
+    >>> check_inputs_move(two, "the record", each_channel=False)
     """
-    u = np.asarray(u, dtype=float).reshape(np.shape(u)[0], -1)
-    dead = [k for k in range(u.shape[1]) if not np.any(u[:, k])]
+    u = np.asarray(u, dtype=float)
+    if each_channel:
+        u = u.reshape(np.shape(u)[0], -1)
+        dead = [k for k in range(u.shape[1]) if not np.any(u[:, k])]
+    else:
+        dead = [] if np.any(u) else [0]
     if dead:
-        name = "the input" if u.shape[1] == 1 else f"input u[:, {dead[0]}]"
+        name = f"input u[:, {dead[0]}]" if each_channel and u.shape[1] > 1 else "the input"
         raise DataError(
             f"{name} is zero on every sample of {where}: the data hold no response to it; use a record whose input "
-            "moves (a PRBS, a multisine), or check the input column (u=, or --u of python -m experiments design)")
+            "moves (a PRBS or a multisine; a constant input with its mean subtracted, `--detrend mean`, is zero), or "
+            "check the input column (u=, or --u of python -m experiments design)")

@@ -10,7 +10,7 @@ import numpy as np
 
 from synthesis import DataError, Predictor
 from synthesis.results import result
-from synthesis.validation import as_signal, check_instance, check_output_moves  # noqa: F401 -- shared checks
+from synthesis.validation import as_signal, check_instance
 
 from .exceptions import IllConditionedWarning, NotAtRestWarning, SolverWarning, UnfalsificationError
 from .solvers import BACKENDS, SolverOutput
@@ -75,16 +75,6 @@ def check_noise_resolution(sigma: float, n_noise: int, data: np.ndarray, name: s
             f"{floor:.2g}; pass sigma > {floor / np.sqrt(n_noise):.2g} (a σ from the least-squares residual of data "
             "the model fits exactly is rounding, not noise)"
         )
-
-
-def check_input_moves(u: np.ndarray, where: str) -> None:
-    """Raise DataError when the input is zero on every sample: no output is a response then, δ is undefined, and
-    the noise-floor refusal (:func:`check_noise_floor`) would blame σ and the window instead."""
-    if not np.any(u != 0.0):
-        raise DataError(
-            f"the input is zero on every sample of {where}: the data hold no response to an input, so they say "
-            "nothing about the uncertainty Δ; use a record whose input moves (a PRBS or a multisine; a constant "
-            "input with its mean subtracted, `--detrend mean`, is zero)")
 
 
 def check_noise_floor(form, sigma: float, where: str, fix: str) -> None:

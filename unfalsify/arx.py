@@ -72,12 +72,11 @@ import cvxpy as cp
 import numpy as np
 
 from synthesis import DataError
-from synthesis.validation import check_count, check_flag
+from synthesis.validation import check_count, check_flag, check_inputs_move, check_output_moves
 from synthesis.results import result
 
-from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_input_moves,
-                      check_noise_floor, check_noise_resolution, check_output_moves, check_sigma, check_solver_options,
-                      into_ball, rms_or_one)
+from ._common import (COND_WARN, Certificate, certify, channel_pair, check_form, check_noise_floor,
+                      check_noise_resolution, check_sigma, check_solver_options, into_ball, rms_or_one)
 from .cost import _guard_arx
 from .exceptions import IllConditionedWarning, NotAtRestWarning, UnknownSolverError
 from .solvers import CHANNELS, resolve, run
@@ -354,7 +353,7 @@ class ArxProblem:
         problem = cls(u=u, y=y, na=na, nb=nb, sigma=sigma, scale=(su, sy), cond_Tu=cond, free_rows=free_rows,
                       n_inputs=m, n_outputs=l)
         if not np.any(u[0] != 0.0):
-            check_input_moves(u, "the record")
+            check_inputs_move(u, "the record", each_channel=False)
             form = problem.column_form(scaled=False)
             check_noise_floor(form, sigma, f"the input is zero at t = 0 … {form.leading_zeros()[0] - 1}",
                               "start the record at the first non-zero input sample if the system was at rest before it")

@@ -50,10 +50,10 @@ import control
 import numpy as np
 
 from synthesis.results import result
-from synthesis.validation import (DataError, as_discrete_system, check_count, check_flag, check_instance, check_level,
-                                  check_nonnegative)
+from synthesis.validation import (DataError, as_discrete_system, check_count, check_flag, check_inputs_move,
+                                  check_instance, check_level, check_nonnegative, check_output_moves)
 
-from ._common import channel_pair, check_input_moves, check_output_moves, check_sigma
+from ._common import channel_pair, check_sigma
 from .arx import ArxResult, arx_unfalsify
 from .factors import CoprimeFactors, _factors, coprime_factors
 from .frequency_response import (FrequencyResponseEstimate, LowBandEstimate, _bands, _check_estimate_dt, _inverse_root,
@@ -313,7 +313,7 @@ def coprime_unfalsify(factors: CoprimeFactors, u, y, *, held_out: bool, sigma=No
         sigma = check_sigma(sigma)  # a string had reached float() below, and 0 or a negative σ the solver
     u, y = channel_pair(u, y)
     # a zero input or a dead sensor's constant output had given an ε, as the output-error test refuses them
-    check_input_moves(u, "the record")
+    check_inputs_move(u, "the record", each_channel=False)
     check_output_moves(y, "the record")
     i = factors.horizon
     burn = i if opts.burn_in is None else int(opts.burn_in)

@@ -65,9 +65,9 @@ import scipy.stats
 from synthesis.fingerprint import RecordFingerprint
 from synthesis.results import result
 from synthesis.validation import (DataError, as_signal, check_count, check_flag, check_horizon, check_instance,
-                                  check_nonnegative, check_sample_time)
+                                  check_nonnegative, check_output_moves, check_sample_time)
 
-from ._common import channel_pair, check_output_moves, spectral_radius
+from ._common import channel_pair, spectral_radius
 from .arx import ArxResult, arx_unfalsify
 from .certify import additive_channel, coprime_channel
 from .excitation import ExcitationCheck  # noqa: F401 -- results pickled before the split name it here

@@ -55,11 +55,10 @@ import numpy as np
 import synthesis
 from synthesis import HinfDesign, record_fingerprint
 from synthesis.fingerprint import BLOCK as FINGERPRINT_BLOCK
-from synthesis.validation import (DataError, as_signal, check_horizon, check_instance, check_predictor_dt,
-                                  check_sample_time)
+from synthesis.validation import (DataError, as_signal, check_horizon, check_instance, check_output_moves,
+                                  check_predictor_dt, check_sample_time)
 
-from ._common import (NOISE_RESOLUTION, channel_pair, check_output_moves, check_predictor, check_sigma,
-                      samples_at_rest)
+from ._common import NOISE_RESOLUTION, channel_pair, check_predictor, check_sigma, samples_at_rest
 from .exceptions import (FewDataWarning, NotCertifiedError, NotCertifiedWarning, SolverWarning, UnfalsificationError,
                          UntestedPremiseWarning)
 from .certify import AdditiveRobustness  # noqa: F401 -- results pickled before it moved to certify name it here

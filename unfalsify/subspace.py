@@ -53,11 +53,11 @@ import numpy as np
 
 from synthesis import DataError, Predictor, block_hankel
 from synthesis.results import result
-from synthesis.validation import InputTypeError, as_signal, check_flag, check_horizon
+from synthesis.validation import (InputTypeError, as_signal, check_flag, check_horizon, check_inputs_move,
+                                  check_output_moves)
 
-from ._common import (COND_WARN, Certificate, certify, check_form, check_input_moves, check_noise_floor,
-                      check_noise_resolution, check_output_moves, check_predictor, check_sigma, check_solver_options,
-                      into_ball, rms_or_one)
+from ._common import (COND_WARN, Certificate, certify, check_form, check_noise_floor, check_noise_resolution,
+                      check_predictor, check_sigma, check_solver_options, into_ball, rms_or_one)
 from .cost import _guard_subspace
 from .exceptions import FewDataWarning, IllConditionedWarning, UnknownSolverError
 from .solvers import check_workers, resolve, run
@@ -271,7 +271,8 @@ class SubspaceProblem:
                       A=A, Uf=Uf, Yf=Yf, n_inputs=m, n_outputs=l)
         zero_cols = problem.zero_start_columns
         if zero_cols.size == j:
-            check_input_moves(Uf, f"the window's future inputs U_f (samples {i} … {i + j + i - 2})")
+            check_inputs_move(Uf, f"the window's future inputs U_f (samples {i} … {i + j + i - 2})",
+                              each_channel=False)
         if zero_cols.size:
             where = ", ".join(f"u[{i + c}]" for c in zero_cols[:5]) + (", …" if zero_cols.size > 5 else "")
             check_noise_floor(
